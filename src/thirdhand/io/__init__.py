@@ -1,0 +1,115 @@
+"""Reading and writing recordings: every format behind one ``load`` / ``save``.
+
+Each format lives in its own module exposing
+
+- ``sniff(path) -> bool``: does this path look like the format (cheap: name, a few bytes)?
+- ``read(path, **options) -> Demonstration``
+- ``write(demo, path, **options) -> None`` for the writable formats.
+
+``load`` tries them in :data:`FORMATS` order; ``save`` picks by extension or name.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.errors import FormatError
+
+#: Format name -> module under ``thirdhand.io``, in detection order.
+FORMATS: dict[str, str] = {
+    "native": "native",
+    "motive": "motive",
+    "c3d": "c3d",
+    "rosbag": "rosbag",
+    "mlr": "mlr",
+    "articulation": "articulation",
+}
+
+#: Extension -> format, for writing.
+WRITE_EXTENSIONS: dict[str, str] = {
+    ".parquet": "native",
+    ".csv": "motive",
+    ".c3d": "c3d",
+    ".bag": "rosbag",
+    ".mcap": "rosbag",
+    ".db3": "rosbag",
+    ".log": "articulation",
+    ".txt": "articulation",
+}
+
+
+def format_module(name: str) -> ModuleType:
+    """The module implementing format ``name``."""
+    if name not in FORMATS:
+        raise FormatError(name, f"unknown format; known formats are {', '.join(FORMATS)}")
+    return importlib.import_module(f"thirdhand.io.{FORMATS[name]}")
+
+
+def detect(path: str | os.PathLike[str]) -> str:
+    """Name of the format of ``path``.
+
+    Raises
+    ------
+    FormatError
+        If the path does not exist or no reader recognises it.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise FormatError(p, "no such file or directory")
+    for name in FORMATS:
+        if format_module(name).sniff(p):
+            return name
+    raise FormatError(
+        p, f"unrecognised recording format; readable formats are {', '.join(FORMATS)}"
+    )
+
+
+def load(
+    path: str | os.PathLike[str], *, format: str | None = None, **options: Any
+) -> Demonstration:
+    """Read a recording of any supported format into a :class:`Demonstration`.
+
+    Parameters
+    ----------
+    path : path-like
+        A file (``.parquet``, Motive ``.csv``, ``.c3d``, ROS 1 ``.bag``, articulation
+        ``.txt``/``.log``) or a folder (ROS 2 bag, 3rdHand ``poses.dat`` folder).
+    format : str, optional
+        Skip detection and use this format.
+    **options
+        Passed to the format's reader.
+    """
+    name = format or detect(path)
+    demo: Demonstration = format_module(name).read(Path(path), **options)
+    return demo
+
+
+def save(
+    demo: Demonstration,
+    path: str | os.PathLike[str],
+    *,
+    format: str | None = None,
+    **options: Any,
+) -> None:
+    """Write a demonstration; the format comes from ``format`` or the extension.
+
+    A folder path without extension writes the 3rdHand ``poses.dat`` format.
+    """
+    p = Path(path)
+    name = format or WRITE_EXTENSIONS.get(p.suffix.lower(), "mlr" if not p.suffix else "")
+    if not name:
+        raise FormatError(
+            p, f"cannot tell the format from the extension {p.suffix!r}; pass format="
+        )
+    module = format_module(name)
+    if not hasattr(module, "write"):
+        raise FormatError(p, f"format {name} is read-only")
+    module.write(demo, p, **options)
+
+
+__all__ = ["FORMATS", "detect", "format_module", "load", "save"]
