@@ -613,10 +613,6 @@ def _interpolate_track(
 
 __all__ = [
     "BODY_KINDS",
-    "body_info_from_dict",
-    "body_info_to_dict",
-    "labels_from_dict",
-    "labels_to_dict",
     "CONSTRAINT_TYPES",
     "DOF_NAMES",
     "BodyInfo",
@@ -626,6 +622,10 @@ __all__ = [
     "InteractionInterval",
     "Labels",
     "PlanStep",
+    "body_info_from_dict",
+    "body_info_to_dict",
+    "labels_from_dict",
+    "labels_to_dict",
 ]
 
 
