@@ -56,6 +56,9 @@ class BodyInfo:
         such as ``"p1/right"``); fingers sharing it are aggregated together.
     person : str or None
         Who the body belongs to, for scenes with several people.
+    oriented : bool
+        False for a position-only track (a single marker, a position-only log):
+        its quaternions are the identity wherever valid and carry no information.
     """
 
     name: str
@@ -63,6 +66,7 @@ class BodyInfo:
     hand: HandSide | None = None
     hand_body: str | None = None
     person: str | None = None
+    oriented: bool = True
 
     def __post_init__(self) -> None:
         if not self.name:
@@ -547,6 +551,9 @@ def _check_track(
         raise DemonstrationError(
             f"body {name!r}: quaternions must have shape ({n}, 4), got {q.shape}"
         )
+    if not info.oriented:
+        # Position-only track: the orientation is the identity by definition.
+        q = np.where(np.all(np.isfinite(p), axis=1)[:, None], se3.quat_identity((n,)), np.nan)
     finite = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
     if valid is None:
         v = finite
@@ -631,8 +638,12 @@ __all__ = [
 
 # ------------------------------------------------------------- serialisation
 def body_info_to_dict(info: BodyInfo) -> dict[str, Any]:
-    """JSON-able dict of a body's metadata (None fields omitted)."""
-    return {k: v for k, v in dataclasses.asdict(info).items() if v is not None}
+    """JSON-able dict of a body's metadata (fields at their default omitted)."""
+    return {
+        k: v
+        for k, v in dataclasses.asdict(info).items()
+        if v is not None and not (k == "oriented" and v)
+    }
 
 
 def body_info_from_dict(d: Mapping[str, Any]) -> BodyInfo:
