@@ -101,9 +101,13 @@ def quat_rotate(q: ArrayLike, v: ArrayLike) -> FloatArray:
 
 
 def quat_angle(q1: ArrayLike, q2: ArrayLike) -> FloatArray:
-    """Rotation angle between two orientations, radians in [0, π], shape (...)."""
-    d = np.abs(np.sum(np.asarray(q1, dtype=np.float64) * np.asarray(q2, dtype=np.float64), -1))
-    return 2.0 * np.arccos(np.clip(d, 0.0, 1.0))
+    """Rotation angle between two orientations, radians in [0, π], shape (...).
+
+    Computed as ``2 atan2(|v|, |w|)`` of ``q1⁻¹ ⊗ q2``, accurate near 0 and near π
+    (``arccos`` of a dot product loses half the digits near 0).
+    """
+    d = quat_multiply(quat_conjugate(q1), q2)
+    return 2.0 * np.arctan2(np.linalg.norm(d[..., :3], axis=-1), np.abs(d[..., 3]))
 
 
 def quat_make_continuous(q: ArrayLike, valid: ArrayLike | None = None) -> FloatArray:

@@ -1,0 +1,151 @@
+"""Pose helpers against scipy's Rotation, with property tests near the singular cases."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from thirdhand import se3
+from thirdhand.errors import ThirdhandError
+
+unit = st.floats(-1.0, 1.0, allow_nan=False)
+small = st.floats(-1e-6, 1e-6, allow_nan=False)
+
+
+@st.composite
+def near_identity(draw: st.DrawFn) -> np.ndarray:
+    """Rotations within a micro-radian of the identity."""
+    v = np.array([draw(small), draw(small), draw(small)])
+    return Rotation.from_rotvec(v).as_quat()
+
+
+@st.composite
+def near_half_turn(draw: st.DrawFn) -> np.ndarray:
+    """Rotations within a micro-radian of a 180° turn about a random axis."""
+    axis = np.array([draw(unit), draw(unit), draw(unit)])
+    if np.linalg.norm(axis) < 1e-3:
+        axis = np.array([1.0, 0.0, 0.0])
+    axis /= np.linalg.norm(axis)
+    angle = np.pi + draw(small)
+    return Rotation.from_rotvec(axis * angle).as_quat()
+
+
+@st.composite
+def any_quat(draw: st.DrawFn) -> np.ndarray:
+    q = np.array([draw(unit) for _ in range(4)])
+    if np.linalg.norm(q) < 1e-3:
+        q = np.array([0.0, 0.0, 0.0, 1.0])
+    return q / np.linalg.norm(q)
+
+
+special = st.one_of(near_identity(), near_half_turn(), any_quat())
+
+
+@settings(max_examples=200, deadline=None)
+@given(special, special)
+def test_multiply_matches_scipy(q1: np.ndarray, q2: np.ndarray) -> None:
+    ref = (Rotation.from_quat(q1) * Rotation.from_quat(q2)).as_matrix()
+    got = se3.matrix_from_quat(se3.quat_multiply(q1, q2))
+    np.testing.assert_allclose(got, ref, atol=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(special, st.lists(unit, min_size=3, max_size=3))
+def test_rotate_matches_scipy(q: np.ndarray, v: list[float]) -> None:
+    np.testing.assert_allclose(se3.quat_rotate(q, v), Rotation.from_quat(q).apply(v), atol=1e-12)
+
+
+@settings(max_examples=200, deadline=None)
+@given(special)
+def test_matrix_round_trip(q: np.ndarray) -> None:
+    back = se3.quat_from_matrix(se3.matrix_from_quat(q))
+    assert se3.quat_angle(back, q) < 1e-7
+
+
+@settings(max_examples=200, deadline=None)
+@given(special, special, st.lists(unit, min_size=3, max_size=3))
+def test_relative_pose_inverts_compose(qa: np.ndarray, qb: np.ndarray, p: list[float]) -> None:
+    pa = np.asarray(p)
+    pb = pa[::-1] * 0.5
+    p_ab, q_ab = se3.relative_pose(pa, qa, pb, qb)
+    p_back, q_back = se3.pose_compose(pa, qa, p_ab, q_ab)
+    np.testing.assert_allclose(p_back, pb, atol=1e-12)
+    assert se3.quat_angle(q_back, qb) < 1e-7
+    p_inv, q_inv = se3.pose_invert(p_ab, q_ab)
+    p_id, q_id = se3.pose_compose(p_ab, q_ab, p_inv, q_inv)
+    np.testing.assert_allclose(p_id, 0.0, atol=1e-12)
+    assert se3.quat_angle(q_id, [0, 0, 0, 1]) < 1e-7
+
+
+@settings(max_examples=100, deadline=None)
+@given(special, special, st.floats(0.0, 1.0))
+def test_slerp_matches_scipy(q0: np.ndarray, q1: np.ndarray, w: float) -> None:
+    from scipy.spatial.transform import Slerp
+
+    ref = Slerp([0.0, 1.0], Rotation.from_quat([q0, q1]))([w]).as_quat()[0]
+    got = se3.quat_slerp(q0, q1, w)
+    # scipy takes the short path too; both are the same rotation up to sign.
+    assert se3.quat_angle(got, ref) < 1e-6
+    assert abs(np.linalg.norm(got) - 1.0) < 1e-12
+
+
+def test_slerp_endpoints_exact(rng: np.random.Generator) -> None:
+    q0, q1 = se3.random_quat(rng, 50), se3.random_quat(rng, 50)
+    assert np.all(se3.quat_angle(se3.quat_slerp(q0, q1, np.zeros(50)), q0) < 1e-7)
+    assert np.all(se3.quat_angle(se3.quat_slerp(q0, q1, np.ones(50)), q1) < 1e-7)
+
+
+def test_make_continuous_removes_flips(rng: np.random.Generator) -> None:
+    base = Rotation.from_rotvec(np.linspace(0, 3, 200)[:, None] * [0, 0, 1]).as_quat()
+    flipped = base * rng.choice([-1.0, 1.0], size=(200, 1))
+    fixed = se3.quat_make_continuous(flipped)
+    assert np.all(np.sum(fixed[1:] * fixed[:-1], axis=1) > 0)
+    assert np.allclose(np.abs(np.sum(fixed * base, axis=1)), 1.0)
+
+
+def test_make_continuous_skips_invalid_frames() -> None:
+    q = np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))
+    q[2] = np.nan
+    q[3:] *= -1
+    valid = np.array([True, True, False, True, True])
+    fixed = se3.quat_make_continuous(q, valid)
+    assert np.all(fixed[[0, 1, 3, 4], 3] == 1.0)
+    assert np.all(np.isnan(fixed[2]))
+
+
+def test_check_quat_errors() -> None:
+    with pytest.raises(ThirdhandError, match="zero norm"):
+        se3.check_quat([0, 0, 0, 0])
+    with pytest.raises(ThirdhandError, match="shape"):
+        se3.check_quat([0, 0, 1])
+    with pytest.raises(ThirdhandError, match="unit norm"):
+        se3.check_quat([0, 0, 0, 2], normalize=False)
+    np.testing.assert_allclose(se3.check_quat([0, 0, 0, 2]), [0, 0, 0, 1])
+
+
+def test_kabsch_exact_recovery_with_missing_markers(rng: np.random.Generator) -> None:
+    ref = rng.normal(scale=0.05, size=(5, 3))
+    n = 40
+    q = se3.random_quat(rng, n)
+    p = rng.normal(size=(n, 3))
+    obs = se3.quat_rotate(q[:, None], ref[None]) + p[:, None]
+    obs[::3, 1] = np.nan
+    obs[::4, 4] = np.nan
+    obs[7, :3] = np.nan  # only two markers left: not enough
+    p_fit, q_fit, rms = se3.kabsch(ref, obs)
+    ok = np.ones(n, bool)
+    ok[7] = False
+    np.testing.assert_allclose(p_fit[ok], p[ok], atol=1e-10)
+    assert np.all(se3.quat_angle(q_fit[ok], q[ok]) < 1e-7)
+    assert np.all(rms[ok] < 1e-10)
+    assert np.isnan(p_fit[7]).all() and np.isnan(q_fit[7]).all()
+
+
+def test_kabsch_never_returns_a_reflection(rng: np.random.Generator) -> None:
+    ref = rng.normal(size=(4, 3))
+    mirrored = ref * [1, 1, -1]
+    _, q, _ = se3.kabsch(ref, mirrored[None])
+    assert np.isclose(np.linalg.det(se3.matrix_from_quat(q[0])), 1.0)
