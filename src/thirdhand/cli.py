@@ -1,0 +1,207 @@
+"""The ``thirdhand`` command line.
+
+Every command turns a user's bad input into one line on stderr and a non-zero
+exit status, never a traceback. Long work shows progress on a terminal only.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from thirdhand import __version__
+from thirdhand.errors import ThirdhandError
+from thirdhand.fileops import backup_existing
+
+app = typer.Typer(
+    name="thirdhand",
+    help="Teach a robot an assembly task from human demonstrations.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+out = Console(highlight=False, soft_wrap=True)
+
+
+def _fail(message: str, code: int = 1) -> None:
+    sys.stderr.write(f"thirdhand: error: {message}\n")
+    raise typer.Exit(code)
+
+
+def _version(value: bool) -> None:
+    if value:
+        out.print(f"thirdhand {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version.")
+    ] = False,
+) -> None:
+    """Teach a robot an assembly task from human demonstrations."""
+
+
+def _check_output(path: Path, force: bool) -> None:
+    if path.exists() and not force:
+        _fail(f"{path} exists; pass --force to replace it (the old one is kept as {path.name}.bak)")
+    backup_existing(path)
+
+
+@app.command()
+def synth(
+    scene: Annotated[str, typer.Argument(help="Scene: chair, bench, toolbox, drawer or lid.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="File to write (any format).")],
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    noise_free: Annotated[
+        bool, typer.Option("--noise-free", help="No sensor noise, gaps or sign flips.")
+    ] = False,
+    rate: Annotated[float | None, typer.Option(help="Capture rate, Hz.")] = None,
+    force: Annotated[bool, typer.Option(help="Replace an existing output (kept as .bak).")] = False,
+) -> None:
+    """Generate a synthetic assembly demonstration with ground-truth labels."""
+    from thirdhand import io
+    from thirdhand.synth import SCENES, SensorModel, make_scene
+
+    if scene not in SCENES:
+        _fail(f"unknown scene {scene!r}; scenes are {', '.join(SCENES)}")
+    sensor = None if noise_free else SensorModel(**({} if rate is None else {"rate": rate}))
+    demo = make_scene(scene, seed=seed, sensor=sensor)
+    _check_output(output, force)
+    io.save(demo, output)
+    out.print(f"wrote {output}: {demo}")
+
+
+@app.command()
+def info(
+    path: Annotated[Path, typer.Argument(help="A recording of any supported format.")],
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+) -> None:
+    """Describe a recording: bodies, kinds, duration, rate, missing data, labels."""
+    from thirdhand import io
+
+    fmt = io.detect(path)
+    demo = io.load(path, format=fmt)
+    summary = describe(demo, fmt=fmt, path=path)
+    if as_json:
+        out.print_json(data=summary)
+        return
+    out.print(
+        f"{path} ({fmt}): {len(demo)} bodies, {demo.n_frames} frames, "
+        f"{demo.duration:.3f} s, {demo.rate:.2f} Hz"
+    )
+    table = Table("body", "kind", "hand", "missing")
+    for b in summary["bodies"]:
+        table.add_row(b["name"], b["kind"], b.get("hand") or "", f"{100 * b['missing']:.1f} %")
+    out.print(table)
+    lab = summary["labels"]
+    out.print(
+        f"labels: {lab['interactions']} interaction intervals, "
+        f"{lab['constraints']} constraint events, {lab['plan']} plan steps"
+    )
+
+
+def describe(demo: Any, *, fmt: str | None = None, path: Path | None = None) -> dict[str, Any]:
+    """JSON-able summary of a demonstration (what ``thirdhand info`` prints)."""
+    return {
+        "path": None if path is None else str(path),
+        "format": fmt,
+        "n_bodies": len(demo),
+        "n_frames": demo.n_frames,
+        "duration_s": demo.duration,
+        "rate_hz": demo.rate,
+        "bodies": [
+            {
+                "name": b.name,
+                "kind": b.kind,
+                "hand": b.hand,
+                "oriented": b.oriented,
+                "missing": demo.missing_fraction(b.name),
+            }
+            for b in demo.bodies
+        ],
+        "labels": {
+            "interactions": len(demo.labels.interactions),
+            "constraints": len(demo.labels.constraints),
+            "plan": len(demo.labels.plan),
+        },
+    }
+
+
+@app.command()
+def convert(
+    source: Annotated[Path, typer.Argument(help="Recording to read (any supported format).")],
+    target: Annotated[Path, typer.Argument(help="File to write; format from the extension.")],
+    to: Annotated[
+        str | None, typer.Option("--to", help="Output format, if not by extension.")
+    ] = None,
+    force: Annotated[bool, typer.Option(help="Replace an existing output (kept as .bak).")] = False,
+) -> None:
+    """Convert a recording between formats (labels and metadata carried along)."""
+    from thirdhand import io
+
+    demo = io.load(source)
+    if source.resolve() == target.resolve():
+        _fail("source and target are the same path")
+    _check_output(target, force)
+    io.save(demo, target, format=to)
+    out.print(f"wrote {target}: {demo}")
+
+
+@app.command()
+def demo(
+    output: Annotated[Path, typer.Option("-o", "--output", help="Output folder.")] = Path(
+        "out/chair"
+    ),
+    seed: Annotated[int, typer.Option(help="Random seed of the synthetic demonstration.")] = 0,
+) -> None:
+    """The main job: a synthetic chair assembly through every stage that exists."""
+    from thirdhand.pipeline import run_demo
+
+    start = time.perf_counter()
+    summary = run_demo(output, seed=seed)
+    out.print(f"[bold]thirdhand demo[/bold] (chair, seed {seed}) → {output}")
+    for line in summary["lines"]:
+        out.print(f"  {line}")
+    out.print(f"done in {time.perf_counter() - start:.1f} s")
+    (output / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+
+
+def _mount_subapps() -> None:
+    try:
+        from thirdhand.segment.cli import app as segment_app
+    except ImportError:
+        return
+    app.add_typer(segment_app, name="segment")
+
+
+_mount_subapps()
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run the CLI, print user errors on one line, return the exit status.
+
+    Usage errors are reported by typer itself (standalone mode exits through
+    ``SystemExit``); a user's bad input raises a ``ThirdhandError`` that ends here.
+    """
+    try:
+        app(args=argv, prog_name="thirdhand")
+    except ThirdhandError as exc:
+        sys.stderr.write(f"thirdhand: error: {exc}\n")
+        return 1
+    except (OSError, MemoryError) as exc:
+        sys.stderr.write(f"thirdhand: error: {exc}\n")
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
