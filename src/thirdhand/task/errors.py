@@ -1,0 +1,54 @@
+"""Flatten pydantic's list of validation errors into one line that says where."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from pydantic import ValidationError
+
+
+def json_location(loc: Sequence[int | str]) -> str:
+    """A pydantic ``loc`` as a JSON path.
+
+    ``("plan", 2, "keyframe", "leg1")`` -> ``plan[2].keyframe.leg1``.
+    """
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += f".{part}" if out else str(part)
+    return out
+
+
+def flatten_errors(exc: ValidationError) -> list[str]:
+    """Each error of ``exc`` as ``"<location>: <message>"``.
+
+    Errors of the whole document (cross-field checks) carry their location in
+    their message already.
+    """
+    lines = []
+    for err in exc.errors(include_url=False):
+        ctx = err.get("ctx") or {}
+        if err["type"] in ("value_error", "assertion_error") and "error" in ctx:
+            msg = str(ctx["error"])
+        else:
+            msg = err["msg"]
+        if err["type"] == "missing":
+            msg = "required field is missing"
+        if err["type"] == "json_invalid":
+            msg = f"invalid JSON: {ctx.get('error', msg)}"
+        loc = json_location(err["loc"])
+        lines.append(f"{loc}: {msg}" if loc else msg)
+    return lines
+
+
+def first_error(exc: ValidationError) -> str:
+    """The first error of ``exc`` on one line, with a count of the others."""
+    lines = flatten_errors(exc)
+    more = (
+        f" (and {len(lines) - 1} more error{'s' if len(lines) > 2 else ''})"
+        if len(lines) > 1
+        else ""
+    )
+    return lines[0] + more

@@ -1,0 +1,158 @@
+"""Validated geometric fields of the task file: positions, unit quaternions, poses, DOF ranges.
+
+Every model here (and in the rest of :mod:`thirdhand.task`) keeps fields it does not
+know (``extra="allow"``), so a file written by a newer thirdhand survives a round
+trip through an older one, except :class:`FreeDofs`, whose six names are fixed.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated, Any
+
+import numpy as np
+from numpy.typing import NDArray
+from pydantic import AfterValidator, BaseModel, ConfigDict
+
+FloatArray = NDArray[np.float64]
+
+#: Order of the six degrees of freedom: translations (m) then rotations (rad).
+DOF_NAMES: tuple[str, str, str, str, str, str] = ("tx", "ty", "tz", "rx", "ry", "rz")
+
+#: A quaternion whose norm is within this of 1 is stored exactly as given (so
+#: float32-exported data round-trip bit for bit).
+QUAT_EXACT_TOL = 1e-6
+#: A quaternion whose norm is within this of 1 (but not within QUAT_EXACT_TOL) is
+#: normalised; beyond it, it is rejected as a probable typo.
+QUAT_NORM_TOL = 1e-2
+
+
+class TaskModel(BaseModel):
+    """Base of every task-file model: unknown fields kept, no NaN or infinity."""
+
+    model_config = ConfigDict(
+        extra="allow", allow_inf_nan=False, populate_by_name=True, ser_json_inf_nan="constants"
+    )
+
+
+def _unit_quat(q: tuple[float, float, float, float]) -> tuple[float, float, float, float]:
+    norm = math.sqrt(sum(c * c for c in q))
+    if norm < 1e-12:
+        raise ValueError("quaternion has zero norm; expected a unit quaternion x y z w")
+    if abs(norm - 1.0) <= QUAT_EXACT_TOL:
+        return q
+    if abs(norm - 1.0) > QUAT_NORM_TOL:
+        raise ValueError(
+            f"quaternion norm is {norm:.6g}; expected a unit quaternion x y z w "
+            f"(norm within {QUAT_NORM_TOL} of 1)"
+        )
+    x, y, z, w = (c / norm for c in q)
+    return (x, y, z, w)
+
+
+def _range(r: tuple[float, float]) -> tuple[float, float]:
+    if not r[0] <= r[1]:
+        raise ValueError(f"range [{r[0]}, {r[1]}] has min > max")
+    return r
+
+
+def _unit_interval(v: float) -> float:
+    if not 0.0 <= v <= 1.0:
+        raise ValueError(f"expected a value in [0, 1], got {v}")
+    return v
+
+
+def _positive(v: float) -> float:
+    if not v > 0.0:
+        raise ValueError(f"expected a positive number, got {v}")
+    return v
+
+
+#: Position x y z, metres.
+Vec3 = tuple[float, float, float]
+#: Unit quaternion x y z w: zero rejected, near-unit normalised.
+Quat = Annotated[tuple[float, float, float, float], AfterValidator(_unit_quat)]
+#: A closed interval ``[min, max]`` with min <= max.
+Range = Annotated[tuple[float, float], AfterValidator(_range)]
+#: A number in [0, 1].
+UnitInterval = Annotated[float, AfterValidator(_unit_interval)]
+#: A number > 0.
+Positive = Annotated[float, AfterValidator(_positive)]
+
+IDENTITY_QUAT: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
+ORIGIN: tuple[float, float, float] = (0.0, 0.0, 0.0)
+LOCKED: tuple[float, float] = (0.0, 0.0)
+
+
+class Pose(TaskModel):
+    """A rigid transform: the pose of a frame B in a frame A (maps B's coordinates into A's).
+
+    Attributes
+    ----------
+    pos : tuple of 3 floats
+        Origin of B in A, metres.
+    quat : tuple of 4 floats
+        Orientation of B in A, unit quaternion x y z w.
+    """
+
+    pos: Vec3 = ORIGIN
+    quat: Quat = IDENTITY_QUAT
+
+    @property
+    def is_identity(self) -> bool:
+        """True for the exact identity transform."""
+        return self.pos == ORIGIN and self.quat == IDENTITY_QUAT
+
+    def matrix(self) -> FloatArray:
+        """Homogeneous transform, shape (4, 4), mapping B coordinates into A."""
+        from thirdhand.se3 import pose_to_matrix
+
+        return pose_to_matrix(self.pos, self.quat)
+
+
+class FreeDofs(BaseModel):
+    """Ranges of the six degrees of freedom in the constraint frame; ``[0, 0]`` = locked.
+
+    Attributes
+    ----------
+    tx, ty, tz : tuple of 2 floats
+        ``[min, max]`` translation along x, y, z of the constraint frame, metres.
+    rx, ry, rz : tuple of 2 floats
+        ``[min, max]`` rotation about x, y, z of the constraint frame, radians.
+
+    Notes
+    -----
+    Unlike the other models, unknown keys are an error here: a misspelt DOF name
+    (``"Tx"``) silently read as locked would change what the robot may do.
+    """
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    tx: Range = LOCKED
+    ty: Range = LOCKED
+    tz: Range = LOCKED
+    rx: Range = LOCKED
+    ry: Range = LOCKED
+    rz: Range = LOCKED
+
+    @classmethod
+    def from_array(cls, ranges: Any) -> FreeDofs:
+        """Build from ``ranges``, array_like shape (6, 2): rows tx ty tz (m) rx ry rz (rad)."""
+        arr = np.asarray(ranges, dtype=np.float64)
+        if arr.shape != (6, 2):
+            raise ValueError(f"expected DOF ranges of shape (6, 2), got {arr.shape}")
+        return cls(
+            **{n: (float(lo), float(hi)) for n, (lo, hi) in zip(DOF_NAMES, arr, strict=True)}
+        )
+
+    def ranges(self) -> list[tuple[float, float]]:
+        """The six ranges in :data:`DOF_NAMES` order."""
+        return [getattr(self, n) for n in DOF_NAMES]
+
+    def array(self) -> FloatArray:
+        """The ranges as an array, shape (6, 2): rows tx ty tz (m) rx ry rz (rad)."""
+        return np.asarray(self.ranges(), dtype=np.float64)
+
+    def free(self) -> list[str]:
+        """Names of the DOFs whose range is not ``[0, 0]``, in :data:`DOF_NAMES` order."""
+        return [n for n, (lo, hi) in zip(DOF_NAMES, self.ranges(), strict=True) if lo != hi]

@@ -1,0 +1,168 @@
+"""Reading and writing task files: validated load, atomic save with a backup of the previous file.
+
+A user's corrected task is never lost: before a file is replaced, its exact
+bytes are kept as ``<name>.bak``, and the new content goes to ``<name>.tmp``,
+is flushed to disk, then renamed over the original in one step.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from pathlib import Path
+from typing import Any
+
+from pydantic import ValidationError
+
+from thirdhand.errors import TaskFileError
+from thirdhand.task.errors import first_error
+from thirdhand.task.model import TaskFile
+
+
+def _reject_duplicate_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"duplicate key {k!r} in a JSON object")
+        out[k] = v
+    return out
+
+
+def _reject_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number (no NaN or infinity in a task file)")
+
+
+def parse_task(text: str, *, name: str = "<task>") -> TaskFile:
+    """Validate the JSON text of a task file.
+
+    Parameters
+    ----------
+    text : str
+        The document.
+    name : str
+        How to name the document in error messages (a file name).
+
+    Raises
+    ------
+    TaskFileError
+        ``"<name> line L column C: ..."`` for bad JSON, ``"<name>: <location>: ..."``
+        for the first invalid field, e.g.
+        ``task.json: constraints[2].child: unknown object 'leg7'``.
+    """
+    try:
+        data = json.loads(
+            text, object_pairs_hook=_reject_duplicate_keys, parse_constant=_reject_constant
+        )
+    except json.JSONDecodeError as exc:
+        raise TaskFileError(
+            f"{name} line {exc.lineno} column {exc.colno}: invalid JSON: {exc.msg}"
+        ) from None
+    except ValueError as exc:
+        raise TaskFileError(f"{name}: invalid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise TaskFileError(f"{name}: expected a JSON object, got {type(data).__name__}")
+    try:
+        # Strict JSON validation: no "1.5" strings for numbers, no numbers for names.
+        return TaskFile.model_validate_json(text, strict=True)
+    except ValidationError as exc:
+        raise TaskFileError(f"{name}: {first_error(exc)}") from None
+
+
+def load_task(path: str | os.PathLike[str]) -> TaskFile:
+    """Read and validate a task file.
+
+    Raises
+    ------
+    TaskFileError
+        If the file cannot be read, is not JSON (the message gives line and
+        column) or is not a valid ``thirdhand.task/1`` document (the message gives
+        the JSON location of the first error).
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TaskFileError(f"{p}: cannot read task file: {exc}") from None
+    return parse_task(text, name=str(p))
+
+
+def _format(value: Any, indent: str) -> str:
+    """JSON of ``value``: objects one key a line, arrays of scalars on one line."""
+    inner = indent + "  "
+    if isinstance(value, dict):
+        if not value:
+            return "{}"
+        items = [
+            f"{inner}{json.dumps(k, ensure_ascii=False)}: {_format(v, inner)}"
+            for k, v in value.items()
+        ]
+        return "{\n" + ",\n".join(items) + "\n" + indent + "}"
+    if isinstance(value, list):
+        if not any(isinstance(v, dict | list) for v in value):
+            return json.dumps(value, ensure_ascii=False, allow_nan=False, separators=(", ", ": "))
+        items = [inner + _format(v, inner) for v in value]
+        return "[\n" + ",\n".join(items) + "\n" + indent + "]"
+    return json.dumps(value, ensure_ascii=False, allow_nan=False)
+
+
+def dump_task(task: TaskFile) -> str:
+    """The JSON text of ``task``.
+
+    Indented, keys in schema order (unknown keys after, in the order read), flat
+    number arrays on one line, floats as their shortest exact repr (they read back
+    bit for bit).
+    """
+    return _format(task.to_json_dict(), "") + "\n"
+
+
+def _fsync_dir(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def save_task(task: TaskFile, path: str | os.PathLike[str]) -> None:
+    """Write ``task`` to ``path`` atomically, keeping the previous file as ``path.bak``.
+
+    The task is validated again first (in-memory edits may have broken it), then
+    written to ``path.tmp``, flushed to disk and renamed over ``path``. If ``path``
+    exists, a complete copy of it is made as ``path.bak`` before anything replaces it.
+
+    Raises
+    ------
+    TaskFileError
+        If the task is invalid (nothing is written) or the file cannot be written
+        (the previous file is left as it was).
+    """
+    p = Path(path)
+    try:
+        text = dump_task(task)
+    except ValueError as exc:
+        raise TaskFileError(f"{p}: cannot write task: {exc}") from None
+    parse_task(text, name=str(p))
+    tmp = p.with_name(p.name + ".tmp")
+    bak = p.with_name(p.name + ".bak")
+    try:
+        if p.exists():
+            shutil.copyfile(p, tmp)
+            with open(tmp, "rb+") as fh:
+                os.fsync(fh.fileno())
+            os.replace(tmp, bak)
+        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, p)
+        _fsync_dir(p.parent)
+    except OSError as exc:
+        raise TaskFileError(f"{p}: cannot write task file: {exc}") from None
+    finally:
+        tmp.unlink(missing_ok=True)

@@ -1,0 +1,54 @@
+"""The task file ``thirdhand.task/1``: everything learned about one task, in one JSON document.
+
+::
+
+    from thirdhand.taskfile import TaskFile, load_task, save_task
+
+    task = load_task("chair.task.json")
+    task.constraint_by_id("c2").free_dofs.rz
+    save_task(task, "chair.task.json")   # atomic; the old file is kept as .bak
+
+The models live in :mod:`thirdhand.task`; this module is their public face.
+"""
+
+from thirdhand.task import (
+    CONSTRAINT_TYPES,
+    DOF_NAMES,
+    SCHEMA,
+    Constraint,
+    ConstraintType,
+    Correction,
+    FreeDofs,
+    InputFile,
+    Pose,
+    Provenance,
+    TaskFile,
+    TaskObject,
+    TaskStep,
+    dump_task,
+    infer_constraint_type,
+    load_task,
+    parse_task,
+    save_task,
+)
+
+__all__ = [
+    "CONSTRAINT_TYPES",
+    "DOF_NAMES",
+    "SCHEMA",
+    "Constraint",
+    "ConstraintType",
+    "Correction",
+    "FreeDofs",
+    "InputFile",
+    "Pose",
+    "Provenance",
+    "TaskFile",
+    "TaskObject",
+    "TaskStep",
+    "dump_task",
+    "infer_constraint_type",
+    "load_task",
+    "parse_task",
+    "save_task",
+]
