@@ -1,0 +1,37 @@
+"""Interaction-phase segmentation: a pair-wise linear-chain CRF over pose-variance features.
+
+The model of the 3rdHand report's annex "Temporal segmentation of pair-wise
+interaction phases": per body pair, a binary latent label per latent step
+(interacting or not), windowed variances of each body's pose and of their
+relative pose as state features, learned by maximum likelihood, decoded by
+Viterbi. Hands interact with an object when enough of their fingers do.
+
+Entry point: :func:`segment_demonstration`, with the model shipped in
+``thirdhand/data/segment_default.json`` by default.
+"""
+
+from thirdhand.segment.crf import PairCRF
+from thirdhand.segment.design import DemoFeatures, FeatureConfig, pair_design
+from thirdhand.segment.features import SegmentationError
+from thirdhand.segment.logistic import LogisticSegmenter
+from thirdhand.segment.model import SegmentModel, default_model, load_model
+from thirdhand.segment.pipeline import (
+    SegmentationResult,
+    default_pairs,
+    segment_demonstration,
+)
+
+__all__ = [
+    "DemoFeatures",
+    "FeatureConfig",
+    "LogisticSegmenter",
+    "PairCRF",
+    "SegmentModel",
+    "SegmentationError",
+    "SegmentationResult",
+    "default_model",
+    "default_pairs",
+    "load_model",
+    "pair_design",
+    "segment_demonstration",
+]

@@ -1,0 +1,217 @@
+"""Dynamic programs of a linear chain: forward–backward (log space) and Viterbi.
+
+A chain of ``n`` steps and ``s`` states is scored by unary potentials
+``u[t, a]`` and a transition matrix ``T[a, b]`` for ``y_t = a`` after
+``y_{t-1} = b``:
+
+``score(y) = Σ_t u[t, y_t] + Σ_{t≥1} T[y_t, y_{t-1}]``, ``p(y) = exp(score(y) − log Z)``.
+
+Several chains are processed at once from a concatenated unary array and
+offsets; every kernel is compiled with numba.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@numba.njit(cache=True, nogil=True)
+def _lse_row(v: FloatArray) -> float:  # pragma: no cover - compiled
+    m = v.max()
+    if m == -np.inf:
+        return -np.inf
+    s = 0.0
+    for x in v:
+        s += np.exp(x - m)
+    return m + np.log(s)
+
+
+@numba.njit(cache=True, nogil=True)
+def _forward_backward(  # pragma: no cover - compiled
+    unary: FloatArray, trans: FloatArray, offsets: IntArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    n, s = unary.shape
+    n_seq = offsets.size - 1
+    log_z = np.zeros(n_seq)
+    marg = np.zeros((n, s))
+    pair_sum = np.zeros((s, s))
+    alpha = np.empty((n, s))
+    beta = np.empty((n, s))
+    tmp = np.empty(s)
+    for q in range(n_seq):
+        lo = offsets[q]
+        hi = offsets[q + 1]
+        if hi <= lo:
+            continue
+        for a in range(s):
+            alpha[lo, a] = unary[lo, a]
+        for t in range(lo + 1, hi):
+            for a in range(s):
+                for b in range(s):
+                    tmp[b] = alpha[t - 1, b] + trans[a, b]
+                alpha[t, a] = unary[t, a] + _lse_row(tmp)
+        lz = _lse_row(alpha[hi - 1])
+        log_z[q] = lz
+        for a in range(s):
+            beta[hi - 1, a] = 0.0
+        for t in range(hi - 2, lo - 1, -1):
+            for b in range(s):
+                for a in range(s):
+                    tmp[a] = trans[a, b] + unary[t + 1, a] + beta[t + 1, a]
+                beta[t, b] = _lse_row(tmp)
+        for t in range(lo, hi):
+            for a in range(s):
+                marg[t, a] = np.exp(alpha[t, a] + beta[t, a] - lz)
+            if t > lo:
+                for a in range(s):
+                    for b in range(s):
+                        pair_sum[a, b] += np.exp(
+                            alpha[t - 1, b] + trans[a, b] + unary[t, a] + beta[t, a] - lz
+                        )
+    return log_z, marg, pair_sum
+
+
+@numba.njit(cache=True, nogil=True)
+def _pairwise(  # pragma: no cover - compiled
+    unary: FloatArray, trans: FloatArray
+) -> FloatArray:
+    n, s = unary.shape
+    out = np.zeros((max(n - 1, 0), s, s))
+    if n < 2:
+        return out
+    alpha = np.empty((n, s))
+    beta = np.empty((n, s))
+    tmp = np.empty(s)
+    for a in range(s):
+        alpha[0, a] = unary[0, a]
+    for t in range(1, n):
+        for a in range(s):
+            for b in range(s):
+                tmp[b] = alpha[t - 1, b] + trans[a, b]
+            alpha[t, a] = unary[t, a] + _lse_row(tmp)
+    lz = _lse_row(alpha[n - 1])
+    for a in range(s):
+        beta[n - 1, a] = 0.0
+    for t in range(n - 2, -1, -1):
+        for b in range(s):
+            for a in range(s):
+                tmp[a] = trans[a, b] + unary[t + 1, a] + beta[t + 1, a]
+            beta[t, b] = _lse_row(tmp)
+    for t in range(1, n):
+        for a in range(s):
+            for b in range(s):
+                out[t - 1, a, b] = np.exp(
+                    alpha[t - 1, b] + trans[a, b] + unary[t, a] + beta[t, a] - lz
+                )
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _viterbi(  # pragma: no cover - compiled
+    unary: FloatArray, trans: FloatArray, offsets: IntArray
+) -> tuple[IntArray, FloatArray]:
+    n, s = unary.shape
+    n_seq = offsets.size - 1
+    path = np.zeros(n, dtype=np.int64)
+    best = np.zeros(n_seq)
+    delta = np.empty((n, s))
+    back = np.zeros((n, s), dtype=np.int64)
+    for q in range(n_seq):
+        lo = offsets[q]
+        hi = offsets[q + 1]
+        if hi <= lo:
+            continue
+        for a in range(s):
+            delta[lo, a] = unary[lo, a]
+        for t in range(lo + 1, hi):
+            for a in range(s):
+                bi = 0
+                bv = delta[t - 1, 0] + trans[a, 0]
+                for b in range(1, s):
+                    v = delta[t - 1, b] + trans[a, b]
+                    if v > bv:
+                        bv = v
+                        bi = b
+                delta[t, a] = unary[t, a] + bv
+                back[t, a] = bi
+        k = 0
+        for a in range(1, s):
+            if delta[hi - 1, a] > delta[hi - 1, k]:
+                k = a
+        best[q] = delta[hi - 1, k]
+        path[hi - 1] = k
+        for t in range(hi - 1, lo, -1):
+            k = back[t, k]
+            path[t - 1] = k
+    return path, best
+
+
+def _offsets(offsets: IntArray | None, n: int) -> IntArray:
+    if offsets is None:
+        return np.array([0, n], dtype=np.int64)
+    return np.ascontiguousarray(offsets, dtype=np.int64)
+
+
+def forward_backward(
+    unary: FloatArray, trans: FloatArray, offsets: IntArray | None = None
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Log partition functions, marginals and summed pairwise marginals.
+
+    Parameters
+    ----------
+    unary : ndarray, shape (n, s)
+        Unary log-potentials of all chains, concatenated.
+    trans : ndarray, shape (s, s)
+        ``trans[a, b]``: log-potential of ``y_t = a`` after ``y_{t-1} = b``.
+    offsets : ndarray of int, shape (n_chains + 1,), optional
+        Chain ``i`` covers rows ``offsets[i]:offsets[i + 1]``; one chain by default.
+
+    Returns
+    -------
+    log_z : ndarray, shape (n_chains,)
+    marginals : ndarray, shape (n, s)
+        ``p(y_t = a | x)``.
+    pair_sum : ndarray, shape (s, s)
+        ``Σ_t p(y_t = a, y_{t-1} = b | x)`` over every chain's steps ``t ≥ 1``.
+    """
+    u = np.ascontiguousarray(unary, dtype=np.float64)
+    return _forward_backward(u, np.ascontiguousarray(trans, np.float64), _offsets(offsets, len(u)))
+
+
+def pairwise_marginals(unary: FloatArray, trans: FloatArray) -> FloatArray:
+    """Pairwise marginals of one chain, shape (n − 1, s, s): ``p(y_t = a, y_{t-1} = b)``.
+
+    Row ``i`` is step ``t = i + 1``.
+    """
+    return _pairwise(
+        np.ascontiguousarray(unary, np.float64), np.ascontiguousarray(trans, np.float64)
+    )
+
+
+def viterbi(
+    unary: FloatArray, trans: FloatArray, offsets: IntArray | None = None
+) -> tuple[IntArray, FloatArray]:
+    """Most probable labelling of every chain.
+
+    Parameters
+    ----------
+    unary : ndarray, shape (n, s)
+    trans : ndarray, shape (s, s)
+    offsets : ndarray of int, shape (n_chains + 1,), optional
+
+    Returns
+    -------
+    path : ndarray of int, shape (n,)
+    score : ndarray, shape (n_chains,)
+        Unnormalised log-score of each chain's best path.
+    """
+    u = np.ascontiguousarray(unary, dtype=np.float64)
+    return _viterbi(u, np.ascontiguousarray(trans, np.float64), _offsets(offsets, len(u)))
+
+
+__all__ = ["forward_backward", "pairwise_marginals", "viterbi"]

@@ -1,0 +1,199 @@
+"""The pair-wise linear-chain CRF of interaction phases (3rdHand report, annex).
+
+``p(y | x) = Z(x)⁻¹ Π_t exp(φ_t(y_t, y_{t-1}, x)ᵀ θ)`` with binary ``y_t`` and
+
+- transition features ``[y_t = a][y_{t-1} = b]``, ``a, b ∈ {0, 1}`` (zero at ``t = 0``),
+  weights ``coef_transition_[a, b]``;
+- state features ``x_t [y_t = 1]``, weights ``coef_state_``.
+
+Training minimises the convex negative log-likelihood
+``Σ_seq (log Z(x) − Σ_t φ_tᵀ θ) + ½ λ ||θ||²`` with L-BFGS; its gradient is the
+expected features under the (pairwise) marginals minus the empirical features.
+The state weights start from a logistic regression on the same features.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize
+
+from thirdhand.segment.chain import forward_backward, viterbi
+from thirdhand.segment.features import SegmentationError
+from thirdhand.segment.logistic import fit_logistic_newton
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+N_TRANS = 4
+
+
+class _Data:
+    """Sequences concatenated once: rows, labels, offsets, empirical counts."""
+
+    def __init__(self, xs: Sequence[FloatArray], ys: Sequence[IntArray] | None) -> None:
+        if isinstance(xs, np.ndarray) and xs.ndim == 2:
+            xs = [xs]
+            ys = None if ys is None else [np.asarray(ys)]
+        if not len(xs):
+            raise SegmentationError("no sequence given")
+        lens = np.array([len(x) for x in xs], dtype=np.int64)
+        self.offsets = np.concatenate([[0], np.cumsum(lens)]).astype(np.int64)
+        self.x = np.ascontiguousarray(np.concatenate([np.asarray(x, np.float64) for x in xs]))
+        if self.x.ndim != 2:
+            raise SegmentationError(f"feature sequences must be 2-D, got shape {self.x.shape}")
+        if not np.all(np.isfinite(self.x)):
+            raise SegmentationError("feature sequences contain a non-finite value")
+        self.y: IntArray | None = None
+        if ys is not None:
+            if len(ys) != len(xs):
+                raise SegmentationError(
+                    f"{len(xs)} feature sequences but {len(ys)} label sequences"
+                )
+            for i, (x, y) in enumerate(zip(xs, ys, strict=True)):
+                if len(x) != len(y):
+                    raise SegmentationError(
+                        f"sequence {i}: {len(x)} feature rows but {len(y)} labels"
+                    )
+            y_all = np.concatenate([np.asarray(y) for y in ys]).astype(np.int64)
+            if y_all.size and not np.isin(y_all, (0, 1)).all():
+                raise SegmentationError("labels must be 0 or 1")
+            self.y = y_all
+            first = np.zeros(len(y_all), dtype=bool)
+            first[self.offsets[:-1][lens > 0]] = True
+            prev = np.roll(y_all, 1)
+            counts = np.zeros((2, 2))
+            np.add.at(counts, (y_all[~first], prev[~first]), 1.0)
+            self.trans_counts = counts
+            self.state_counts = self.x[y_all == 1].sum(axis=0)
+
+    @property
+    def n_steps(self) -> int:
+        return int(self.x.shape[0])
+
+
+def _unary(x: FloatArray, w: FloatArray) -> FloatArray:
+    u = np.zeros((x.shape[0], 2))
+    u[:, 1] = x @ w
+    return u
+
+
+class PairCRF:
+    """Binary linear-chain CRF over sequences of state features.
+
+    Parameters
+    ----------
+    l2 : float
+        Ridge penalty λ on every weight (transitions included).
+    init : {"logistic", "zero"}
+        Start from a Newton-fitted logistic regression on the state features, or zeros.
+    max_iter : int
+        L-BFGS iterations.
+    tol : float
+        L-BFGS gradient tolerance (``gtol``), relative to the number of steps.
+
+    Attributes
+    ----------
+    coef_transition_ : ndarray, shape (2, 2)
+        ``[a, b]``: weight of ``y_t = a`` after ``y_{t-1} = b``.
+    coef_state_ : ndarray, shape (n_features,)
+    n_iter_ : int
+    """
+
+    def __init__(
+        self,
+        *,
+        l2: float = 1.0,
+        init: str = "logistic",
+        max_iter: int = 500,
+        tol: float = 1e-7,
+    ) -> None:
+        self.l2 = l2
+        self.init = init
+        self.max_iter = max_iter
+        self.tol = tol
+
+    # ------------------------------------------------------------ objective
+    def objective(self, theta: FloatArray, data: _Data) -> tuple[float, FloatArray]:
+        """Penalised NLL and its gradient at ``theta = [transition (4), state (d)]``."""
+        if data.y is None:
+            raise SegmentationError("the objective needs labels")
+        trans = theta[:N_TRANS].reshape(2, 2)
+        w = theta[N_TRANS:]
+        u = _unary(data.x, w)
+        log_z, marg, pair_sum = forward_backward(u, trans, data.offsets)
+        score = float(u[data.y == 1, 1].sum() + np.sum(trans * data.trans_counts))
+        f = float(log_z.sum()) - score + 0.5 * self.l2 * float(theta @ theta)
+        g = np.concatenate(
+            [
+                (pair_sum - data.trans_counts).ravel(),
+                marg[:, 1] @ data.x - data.state_counts,
+            ]
+        )
+        return f, g + self.l2 * theta
+
+    def fit(self, xs: Sequence[FloatArray], ys: Sequence[IntArray]) -> PairCRF:
+        """Maximum-likelihood fit on sequences ``xs[i]`` (n_i, d), labels ``ys[i]`` (n_i,)."""
+        data = _Data(xs, ys)
+        d = data.x.shape[1]
+        theta0 = np.zeros(N_TRANS + d)
+        if self.init == "logistic":
+            assert data.y is not None
+            theta0[N_TRANS:] = fit_logistic_newton(data.x, data.y.astype(float), l2=self.l2)
+        elif self.init != "zero":
+            raise SegmentationError(f"init must be 'logistic' or 'zero', got {self.init!r}")
+        res = minimize(
+            self.objective,
+            theta0,
+            args=(data,),
+            jac=True,
+            method="L-BFGS-B",
+            options={"maxiter": self.max_iter, "gtol": self.tol * max(data.n_steps, 1)},
+        )
+        self.set_params_theta(res.x)
+        self.n_iter_ = int(res.nit)
+        return self
+
+    def set_params_theta(self, theta: FloatArray) -> PairCRF:
+        """Set the learned weights from a flat vector ``[transition (4), state (d)]``."""
+        theta = np.asarray(theta, dtype=np.float64)
+        self.coef_transition_ = theta[:N_TRANS].reshape(2, 2).copy()
+        self.coef_state_ = theta[N_TRANS:].copy()
+        return self
+
+    @property
+    def theta_(self) -> FloatArray:
+        """Flat weights ``[transition (4), state (d)]``."""
+        return np.concatenate([self.coef_transition_.ravel(), self.coef_state_])
+
+    # ------------------------------------------------------------ inference
+    def _split(self, data: _Data, flat: NDArray[np.generic]) -> list[NDArray[np.generic]]:
+        return [flat[a:b] for a, b in zip(data.offsets[:-1], data.offsets[1:], strict=True)]
+
+    def predict_proba(self, xs: Sequence[FloatArray]) -> list[FloatArray]:
+        """Marginals ``p(y_t = 1 | x)`` per sequence, each of shape (n_i,)."""
+        data = _Data(xs, None)
+        _, marg, _ = forward_backward(
+            _unary(data.x, self.coef_state_), self.coef_transition_, data.offsets
+        )
+        return self._split(data, np.clip(marg[:, 1], 0.0, 1.0))  # type: ignore[return-value]
+
+    def predict(self, xs: Sequence[FloatArray]) -> list[IntArray]:
+        """Viterbi labelling per sequence, each of shape (n_i,)."""
+        data = _Data(xs, None)
+        path, _ = viterbi(_unary(data.x, self.coef_state_), self.coef_transition_, data.offsets)
+        return self._split(data, path)  # type: ignore[return-value]
+
+    def nll(self, xs: Sequence[FloatArray], ys: Sequence[IntArray]) -> float:
+        """Unpenalised negative log-likelihood of the labels, summed over sequences."""
+        data = _Data(xs, ys)
+        assert data.y is not None
+        u = _unary(data.x, self.coef_state_)
+        log_z, _, _ = forward_backward(u, self.coef_transition_, data.offsets)
+        score = u[data.y == 1, 1].sum() + np.sum(self.coef_transition_ * data.trans_counts)
+        return float(log_z.sum() - score)
+
+
+__all__ = ["PairCRF"]

@@ -1,0 +1,178 @@
+"""From a demonstration and body pairs to the CRF's design matrices.
+
+The design row of a latent step is ``[1, f(ν_π), f(ν_ρ), f(ζ_π), f(ζ_ρ)]``: a
+bias, then the four core features of :mod:`thirdhand.segment.features` through
+a monotone transform ``f``: ``log(ε + v)`` (the default, ``ε`` per unit:
+``eps_pos`` m², ``eps_rot`` for quaternion variances) or ``v`` itself
+(``transform="linear"``). Steps without evidence (fewer valid samples in the
+window than ``min_valid_fraction`` of its nominal frame count) get an all-zero
+row: a zero state potential for both labels.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.segment.features import (
+    RAW_FEATURE_NAMES,
+    BodyStats,
+    LatentAxis,
+    SegmentationError,
+    body_stats,
+    latent_axis,
+    pair_stats,
+    raw_pair_features,
+)
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class FeatureConfig:
+    """How features are computed; stored with every model.
+
+    Attributes
+    ----------
+    latent_rate : float
+        Latent steps per second, Hz (the report: about 10).
+    window : int
+        Window length in latent steps, centred.
+    transform : {"log", "linear"}
+    eps_pos : float
+        ``ε`` of the log transform for position variances, m².
+    eps_rot : float
+        ``ε`` of the log transform for quaternion variances.
+    min_valid_fraction : float
+        Fraction of a window's frames that must be valid (both bodies) for evidence.
+    """
+
+    latent_rate: float = 10.0
+    window: int = 5
+    transform: str = "log"
+    eps_pos: float = 1e-7
+    eps_rot: float = 1e-6
+    min_valid_fraction: float = 0.25
+
+    def __post_init__(self) -> None:
+        if self.transform not in ("log", "linear"):
+            raise SegmentationError(f"transform must be 'log' or 'linear', got {self.transform!r}")
+        if self.window < 1 or not self.latent_rate > 0:
+            raise SegmentationError(
+                f"need window >= 1 latent step and latent_rate > 0 Hz, got "
+                f"{self.window} and {self.latent_rate}"
+            )
+
+    @property
+    def feature_names(self) -> list[str]:
+        """Names of the design columns."""
+        wrap = "log_eps_{}" if self.transform == "log" else "{}"
+        return ["bias", *(wrap.format(n) for n in RAW_FEATURE_NAMES)]
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON-able form."""
+        return asdict(self)
+
+
+def design_matrix(raw: FloatArray, evidence: BoolArray, config: FeatureConfig) -> FloatArray:
+    """Design rows from raw features.
+
+    Parameters
+    ----------
+    raw : ndarray, shape (n_steps, 4)
+        Columns ``ν_π`` (m²), ``ν_ρ``, ``ζ_π`` (m²), ``ζ_ρ``.
+    evidence : ndarray of bool, shape (n_steps,)
+    config : FeatureConfig
+
+    Returns
+    -------
+    ndarray, shape (n_steps, 5)
+    """
+    raw = np.maximum(np.asarray(raw, dtype=np.float64), 0.0)
+    if config.transform == "log":
+        eps = np.array([config.eps_pos, config.eps_rot, config.eps_pos, config.eps_rot])
+        feats = np.log(eps + raw)
+    else:
+        feats = raw
+    x = np.concatenate([np.ones((raw.shape[0], 1)), feats], axis=1)
+    x[~np.asarray(evidence, dtype=bool)] = 0.0
+    return x
+
+
+class DemoFeatures:
+    """Feature extraction for many pairs of one demonstration, sharing per-body work.
+
+    Parameters
+    ----------
+    demo : Demonstration
+    config : FeatureConfig
+
+    Attributes
+    ----------
+    axis : LatentAxis
+    """
+
+    def __init__(self, demo: Demonstration, config: FeatureConfig) -> None:
+        self.demo = demo
+        self.config = config
+        self.axis: LatentAxis = latent_axis(demo.t, config.latent_rate)
+        self._bodies: dict[str, BodyStats] = {}
+        self._tracks: dict[str, tuple[FloatArray, FloatArray, BoolArray]] = {}
+        per_step = np.bincount(self.axis.frame_step, minlength=self.axis.n_steps).astype(float)
+        half = config.window // 2
+        cs = np.concatenate([[0.0], np.cumsum(per_step)])
+        k = np.arange(self.axis.n_steps)
+        lo = np.clip(k - half, 0, self.axis.n_steps)
+        hi = np.clip(k - half + config.window, 0, self.axis.n_steps)
+        #: Frames per window whatever their validity, shape (n_steps,).
+        self.nominal: FloatArray = cs[hi] - cs[lo]
+
+    def _track(self, name: str) -> tuple[FloatArray, FloatArray, BoolArray]:
+        if name not in self._tracks:
+            tr = self.demo.track(name)
+            self._tracks[name] = (tr.pos, tr.quat, tr.valid)
+        return self._tracks[name]
+
+    def body(self, name: str) -> BodyStats:
+        """Windowed variances of one body (cached)."""
+        if name not in self._bodies:
+            p, q, v = self._track(name)
+            self._bodies[name] = body_stats(p, q, v, self.axis, self.config.window)
+        return self._bodies[name]
+
+    def pair(self, a: str, b: str) -> tuple[FloatArray, BoolArray]:
+        """Design matrix (n_steps, 5) and evidence mask (n_steps,) of the pair (a, b)."""
+        if a == b:
+            raise SegmentationError(f"pair ({a!r}, {b!r}) pairs a body with itself")
+        sab = pair_stats(self._track(a), self._track(b), self.axis, self.config.window)
+        raw = raw_pair_features(self.body(a), self.body(b), sab)
+        evidence = (sab.count >= self.config.min_valid_fraction * self.nominal) & (sab.count >= 2)
+        return design_matrix(raw, evidence, self.config), evidence
+
+
+def pair_design(
+    demo: Demonstration, pairs: Sequence[tuple[str, str]], config: FeatureConfig
+) -> tuple[LatentAxis, list[FloatArray], list[BoolArray]]:
+    """Design matrices of several pairs of one demonstration.
+
+    Returns
+    -------
+    axis : LatentAxis
+    xs : list of ndarray, each of shape (n_steps, 5)
+    evidence : list of ndarray of bool, each of shape (n_steps,)
+    """
+    feats = DemoFeatures(demo, config)
+    xs, ev = [], []
+    for a, b in pairs:
+        x, e = feats.pair(a, b)
+        xs.append(x)
+        ev.append(e)
+    return feats.axis, xs, ev
+
+
+__all__ = ["DemoFeatures", "FeatureConfig", "design_matrix", "pair_design"]

@@ -1,0 +1,399 @@
+"""State features of the pair-wise interaction CRF: windowed pose variances.
+
+The latent time axis
+--------------------
+A recording of frames at times ``t`` (seconds) is cut into latent steps of
+``1 / latent_rate`` seconds: step ``k`` holds the frames with
+``t0 + k / r <= t < t0 + (k + 1) / r``. Its time stamp is the step's centre.
+
+Windows
+-------
+The window length ``window`` is counted in **latent steps** and is centred on
+the step: for step ``k`` the window is the union of the steps
+``k - window // 2 … k - window // 2 + window - 1`` (clipped to the recording).
+The report's windows look backwards; a centred window removes the half-window
+lag that a causal one puts on every detected boundary.
+
+Numerics
+--------
+Statistics are accumulated per latent step with a *local* reference (the
+step's first valid sample is subtracted before summing), so a coordinate of
+1.5 m that moves by a micrometre keeps its precision, and per-step statistics
+are merged over the window with Chan's parallel update (exact, no cancellation).
+Variances are clamped at zero.
+
+Missing data
+------------
+Only valid samples enter the statistics; each step reports how many valid
+samples its window held. A window with fewer than ``min_valid`` samples (a
+fraction of its nominal frame count) gives *no evidence*: its state features
+are all zero, hence a zero state potential for both labels, and the chain's
+transition potentials alone carry the label across a short gap.
+
+Features (before transform), for a pair (A, B) and step ``t``
+-------------------------------------------------------------
+1. ``ν_π(A) + ν_π(B)``: windowed variance of each body's world position, m²
+   (the trace of the covariance: ``ω⁻¹ Σ ||p − mean||²``);
+2. ``ν_ρ(A) + ν_ρ(B)``: same for the sign-continuous quaternions (unitless);
+3. ``ζ_π(A, B)``: windowed variance of B's position in A's frame,
+   ``δ_π = R_A⁻¹ (p_B − p_A)``, m²;
+4. ``ζ_ρ(A, B)``: windowed variance of B's orientation in A's frame,
+   ``δ_ρ = q_A⁻¹ q_B``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.errors import ThirdhandError
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
+
+#: Names of the four core features, in column order.
+RAW_FEATURE_NAMES: tuple[str, ...] = ("nu_pos", "nu_rot", "zeta_pos", "zeta_rot")
+
+
+class SegmentationError(ThirdhandError, ValueError):
+    """Bad input to interaction segmentation (a missing body, too short a recording...)."""
+
+
+@dataclass(frozen=True)
+class LatentAxis:
+    """The latent time axis of a recording.
+
+    Attributes
+    ----------
+    t0 : float
+        Start of the first step, seconds (the first frame's time).
+    rate : float
+        Latent steps per second, Hz.
+    n_steps : int
+    frame_step : ndarray of int, shape (n_frames,)
+        Latent step of every frame.
+    frames_per_step : float
+        Nominal frames per step (median frame rate / latent rate).
+    """
+
+    t0: float
+    rate: float
+    n_steps: int
+    frame_step: IntArray
+    frames_per_step: float
+
+    @property
+    def times(self) -> FloatArray:
+        """Centre of every step, seconds, shape (n_steps,)."""
+        return self.t0 + (np.arange(self.n_steps, dtype=np.float64) + 0.5) / self.rate
+
+    @property
+    def edges(self) -> FloatArray:
+        """Step boundaries, seconds, shape (n_steps + 1,)."""
+        return self.t0 + np.arange(self.n_steps + 1, dtype=np.float64) / self.rate
+
+
+def latent_axis(t: NDArray[np.float64], rate: float) -> LatentAxis:
+    """Cut a frame time axis into latent steps.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n_frames,), seconds, strictly increasing
+    rate : float
+        Latent steps per second, Hz.
+    """
+    if not np.isfinite(rate) or rate <= 0:
+        raise SegmentationError(f"latent rate must be positive, got {rate} Hz")
+    t = np.asarray(t, dtype=np.float64)
+    if t.size < 2:
+        raise SegmentationError(
+            f"a recording of {t.size} frame(s) is too short to segment: need at least 2"
+        )
+    t0 = float(t[0])
+    k = np.floor((t - t0) * rate + 1e-9).astype(np.int64)
+    n_steps = int(k[-1]) + 1
+    fps = float(1.0 / np.median(np.diff(t))) / rate
+    return LatentAxis(t0=t0, rate=float(rate), n_steps=n_steps, frame_step=k, frames_per_step=fps)
+
+
+# ------------------------------------------------------------------ kernels
+@numba.njit(cache=True, nogil=True)
+def _block_stats(  # pragma: no cover - compiled
+    x: FloatArray, valid: BoolArray, step: IntArray, n_steps: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Per-step count, mean and sum of squared deviations (summed over columns)."""
+    n, d = x.shape
+    cnt = np.zeros(n_steps)
+    mean = np.zeros((n_steps, d))
+    m2 = np.zeros(n_steps)
+    s1 = np.zeros(d)
+    ref = np.zeros(d)
+    s2 = 0.0
+    cur = -1
+    c = 0.0
+    for i in range(n + 1):
+        k = step[i] if i < n else -2
+        if k != cur:
+            if cur >= 0 and c > 0:
+                cnt[cur] = c
+                acc = 0.0
+                for j in range(d):
+                    mu = s1[j] / c
+                    mean[cur, j] = ref[j] + mu
+                    acc += mu * mu
+                m2[cur] = max(s2 - c * acc, 0.0)
+            cur = k
+            c = 0.0
+            s2 = 0.0
+            for j in range(d):
+                s1[j] = 0.0
+        if i == n:
+            break
+        if not valid[i]:
+            continue
+        if c == 0.0:
+            for j in range(d):
+                ref[j] = x[i, j]
+        for j in range(d):
+            dx = x[i, j] - ref[j]
+            s1[j] += dx
+            s2 += dx * dx
+        c += 1.0
+    return cnt, mean, m2
+
+
+@numba.njit(cache=True, nogil=True)
+def _window_merge(  # pragma: no cover - compiled
+    cnt: FloatArray, mean: FloatArray, m2: FloatArray, window: int
+) -> tuple[FloatArray, FloatArray]:
+    """Merge per-step statistics over centred windows (Chan et al.).
+
+    Returns the per-step window variance (trace, unitless mean over samples) and count.
+    """
+    k_steps, d = mean.shape
+    var = np.zeros(k_steps)
+    n_out = np.zeros(k_steps)
+    mu = np.zeros(d)
+    half = window // 2
+    for k in range(k_steps):
+        lo = max(k - half, 0)
+        hi = min(k - half + window, k_steps)
+        n = 0.0
+        m = 0.0
+        for b in range(lo, hi):
+            nb = cnt[b]
+            if nb == 0.0:
+                continue
+            if n == 0.0:
+                for j in range(d):
+                    mu[j] = mean[b, j]
+                m = m2[b]
+                n = nb
+                continue
+            tot = n + nb
+            f = n * nb / tot
+            dd = 0.0
+            for j in range(d):
+                delta = mean[b, j] - mu[j]
+                dd += delta * delta
+                mu[j] += delta * nb / tot
+            m += m2[b] + dd * f
+            n = tot
+        n_out[k] = n
+        var[k] = max(m / n, 0.0) if n > 0.0 else 0.0
+    return var, n_out
+
+
+@numba.njit(cache=True, nogil=True)
+def _continuous_quat(q: FloatArray, valid: BoolArray) -> FloatArray:  # pragma: no cover
+    """Sign-continuous copy of a quaternion track (invalid rows skipped)."""
+    out = q.copy()
+    have = False
+    prev = np.zeros(4)
+    for i in range(q.shape[0]):
+        if not valid[i]:
+            continue
+        if have:
+            dot = 0.0
+            for j in range(4):
+                dot += out[i, j] * prev[j]
+            if dot < 0.0:
+                for j in range(4):
+                    out[i, j] = -out[i, j]
+        for j in range(4):
+            prev[j] = out[i, j]
+        have = True
+    return out
+
+
+@numba.njit(cache=True, nogil=True)
+def _relative_pose(  # pragma: no cover - compiled
+    pa: FloatArray, qa: FloatArray, pb: FloatArray, qb: FloatArray, valid: BoolArray
+) -> tuple[FloatArray, FloatArray]:
+    """B's pose in A's frame per frame, quaternion sign-continuous; zeros where invalid."""
+    n = pa.shape[0]
+    dp = np.zeros((n, 3))
+    dq = np.zeros((n, 4))
+    have = False
+    p0 = 0.0
+    p1 = 0.0
+    p2 = 0.0
+    p3 = 0.0
+    for i in range(n):
+        if not valid[i]:
+            continue
+        # conj(qa) = (-x, -y, -z, w)
+        x1 = -qa[i, 0]
+        y1 = -qa[i, 1]
+        z1 = -qa[i, 2]
+        w1 = qa[i, 3]
+        vx = pb[i, 0] - pa[i, 0]
+        vy = pb[i, 1] - pa[i, 1]
+        vz = pb[i, 2] - pa[i, 2]
+        # v + w t + u x t with t = 2 u x v
+        tx = 2.0 * (y1 * vz - z1 * vy)
+        ty = 2.0 * (z1 * vx - x1 * vz)
+        tz = 2.0 * (x1 * vy - y1 * vx)
+        dp[i, 0] = vx + w1 * tx + (y1 * tz - z1 * ty)
+        dp[i, 1] = vy + w1 * ty + (z1 * tx - x1 * tz)
+        dp[i, 2] = vz + w1 * tz + (x1 * ty - y1 * tx)
+        x2 = qb[i, 0]
+        y2 = qb[i, 1]
+        z2 = qb[i, 2]
+        w2 = qb[i, 3]
+        rx = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+        ry = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+        rz = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+        rw = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+        if have and rx * p0 + ry * p1 + rz * p2 + rw * p3 < 0.0:
+            rx = -rx
+            ry = -ry
+            rz = -rz
+            rw = -rw
+        dq[i, 0] = rx
+        dq[i, 1] = ry
+        dq[i, 2] = rz
+        dq[i, 3] = rw
+        p0, p1, p2, p3 = rx, ry, rz, rw
+        have = True
+    return dp, dq
+
+
+# ------------------------------------------------------------------ public
+def windowed_variance(
+    x: FloatArray, valid: BoolArray, axis: LatentAxis, window: int
+) -> tuple[FloatArray, FloatArray]:
+    """Windowed variance of a multi-dimensional signal over the latent axis.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n_frames, d)
+        Signal; rows where ``valid`` is False are ignored (may be NaN).
+    valid : ndarray of bool, shape (n_frames,)
+    axis : LatentAxis
+    window : int
+        Window length in latent steps, centred.
+
+    Returns
+    -------
+    var : ndarray, shape (n_steps,)
+        ``n⁻¹ Σ ||x − mean||²`` over the window's valid samples (0 where none).
+    count : ndarray, shape (n_steps,)
+        Number of valid samples in the window.
+    """
+    if window < 1:
+        raise SegmentationError(f"window must be at least 1 latent step, got {window}")
+    xv = np.where(valid[:, None], x, 0.0).astype(np.float64)
+    cnt, mean, m2 = _block_stats(xv, valid.astype(np.bool_), axis.frame_step, axis.n_steps)
+    return _window_merge(cnt, mean, m2, int(window))
+
+
+@dataclass(frozen=True)
+class BodyStats:
+    """Windowed variances of one body on a latent axis.
+
+    Attributes
+    ----------
+    var_pos : ndarray, shape (n_steps,), m²
+    var_rot : ndarray, shape (n_steps,), unitless (quaternion components)
+    count : ndarray, shape (n_steps,)
+        Valid samples per window.
+    """
+
+    var_pos: FloatArray
+    var_rot: FloatArray
+    count: FloatArray
+
+
+def body_stats(
+    pos: FloatArray, quat: FloatArray, valid: BoolArray, axis: LatentAxis, window: int
+) -> BodyStats:
+    """Windowed position and orientation variances of one body (ν_π, ν_ρ).
+
+    Parameters
+    ----------
+    pos : ndarray, shape (n_frames, 3), metres, world frame
+    quat : ndarray, shape (n_frames, 4), x y z w
+    valid : ndarray of bool, shape (n_frames,)
+    axis : LatentAxis
+    window : int
+        Latent steps, centred.
+    """
+    v = np.asarray(valid, dtype=np.bool_)
+    q = _continuous_quat(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
+    vp, n = windowed_variance(np.asarray(pos, np.float64), v, axis, window)
+    vr, _ = windowed_variance(q, v, axis, window)
+    return BodyStats(var_pos=vp, var_rot=vr, count=n)
+
+
+def pair_stats(
+    a: tuple[FloatArray, FloatArray, BoolArray],
+    b: tuple[FloatArray, FloatArray, BoolArray],
+    axis: LatentAxis,
+    window: int,
+) -> BodyStats:
+    """Windowed variances of B's pose in A's frame (ζ_π, ζ_ρ).
+
+    Parameters
+    ----------
+    a, b : tuple (pos (n_frames, 3) metres world frame, quat (n_frames, 4) x y z w,
+        valid (n_frames,) bool)
+    axis : LatentAxis
+    window : int
+        Latent steps, centred.
+    """
+    v = np.asarray(a[2], dtype=np.bool_) & np.asarray(b[2], dtype=np.bool_)
+    dp, dq = _relative_pose(
+        np.asarray(a[0], np.float64),
+        np.asarray(a[1], np.float64),
+        np.asarray(b[0], np.float64),
+        np.asarray(b[1], np.float64),
+        v,
+    )
+    vp, n = windowed_variance(dp, v, axis, window)
+    vr, _ = windowed_variance(dq, v, axis, window)
+    return BodyStats(var_pos=vp, var_rot=vr, count=n)
+
+
+def raw_pair_features(sa: BodyStats, sb: BodyStats, sab: BodyStats) -> FloatArray:
+    """The four core features of a pair, shape (n_steps, 4), columns :data:`RAW_FEATURE_NAMES`."""
+    return np.stack(
+        [sa.var_pos + sb.var_pos, sa.var_rot + sb.var_rot, sab.var_pos, sab.var_rot], axis=1
+    )
+
+
+__all__ = [
+    "RAW_FEATURE_NAMES",
+    "BodyStats",
+    "LatentAxis",
+    "SegmentationError",
+    "body_stats",
+    "latent_axis",
+    "pair_stats",
+    "raw_pair_features",
+    "windowed_variance",
+]

@@ -1,0 +1,154 @@
+"""The segmentation model as a small JSON document, and the shipped default.
+
+Document (``"format": "thirdhand.segment/1"``)::
+
+    {"format": "thirdhand.segment/1", "version": 1,
+     "features": {"latent_rate": 10.0, "window": 5, "transform": "log", ...},
+     "feature_names": ["bias", "log_eps_nu_pos", ...],
+     "theta": {"transition": [[w00, w01], [w10, w11]], "state": [...]},
+     "hand": {"min_fingers": 2}, "max_gap_s": 1.0, "training": {...}}
+
+``transition[a][b]`` weighs ``y_t = a`` after ``y_{t-1} = b``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.errors import ThirdhandError
+from thirdhand.segment.crf import PairCRF
+from thirdhand.segment.design import FeatureConfig
+
+FloatArray = NDArray[np.float64]
+
+FORMAT = "thirdhand.segment/1"
+DEFAULT_MODEL_RESOURCE = "segment_default.json"
+
+
+class ModelFileError(ThirdhandError, ValueError):
+    """A segmentation model file is missing or malformed."""
+
+
+@dataclass
+class SegmentModel:
+    """Everything needed to segment a demonstration.
+
+    Attributes
+    ----------
+    features : FeatureConfig
+    coef_transition : ndarray, shape (2, 2)
+    coef_state : ndarray, shape (n_features,)
+        Weights of :attr:`FeatureConfig.feature_names`.
+    min_fingers : int
+        Fingers that must interact for their hand to interact.
+    max_gap_s : float
+        Runs of steps without evidence longer than this, seconds, are labelled 0
+        (probability unknown) instead of being bridged by the chain.
+    training : dict
+        Free-form provenance (data set, seeds, penalty, scores).
+    """
+
+    features: FeatureConfig
+    coef_transition: FloatArray
+    coef_state: FloatArray
+    min_fingers: int = 2
+    max_gap_s: float = 1.0
+    training: dict[str, Any] = field(default_factory=dict)
+
+    @classmethod
+    def from_crf(cls, crf: PairCRF, features: FeatureConfig, **kwargs: Any) -> SegmentModel:
+        """Wrap a fitted :class:`PairCRF`."""
+        return cls(features, crf.coef_transition_.copy(), crf.coef_state_.copy(), **kwargs)
+
+    def crf(self) -> PairCRF:
+        """A :class:`PairCRF` holding these weights."""
+        return PairCRF().set_params_theta(
+            np.concatenate([self.coef_transition.ravel(), self.coef_state])
+        )
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able document."""
+        return {
+            "format": FORMAT,
+            "version": 1,
+            "features": self.features.to_dict(),
+            "feature_names": self.features.feature_names,
+            "theta": {
+                "transition": self.coef_transition.tolist(),
+                "state": self.coef_state.tolist(),
+            },
+            "hand": {"min_fingers": self.min_fingers},
+            "max_gap_s": self.max_gap_s,
+            "training": self.training,
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any], *, source: str = "<model>") -> SegmentModel:
+        """Inverse of :meth:`to_dict`; raises :class:`ModelFileError` naming ``source``."""
+        if not isinstance(d, dict) or d.get("format") != FORMAT:
+            got = d.get("format") if isinstance(d, dict) else type(d).__name__
+            raise ModelFileError(f"{source}: expected format {FORMAT!r}, got {got!r}")
+        try:
+            feats = FeatureConfig(**d["features"])
+            trans = np.asarray(d["theta"]["transition"], dtype=np.float64)
+            state = np.asarray(d["theta"]["state"], dtype=np.float64)
+            min_f = int(d.get("hand", {}).get("min_fingers", 2))
+            max_gap = float(d.get("max_gap_s", 1.0))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ModelFileError(
+                f"{source}: malformed model: {type(exc).__name__}: {exc}"
+            ) from None
+        n = len(feats.feature_names)
+        if trans.shape != (2, 2) or state.shape != (n,):
+            raise ModelFileError(
+                f"{source}: expected a 2x2 transition matrix and {n} state weights, got "
+                f"shapes {trans.shape} and {state.shape}"
+            )
+        if not (np.all(np.isfinite(trans)) and np.all(np.isfinite(state))):
+            raise ModelFileError(f"{source}: model weights must be finite")
+        return cls(feats, trans, state, min_f, max_gap, dict(d.get("training", {})))
+
+    def save(self, path: str | os.PathLike[str]) -> None:
+        """Write the JSON document atomically (temporary file, then rename)."""
+        p = Path(path)
+        tmp = p.with_name(p.name + ".tmp")
+        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
+        os.replace(tmp, p)
+
+
+def load_model(path: str | os.PathLike[str]) -> SegmentModel:
+    """Read a model written by :meth:`SegmentModel.save`."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as exc:
+        raise ModelFileError(f"{p}: cannot read the model: {exc.strerror or exc}") from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ModelFileError(f"{p} line {exc.lineno}: not JSON: {exc.msg}") from None
+    return SegmentModel.from_dict(d, source=str(p))
+
+
+def default_model() -> SegmentModel:
+    """The model shipped with the package (trained on synthetic scenes)."""
+    ref = resources.files("thirdhand").joinpath("data", DEFAULT_MODEL_RESOURCE)
+    try:
+        text = ref.read_text()
+    except (FileNotFoundError, OSError):
+        raise ModelFileError(
+            f"the default segmentation model {DEFAULT_MODEL_RESOURCE} is not installed; "
+            "run scripts/train_default_segmenter.py or pass a model"
+        ) from None
+    return SegmentModel.from_dict(json.loads(text), source=DEFAULT_MODEL_RESOURCE)
+
+
+__all__ = ["FORMAT", "ModelFileError", "SegmentModel", "default_model", "load_model"]
