@@ -598,6 +598,11 @@ def nearest_frames(frame_times: ArrayLike, times: ArrayLike) -> np.ndarray:
     return np.where(np.abs(tt - ft[lo]) <= np.abs(ft[hi] - tt), lo, hi).astype(np.int64)
 
 
+def _name(name: str) -> str:
+    """A body name as a key: bare when it can be, quoted otherwise."""
+    return name if _BARE_WORD.fullmatch(name) else format_value(name)
+
+
 def _lock_text(start: int, end: int, extra: dict[str, Value]) -> str:
     fields = f"from={start}  to={end}"
     for k, v in extra.items():
@@ -681,7 +686,7 @@ def format_annotations(
             ):
                 label, step = hand, len(fingers)
         locks = "  ".join(_lock_text(frame(s), frame(e), {}) for s, e in spans)
-        lines.append(f" TS {label} {b} {{ {locks} }}")
+        lines.append(f" TS {_name(label)} {_name(b)} {{ {locks} }}")
         i += step
     cons = list(labels.constraints)
     k = 0
@@ -703,13 +708,13 @@ def format_annotations(
             end = frame(nxt.time)
             k += 1
         lock = _lock_text(frame(c.time), end, _constraint_extras(c))
-        lines.append(f" CE {c.parent} {c.child} {{ {lock} }}")
+        lines.append(f" CE {_name(c.parent)} {_name(c.child)} {{ {lock} }}")
         k += 1
     for st in labels.plan:
         fields = "" if st.time is None else f"frame={frame(st.time)}  "
         if st.symbol is not None:
             fields += f"symbol={format_value(st.symbol)} "
-        lines.append(f" PS {st.parent} {st.child} {{ step {{ {fields}}} }}")
+        lines.append(f" PS {_name(st.parent)} {_name(st.child)} {{ step {{ {fields}}} }}")
     return "\n".join(lines) + "\n"
 
 

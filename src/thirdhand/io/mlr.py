@@ -520,21 +520,19 @@ def _format_fields(fields: Mapping[str, Any]) -> str:
 
 
 def _meta_text(entries: Sequence[tuple[BodyInfo, str, int, dict[str, Any]]]) -> str:
-    sections: dict[str, list[str]] = {}
-    width = max(len(b.name) for b, *_ in entries)
+    """Sections in body order; a section recurs when the bodies interleave sections."""
+    runs: list[tuple[str, list[str]]] = []
+    width = max(len(kvg.format_value(b.name)) for b, *_ in entries)
     for b, section, row, fields in entries:
-        items = {
-            "type": fields["type"],
-            "rn": row,
-            **{k: v for k, v in fields.items() if k != "type"},
-        }
-        sections.setdefault(section, []).append(
-            f"  {kvg.format_value(b.name):<{width}} = {{ {_format_fields(items)} }}"
-        )
+        items = {"type": fields["type"], "rn": row}
+        items.update((k, v) for k, v in fields.items() if k != "type")
+        line = f"  {kvg.format_value(b.name):<{width}} = {{ {_format_fields(items)} }}"
+        if not runs or runs[-1][0] != section:
+            runs.append((section, []))
+        runs[-1][1].append(line)
     return "\n".join(
-        f"{kvg.format_value(name)} {{\n" + "\n".join(lines) + "\n}\n"
-        for name, lines in sections.items()
-    ).replace("}\n{", "}\n\n{")
+        f"{kvg.format_value(name)} {{\n" + "\n".join(lines) + "\n}\n" for name, lines in runs
+    )
 
 
 def _poses_text(
