@@ -11,9 +11,9 @@ from typing import Any
 import pytest
 import yaml
 
-from thirdhand.errors import FormatError
-from thirdhand.io.iros15 import WAIT, StudyStep, UserStudy, read_user_study
-from thirdhand.taskfile import Constraint
+from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.io.iros15 import WAIT, StudyStep, UserStudy, read_user_study, session_task
+from thirdhand.taskfile import Constraint, dump_task, load_task, parse_task, save_task
 
 Row = list[float]
 
@@ -228,3 +228,48 @@ def test_not_yaml_gives_the_line(tmp_path: Path) -> None:
     path.write_text("s1:\n  blue_chair: [1, 2\n  other: 3\n")
     with pytest.raises(FormatError, match=r"study\.yaml line \d+: not valid YAML"):
         read_user_study(path)
+
+
+def test_every_plan_becomes_a_valid_task_file(study: UserStudy, tmp_path: Path) -> None:
+    n = 0
+    for subject, scene, session in study.sessions():
+        variants: list[tuple[int | None, Any, Any]] = [(None, session.plan, session.symbols)]
+        variants += [(a.index, a.corrected_plan, a.corrected_st) for a in session.attempts]
+        for attempt, plan, table in variants:
+            if plan is None:
+                continue
+            task = session_task(
+                study, subject=subject, scene=scene, session=session.name, attempt=attempt
+            )
+            n += 1
+            steps = [s for s in plan if s != WAIT]
+            assert [(s.parent, s.child, s.symbol) for s in task.plan] == [
+                (s.parent, s.child, s.symbol) for s in steps
+            ]
+            assert {c.id: c.to_row() for c in task.constraints} == {
+                k: c.to_row() for k, c in table.constraints.items()
+            }
+            assert task.stages["iros15"]["waits"] == [i for i, s in enumerate(plan) if s == WAIT]
+            assert parse_task(dump_task(task)) == task
+    assert n == 141
+    task = session_task(study, subject="adele", scene="blue_chair", session="B", attempt=0)
+    save_task(task, tmp_path / "adele.json")
+    back = load_task(tmp_path / "adele.json")
+    assert back == task
+    assert all(c.source == "corrected" for c in back.constraints)
+    assert [o.name for o in back.objects] == ["seating", "leg1", "leg2", "leg3", "leg4", "back"]
+    assert back.stages["iros15"]["state"] == "success"
+    assert set(back.stages["iros15"]["unused_symbols"]) == {"c3", "c4"}
+
+
+@pytest.mark.parametrize(
+    ("where", "expected"),
+    [
+        ({"subject": "nobody", "scene": "blue_chair", "session": "A"}, "no session nobody/"),
+        ({"subject": "adele", "scene": "blue_chair", "session": "A", "attempt": 7}, "no attempt 7"),
+        ({"subject": "elias", "scene": "test", "session": "test"}, "elias/test/test has no plan"),
+    ],
+)
+def test_session_task_errors(study: UserStudy, where: dict[str, Any], expected: str) -> None:
+    with pytest.raises(ThirdhandError, match=re.escape(expected)):
+        session_task(study, **where)

@@ -22,6 +22,7 @@ step that uses the symbol; rows of symbols no step uses keep their raw numbers
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
@@ -30,8 +31,9 @@ from typing import Any, Literal
 
 import yaml
 
-from thirdhand.errors import FormatError, TaskFileError
+from thirdhand.errors import FormatError, TaskFileError, ThirdhandError
 from thirdhand.task.constraint import Constraint
+from thirdhand.task.model import InputFile, TaskFile, TaskObject, TaskStep
 
 WAIT: Literal["wait"] = "wait"
 
@@ -397,3 +399,92 @@ def read_user_study(path: str | os.PathLike[str]) -> UserStudy:
         line = mark.line + 1 if mark is not None else None
         raise FormatError(p, f"not valid YAML: {getattr(exc, 'problem', exc)}", line=line) from None
     return _Reader(p).study(data)
+
+
+def session_task(
+    study: UserStudy,
+    *,
+    subject: str,
+    scene: str,
+    session: str,
+    attempt: int | None = None,
+    objects: Mapping[str, TaskObject] | None = None,
+) -> TaskFile:
+    """A task file of what was learned in a session, or of what a subject corrected.
+
+    Parameters
+    ----------
+    study : UserStudy
+    subject, scene, session : str
+        E.g. ``"adele"``, ``"blue_chair"``, ``"A"``.
+    attempt : int, optional
+        The attempt whose corrected plan and constraints to use; by default the
+        learned plan and constraints of the session.
+    objects : mapping of str to TaskObject, optional
+        Objects to use (with their meshes) instead of bare parts named after the plan.
+
+    Returns
+    -------
+    TaskFile
+        Objects in order of first appearance in the plan, the constraints the
+        plan uses, one step per plan step. The ``iros15`` stage block keeps the
+        rest: where the plan's ``wait`` steps were, rows of unused symbols, and
+        for an attempt its state, effort counts and precision.
+
+    Raises
+    ------
+    ThirdhandError
+        If the session or attempt does not exist or has no plan.
+    """
+    try:
+        se = study.subjects[subject][scene][session]
+    except KeyError:
+        raise ThirdhandError(
+            f"{study.path}: no session {subject}/{scene}/{session} in the user study"
+        ) from None
+    block: dict[str, Any] = {"subject": subject, "scene": scene, "session": session}
+    if attempt is None:
+        plan, table = se.plan, se.symbols
+    else:
+        found = [a for a in se.attempts if a.index == attempt]
+        if not found:
+            raise ThirdhandError(
+                f"{study.path}: no attempt {attempt} in {subject}/{scene}/{session}; "
+                f"attempts are {[a.index for a in se.attempts]}"
+            )
+        a = found[0]
+        plan, table = a.corrected_plan, a.corrected_st
+        block.update(
+            attempt=attempt, state=a.state, effort={k: dict(v) for k, v in a.effort.items()}
+        )
+        if a.corrected_precision is not None:
+            block["corrected_precision"] = {
+                k: None if v is None else list(v)
+                for k, v in dataclasses.asdict(a.corrected_precision).items()
+            }
+    where = f"{subject}/{scene}/{session}" + (f"/{attempt}" if attempt is not None else "")
+    if plan is None:
+        raise ThirdhandError(f"{study.path}: {where} has no plan")
+    steps = [s for s in plan if isinstance(s, StudyStep)]
+    names = list(dict.fromkeys(n for s in steps for n in (s.parent, s.child)))
+    known = dict(objects or {})
+    block["waits"] = [i for i, s in enumerate(plan) if s == WAIT]
+    block["unused_symbols"] = {k: list(v) for k, v in table.unused.items()}
+    path = Path(study.path)
+    source = InputFile.from_path(path) if path.is_file() else InputFile(path=study.path)
+    return TaskFile.new(
+        objects=[known.get(n, TaskObject(name=n, kind="part")) for n in names],
+        constraints=list(table.constraints.values()),
+        plan=[
+            TaskStep(
+                action=s.action or "action",
+                parent=s.parent,
+                child=s.child,
+                symbol=s.symbol,
+                constraint=s.symbol if s.symbol in table.constraints else None,
+            )
+            for s in steps
+        ],
+        stages={"iros15": block},
+        inputs=[source],
+    )
