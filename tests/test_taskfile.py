@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from thirdhand.demonstration import BODY_KINDS
 from thirdhand.demonstration import CONSTRAINT_TYPES as DEMO_CONSTRAINT_TYPES
@@ -22,6 +24,7 @@ from thirdhand.taskfile import (
     SCHEMA,
     Constraint,
     FreeDofs,
+    Pose,
     TaskFile,
     dump_task,
     infer_constraint_type,
@@ -478,3 +481,43 @@ def test_non_finite_value_is_never_written(tmp_path: Path) -> None:
     with pytest.raises(TaskFileError, match="cannot write task: Out of range float"):
         save_task(task, tmp_path / "t.json")
     assert not (tmp_path / "t.json").exists()
+
+
+finite = st.floats(min_value=-1e6, max_value=1e6, allow_nan=False, allow_subnormal=True)
+
+
+@st.composite
+def rows(draw: st.DrawFn) -> list[float]:
+    pos = [draw(finite) for _ in range(3)]
+    q = np.array([draw(st.floats(-1.0, 1.0)) for _ in range(4)])
+    assume(np.linalg.norm(q) > 1e-3)
+    quat = [float(v) for v in q / np.linalg.norm(q)]
+    ranges = []
+    for _ in range(6):
+        lo, hi = sorted((draw(finite), draw(finite)))
+        ranges += [lo, hi]
+    return pos + quat + ranges
+
+
+@settings(max_examples=200, deadline=None)
+@given(rows())
+def test_any_valid_row_round_trips_bit_exactly(row: list[float]) -> None:
+    c = Constraint.from_row(row, parent="a", child="b", symbol="s")
+    assert c.to_row() == row
+    assert parse_task(
+        dump_task(TaskFile.new(objects=[{"name": "a"}, {"name": "b"}], constraints=[c]))
+    ).constraints == [c]
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4).filter(
+        lambda q: float(np.linalg.norm(q)) > 1e-3
+    ),
+    st.floats(0.991, 1.009),
+)
+def test_near_unit_quaternions_are_normalised(q: list[float], norm: float) -> None:
+    v = np.asarray(q) / np.linalg.norm(q) * norm
+    got = np.asarray(Pose(quat=tuple(v)).quat)
+    assert abs(np.linalg.norm(got) - 1.0) <= 1e-6
+    assert np.allclose(got, v / np.linalg.norm(v), rtol=0, atol=1e-12)
