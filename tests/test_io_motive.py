@@ -405,3 +405,49 @@ def test_bad_options(tmp_path: Path) -> None:
         motive.read(p, length_units="inches")
     with pytest.raises(FormatError, match="include_markers=True"):
         motive.read(_write(tmp_path, MALFORMED["no rigid body"][0], "markers.csv"))
+
+
+def test_header_rows_checked_by_label_and_content(tmp_path: Path) -> None:
+    twice = _replace_line(V123, 5, V123.split("\n")[3] + "\n" + V123.split("\n")[4])
+    with pytest.raises(FormatError, match="'Name' appears twice") as err:
+        motive.read(_write(tmp_path, twice, "twice.csv"))
+    assert err.value.line == 5
+    garbled = _replace_line(V121, 3, ",," + ",".join(["Thing"] * 11))
+    with pytest.raises(FormatError, match="expected the Type row") as err:
+        motive.read(_write(tmp_path, garbled, "garbled.csv"))
+    assert err.value.line == 3
+    euler = V123.replace("X,Y,Z,W,X,Y,Z,,X,Y,Z,,X,Y,Z,X", "X,Y,Z,V,X,Y,Z,,X,Y,Z,,X,Y,Z,X")
+    with pytest.raises(FormatError, match="no W column") as err:
+        motive.read(_write(tmp_path, euler, "euler.csv"))
+    assert err.value.where == "body 'seat'" and err.value.line == 7
+
+
+def test_write_refuses_what_motive_cannot_hold(tmp_path: Path, rng: np.random.Generator) -> None:
+    demo = _random_demo(rng, n=20, t0=0.0, rate=120.0)
+    renamed = demo.replace(
+        bodies=[BodyInfo("line\nbreak") if b.name == "seat" else b for b in demo.bodies],
+        tracks={
+            ("line\nbreak" if n == "seat" else n): (demo.pos(n), demo.quat(n), demo.valid(n))
+            for n in demo.body_names
+        },
+    )
+    with pytest.raises(FormatError, match="line breaks"):
+        motive.write(renamed, tmp_path / "x.csv")
+    with pytest.raises(FormatError, match="no body"):
+        motive.write(demo.select([]), tmp_path / "x.csv")
+    assert not any(tmp_path.iterdir())
+
+
+def test_round_trip_of_awkward_floats(tmp_path: Path) -> None:
+    special = np.array([-0.0, 5e-324, 1e-300, 49.99999999999999, 1 / 3, -2.5e-17, 0.1, 7.0])
+    n = special.size
+    pos = np.column_stack([special, special[::-1], np.full(n, -1e-5)])
+    quat = np.tile([0.0, -0.0, np.sqrt(0.5), np.sqrt(0.5)], (n, 1))
+    demo = Demonstration(np.arange(n) / 30.0, [BodyInfo("b")], {"b": pos}, {"b": quat})
+    p = tmp_path / "awkward.csv"
+    motive.write(demo, p)
+    back = motive.read(p)
+    assert np.array_equal(back.pos("b"), demo.pos("b"))
+    assert np.array_equal(np.signbit(back.pos("b")), np.signbit(demo.pos("b")))
+    assert np.array_equal(back.quat("b"), demo.quat("b"))
+    assert np.array_equal(back.t, demo.t)

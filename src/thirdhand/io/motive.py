@@ -58,7 +58,17 @@ LENGTH_UNITS: dict[str, float] = {
 }
 #: Asset types Motive writes in the ``Type`` row (used to recognise an unlabelled Type row).
 ASSET_TYPES = frozenset(
-    {"Rigid Body", "Rigid Body Marker", "Marker", "Bone", "Bone Marker", "Skeleton", "Force Plate"}
+    {
+        "Rigid Body",
+        "Rigid Body Marker",
+        "Marker",
+        "Bone",
+        "Bone Marker",
+        "Skeleton",
+        "Trained Markerset",
+        "Trained Markerset Marker",
+        "Force Plate",
+    }
 )
 _MAGIC = "Format Version"
 _LABELS = ("Type", "Name", "ID", "Parent")
@@ -138,6 +148,7 @@ def _read_header(path: Path) -> _Header:
             for i in range(0, len(cells), 2)
             if cells[i].strip()
         }
+        _check_first_line(path, keys)
         header = _Header(keys=keys)
         unlabelled: list[tuple[int, list[str]]] = []
         lineno = 1
@@ -181,6 +192,28 @@ def _read_header(path: Path) -> _Header:
                 unlabelled.append((lineno, row))
 
 
+def _check_first_line(path: Path, keys: Mapping[str, str]) -> None:
+    """Refuse, before reading further, a format or rotation type this reader cannot take."""
+    version = keys.get(_MAGIC, "")
+    try:
+        version_ok = float(version) >= 1.2
+    except ValueError:
+        version_ok = False
+    if not version_ok:
+        raise FormatError(
+            path,
+            f"unsupported Format Version {version!r}; this reader handles 1.2 and later",
+            line=1,
+        )
+    rotation = keys.get("Rotation Type", "Quaternion")
+    if rotation.lower() != "quaternion":
+        raise FormatError(
+            path,
+            f"Rotation Type is {rotation!r}; only Quaternion exports are supported",
+            line=1,
+        )
+
+
 def _finish_header(
     path: Path,
     header: _Header,
@@ -203,16 +236,19 @@ def _finish_header(
         else:
             others.append((lineno, row))
     # Format 1.21 writes Type, Name and ID without labels, in that order.
+    if "type" not in header.rows and others:
+        lineno, row = others[0]
+        if not any(c.strip() in ASSET_TYPES for c in row):
+            raise FormatError(
+                path,
+                "unlabelled header row names no known asset type "
+                f"({', '.join(sorted(ASSET_TYPES))}); expected the Type row",
+                line=lineno,
+            )
     for role in ("type", "name", "id"):
         if role not in header.rows and others:
             lineno, row = others.pop(0)
             header.rows[role], header.row_lines[role] = row, lineno
-    if "type" in header.rows and not any(c.strip() in ASSET_TYPES for c in header.rows["type"]):
-        raise FormatError(
-            path,
-            f"the Type row names no known asset type ({', '.join(sorted(ASSET_TYPES))})",
-            line=header.row_lines["type"],
-        )
     for role, what in (
         ("type", "Type"),
         ("name", "Name"),
@@ -548,24 +584,7 @@ def read(
     p = Path(path)
     header = _read_header(p)
     keys = header.keys
-    version = keys.get("Format Version", "")
-    try:
-        version_ok = float(version) >= 1.2
-    except ValueError:
-        version_ok = False
-    if not version_ok:
-        raise FormatError(
-            p,
-            f"unsupported Format Version {version!r}; this reader handles 1.2 and later",
-            line=1,
-        )
     rotation = keys.get("Rotation Type", "Quaternion")
-    if rotation.lower() != "quaternion":
-        raise FormatError(
-            p,
-            f"Rotation Type is {rotation!r}; only Quaternion exports are supported",
-            line=1,
-        )
     scale = _units_per_metre(p, keys, length_units)
     rate, capture_rate = _rate(p, keys)
     up = keys.get("Up Axis", up_axis).strip().lower()
@@ -630,7 +649,7 @@ def read(
     meta: dict[str, Any] = {
         "source": str(p),
         "format": "motive",
-        "format_version": version,
+        "format_version": keys[_MAGIC],
         "take_name": keys.get("Take Name", ""),
         "capture_frame_rate": capture_rate,
         "export_frame_rate": rate,
@@ -757,6 +776,16 @@ def write(
     import pyarrow.csv as pacsv
 
     p = Path(path)
+    if not len(demo):
+        raise FormatError(p, "the demonstration has no body to write")
+    for name in demo.body_names:
+        if name != name.strip() or any(c in name for c in "\r\n"):
+            raise FormatError(
+                p,
+                "body names written to a Motive CSV cannot hold line breaks or start or end "
+                "with white space",
+                where=f"body {name!r}",
+            )
     if rate is None:
         rate = demo.meta.get("export_frame_rate") or (demo.rate if demo.n_frames > 1 else 120.0)
     rate = float(rate)
