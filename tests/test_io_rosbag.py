@@ -397,6 +397,28 @@ def test_pose_topics_share_frames_within_tolerance(tmp_path: Path) -> None:
     assert exact.n_frames == 15
 
 
+def test_fast_streams_pair_up_without_doubling(tmp_path: Path) -> None:
+    # 1 kHz streams with the default 1 ms tolerance: each frame takes one stamp per body.
+    m = Msgs(_store(2))
+    entries = []
+    for k in range(50):
+        for topic, dt in (("/a", 0), ("/b", 300_000)):
+            s = T0 + k * NS // 1000 + dt
+            entries.append(
+                (
+                    topic,
+                    "geometry_msgs/msg/PoseStamped",
+                    s,
+                    m.pose_stamped(s, (k, 0, 0), identity()),
+                )
+            )
+    demo = rosbag.read(write_raw(tmp_path / "fast", m.store, 2, entries))
+    assert demo.n_frames == 50
+    assert demo.valid("a").all() and demo.valid("b").all()
+    np.testing.assert_allclose(demo.t, np.arange(50) / 1000, atol=1e-9)
+    np.testing.assert_array_equal(demo.pos("b")[:, 0], np.arange(50))
+
+
 def test_out_of_order_stamps_are_sorted(tmp_path: Path) -> None:
     m = Msgs(_store(1))
     order = [3, 0, 4, 1, 2]

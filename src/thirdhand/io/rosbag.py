@@ -34,11 +34,10 @@ Time stamps come from the message's ``header.stamp`` (for world-model objects:
 the pose's, else the object's, else the message's header), falling back to
 the bag's receive time when the stamp is zero (unset).
 
-Time axis: the union of all observation stamps. Stamps are grouped by chaining
-gaps of at most ``merge_tolerance``; a group that spans at most
-``merge_tolerance`` and holds at most one observation per body becomes one frame
-at its earliest stamp, so bodies published together share a frame; otherwise
-every distinct stamp of the group is its own frame. A body is invalid at the
+Time axis: the union of all observation stamps, merged so that bodies
+published together share a frame: a frame opens at the earliest stamp not yet
+placed and takes every later stamp within ``merge_tolerance`` of it, at most one
+per body (stream); its time is that earliest stamp. A body is invalid at the
 frames where it was not observed. ``t`` is in seconds from the first frame;
 ``meta["start_time_unix"]`` (float seconds) and ``meta["start_time_ns"]`` (int)
 give the absolute time of ``t = 0``.
@@ -70,6 +69,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
+import numba
 import numpy as np
 from numpy.typing import NDArray
 
@@ -318,8 +318,11 @@ def _collect(
                     f"requested topic has type {by_topic[t][0].msgtype}, which carries no pose",
                     where=t,
                 )
+        wanted = set(topics)
+        if "/tf" in wanted:
+            wanted.add("/tf_static")
         for t in list(specs):
-            if t not in topics and specs[t].kind != "meta":
+            if t not in wanted and specs[t].kind != "meta":
                 unused[t] = by_topic[t][0].msgtype
                 del specs[t]
     if not any(s.kind != "meta" for s in specs.values()):
@@ -461,6 +464,23 @@ def _series(track: _Track, src: Path, what: str) -> _Series:
     return _Series(stamps, pose, visible & finite)
 
 
+@numba.njit(cache=True, nogil=True)
+def _greedy_frames(stamps: IntArray, owner: IntArray, n_owners: int, tol_ns: int) -> IntArray:
+    """Frame of each sorted stamp: a frame opens at the first stamp not yet placed
+    and takes the following stamps within ``tol_ns`` of it, one per owner."""
+    frame = np.empty(stamps.size, dtype=np.int64)
+    last = np.full(n_owners, -1, dtype=np.int64)
+    f = -1
+    anchor = 0
+    for i in range(stamps.size):
+        if f < 0 or stamps[i] - anchor > tol_ns or last[owner[i]] == f:
+            f += 1
+            anchor = stamps[i]
+        frame[i] = f
+        last[owner[i]] = f
+    return frame
+
+
 def _frame_axis(streams: Sequence[IntArray], tol_ns: int) -> tuple[IntArray, list[IntArray]]:
     """Merge the stamps of several streams into one frame axis.
 
@@ -473,30 +493,22 @@ def _frame_axis(streams: Sequence[IntArray], tol_ns: int) -> tuple[IntArray, lis
     Returns
     -------
     frames : ndarray of int64, shape (n_frames,), nanoseconds, strictly increasing
+        The earliest stamp of each frame.
     index : list of int64 arrays, shape (n_i,)
         Frame of each stamp of each stream.
     """
     if not streams:
         return np.zeros(0, np.int64), []
-    stamps = np.concatenate(streams)
-    owner = np.repeat(np.arange(len(streams)), [s.size for s in streams])
+    stamps = np.concatenate(streams).astype(np.int64)
+    owner = np.repeat(np.arange(len(streams), dtype=np.int64), [s.size for s in streams])
     order = np.argsort(stamps, kind="stable")
-    s, o = stamps[order], owner[order]
-    group = np.concatenate([[0], np.cumsum(np.diff(s) > tol_ns)])
-    n_groups = int(group[-1]) + 1 if s.size else 0
-    first = np.full(n_groups, np.iinfo(np.int64).max)
-    last = np.full(n_groups, np.iinfo(np.int64).min)
-    np.minimum.at(first, group, s)
-    np.maximum.at(last, group, s)
-    split = last - first > tol_ns
-    pair = np.sort(group * len(streams) + o)
-    split[pair[1:][np.diff(pair) == 0] // len(streams)] = True
-    key = np.where(split[group], s, first[group])
-    frames = np.unique(key)
+    sorted_stamps = stamps[order]
+    frame = _greedy_frames(sorted_stamps, owner[order], len(streams), int(tol_ns))
+    first = np.flatnonzero(np.diff(frame, prepend=-1))
     idx = np.empty(stamps.size, dtype=np.int64)
-    idx[order] = np.searchsorted(frames, key)
+    idx[order] = frame
     bounds = np.cumsum([0] + [x.size for x in streams])
-    return frames, [idx[a:b] for a, b in itertools.pairwise(bounds)]
+    return sorted_stamps[first], [idx[a:b] for a, b in itertools.pairwise(bounds)]
 
 
 # ====================================================================== tf
@@ -659,7 +671,7 @@ def read(
         A ROS 1 ``.bag`` file (or several, read as one recording), a ROS 2 bag
         folder, or a lone ``.mcap`` / ``.db3`` file.
     topics : sequence of str, optional
-        Read only these topics (``/tf`` and ``/tf_static`` included); default:
+        Read only these topics; ``/tf`` brings ``/tf_static`` with it. Default:
         every topic that carries poses.
     root_frame : str, optional
         tf frame the tf bodies are expressed in; default the root of the largest
