@@ -521,3 +521,17 @@ def test_near_unit_quaternions_are_normalised(q: list[float], norm: float) -> No
     got = np.asarray(Pose(quat=tuple(v)).quat)
     assert abs(np.linalg.norm(got) - 1.0) <= 1e-6
     assert np.allclose(got, v / np.linalg.norm(v), rtol=0, atol=1e-12)
+
+
+def test_new_task_owns_copies_of_given_models() -> None:
+    c = Constraint(id="c1", parent="a", child="b", type="fixed", note="kept")
+    task = TaskFile.new(objects=[{"name": "a"}, {"name": "b"}], constraints=[c])
+    task.constraints[0].confidence = 0.5
+    assert c.confidence == 1.0
+    assert task.constraints[0].model_extra == {"note": "kept"}
+
+
+def test_pose_matrix() -> None:
+    pose = Pose(pos=(1.0, 2.0, 3.0), quat=(0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)))
+    m = pose.matrix()
+    assert np.allclose(m @ [1.0, 0.0, 0.0, 1.0], [1.0, 3.0, 3.0, 1.0])

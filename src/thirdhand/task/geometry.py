@@ -14,6 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict
 
+from thirdhand.se3 import pose_to_matrix
+
 FloatArray = NDArray[np.float64]
 
 #: Order of the six degrees of freedom: translations (m) then rotations (rad).
@@ -105,8 +107,6 @@ class Pose(TaskModel):
 
     def matrix(self) -> FloatArray:
         """Homogeneous transform, shape (4, 4), mapping B coordinates into A."""
-        from thirdhand.se3 import pose_to_matrix
-
         return pose_to_matrix(self.pos, self.quat)
 
 

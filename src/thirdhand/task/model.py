@@ -138,6 +138,11 @@ class Provenance(TaskModel):
     corrections: list[Correction] = Field(default_factory=list)
 
 
+def _plain(item: TaskModel | Mapping[str, Any]) -> Any:
+    """A model as plain data, so the new task owns fresh copies (and validates them)."""
+    return item.model_dump(by_alias=True) if isinstance(item, TaskModel) else item
+
+
 def _duplicates(names: Iterable[str]) -> list[tuple[int, str]]:
     seen: set[str] = set()
     out = []
@@ -242,9 +247,9 @@ class TaskFile(TaskModel):
             return cls.model_validate(
                 {
                     "schema": SCHEMA,
-                    "objects": list(objects),
-                    "constraints": list(constraints),
-                    "plan": list(plan),
+                    "objects": [_plain(o) for o in objects],
+                    "constraints": [_plain(c) for c in constraints],
+                    "plan": [_plain(p) for p in plan],
                     "stages": {k: dict(v) for k, v in (stages or {}).items()},
                     "provenance": Provenance(
                         inputs=files,
