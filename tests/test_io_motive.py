@@ -451,3 +451,12 @@ def test_round_trip_of_awkward_floats(tmp_path: Path) -> None:
     assert np.array_equal(np.signbit(back.pos("b")), np.signbit(demo.pos("b")))
     assert np.array_equal(back.quat("b"), demo.quat("b"))
     assert np.array_equal(back.t, demo.t)
+
+
+def test_frames_numbered_at_the_capture_rate_of_a_downsampled_export(tmp_path: Path) -> None:
+    text = V123.replace("Capture Frame Rate,120.000000", "Capture Frame Rate,240.000000")
+    for k in (3, 2, 1):  # frames 0 2 4 6 at 240 Hz, times at 120 Hz
+        text = text.replace(f"\n{k},0.0", f"\n{2 * k},0.0")
+    demo = motive.read(_write(tmp_path, text))
+    assert demo.t.tolist() == [0.0, 2 / 240, 4 / 240, 6 / 240]
+    assert demo.meta["capture_frame_rate"] == 240.0

@@ -486,13 +486,20 @@ def _first_null(path: Path, header: _Header, col: Any, what: str) -> None:
 
 
 def _time_axis(
-    path: Path, header: _Header, frame: NDArray[np.int64], time: FloatArray, rate: float
+    path: Path,
+    header: _Header,
+    frame: NDArray[np.int64],
+    time: FloatArray,
+    rates: tuple[float, ...],
 ) -> FloatArray:
-    """Time stamps from the frame numbers and the export rate, cross-checked with Time.
+    """Time stamps from the frame numbers and the frame rate, cross-checked with Time.
 
-    The Time column of a Motive export is rounded to microseconds, so the axis is
-    ``frame / rate``. When the Time column agrees with that axis to within 1 ns it was
-    written at full precision (by :func:`write`) and is taken as is.
+    Frame numbers count at the export rate (``rates[0]``); the other rates (the
+    capture rate) are tried when the Time column contradicts it, as frames of a
+    down-sampled export may keep their capture numbers. The Time column of a Motive
+    export is rounded to microseconds, so the axis is ``frame / rate``; when the
+    Time column agrees with it to within 1 ns it was written at full precision (by
+    :func:`write`) and is taken as is.
     """
     line0 = header.data_line
     bad = np.flatnonzero(np.diff(frame) <= 0)
@@ -504,31 +511,31 @@ def _time_axis(
             line=line0 + i,
         )
     bad = np.flatnonzero(~(np.diff(time) > 0))
-    if bad.size:
-        i = int(bad[0]) + 1
-        raise FormatError(
-            path,
-            f"time must increase: {float(time[i - 1])!r} s then {float(time[i])!r} s",
-            line=line0 + i,
-        )
-    if not np.isfinite(time[0]):
-        raise FormatError(path, f"time is not finite: {time[0]!r}", line=line0)
-    tol = max(0.25 / rate, 2e-6)
-    t_frame = frame / rate
-    if abs(time[0] - t_frame[0]) > tol:
-        # The Time column starts its own clock (e.g. a custom start frame).
-        t_frame = (frame - frame[0]) / rate + time[0]
-    dev = np.abs(time - t_frame)
-    far = np.flatnonzero(dev > tol)
-    if far.size:
-        i = int(far[0])
-        raise FormatError(
-            path,
-            f"Time column says {time[i]:.9g} s but frame {frame[i]} at the export rate "
-            f"{rate:g} Hz is {t_frame[i]:.9g} s",
-            line=line0 + i,
-        )
-    return time if float(dev.max()) <= 1e-9 else t_frame
+    if bad.size or not np.isfinite(time[0]):
+        i = int(bad[0]) + 1 if bad.size else 0
+        before = f"{float(time[i - 1])!r} s then " if i else ""
+        raise FormatError(path, f"time must increase: {before}{float(time[i])!r} s", line=line0 + i)
+    first_error = None
+    for rate in dict.fromkeys(rates):
+        tol = max(0.25 / rate, 2e-6)
+        t_frame = frame / rate
+        if abs(time[0] - t_frame[0]) > tol:
+            # The Time column starts its own clock (e.g. a custom start frame).
+            t_frame = (frame - frame[0]) / rate + time[0]
+        dev = np.abs(time - t_frame)
+        far = np.flatnonzero(dev > tol)
+        if not far.size:
+            return time if float(dev.max()) <= 1e-9 else t_frame
+        if first_error is None:
+            i = int(far[0])
+            first_error = FormatError(
+                path,
+                f"Time column says {time[i]:.9g} s but frame {frame[i]} at the export rate "
+                f"{rate:g} Hz is {t_frame[i]:.9g} s",
+                line=line0 + i,
+            )
+    assert first_error is not None
+    raise first_error
 
 
 # ------------------------------------------------------------------------ read
@@ -626,7 +633,8 @@ def read(
     _first_null(p, header, block[0], "Frame")
     _first_null(p, header, block[1], "Time")
     frame = np.asarray(block[0].to_numpy(zero_copy_only=False), dtype=np.int64)
-    t = _time_axis(p, header, frame, _as_float(block[1]), rate)
+    rates = (rate,) if capture_rate is None else (rate, capture_rate)
+    t = _time_axis(p, header, frame, _as_float(block[1]), rates)
 
     bodies, pos, quat, valid = [], {}, {}, {}
     extent = 0.0
