@@ -7,10 +7,14 @@ follow the layouts of public Motive exports (format 1.21 without row labels,
 
 from __future__ import annotations
 
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.errors import FormatError
@@ -460,3 +464,25 @@ def test_frames_numbered_at_the_capture_rate_of_a_downsampled_export(tmp_path: P
     demo = motive.read(_write(tmp_path, text))
     assert demo.t.tolist() == [0.0, 2 / 240, 4 / 240, 6 / 240]
     assert demo.meta["capture_frame_rate"] == 240.0
+
+
+@settings(max_examples=25, deadline=None)
+@given(
+    pos=arrays(np.float64, (6, 3), elements=st.floats(-49.0, 49.0, allow_subnormal=True)),
+    quat=arrays(np.float64, (6, 4), elements=st.floats(-1.0, 1.0).filter(lambda x: abs(x) > 0.1)),
+    valid=arrays(np.bool_, 6),
+    start=st.integers(-1000, 10**6),
+)
+def test_round_trip_property(
+    pos: np.ndarray, quat: np.ndarray, valid: np.ndarray, start: int
+) -> None:
+    t = (start + np.arange(6)) / 120.0
+    demo = Demonstration(t, [BodyInfo("b")], {"b": pos}, {"b": quat}, {"b": valid})
+    with tempfile.TemporaryDirectory() as tmp:
+        p = Path(tmp) / "prop.csv"
+        motive.write(demo, p)
+        back = motive.read(p)
+    assert np.array_equal(back.t, demo.t)
+    assert np.array_equal(back.valid("b"), demo.valid("b"))
+    assert np.array_equal(back.pos("b"), demo.pos("b"), equal_nan=True)
+    assert np.array_equal(back.quat("b"), demo.quat("b"), equal_nan=True)
