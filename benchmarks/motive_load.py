@@ -1,8 +1,10 @@
 """Time ``thirdhand.io.motive.read`` against ``pandas.read_csv`` on the same Motive export.
 
 Writes a 10-minute, 120 Hz take of 20 rigid bodies (Rotation X Y Z W, Position
-X Y Z, Mean Marker Error per body; metres, six decimals as Motive writes them;
-about 2 % of each body's frames blank, in gaps) into a temporary folder, then
+X Y Z, Mean Marker Error per body; metres rounded to six decimals as Motive
+rounds them, though written without Motive's trailing zeros, so the file is a
+little smaller than Motive's; about 2 % of each body's frames blank, in gaps)
+into a temporary folder, then
 reads it with thirdhand (header parsing, validation, a full ``Demonstration``)
 and with pandas (the numeric block only: ``skiprows`` = the header's length).
 Each reader runs a few times, interleaved; the best time of each is reported.
