@@ -27,6 +27,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -195,10 +196,8 @@ def _read_header(path: Path) -> _Header:
 def _check_first_line(path: Path, keys: Mapping[str, str]) -> None:
     """Refuse, before reading further, a format or rotation type this reader cannot take."""
     version = keys.get(_MAGIC, "")
-    try:
-        version_ok = float(version) >= 1.2
-    except ValueError:
-        version_ok = False
+    number = re.match(r"\d+(\.\d+)?", version)
+    version_ok = number is not None and float(number.group()) >= 1.2
     if not version_ok:
         raise FormatError(
             path,
