@@ -1,0 +1,39 @@
+"""Kinematic constraints between two parts, fitted to their relative-pose track.
+
+Models: ``fixed`` (constant relative pose), ``prismatic`` (translation along an
+axis), ``revolute`` (rotation about an axis), ``cylindrical`` (both, about one
+axis) and ``free``; :func:`fit_constraint` fits them all and chooses by BIC.
+"""
+
+from thirdhand.constraints.models import (
+    fit_cylindrical,
+    fit_fixed,
+    fit_free,
+    fit_prismatic,
+    fit_revolute,
+    prepare_track,
+)
+from thirdhand.constraints.select import bic_weights, fit_constraint, fit_relative
+from thirdhand.constraints.types import (
+    DOF_NAMES,
+    MODEL_TYPES,
+    Constraint,
+    ConstraintFitError,
+    NoiseModel,
+)
+
+__all__ = [
+    "DOF_NAMES",
+    "MODEL_TYPES",
+    "Constraint",
+    "ConstraintFitError",
+    "NoiseModel",
+    "bic_weights",
+    "fit_constraint",
+    "fit_cylindrical",
+    "fit_fixed",
+    "fit_free",
+    "fit_prismatic",
+    "fit_relative",
+    "prepare_track",
+]

@@ -1,0 +1,145 @@
+"""Model selection: fit every candidate model and keep the best by BIC."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from thirdhand.constraints.models import ModelFit, fit_model, prepare_track, to_constraint
+from thirdhand.constraints.types import (
+    MODEL_TYPES,
+    Constraint,
+    ConstraintFitError,
+    NoiseModel,
+)
+from thirdhand.demonstration import Demonstration
+
+#: Models compared by default. Cylindrical needs orientations and is skipped
+#: silently for position-only tracks.
+DEFAULT_MODELS: tuple[str, ...] = MODEL_TYPES
+
+
+def bic_weights(scores: dict[str, float]) -> dict[str, float]:
+    """Posterior model weights ``exp(-BIC/2)``, normalised; infinite scores get 0."""
+    names = [k for k, v in scores.items() if math.isfinite(v)]
+    if not names:
+        return {k: 0.0 for k in scores}
+    b = np.array([scores[k] for k in names])
+    e = np.exp(-0.5 * (b - b.min()))
+    w = e / e.sum()
+    out = {k: 0.0 for k in scores}
+    out.update({k: float(v) for k, v in zip(names, w, strict=True)})
+    return out
+
+
+def fit_constraint(
+    pos: ArrayLike,
+    quat: ArrayLike | None = None,
+    *,
+    models: Sequence[str] = DEFAULT_MODELS,
+    noise: NoiseModel | None = None,
+    where: str = "track",
+) -> Constraint:
+    """Fit every candidate model to a relative-pose track and return the best by BIC.
+
+    Parameters
+    ----------
+    pos : array_like, shape (n, 3)
+        Child positions in the parent frame, metres. Rows with a NaN (in the
+        position or the quaternion) are dropped.
+    quat : array_like, shape (n, 4), optional
+        Child orientations in the parent frame, x y z w; None for a position-only
+        track (then cylindrical is not a candidate).
+    models : sequence of str
+        Candidates, among :data:`~thirdhand.constraints.types.MODEL_TYPES`.
+    noise : NoiseModel, optional
+        Noise bounds (defaults: 1 mm to 2.5 cm, 0.5° to 6°).
+    where : str
+        Name of the track in error messages.
+
+    Returns
+    -------
+    Constraint
+        The chosen model; ``scores`` holds the BIC of every candidate (``inf``
+        for one that cannot describe the track) and ``confidence`` the chosen
+        model's BIC weight.
+
+    Raises
+    ------
+    ConstraintFitError
+        For an unknown model name, a malformed track or too few valid samples.
+    """
+    unknown = [m for m in models if m not in MODEL_TYPES]
+    if unknown or not models:
+        raise ConstraintFitError(
+            f"{where}: unknown model(s) {', '.join(map(repr, unknown)) or '(none given)'}; "
+            f"choose among {', '.join(MODEL_TYPES)}"
+        )
+    p, q = prepare_track(pos, quat, where=where)
+    fits: dict[str, ModelFit] = {}
+    scores: dict[str, float] = {}
+    for name in dict.fromkeys(models):
+        if name == "cylindrical" and q is None:
+            continue
+        fit = fit_model(name, p, q, noise=noise)
+        scores[name] = math.inf if fit is None else fit.bic
+        if fit is not None:
+            fits[name] = fit
+    if not fits:
+        raise ConstraintFitError(
+            f"{where}: none of the models {', '.join(models)} can describe this track"
+        )
+    weights = bic_weights(scores)
+    best = min(fits, key=lambda k: scores[k])
+    return to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
+
+
+def fit_relative(
+    demo: Demonstration,
+    parent: str,
+    child: str,
+    *,
+    start: float | None = None,
+    end: float | None = None,
+    models: Sequence[str] = DEFAULT_MODELS,
+    noise: NoiseModel | None = None,
+) -> Constraint:
+    """Fit a constraint to the pose of ``child`` in ``parent`` over a time window.
+
+    Parameters
+    ----------
+    demo : Demonstration
+    parent, child : str
+        Body names.
+    start, end : float, optional
+        Window in seconds on the demonstration's time axis (inclusive).
+    models, noise
+        As :func:`fit_constraint`.
+
+    Raises
+    ------
+    ConstraintFitError
+        For an unknown body, or too few frames where both bodies are valid.
+    """
+    for name in (parent, child):
+        if name not in demo:
+            raise ConstraintFitError(
+                f"no body {name!r} in the demonstration; bodies are {', '.join(demo.body_names)}"
+            )
+    p, q, valid = demo.relative_pose(parent, child)
+    keep = valid.copy()
+    if start is not None:
+        keep &= demo.t >= start
+    if end is not None:
+        keep &= demo.t <= end
+    oriented = demo.info(parent).oriented and demo.info(child).oriented
+    return fit_constraint(
+        p[keep],
+        q[keep] if oriented else None,
+        models=models,
+        noise=noise,
+        where=f"{child} in {parent}",
+    )
