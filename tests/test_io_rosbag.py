@@ -363,6 +363,34 @@ def test_tf_parent_is_interpolated_between_its_stamps(tmp_path: Path) -> None:
     np.testing.assert_allclose(demo.quat("box")[box], np.tile(q0, (3, 1)), atol=1e-12)
 
 
+def test_pose_topic_in_a_tf_frame_is_moved_to_the_root(
+    tmp_path: Path, rng: np.random.Generator
+) -> None:
+    m = Msgs(_store(1))
+    table_p, table_q = np.array([1.0, -2.0, 0.7]), se3.random_quat(rng)
+    cup_p, cup_q = rng.uniform(-1, 1, (3, 3)), se3.random_quat(rng, 3)
+    entries: list[tuple[str, str, int, Any]] = [
+        (
+            "/tf_static",
+            "tf2_msgs/msg/TFMessage",
+            T0,
+            m.tf(m.transform(T0, "world", "table", table_p, table_q)),
+        )
+    ]
+    for k in range(3):
+        s = T0 + k * NS // 10
+        msg = m.pose_stamped(s, cup_p[k], cup_q[k])
+        msg.header.frame_id = "table"
+        entries.append(("/cup", "geometry_msgs/msg/PoseStamped", s, msg))
+    demo = rosbag.read(write_raw(tmp_path / "cup.bag", m.store, 1, entries))
+    assert demo.body_names == ["cup", "table"]
+    want_p, want_q = se3.pose_compose(table_p, table_q, cup_p, cup_q)
+    np.testing.assert_allclose(demo.pos("cup"), want_p, atol=1e-12)
+    np.testing.assert_allclose(demo.quat("cup"), want_q, atol=1e-12)
+    in_table = rosbag.read(tmp_path / "cup.bag", root_frame="table")
+    np.testing.assert_array_equal(in_table.pos("cup"), cup_p)
+
+
 # ------------------------------------------------ topics and time axis
 def test_pose_topics_share_frames_within_tolerance(tmp_path: Path) -> None:
     m = Msgs(_store(1))

@@ -228,6 +228,7 @@ class _Track:
     """Raw observations of one pose stream, in bag order."""
 
     topic: str
+    frame: str = ""
     stamps: list[int] = field(default_factory=list)
     values: list[tuple[float, ...]] = field(default_factory=list)
     visible: list[bool] = field(default_factory=list)
@@ -270,6 +271,11 @@ def _stamp_of(obj: Any) -> int:
     return int(stamp.sec) * _NS + int(stamp.nanosec)
 
 
+def _header_frame(obj: Any) -> str:
+    """``obj.header.frame_id`` without a leading slash; empty when absent."""
+    return _frame_id(str(getattr(getattr(obj, "header", None), "frame_id", "")))
+
+
 def _attr(obj: Any, path: Sequence[str]) -> Any:
     for name in path:
         obj = getattr(obj, name)
@@ -310,13 +316,15 @@ def _collect(
         for t in topics:
             if t not in by_topic:
                 raise FormatError(
-                    src, f"requested topic is not in the bag; its topics are {listing}", where=t
+                    src,
+                    f"requested topic is not in the bag; its topics are {listing}",
+                    where=f"topic {t}",
                 )
             if t not in specs or specs[t].kind == "meta":
                 raise FormatError(
                     src,
                     f"requested topic has type {by_topic[t][0].msgtype}, which carries no pose",
-                    where=t,
+                    where=f"topic {t}",
                 )
         wanted = set(topics)
         if "/tf" in wanted:
@@ -349,7 +357,9 @@ def _collect(
             msg = reader.deserialize(data, conn.msgtype)
         except AnyReaderError as exc:
             raise FormatError(
-                src, f"message cannot be decoded: {exc}", where=f"topic {topic} message {k}"
+                src,
+                f"message cannot be decoded: {_one_line(exc)}",
+                where=f"topic {topic} message {k}",
             ) from None
         _extract(raw, specs[topic], topic, k, int(received), msg, src)
     return raw
@@ -360,7 +370,7 @@ def _extract(
 ) -> None:
     """Add the poses of one decoded message to ``raw``."""
     if spec.kind == "pose":
-        track = raw.tracks.setdefault((topic, None), _Track(topic))
+        track = raw.tracks.setdefault((topic, None), _Track(topic, _header_frame(msg)))
         track.add(_stamp_of(msg) or received, _pose_values(_attr(msg, spec.pose_path)), True, k)
     elif spec.kind == "world":
         top = _stamp_of(msg)
@@ -368,7 +378,8 @@ def _extract(
             holder = getattr(obj, spec.holder)
             stamp = _stamp_of(holder) or _stamp_of(obj) or top or received
             visible = True if spec.visible is None else bool(getattr(obj, spec.visible))
-            track = raw.tracks.setdefault((topic, int(obj.id)), _Track(topic))
+            key = (topic, int(obj.id))
+            track = raw.tracks.setdefault(key, _Track(topic, _header_frame(holder)))
             track.add(stamp, _pose_values(_attr(holder, spec.pose_path)), visible, k)
     elif spec.kind in ("tf", "transform"):
         static = topic.rstrip("/").endswith("tf_static")
@@ -405,6 +416,10 @@ def _parse_own(text: str, src: Path, topic: str, k: int) -> dict[str, Any]:
             f"unsupported thirdhand metadata {found!r}, expected {FORMAT_VERSION!r}",
             where=where,
         )
+    if not isinstance(own.get("origin_ns"), int) or not isinstance(own.get("bodies"), list):
+        raise FormatError(
+            src, "thirdhand metadata lacks an integer origin_ns or a bodies list", where=where
+        )
     return own
 
 
@@ -418,11 +433,14 @@ class _Series:
     stamps : ndarray of int64, shape (n,), nanoseconds since the Unix epoch
     pose : ndarray, shape (n, 7), x y z (metres) then qx qy qz qw, parent frame
     visible : ndarray of bool, shape (n,)
+    frame : str
+        The parent frame (``header.frame_id`` of the first message), may be empty.
     """
 
     stamps: IntArray
     pose: FloatArray
     visible: BoolArray
+    frame: str = ""
 
 
 def _fmt_stamp(ns: int) -> str:
@@ -461,7 +479,7 @@ def _series(track: _Track, src: Path, what: str) -> _Series:
             f"{what}: zero-norm quaternion at stamp {_fmt_stamp(int(stamps[i]))}",
             where=f"topic {track.topic} message {index[i]}",
         )
-    return _Series(stamps, pose, visible & finite)
+    return _Series(stamps, pose, visible & finite, track.frame)
 
 
 @numba.njit(cache=True, nogil=True)
@@ -622,6 +640,10 @@ def _choose_root(tree: _Tree, src: Path, root_frame: str | None) -> str:
 
 
 # ================================================================= reading
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
 def _as_paths(path: PathLike | Sequence[PathLike]) -> list[Path]:
     if isinstance(path, str | os.PathLike):
         return [Path(path)]
@@ -725,7 +747,7 @@ def read(
     except FormatError:
         raise
     except _reader_errors() as exc:
-        raise FormatError(src, f"damaged or unreadable bag: {exc}") from None
+        raise FormatError(src, f"damaged or unreadable bag: {_one_line(exc)}") from None
     return _assemble(
         raw,
         src,
@@ -821,6 +843,19 @@ def _tf_arrays(
     return p, q, ok
 
 
+def _in_root(
+    series: _Series, tree: _Tree | None, root: str | None
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Poses of a pose topic, moved into the tf root frame when their frame is in its tree."""
+    p, q, ok = series.pose[:, :3], series.pose[:, 3:], series.visible
+    frame = series.frame
+    if tree is None or root is None or frame == root or tree.root(frame) != tree.root(root):
+        return p, q, ok
+    fp, fq, fok = _tf_arrays(tree, root, frame, series.stamps)
+    p, q = se3.pose_compose(fp, fq, p, q)
+    return p, q, ok & fok
+
+
 def _assemble(
     raw: _Raw,
     src: Path,
@@ -844,10 +879,9 @@ def _assemble(
     deepest: dict[str, str | None] = {}
     edge_stream: dict[str, int] = {}
     if tree is not None:
-        for b in tf_bodies:
-            assert b.frame is not None
-            dyn = [c for c in tree.path(b.frame) if c in tree.dynamic]
-            d = deepest[b.frame] = dyn[-1] if dyn else None
+        for frame in (b.frame for b in tf_bodies if b.frame is not None):
+            dyn = [c for c in tree.path(frame) if c in tree.dynamic]
+            d = deepest[frame] = dyn[-1] if dyn else None
             if d is not None and d not in edge_stream:
                 edge_stream[d] = len(streams)
                 streams.append(tree.dynamic[d].stamps)
@@ -876,7 +910,7 @@ def _assemble(
         p, q, v = np.full((n, 3), np.nan), np.full((n, 4), np.nan), np.zeros(n, dtype=bool)
         if b.series is not None:
             idx = frame_index[i]
-            p[idx], q[idx], v[idx] = b.series.pose[:, :3], b.series.pose[:, 3:], b.series.visible
+            p[idx], q[idx], v[idx] = _in_root(b.series, tree, root)
         elif tree is not None and root is not None and b.frame is not None:
             d = deepest[b.frame]
             if d is None:
@@ -1018,7 +1052,7 @@ def _stamps(demo: Demonstration, p: Path, version: int) -> tuple[int, IntArray]:
     """Time origin and per-frame stamps, nanoseconds since the Unix epoch."""
     meta = demo.meta
     offsets = np.round(demo.t * _NS).astype(np.int64)
-    if isinstance(meta.get("start_time_ns"), int):
+    if isinstance(meta.get("start_time_ns"), int | np.integer):
         origin = int(meta["start_time_ns"])
     elif isinstance(meta.get("start_time_unix"), int | float):
         origin = round(float(meta["start_time_unix"]) * _NS)
@@ -1179,7 +1213,10 @@ def write(
     messages = _messages(
         demo, store, stamps, topic_of=topic_of, frame_of=ros, root_frame=root_frame
     )
-    meta_msg = store.types[_STRING](data=json.dumps(header))
+    try:
+        meta_msg = store.types[_STRING](data=json.dumps(header))
+    except TypeError as exc:
+        raise FormatError(p, f"demonstration meta is not JSON-able: {exc}") from None
     types = {t: _POSE_STAMPED for t in topic_of or []} or {"/tf": _TFMESSAGE}
     tmp = p.parent / f".{p.name}.{os.getpid()}.tmp"
     tmp.mkdir(parents=True)
@@ -1237,10 +1274,13 @@ def _write_ros2(
 
 def _replace(built: Path, p: Path) -> None:
     """Move a complete new bag to ``p``; an old bag there is removed only afterwards."""
-    if p.is_dir():
+    if p.exists() and (p.is_dir() or built.is_dir()):
         old = p.parent / f".{p.name}.{os.getpid()}.old"
         os.replace(p, old)
         os.replace(built, p)
-        shutil.rmtree(old)
+        if old.is_dir():
+            shutil.rmtree(old)
+        else:
+            old.unlink()
     else:
         os.replace(built, p)
