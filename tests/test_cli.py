@@ -1,0 +1,113 @@
+"""The command line: one-line errors, no tracebacks, no silent overwrite."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thirdhand import BodyInfo, Demonstration, io, se3
+from thirdhand.cli import main
+
+
+def run(*args: str) -> tuple[int, str, str]:
+    proc = subprocess.run(
+        [sys.executable, "-m", "thirdhand", *args], capture_output=True, text=True, check=False
+    )
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def call(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
+    try:
+        rc = main(list(args))
+    except SystemExit as exc:
+        rc = int(exc.code or 0)
+    cap = capsys.readouterr()
+    return rc, cap.out, cap.err
+
+
+@pytest.fixture
+def small_demo(tmp_path: Path) -> Path:
+    rng = np.random.default_rng(1)
+    n = 30
+    p = rng.normal(size=(n, 3))
+    p[3:6] = np.nan
+    demo = Demonstration(
+        np.arange(n) / 120.0,
+        [BodyInfo("seat"), BodyInfo("rh_thumb", "finger", hand="right", hand_body="rh")],
+        {"seat": p, "rh_thumb": rng.normal(size=(n, 3))},
+        {"seat": se3.random_quat(rng, n), "rh_thumb": se3.random_quat(rng, n)},
+    )
+    path = tmp_path / "demo.parquet"
+    io.save(demo, path)
+    return path
+
+
+def test_help_lists_commands() -> None:
+    rc, out, _ = run("--help")
+    assert rc == 0
+    for cmd in ("synth", "info", "convert", "demo"):
+        assert cmd in out
+
+
+def test_info_json(capsys: pytest.CaptureFixture[str], small_demo: Path) -> None:
+    rc, out, _ = call(capsys, "info", str(small_demo), "--json")
+    assert rc == 0
+    info = json.loads(out)
+    assert info["n_bodies"] == 2 and info["format"] == "native"
+    assert info["rate_hz"] == pytest.approx(120.0)
+    assert info["bodies"][0]["missing"] == pytest.approx(0.1)
+
+
+@pytest.mark.parametrize(
+    ("content", "match"),
+    [
+        (None, "no such file"),
+        (b"", "unrecognised recording format"),
+        (b"\x00\x01garbage", "unrecognised"),
+    ],
+)
+def test_bad_input_is_one_line_without_traceback(
+    tmp_path: Path, content: bytes | None, match: str
+) -> None:
+    path = tmp_path / "bad.xyz"
+    if content is not None:
+        path.write_bytes(content)
+    rc, _, err = run("info", str(path))
+    assert rc != 0
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("thirdhand: error: ") and match in lines[0]
+    assert str(path) in lines[0]
+
+
+def test_convert_refuses_overwrite_and_keeps_backup(
+    capsys: pytest.CaptureFixture[str], small_demo: Path, tmp_path: Path
+) -> None:
+    target = tmp_path / "copy.parquet"
+    assert call(capsys, "convert", str(small_demo), str(target))[0] == 0
+    assert io.load(target).equals(io.load(small_demo))
+    before = target.read_bytes()
+    rc, _, err = call(capsys, "convert", str(small_demo), str(target))
+    assert rc != 0 and "--force" in err
+    assert call(capsys, "convert", str(small_demo), str(target), "--force")[0] == 0
+    assert (tmp_path / "copy.parquet.bak").read_bytes() == before
+
+
+def test_info_on_real_3rdhand_excerpt(
+    capsys: pytest.CaptureFixture[str], shared_data: Path
+) -> None:
+    rc, out, _ = call(
+        capsys, "info", str(shared_data / "3rdhand" / "toolbox_coop_4_excerpt"), "--json"
+    )
+    assert rc == 0
+    info = json.loads(out)
+    assert info["format"] == "mlr"
+    assert info["n_bodies"] == 11  # sensor row 8 is unused
+    assert info["rate_hz"] == pytest.approx(100.0, rel=0.01)
+    missing = [b["missing"] for b in info["bodies"]]
+    assert all(0.0 < m < 1.0 for m in missing)
