@@ -331,6 +331,10 @@ def test_small_good_folder_reads(tmp_path: Path) -> None:
             "expected 7 numbers per row.*got 6",
         ),
         (_poses(2) + f"[ {ROW} ]\n", None, GOOD_META, "poses.dat", 5, "expected 2 sensor rows"),
+        (f"{ROW}\n{ROW}\n", None, GOOD_META, "poses.dat", 1, "outside a"),
+        (_poses(1) + f"  {ROW}\n", None, GOOD_META, "poses.dat", 3, "outside a"),
+        (_poses(1) + "]\n", None, GOOD_META, "poses.dat", 3, "'\\]' without a matching"),
+        (f"[ {ROW}\n[ {ROW} ]\n", None, GOOD_META, "poses.dat", 2, "inside an unclosed block"),
         (_poses(3), "1 0\n2 0.01\n", GOOD_META, "poses.dat.times", 2, "2 time stamps for the 3"),
         (_poses(3), "1 0\n2 0.02\n3 0.01\n", GOOD_META, "poses.dat.times", 3, "must increase"),
         (

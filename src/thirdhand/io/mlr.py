@@ -33,7 +33,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -115,24 +115,29 @@ def parse_numeric_rows(
         that is not a number. Naming the line.
     """
     buf = np.frombuffer(raw, dtype=np.uint8)
-    is_nl = buf == 10
-    line_of = np.cumsum(is_nl) - is_nl + 1
-    is_open = buf == 91 if blocks else np.zeros(buf.size, dtype=bool)
-    is_close = buf == 93 if blocks else np.zeros(buf.size, dtype=bool)
-    sep = is_nl | is_open | is_close
-    space = _SPACE[buf] | sep
+    newlines = np.flatnonzero(buf == 10)
+    space = _SPACE[buf]
+    if blocks:
+        opens, closes = np.flatnonzero(buf == 91), np.flatnonzero(buf == 93)
+        space |= (buf == 91) | (buf == 93)
+        seps = np.sort(np.concatenate((newlines, opens, closes)))
+    else:
+        opens = closes = np.zeros(0, dtype=np.intp)
+        seps = newlines
     starts = np.flatnonzero(~space & np.concatenate(([True], space[:-1])))
+
+    def line_at(pos: NDArray[np.intp]) -> NDArray[np.int64]:
+        return (np.searchsorted(newlines, pos, side="right") + 1).astype(np.int64)
+
     if starts.size == 0:
         raise FormatError(path, "empty file: expected rows of numbers")
-    opened = np.cumsum(is_open)
-    block_lines = line_of[np.flatnonzero(is_open)]
+    block_lines = line_at(opens)
     if blocks:
-        _check_brackets(opened - np.cumsum(is_close), starts, line_of, block_lines, path)
-    tseg = np.cumsum(sep)[starts]
-    row_start = np.concatenate(([True], tseg[1:] != tseg[:-1]))
-    first_tok = np.flatnonzero(row_start)
+        _check_brackets(opens, closes, starts, line_at, path)
+    tseg = np.searchsorted(seps, starts)
+    first_tok = np.flatnonzero(np.concatenate(([True], tseg[1:] != tseg[:-1])))
     counts = np.diff(np.append(first_tok, starts.size))
-    lines = line_of[starts[first_tok]].astype(np.int64)
+    lines = line_at(starts[first_tok])
     width = int(counts[0])
     if width not in n_cols:
         want = " or ".join(str(c) for c in n_cols)
@@ -144,9 +149,9 @@ def parse_numeric_rows(
             f"expected {width} numbers per row (as on line {lines[0]}), got {counts[bad[0]]}",
             line=int(lines[bad[0]]),
         )
-    block = (opened[starts[first_tok]] - 1).astype(np.int64) if blocks else np.zeros_like(lines)
     if blocks:
-        per_block = np.bincount(block, minlength=block_lines.size)
+        block = (np.searchsorted(opens, starts[first_tok]) - 1).astype(np.int64)
+        per_block = np.bincount(block, minlength=opens.size)
         off = np.flatnonzero(per_block != per_block[0])
         if off.size:
             k = int(off[0])
@@ -157,46 +162,54 @@ def parse_numeric_rows(
                 line=int(block_lines[k]),
                 where=f"frame {k}",
             )
+    else:
+        block = np.zeros_like(lines)
     tokens = (raw.translate(_BRACKETS_TO_SPACE) if blocks else raw).split()
-    values = _to_floats(tokens, starts, line_of, path)
-    return NumericRows(values.reshape(-1, width), lines, block, block_lines.astype(np.int64))
+    values = _to_floats(tokens, line_at(starts), path)
+    return NumericRows(values.reshape(-1, width), lines, block, block_lines)
 
 
 def _check_brackets(
-    depth: NDArray[np.int64],
+    opens: NDArray[np.intp],
+    closes: NDArray[np.intp],
     starts: NDArray[np.intp],
-    line_of: NDArray[np.int64],
-    block_lines: NDArray[np.int64],
+    line_at: Callable[[NDArray[np.intp]], NDArray[np.int64]],
     path: Path,
 ) -> None:
-    neg = np.flatnonzero(depth < 0)
-    if neg.size:
-        raise FormatError(path, "']' without a matching '['", line=int(line_of[neg[0]]))
-    nested = np.flatnonzero(depth > 1)
-    if nested.size:
+    """Blocks must alternate ``[`` ``]`` and hold every number."""
+    pos = np.concatenate((opens, closes))
+    order = np.argsort(pos, kind="stable")
+    depth = np.cumsum(np.concatenate((np.ones(opens.size), -np.ones(closes.size)))[order])
+    if depth.size:
+        neg = np.flatnonzero(depth < 0)
+        if neg.size:
+            at = pos[order[neg[:1]]]
+            raise FormatError(path, "']' without a matching '['", line=int(line_at(at)[0]))
+        nested = np.flatnonzero(depth > 1)
+        if nested.size:
+            at = pos[order[nested[:1]]]
+            raise FormatError(
+                path, "'[' inside an unclosed block: a ']' is missing", line=int(line_at(at)[0])
+            )
+        if depth[-1] != 0:
+            raise FormatError(
+                path,
+                f"block of frame {opens.size - 1} opened here is never closed (truncated file?)",
+                line=int(line_at(opens[-1:])[0]),
+            )
+    blk = np.searchsorted(opens, starts) - 1
+    if closes.size:
+        outside = (blk < 0) | (closes[np.maximum(blk, 0)] < starts)
+    else:
+        outside = np.ones(starts.size, dtype=bool)
+    hit = np.flatnonzero(outside)
+    if hit.size:
         raise FormatError(
-            path,
-            "'[' inside an unclosed block: a ']' is missing",
-            line=int(line_of[nested[0]]),
-        )
-    if depth[-1] != 0:
-        raise FormatError(
-            path,
-            f"block of frame {block_lines.size - 1} opened here is never closed (truncated file?)",
-            line=int(block_lines[-1]),
-        )
-    outside = np.flatnonzero(depth[starts] != 1)
-    if outside.size:
-        raise FormatError(
-            path,
-            "numbers outside a '[ ... ]' block",
-            line=int(line_of[starts[outside[0]]]),
+            path, "numbers outside a '[ ... ]' block", line=int(line_at(starts[hit[:1]])[0])
         )
 
 
-def _to_floats(
-    tokens: list[bytes], starts: NDArray[np.intp], line_of: NDArray[np.int64], path: Path
-) -> NDArray[np.float64]:
+def _to_floats(tokens: list[bytes], lines: NDArray[np.int64], path: Path) -> NDArray[np.float64]:
     try:
         return np.array(tokens).astype(np.float64)
     except ValueError:
@@ -207,7 +220,7 @@ def _to_floats(
                 raise FormatError(
                     path,
                     f"cell {tok.decode(errors='replace')!r} is not a number",
-                    line=int(line_of[starts[k]]),
+                    line=int(lines[k]),
                 ) from None
         raise
 
