@@ -250,6 +250,43 @@ def test_write_refuses_to_overwrite(tmp_path: Path, rng: np.random.Generator) ->
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bag", "folder"]
 
 
+def test_failed_write_leaves_old_bag_and_no_debris(
+    tmp_path: Path, rng: np.random.Generator, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    demo = synthetic_demo(rng)
+    for name in ("a.bag", "folder"):
+        rosbag.write(demo, tmp_path / name)
+
+    def broken(*args: Any, **kwargs: Any) -> Any:
+        yield from ()
+        raise RuntimeError("simulated failure half-way")
+
+    monkeypatch.setattr(rosbag, "_messages", broken)
+    for name in ("a.bag", "folder"):
+        with pytest.raises(RuntimeError, match="simulated failure"):
+            rosbag.write(demo.select(["seat"]), tmp_path / name, overwrite=True)
+        assert_same(demo, rosbag.read(tmp_path / name))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bag", "folder"]
+
+
+def test_meta_must_be_json(tmp_path: Path, rng: np.random.Generator) -> None:
+    demo = synthetic_demo(rng)
+    bad = demo.replace(meta={"array": np.zeros(2)})
+    with pytest.raises(FormatError, match="not JSON-able"):
+        rosbag.write(bad, tmp_path / "x.bag")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_names_rename_own_bodies_and_labels(tmp_path: Path, rng: np.random.Generator) -> None:
+    demo = synthetic_demo(rng)
+    rosbag.write(demo, tmp_path / "d.bag", mode="tf")
+    back = rosbag.read(tmp_path / "d.bag", names={"seat": "chair_seat"})
+    assert back.body_names == ["chair_seat", "/human/rh/thumb", "marker 1"]
+    assert back.labels.interactions[0].a == "chair_seat"
+    assert back.labels.plan[0].parent == "chair_seat"
+    np.testing.assert_array_equal(back.pos("chair_seat"), demo.pos("seat"))
+
+
 def test_write_rejects_bad_options(tmp_path: Path, rng: np.random.Generator) -> None:
     demo = synthetic_demo(rng)
     with pytest.raises(FormatError, match=r"ROS 1 bag must end in \.bag"):

@@ -12,7 +12,9 @@ Every topic is classified by the *structure* of its message type, not its name:
 - **pose** topics: a ``geometry_msgs/Pose`` at ``msg``, ``msg.pose`` or
   ``msg.pose.pose`` (``PoseStamped``, ``PoseWithCovarianceStamped``,
   ``Odometry``...). One body per topic, named after the topic without its
-  leading slash.
+  leading slash. When the header's frame belongs to the tf tree of
+  ``root_frame``, the pose is moved into ``root_frame`` (tf looked up at the
+  message's stamp); otherwise it stays in its header frame.
 - **tf**: ``tf2_msgs/TFMessage`` (``/tf``; ``/tf_static`` for static transforms)
   and ``TransformStamped`` topics. Every ``child_frame_id`` becomes a body whose
   pose is expressed in ``root_frame`` (default: the root of the largest tree),
@@ -115,7 +117,7 @@ def sniff(path: Path) -> bool:
     p = Path(path)
     if p.is_dir():
         return (p / "metadata.yaml").is_file() and any(
-            f.suffix.lower() in _ROS2_SUFFIXES for f in p.iterdir()
+            any(s.lower() in _ROS2_SUFFIXES for s in f.suffixes) for f in p.iterdir()
         )
     return p.is_file() and p.suffix.lower() in (".bag", *_ROS2_SUFFIXES)
 
@@ -697,7 +699,7 @@ def read(
         every topic that carries poses.
     root_frame : str, optional
         tf frame the tf bodies are expressed in; default the root of the largest
-        tf tree. Bodies from pose topics stay in their own header frame.
+        tf tree. Pose topics whose header frame is in that tree are moved into it.
     names : mapping str -> str, optional
         Body names to use instead of the default ones; keys are topics, tf frame
         ids or default names (``"ar_13"``).
