@@ -19,7 +19,7 @@ from thirdhand.demonstration import (
     PlanStep,
 )
 from thirdhand.errors import FormatError
-from thirdhand.io import mlr
+from thirdhand.io import kvg, mlr
 from thirdhand.se3 import random_quat
 
 EXCERPT = ("3rdhand", "toolbox_coop_4_excerpt")
@@ -108,7 +108,50 @@ def test_registry_detects_mlr_folder(excerpt: Path) -> None:
             pytest.skip(f"format module {name!r} not in the tree yet")
     assert io.detect(excerpt) == "mlr"
     assert io.detect(excerpt / "poses.dat") == "mlr"
-    assert len(io.load(excerpt)) == 11
+    demo = io.load(excerpt)
+    assert len(demo) == 11
+
+
+def test_registry_saves_folder_as_mlr(excerpt: Path, tmp_path: Path) -> None:
+    demo = mlr.read(excerpt)
+    io.save(demo, tmp_path / "rec", format="mlr")
+    assert mlr.read(tmp_path / "rec").equals(demo)
+    io.save(demo, tmp_path / "rec", format="mlr", overwrite=True)
+    assert (tmp_path / "rec.bak" / "poses.dat").is_file()
+
+
+@pytest.mark.parametrize(
+    ("name", "section", "type_", "expected"),
+    [
+        (
+            "/human/rh/thumb",
+            "agents",
+            "digit",
+            BodyInfo("/human/rh/thumb", "finger", "right", "/human/rh"),
+        ),
+        (
+            "/human/lh/index",
+            "agents",
+            "digit",
+            BodyInfo("/human/lh/index", "finger", "left", "/human/lh"),
+        ),
+        (
+            "/human/th/index",
+            "agents",
+            "digit",
+            BodyInfo("/human/th/index", "finger", "other", "/human/th"),
+        ),
+        ("/human/rh", "agents", "hand", BodyInfo("/human/rh", "hand", "right")),
+        ("/human/head", "agents", "head", BodyInfo("/human/head", "head")),
+        ("/screwdriver", "objects", "screwdriver", BodyInfo("/screwdriver", "tool")),
+        ("/tools/driver", "objects", "tool", BodyInfo("/tools/driver", "tool")),
+        ("/toolbox/side_left", "objects", "side_short", BodyInfo("/toolbox/side_left", "part")),
+        ("/toolbox/handle", "objects", "handle", BodyInfo("/toolbox/handle", "part")),
+        ("/robot/gripper", "agents", "gripper", BodyInfo("/robot/gripper", "other")),
+    ],
+)
+def test_kind_from_name_and_type(name: str, section: str, type_: str, expected: BodyInfo) -> None:
+    assert mlr.derive_body(name, section, type_) == expected
 
 
 # ------------------------------------------------------------------- labels
@@ -190,6 +233,24 @@ def test_elan_labels_attach_on_media_time(excerpt: Path, tmp_path: Path) -> None
     assert [(c.time, c.removed) for c in demo.labels.constraints] == [(t0 + 0.5, False)]
     assert mlr.read(folder, elan_offset=0.0).labels.constraints[0].time == 0.5
     assert not mlr.read(folder, labels=False).labels
+    (folder / "ann_kvg.kvg").write_text(
+        " TS /human/lh /toolbox/side_left { lock { from=1  to=2 } }\n"
+    )
+    both = mlr.read(folder)
+    assert both.meta["labels_source"] == "ann_kvg.kvg"
+    assert len(both.labels.interactions) == 3 and not both.labels.constraints
+
+
+def test_hand_label_kept_when_the_hand_is_a_body(tmp_path: Path) -> None:
+    bodies = [
+        BodyInfo("/human/rh", "hand", "right"),
+        BodyInfo("/human/rh/thumb", "finger", "right", "/human/rh"),
+        BodyInfo("box", "part"),
+    ]
+    p = tmp_path / "ann_kvg.kvg"
+    p.write_text("TS /human/rh box { lock { from=1 to=2 } }\n")
+    lab = kvg.read_annotations(p, rate=10.0, bodies=bodies)
+    assert lab.interactions == (InteractionInterval("/human/rh", "box", 0.1, 0.2),)
 
 
 # --------------------------------------------------------------- synthetic
