@@ -5,10 +5,11 @@ from __future__ import annotations
 import importlib.util
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import pytest
+from numpy.typing import ArrayLike
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag1 import Writer as Writer1
 from rosbags.rosbag2 import Writer as Writer2
@@ -60,25 +61,27 @@ class Msgs:
             return h(seq=0, stamp=time, frame_id=frame)
         return h(stamp=time, frame_id=frame)
 
-    def pose(self, p: Sequence[float], q: Sequence[float]) -> Any:
+    def pose(self, p: ArrayLike, q: ArrayLike) -> Any:
         t = self.t
+        x, y, z = np.asarray(p, dtype=float).tolist()
+        qx, qy, qz, qw = np.asarray(q, dtype=float).tolist()
         return t["geometry_msgs/msg/Pose"](
-            position=t["geometry_msgs/msg/Point"](x=p[0], y=p[1], z=p[2]),
-            orientation=t["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]),
+            position=t["geometry_msgs/msg/Point"](x=x, y=y, z=z),
+            orientation=t["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
         )
 
-    def pose_stamped(self, stamp: int, p: Sequence[float], q: Sequence[float]) -> Any:
+    def pose_stamped(self, stamp: int, p: ArrayLike, q: ArrayLike) -> Any:
         return self.t["geometry_msgs/msg/PoseStamped"](
             header=self.header(stamp), pose=self.pose(p, q)
         )
 
-    def transform(
-        self, stamp: int, parent: str, child: str, p: Sequence[float], q: Sequence[float]
-    ) -> Any:
+    def transform(self, stamp: int, parent: str, child: str, p: ArrayLike, q: ArrayLike) -> Any:
         t = self.t
+        x, y, z = np.asarray(p, dtype=float).tolist()
+        qx, qy, qz, qw = np.asarray(q, dtype=float).tolist()
         tr = t["geometry_msgs/msg/Transform"](
-            translation=t["geometry_msgs/msg/Vector3"](x=p[0], y=p[1], z=p[2]),
-            rotation=t["geometry_msgs/msg/Quaternion"](x=q[0], y=q[1], z=q[2], w=q[3]),
+            translation=t["geometry_msgs/msg/Vector3"](x=x, y=y, z=z),
+            rotation=t["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw),
         )
         return t["geometry_msgs/msg/TransformStamped"](
             header=self.header(stamp, parent), child_frame_id=child, transform=tr
@@ -169,7 +172,8 @@ def test_niekum_visibility_matches_raw_messages(shared_data: Path) -> None:
     with AnyReader([path]) as reader:
         conns = [c for c in reader.connections if c.topic == "/ar_world_model"]
         for conn, _, data in reader.messages(conns):
-            for obj in reader.deserialize(data, conn.msgtype).objects:
+            msg: Any = reader.deserialize(data, conn.msgtype)
+            for obj in msg.objects:
                 visible[obj.id].append(obj.currently_visible)
                 p = obj.pose.pose.position
                 position[obj.id].append((p.x, p.y, p.z))
@@ -223,7 +227,8 @@ def test_written_bag_is_plain_ros(tmp_path: Path, rng: np.random.Generator) -> N
         topics = {c.topic: c.msgtype for c in reader.connections}
         conn = next(c for c in reader.connections if c.topic == "/thirdhand/seat/pose")
         stamps = [
-            reader.deserialize(d, conn.msgtype).header.stamp for _, _, d in reader.messages([conn])
+            cast(Any, reader.deserialize(d, conn.msgtype)).header.stamp
+            for _, _, d in reader.messages([conn])
         ]
     assert topics == {
         "/thirdhand/meta": "std_msgs/msg/String",
