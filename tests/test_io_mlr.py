@@ -265,6 +265,8 @@ def _synthetic(rng: np.random.Generator) -> Demonstration:
         BodyInfo("/human/head", "head"),
         BodyInfo("seat", "part"),
         BodyInfo("marker", "other", oriented=False),
+        BodyInfo("/human/lh/ring", "finger", None, None, person="7"),
+        BodyInfo("thumb2", "finger", "right", "p3"),
     ]
     pos, quat, valid = {}, {}, {}
     for b in bodies:

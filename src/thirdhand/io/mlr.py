@@ -62,6 +62,7 @@ _TOOL_WORDS = frozenset(
 )
 _HAND = re.compile(r"^/human/([a-z]*h)$")
 _EXPLICIT = ("kind", "hand", "hand_body", "person", "oriented")
+_NONE = "none"  # an explicit key's value for None (a finger-like name with no hand)
 _SPACE = np.zeros(256, dtype=bool)
 _SPACE[[9, 10, 11, 12, 13, 32]] = True
 _BRACKETS_TO_SPACE = bytes.maketrans(b"[]", b"  ")
@@ -281,7 +282,7 @@ def derive_body(name: str, section: str, type_: str) -> BodyInfo:
     parts = [p for p in name.split("/") if p]
     last = parts[-1].lower() if parts else name.lower()
     t = type_.lower()
-    hand_body = name.rsplit("/", 1)[0]
+    hand_body = name.rsplit("/", 1)[0] if "/" in name else ""
     hand_m = _HAND.match(hand_body)
     if t in ("digit", "finger") or (hand_m is not None and section == "agents"):
         side = _side(hand_m.group(1) if hand_m else "")
@@ -305,14 +306,19 @@ def _body_info(s: Sensor, path: Path) -> BodyInfo:
     explicit = {k: s.fields[k] for k in _EXPLICIT if k in s.fields}
     if not explicit:
         return base
+
+    def text(key: str) -> Any:
+        v = explicit.get(key, getattr(base, key))
+        return None if v is None or v == _NONE else str(v)
+
     try:
         return BodyInfo(
             name=s.name,
-            kind=explicit.get("kind", base.kind),
-            hand=explicit.get("hand", base.hand),
-            hand_body=explicit.get("hand_body", base.hand_body),
-            person=explicit.get("person", base.person),
-            oriented=bool(explicit.get("oriented", base.oriented)),
+            kind=text("kind"),
+            hand=text("hand"),
+            hand_body=text("hand_body"),
+            person=text("person"),
+            oriented=explicit.get("oriented", base.oriented) is not False,
         )
     except ThirdhandError as exc:
         raise FormatError(path, str(exc), line=s.line) from None
@@ -516,7 +522,7 @@ def _sensor_entries(
         derived = derive_body(b.name, section, str(entry["type"]))
         for k in _EXPLICIT:
             if getattr(b, k) != getattr(derived, k):
-                entry[k] = getattr(b, k)
+                entry[k] = _NONE if getattr(b, k) is None else getattr(b, k)
         out.append((b, section, int(row), entry))
     return out, n_rows
 
