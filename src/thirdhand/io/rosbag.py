@@ -721,9 +721,11 @@ def read(
     Raises
     ------
     FormatError
-        Naming the file and the topic / message index: an empty, damaged or
-        truncated bag, no pose topic, an unknown requested topic, a zero-norm
-        quaternion, two different poses of one body with the same stamp.
+        Naming the file and the topic / message index (counted from 0 within
+        the topic): an empty, damaged or truncated bag, no pose topic, an
+        unknown requested topic, a zero-norm quaternion (with its stamp), two
+        different poses of one body with the same stamp, a tf frame with two
+        parents (a tf tree that changes over time is not supported).
     """
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
