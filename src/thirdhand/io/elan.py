@@ -37,7 +37,7 @@ _TIER = re.compile(r"^(TS|CE)\s+(\S+)\s+(\S+)\s*$")
 
 
 def _tier_annotation(
-    tier: str, spans: list[tuple[float, float]], *, path: Path, line: int
+    tier: str, spans: list[tuple[float, float]], *, path: Path, line: int | None
 ) -> Annotation | None:
     tag = tier.split(maxsplit=1)[0] if tier.strip() else ""
     if tag not in ("TS", "CE"):
@@ -80,7 +80,7 @@ def parse_eaf(path: str | os.PathLike[str]) -> list[Annotation]:
     out: list[Annotation] = []
     for tier in eaf.get_tier_names():
         pos = text.find(f'TIER_ID="{tier}"')
-        line = text.count("\n", 0, pos) + 1 if pos >= 0 else 0
+        line = text.count("\n", 0, pos) + 1 if pos >= 0 else None
         try:
             data = eaf.get_annotation_data_for_tier(tier)
         except (KeyError, ValueError, TypeError) as exc:

@@ -307,8 +307,8 @@ class Annotation:
         Frames (``.kvg``) or seconds (ELAN), in file order.
     extras : tuple of dict
         Per span, the keys beyond ``from``/``to`` (constraint type, symbol...).
-    line : int
-        1-based line of the entry (ELAN: of its tier).
+    line : int or None
+        1-based line of the entry (ELAN: of its tier; None if it cannot be found).
     """
 
     tag: str
@@ -316,7 +316,7 @@ class Annotation:
     b: str
     spans: tuple[tuple[float, float], ...]
     extras: tuple[dict[str, Value], ...]
-    line: int
+    line: int | None
 
 
 TAGS = ("TS", "CE", "PS")
@@ -393,7 +393,7 @@ def resolve_body(
     bodies: Sequence[BodyInfo] | None,
     *,
     path: Path,
-    line: int,
+    line: int | None,
     single: bool = False,
 ) -> list[str]:
     """Body names a label stands for.
@@ -430,7 +430,7 @@ def resolve_body(
 
 def annotations_to_labels(
     entries: Sequence[Annotation],
-    to_seconds: Callable[[float, int], float],
+    to_seconds: Callable[[float, int | None], float],
     *,
     path: Path,
     last: float,
@@ -480,7 +480,7 @@ def annotations_to_labels(
 
 
 def _constraint(
-    parent: str, child: str, time: float, extra: dict[str, Value], *, path: Path, line: int
+    parent: str, child: str, time: float, extra: dict[str, Value], *, path: Path, line: int | None
 ) -> ConstraintEvent:
     try:
         dofs = extra.get("free_dofs", (0.0,) * 12)
@@ -509,12 +509,12 @@ def _floats(v: Value, n: int, what: str) -> list[float]:
 
 def frame_converter(
     path: Path, *, frame_times: ArrayLike | None, rate: float | None
-) -> Callable[[float, int], float]:
+) -> Callable[[float, int | None], float]:
     """Frame index -> seconds, through ``frame_times`` (0-based) or a constant ``rate``."""
     if frame_times is not None:
         ft = np.asarray(frame_times, dtype=np.float64)
 
-        def through_times(frame: float, line: int) -> float:
+        def through_times(frame: float, line: int | None) -> float:
             f = int(frame)
             if not 0 <= f < ft.size:
                 raise FormatError(
