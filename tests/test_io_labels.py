@@ -151,7 +151,11 @@ def test_toolbox3_elan_matches_its_text_export(labels_dir: Path) -> None:
     from_eaf = elan.read_eaf(labels_dir / "elan.eaf")
     from_txt = elan.read_tab(labels_dir / "ann.txt")
     assert from_eaf == from_txt
-    assert len(from_eaf.interactions) == 63 and len(from_eaf.constraints) == 10
+    lines = (labels_dir / "ann.txt").read_text().splitlines()
+    n_ts, n_ce = (sum(ln.startswith(tag + " ") for ln in lines) for tag in ("TS", "CE"))
+    xml = (labels_dir / "elan.eaf").read_text()
+    assert xml.count("<ALIGNABLE_ANNOTATION ") == n_ts + n_ce
+    assert (len(from_eaf.interactions), len(from_eaf.constraints)) == (n_ts, n_ce) == (63, 10)
     first = from_eaf.interactions[0]
     assert (first.a, first.b, first.start, first.end) == (
         "/human/rh",
