@@ -165,6 +165,15 @@ def pair_kind(demo: Demonstration, a: str, b: str) -> str:
     return "other"
 
 
+def labelled_kinds(demo: Demonstration) -> set[str]:
+    """Pair kinds with at least one labelled interval.
+
+    Labels covering only hands and objects say nothing about part–part contact:
+    only pairs of a covered kind get ground truth (unlabelled ones all zero).
+    """
+    return {pair_kind(demo, i.a, i.b) for i in demo.labels.interactions if i.a != i.b}
+
+
 def default_pairs(demo: Demonstration) -> list[tuple[str, str]]:
     """Finger–object, hand–object, tool–part and part–part pairs, in a stable order."""
     parts = demo.bodies_of_kind("part")
@@ -219,22 +228,25 @@ def segment_demonstration(
     crf = model.crf()
     max_steps = math.floor(model.max_gap_s * axis.rate + 1e-9)
     has_truth = bool(demo.labels.interactions)
+    # Ground truth only for the pair kinds the labels cover (see labelled_kinds).
+    covered = labelled_kinds(demo)
     result = SegmentationResult(times=axis.times, edges=axis.edges)
     for a, b in pairs:
         x, ev = feats.pair(a, b)
         prob = crf.predict_proba([x])[0].copy()
         label = crf.predict([x])[0].copy()
         _blank_long_gaps(prob, label, ev, max_steps)
+        kind = pair_kind(demo, a, b)
         truth = (
             labels_from_intervals(pair_intervals(demo.labels, a, b), axis.times)
-            if has_truth
+            if kind in covered
             else None
         )
         result.pairs.append(
             PairResult(
                 a=a,
                 b=b,
-                kind=pair_kind(demo, a, b),
+                kind=kind,
                 probability=prob,
                 label=label,
                 evidence=ev,
@@ -257,7 +269,7 @@ def _hands(
             used = [f for f in fingers if (f, obj) in by_pair]
             label = aggregate_hand([by_pair[(f, obj)].label for f in used], min_fingers=min_fingers)
             truth = None
-            if has_truth:
+            if has_truth and any(by_pair[(f, obj)].truth is not None for f in used):
                 direct = pair_intervals(demo.labels, hand, obj)
                 if direct:
                     truth = labels_from_intervals(direct, result.times)
@@ -284,6 +296,7 @@ __all__ = [
     "PairResult",
     "SegmentationResult",
     "default_pairs",
+    "labelled_kinds",
     "pair_kind",
     "segment_demonstration",
 ]

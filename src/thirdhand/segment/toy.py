@@ -45,8 +45,17 @@ def random_pick_place_demo(
     noise_rot: float = 0.0,
     missing: float = 0.0,
     offset: float = 1.5,
+    hands: tuple[str, ...] = (),
+    n_fingers: int = 3,
+    pick_length: tuple[float, float] = (0.8, 2.5),
 ) -> Demonstration:
     """A carrier ``"carrier"`` (kind hand) picking parts ``"part0"…`` (kind part).
+
+    With ``hands`` (e.g. ``("left", "right")``) there is one untracked carrier per
+    hand, each pick made by a random hand, and the tracked bodies are that hand's
+    ``n_fingers`` fingers (``"lh_f0"``…, kind finger, ``hand_body`` ``"lh"``),
+    rigidly attached to their carrier a few centimetres apart; labels then hold
+    one interval per finger and pick.
 
     Parameters
     ----------
@@ -57,8 +66,8 @@ def random_pick_place_demo(
     rate : float
         Capture rate, Hz.
     picks_per_part : int
-        Carried intervals per part; all intervals are disjoint in time (one
-        carrier), 0.8–2.5 s long, separated by at least 1 s.
+        Carried intervals per part; all intervals are disjoint in time,
+        separated by at least 1 s.
     noise_pos : float
         Standard deviation of white position noise, metres.
     noise_rot : float
@@ -67,6 +76,11 @@ def random_pick_place_demo(
         Fraction of frames lost per body, in bursts of 2–30 frames.
     offset : float
         Added to every x coordinate, metres (tests precision far from the origin).
+    hands : tuple of {"left", "right"}
+    pick_length : (float, float)
+        Range of the carried intervals' lengths, seconds (capped by the room available).
+    n_fingers : int
+        Fingers per hand when ``hands`` is given.
 
     Returns
     -------
@@ -77,8 +91,12 @@ def random_pick_place_demo(
 
     n = round(duration * rate)
     t = np.arange(n) / rate
-    p_c, q_c = _smooth_track(rng, t, amplitude=0.3)
-    p_c[:, 0] += offset
+    sides = hands or ("carrier",)
+    carriers = {}
+    for side in sides:
+        p_c, q_c = _smooth_track(rng, t, amplitude=0.3)
+        p_c[:, 0] += offset
+        carriers[side] = (p_c, q_c)
     n_int = n_parts * picks_per_part
     # Disjoint intervals: split [0.5, duration - 0.5] into n_int slots, one pick per slot.
     slots = np.linspace(0.5, duration - 0.5, n_int + 1)
@@ -86,20 +104,41 @@ def random_pick_place_demo(
     intervals = []
     for k in range(n_int):
         room = slots[k + 1] - slots[k] - 1.0
-        length = float(np.clip(rng.uniform(0.8, 2.5), 0.3, max(room, 0.3)))
+        length = float(np.clip(rng.uniform(*pick_length), 0.3, max(room, 0.3)))
         s = float(slots[k] + 0.5 + rng.uniform(0, max(room - length, 0.0)))
-        intervals.append((int(owner[k]), s, s + length))
-    pos, quat, labels = {"carrier": p_c}, {"carrier": q_c}, []
-    r_c = Rotation.from_quat(q_c)
+        intervals.append((int(owner[k]), sides[int(rng.integers(len(sides)))], s, s + length))
+    pos: dict[str, FloatArray] = {}
+    quat: dict[str, FloatArray] = {}
+    bodies: list[BodyInfo] = []
+    fingers: dict[str, list[str]] = {}
+    for side, (p_c, q_c) in carriers.items():
+        if not hands:
+            pos["carrier"], quat["carrier"] = p_c, q_c
+            bodies.append(BodyInfo("carrier", kind="hand"))
+            fingers[side] = ["carrier"]
+            continue
+        hb = f"{side[0]}h"
+        fingers[side] = []
+        r = Rotation.from_quat(q_c)
+        for i in range(n_fingers):
+            name = f"{hb}_f{i}"
+            off = np.array([0.03 * i, 0.02, -0.01 * i])
+            pos[name] = p_c + r.apply(off)
+            quat[name] = (r * Rotation.from_rotvec([0.1 * i, 0.0, 0.2])).as_quat()
+            bodies.append(BodyInfo(name, kind="finger", hand=side, hand_body=hb))  # type: ignore[arg-type]
+            fingers[side].append(name)
+    labels: list[InteractionInterval] = []
     for j in range(n_parts):
         p = np.empty((n, 3))
         q = np.empty((n, 4))
         rest_p = np.array([offset + 0.2 * j, 0.4, 0.8])
         rest_q = se3.random_quat(rng)
         cur = 0
-        for who, s, e in intervals:
+        for who, side, s, e in intervals:
             if who != j:
                 continue
+            p_c, q_c = carriers[side]
+            r_c = Rotation.from_quat(q_c)
             i0 = int(np.ceil(s * rate))
             i1 = min(int(np.floor(e * rate)), n - 1)
             p[cur:i0] = rest_p
@@ -111,7 +150,10 @@ def random_pick_place_demo(
             q[seg] = (r_c[seg] * Rotation.from_quat(off_q)).as_quat()
             rest_p, rest_q = p[i1].copy(), q[i1].copy()
             cur = i1 + 1
-            labels.append(InteractionInterval("carrier", f"part{j}", t[i0], t[i1]))
+            labels.extend(
+                InteractionInterval(f, f"part{j}", float(t[i0]), float(t[i1]))
+                for f in fingers[side]
+            )
         p[cur:] = rest_p
         q[cur:] = rest_q
         pos[f"part{j}"] = p
@@ -124,10 +166,8 @@ def random_pick_place_demo(
             dr = Rotation.from_rotvec(noise_rot * rng.standard_normal((n, 3)))
             quat[name] = (Rotation.from_quat(quat[name]) * dr).as_quat()
         valid[name] = _random_valid(rng, n, missing)
-    bodies = [BodyInfo("carrier", kind="hand")] + [
-        BodyInfo(f"part{j}", kind="part") for j in range(n_parts)
-    ]
-    labels.sort(key=lambda i: i.start)
+    bodies += [BodyInfo(f"part{j}", kind="part") for j in range(n_parts)]
+    labels.sort(key=lambda i: (i.start, i.a))
     return Demonstration(
         t,
         bodies,

@@ -1,0 +1,182 @@
+"""Training sets from labelled demonstrations, model fitting, and the Table I protocol.
+
+Which pairs train the model
+---------------------------
+The candidates are :func:`~thirdhand.segment.pipeline.default_pairs`. A pair
+kind (finger–object, hand–object, tool–part, part–part) enters the training set
+only when the labels hold at least one interval of that kind: labels covering
+only hands and objects (the 3rdHand ``TS`` annotations) say nothing about
+part–part contact, and their part–part pairs must not be taken as negatives.
+Every candidate of a labelled kind is used, unlabelled ones as all-zero sequences.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.segment.crf import PairCRF
+from thirdhand.segment.design import DemoFeatures, FeatureConfig
+from thirdhand.segment.evaluate import boundary_error, frame_f1, interval_iou
+from thirdhand.segment.features import SegmentationError
+from thirdhand.segment.intervals import intervals_from_labels, labels_from_intervals, pair_intervals
+from thirdhand.segment.logistic import LogisticSegmenter
+from thirdhand.segment.model import SegmentModel
+from thirdhand.segment.pipeline import default_pairs, labelled_kinds, pair_kind
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+@dataclass
+class SequenceSet:
+    """Labelled pair sequences of one or more demonstrations.
+
+    Attributes
+    ----------
+    xs : list of ndarray, each (n_steps_i, n_features)
+    ys : list of ndarray of int, each (n_steps_i,)
+    pairs : list of (demo index, a, b, kind)
+    edges : list of ndarray, each (n_steps_i + 1,), seconds
+    """
+
+    xs: list[FloatArray] = field(default_factory=list)
+    ys: list[IntArray] = field(default_factory=list)
+    pairs: list[tuple[int, str, str, str]] = field(default_factory=list)
+    edges: list[FloatArray] = field(default_factory=list)
+
+    @property
+    def n_steps(self) -> int:
+        """Latent variables in total."""
+        return int(sum(len(y) for y in self.ys))
+
+
+def training_pairs(demo: Demonstration, *, hand: str | None = None) -> list[tuple[str, str]]:
+    """Candidate pairs of the kinds the demonstration's labels cover.
+
+    Parameters
+    ----------
+    demo : Demonstration
+    hand : {"left", "right"}, optional
+        Keep only finger/hand–object pairs of that hand.
+    """
+    labelled = labelled_kinds(demo)
+    out = []
+    for a, b in default_pairs(demo):
+        kind = pair_kind(demo, a, b)
+        if kind not in labelled:
+            continue
+        if hand is not None and (
+            kind not in ("finger-object", "hand-object") or demo.info(a).hand != hand
+        ):
+            continue
+        out.append((a, b))
+    return out
+
+
+def labelled_sequences(
+    demos: Sequence[Demonstration], config: FeatureConfig, *, hand: str | None = None
+) -> SequenceSet:
+    """Design matrices and true labels of every training pair of every demonstration."""
+    out = SequenceSet()
+    for k, demo in enumerate(demos):
+        if not demo.labels.interactions:
+            raise SegmentationError(f"demonstration {k} ({demo!r}) has no interaction labels")
+        feats = DemoFeatures(demo, config)
+        for a, b in training_pairs(demo, hand=hand):
+            x, _ = feats.pair(a, b)
+            out.xs.append(x)
+            out.ys.append(
+                labels_from_intervals(pair_intervals(demo.labels, a, b), feats.axis.times)
+            )
+            out.pairs.append((k, a, b, pair_kind(demo, a, b)))
+            out.edges.append(feats.axis.edges)
+    if not out.xs:
+        side = "" if hand is None else f" of the {hand} hand"
+        raise SegmentationError(f"no labelled pair{side} to learn from")
+    return out
+
+
+def fit_model(
+    demos: Sequence[Demonstration],
+    config: FeatureConfig | None = None,
+    *,
+    l2: float = 1.0,
+    hand: str | None = None,
+    training: dict[str, Any] | None = None,
+) -> SegmentModel:
+    """Train a CRF segmentation model on labelled demonstrations."""
+    config = FeatureConfig() if config is None else config
+    data = labelled_sequences(demos, config, hand=hand)
+    crf = PairCRF(l2=l2).fit(data.xs, data.ys)
+    info = {
+        "l2": l2,
+        "sequences": len(data.xs),
+        "latent_variables": data.n_steps,
+        "train_nll_per_variable": crf.nll(data.xs, data.ys) / data.n_steps,
+        **(training or {}),
+    }
+    return SegmentModel.from_crf(crf, config, training=info)
+
+
+def scores(data: SequenceSet, pred: Sequence[IntArray]) -> dict[str, float]:
+    """Frame F1, interval IoU and boundary error (seconds) of predictions on ``data``."""
+    true_i = [intervals_from_labels(y, e) for y, e in zip(data.ys, data.edges, strict=True)]
+    pred_i = [intervals_from_labels(y, e) for y, e in zip(pred, data.edges, strict=True)]
+    be = boundary_error(true_i, pred_i)
+    return {
+        "frame_f1": frame_f1(data.ys, pred),
+        "interval_iou": interval_iou(true_i, pred_i),
+        "boundary_error_s": be.mean_s,
+        "boundaries_missed": float(be.missed),
+    }
+
+
+def table_one(
+    demos: Sequence[Demonstration],
+    config: FeatureConfig | None = None,
+    *,
+    l2: float = 1.0,
+    train_hand: str = "left",
+    test_hand: str = "right",
+) -> dict[str, dict[str, dict[str, float]]]:
+    """The report's Table I protocol: train on one hand's pairs, test on the other's.
+
+    Returns
+    -------
+    dict
+        ``{"logistic" | "crf": {"train" | "test": {"nll", "nll_per_variable",
+        "frame_f1", "interval_iou", "boundary_error_s", ...}}}``
+    """
+    config = FeatureConfig() if config is None else config
+    train = labelled_sequences(demos, config, hand=train_hand)
+    test = labelled_sequences(demos, config, hand=test_hand)
+    logistic = LogisticSegmenter(l2=l2).fit(train.xs, train.ys)
+    crf = PairCRF(l2=l2).fit(train.xs, train.ys)
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for name, model in (("logistic", logistic), ("crf", crf)):
+        out[name] = {}
+        for split, data in (("train", train), ("test", test)):
+            nll = model.nll(data.xs, data.ys)
+            out[name][split] = {
+                "nll": nll,
+                "nll_per_variable": nll / data.n_steps,
+                "latent_variables": float(data.n_steps),
+                **scores(data, model.predict(data.xs)),
+            }
+    return out
+
+
+__all__ = [
+    "SequenceSet",
+    "fit_model",
+    "labelled_sequences",
+    "scores",
+    "table_one",
+    "training_pairs",
+]
