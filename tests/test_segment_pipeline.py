@@ -80,7 +80,7 @@ def test_result_json_and_model_round_trip(clean_model: SegmentModel, tmp_path: P
 def test_malformed_model_files(tmp_path: Path) -> None:
     bad = tmp_path / "bad.json"
     bad.write_text("{\n  nope")
-    with pytest.raises(ModelFileError, match="bad.json line 2: not JSON"):
+    with pytest.raises(ModelFileError, match=r"bad\.json line 2: not JSON"):
         load_model(bad)
     bad.write_text(json.dumps({"format": "other"}))
     with pytest.raises(ModelFileError, match="expected format"):
