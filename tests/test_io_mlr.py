@@ -465,11 +465,16 @@ def test_sensor_error_names_frame_and_body(tmp_path: Path) -> None:
         mlr.read(folder)
 
 
-def test_missing_times_file_raises(tmp_path: Path) -> None:
+def test_missing_files_raise(tmp_path: Path) -> None:
     folder = _folder(tmp_path, _poses())
     (folder / "poses.dat.times").unlink()
     with pytest.raises(FormatError, match=r"poses\.dat\.times: missing"):
         mlr.read(folder)
+    (folder / "meta.kvg").unlink()
+    with pytest.raises(FormatError, match=r"meta\.kvg: missing"):
+        mlr.read(folder)
+    with pytest.raises(FormatError, match="no such folder"):
+        mlr.read(tmp_path / "nowhere")
 
 
 def test_sniff(tmp_path: Path) -> None:

@@ -428,10 +428,12 @@ def read(
     folder = Path(path)
     if folder.name == POSES and folder.is_file():
         folder = folder.parent
-    poses_path = folder / POSES
-    sensors = _read_meta(folder / META) if (folder / META).is_file() else None
-    if sensors is None:
+    if not folder.is_dir():
+        raise FormatError(folder, f"no such folder (expected a folder holding {POSES})")
+    if not (folder / META).is_file():
         raise FormatError(folder / META, "missing: it maps sensor rows to body names")
+    sensors = _read_meta(folder / META)
+    poses_path = folder / POSES
     rows = parse_numeric_rows(_read_bytes(poses_path), poses_path, n_cols=(7,), blocks=True)
     n_frames = rows.block_lines.size
     vals = rows.values.reshape(n_frames, -1, 7)
