@@ -35,5 +35,6 @@ __all__ = [
     "fit_free",
     "fit_prismatic",
     "fit_relative",
+    "fit_revolute",
     "prepare_track",
 ]

@@ -92,14 +92,13 @@ def rotate_about(axis: FloatArray, angle: FloatArray, v: FloatArray) -> FloatArr
     c = np.cos(angle)[:, None]
     s = np.sin(angle)[:, None]
     cross = np.cross(axis, v)
-    dot = (v @ axis) if v.ndim == 1 else v @ axis
-    par = np.multiply.outer(np.atleast_1d(dot), axis)
+    par = np.multiply.outer(np.atleast_1d(v @ axis), axis)
     if v.ndim == 1:
         par = np.broadcast_to(par, (angle.shape[0], 3))
     return np.asarray(c * v + s * cross + (1.0 - c) * par, dtype=np.float64)
 
 
-def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, float]:
+def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Axis of a one-parameter rotation family ``q_i = q(a, θ_i) ⊗ q_0``, and its angles.
 
     All such quaternions lie in the plane of R⁴ spanned by ``q_0`` and
@@ -123,14 +122,14 @@ def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
     """
     m = (q * w[:, None]).T @ q
     _, vec = np.linalg.eigh(m)
-    u = vec[:, 3]
-    v = vec[:, 2]
+    u: FloatArray = np.asarray(vec[:, 3], dtype=np.float64)
+    v: FloatArray = np.asarray(vec[:, 2], dtype=np.float64)
     axis = quat_mul(v, quat_conj(u))[:3]
     axis = axis / np.linalg.norm(axis)
     v_exact = quat_mul(np.append(axis, 0.0), u)
     # q = cos α u + sin α v_exact = q(a, 2α) ⊗ u; the sign of q only shifts θ by 2π.
     theta = np.unwrap(2.0 * np.arctan2(q @ v_exact, q @ u))
-    return axis, theta, u
+    return axis, np.asarray(theta, dtype=np.float64), u
 
 
 def plane_fit(p: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -155,7 +154,9 @@ def plane_fit(p: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, Flo
     return m, vec[:, ::-1].T.copy(), val[::-1].copy()
 
 
-def circle_fit_2d(xy: FloatArray, w: FloatArray, *, iterations: int = 5) -> tuple[FloatArray, float]:
+def circle_fit_2d(
+    xy: FloatArray, w: FloatArray, *, iterations: int = 5
+) -> tuple[FloatArray, float]:
     """Weighted circle fit in the plane: algebraic (Kåsa) start, geometric refinement.
 
     Parameters
@@ -238,9 +239,7 @@ def revolute_centre(
     c_t = np.cos(theta)
     s_t = np.sin(theta)
     ax = np.outer(axis, axis)
-    skew = np.array(
-        [[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]]
-    )
+    skew = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
     eye = np.eye(3)
     sw = w.sum()
     sc = w @ c_t

@@ -39,6 +39,10 @@ _LOG2PI = math.log(2.0 * math.pi)
 #: Median of a chi-square with 3 degrees of freedom (robust start of σ).
 _CHI2_3_MEDIAN = 2.365974
 _EM_ITERATIONS = 8
+#: Concentration steps of the trimmed start, and the squared residual (in units of
+#: its median) beyond which residuals count as heavy-tailed (outliers present).
+_C_STEPS = 3
+_HEAVY_TAIL = 25.0
 #: Prior odds of a sample being a gross outlier, when classifying samples.
 _OUTLIER_PRIOR = 0.05
 
@@ -79,7 +83,33 @@ class ModelFit:
     @property
     def bic(self) -> float:
         """Bayesian information criterion ``-2 log L + k log n`` (lower is better)."""
-        return -2.0 * self.log_likelihood + self.n_params * math.log(self.weights.shape[0])
+        return self.bic_at(float(self.weights.shape[0]))
+
+    def bic_at(self, n_eff: float) -> float:
+        """BIC with ``n_eff`` effective samples: the log-likelihood is scaled by ``n_eff / n``.
+
+        Successive samples of a track are not independent (the sensor's error is
+        correlated in time); counting each as a full observation overstates the
+        evidence for a more flexible model.
+        """
+        n = self.weights.shape[0]
+        return -2.0 * self.log_likelihood * n_eff / n + self.n_params * math.log(n_eff)
+
+    def residual_autocorrelation(self) -> float:
+        """Lag-1 autocorrelation of the whitened inlier residuals, in [0, 1).
+
+        Residuals are divided by the noise levels and stacked (position, rotation);
+        0 when the residuals vanish (a noise-free track).
+        """
+        e = self.proj.e_pos[self.inlier] / self.sigma_pos
+        if self.proj.e_rot is not None:
+            e = np.hstack([e, self.proj.e_rot[self.inlier] / self.sigma_rot])
+        e = e - e.mean(axis=0)
+        den = float(np.sum(e * e))
+        if e.shape[0] < 3 or den < 1e-12 * e.size:
+            return 0.0
+        rho = float(np.sum(e[1:] * e[:-1])) / den
+        return min(max(rho, 0.0), 0.99)
 
 
 def prepare_track(
@@ -166,9 +196,7 @@ def _inlier_loglik(
     return np.asarray(ll, dtype=np.float64)
 
 
-def _noise_mle(
-    proj: Projection, resp: FloatArray, sp: float, sr: float
-) -> tuple[float, float]:
+def _noise_mle(proj: Projection, resp: FloatArray, sp: float, sr: float) -> tuple[float, float]:
     """Maximum-likelihood noise levels given the responsibilities.
 
     The latent absorbs part of each residual's degrees of freedom: a fraction
@@ -191,6 +219,39 @@ def _noise_mle(
         dof_rot = 3.0 * total - resp @ absorbed_rot
         sr_new = math.sqrt(resp @ np.sum(proj.e_rot**2, axis=1) / max(dof_rot, 1e-9))
     return sp_new, sr_new
+
+
+def _trimmed_start(
+    kernel: Kernel,
+    pos: FloatArray,
+    quat: FloatArray | None,
+    geom: Geometry,
+    proj: Projection,
+    n_keep: int,
+) -> tuple[Geometry | None, Projection, FloatArray]:
+    """Concentration steps of a least-trimmed-squares fit, when residuals are heavy-tailed.
+
+    A least-squares start is pulled by gross outliers, so far that the EM may not
+    tell them apart; refitting on the ``n_keep`` samples of smallest residual
+    (twice) moves the start back to the bulk of the track.
+    """
+    w = np.ones(pos.shape[0])
+    g_cur: Geometry | None = geom
+    for _ in range(_C_STEPS):
+        d2 = np.sum(proj.e_pos**2, axis=1)
+        d2 = d2 / max(float(np.median(d2)), 1e-300)
+        if proj.e_rot is not None:
+            r2 = np.sum(proj.e_rot**2, axis=1)
+            d2 = d2 + r2 / max(float(np.median(r2)), 1e-300)
+        if d2.max() < _HEAVY_TAIL * (2.0 if proj.e_rot is not None else 1.0):
+            break
+        cut = np.partition(d2, n_keep - 1)[n_keep - 1]
+        w = (d2 <= cut).astype(np.float64)
+        g_cur = kernel.fit(pos, quat, w, 1.0)
+        if g_cur is None:
+            return None, proj, w
+        proj = kernel.project(g_cur, pos, quat, 1.0)
+    return g_cur, proj, w
 
 
 def fit_model(
@@ -243,12 +304,18 @@ def fit_model(
             return None
         proj = kernel.project(geom, pos, quat, sp / sr)
         if it == 0:
+            if max_out:
+                geom, proj, w = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
+                if geom is None:
+                    return None
             # Robust start: scales from the median residual, immune to outliers.
+            keep = w > 0
             d_latent = proj.latent.shape[1]
-            med = float(np.median(np.sum(proj.e_pos**2, axis=1)))
+            med = float(np.median(np.sum(proj.e_pos[keep] ** 2, axis=1)))
             sp = math.sqrt(med / _CHI2_3_MEDIAN * 3.0 / max(3.0 - d_latent, 1.0))
             if proj.e_rot is not None:
-                sr = math.sqrt(float(np.median(np.sum(proj.e_rot**2, axis=1))) / _CHI2_3_MEDIAN)
+                e_rot = proj.e_rot[keep]
+                sr = math.sqrt(float(np.median(np.sum(e_rot**2, axis=1))) / _CHI2_3_MEDIAN)
         else:
             sp, sr = _noise_mle(proj, w, sp, sr)
         sp = min(max(sp, lo_p), hi_p)

@@ -8,7 +8,13 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from thirdhand.constraints.models import ModelFit, fit_model, prepare_track, to_constraint
+from thirdhand.constraints.models import (
+    MIN_SAMPLES,
+    ModelFit,
+    fit_model,
+    prepare_track,
+    to_constraint,
+)
 from thirdhand.constraints.types import (
     MODEL_TYPES,
     Constraint,
@@ -33,6 +39,22 @@ def bic_weights(scores: dict[str, float]) -> dict[str, float]:
     out = {k: 0.0 for k in scores}
     out.update({k: float(v) for k, v in zip(names, w, strict=True)})
     return out
+
+
+def effective_samples(fits: dict[str, ModelFit]) -> float:
+    """Effective number of independent samples of a track, from its best model's residuals.
+
+    With lag-1 autocorrelation ``ρ`` of the residuals of the model with the lowest
+    plain BIC (the model whose residuals are closest to the sensor noise), an AR(1)
+    error has ``n (1 - ρ) / (1 + ρ)`` effective samples. White residuals (the
+    synthetic tracks) give ``n``; a real sensor's slowly varying error (a camera's
+    bias that changes along a drawer's stroke) gives far fewer, and a systematic
+    error of a few millimetres is no longer strong evidence for a curved joint.
+    """
+    best = min(fits.values(), key=lambda f: f.bic)
+    n = float(best.weights.shape[0])
+    rho = best.residual_autocorrelation()
+    return max(min(n, float(MIN_SAMPLES)), n * (1.0 - rho) / (1.0 + rho))
 
 
 def fit_constraint(
@@ -80,18 +102,22 @@ def fit_constraint(
         )
     p, q = prepare_track(pos, quat, where=where)
     fits: dict[str, ModelFit] = {}
-    scores: dict[str, float] = {}
     for name in dict.fromkeys(models):
         if name == "cylindrical" and q is None:
             continue
         fit = fit_model(name, p, q, noise=noise)
-        scores[name] = math.inf if fit is None else fit.bic
         if fit is not None:
             fits[name] = fit
     if not fits:
         raise ConstraintFitError(
             f"{where}: none of the models {', '.join(models)} can describe this track"
         )
+    n_eff = effective_samples(fits)
+    scores = {
+        name: (fits[name].bic_at(n_eff) if name in fits else math.inf)
+        for name in dict.fromkeys(models)
+        if not (name == "cylindrical" and q is None)
+    }
     weights = bic_weights(scores)
     best = min(fits, key=lambda k: scores[k])
     return to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)

@@ -57,7 +57,7 @@ def random_joint_track(
     rot_noise: float = 0.0,
     outliers: float = 0.0,
 ) -> JointTrack:
-    """A random track of a ``fixed``, ``prismatic``, ``revolute``, ``cylindrical`` or ``free`` joint.
+    """A random track of a fixed, prismatic, revolute, cylindrical or free joint.
 
     Joint axes are uniform on the sphere; revolute radii 5–40 cm and angles
     40–150°; prismatic strokes 10–40 cm; the configuration moves monotonically

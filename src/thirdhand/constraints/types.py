@@ -52,6 +52,21 @@ class NoiseModel:
     rot_ceiling: float = math.radians(6.0)
     max_outliers: float = 0.25
 
+    @classmethod
+    def camera(cls) -> NoiseModel:
+        """Bounds for camera-based tracking (fiducials, checkerboards, AR tags).
+
+        A 1 cm position floor, the default ``sigma_position`` of Sturm et al.'s
+        articulation toolkit: such trackers have slowly varying errors of several
+        millimetres that a 1 mm floor would read as a curved or extra joint axis.
+        """
+        return cls(
+            pos_floor=0.01,
+            pos_ceiling=0.05,
+            rot_floor=math.radians(2.0),
+            rot_ceiling=math.radians(10.0),
+        )
+
     def __post_init__(self) -> None:
         if not 0.0 < self.pos_floor <= self.pos_ceiling:
             raise ConstraintFitError(
