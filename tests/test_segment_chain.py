@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 from scipy.optimize import check_grad, minimize
 
-from thirdhand.segment.chain import forward_backward, pairwise_marginals, viterbi
+from thirdhand.segment.chain import (
+    binary_expectations,
+    forward_backward,
+    pairwise_marginals,
+    viterbi,
+)
 from thirdhand.segment.crf import PairCRF, _Data
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.logistic import LogisticSegmenter, fit_logistic_newton, logistic_loss
@@ -141,3 +146,17 @@ def test_bad_sequences_raise() -> None:
         PairCRF().fit([np.full((3, 2), np.nan)], [np.zeros(3, int)])
     with pytest.raises(SegmentationError, match="init must be"):
         PairCRF(init="magic").fit([np.zeros((3, 2))], [np.zeros(3, int)])
+
+
+@pytest.mark.parametrize("scale", [1.0, 300.0, 2000.0])
+def test_scaled_binary_kernel_matches_log_space(rng: np.random.Generator, scale: float) -> None:
+    x = rng.standard_normal((300, 3))
+    offsets = np.array([0, 120, 121, 300])
+    w = scale * rng.standard_normal(3)
+    trans = scale * rng.standard_normal((2, 2))
+    log_z, e_state, e_trans = binary_expectations(x, offsets, w, trans)
+    unary = np.column_stack([np.zeros(300), x @ w])
+    lz_ref, marg, pair_sum = forward_backward(unary, trans, offsets)
+    np.testing.assert_allclose(log_z, lz_ref.sum(), rtol=1e-10)
+    np.testing.assert_allclose(e_state, marg[:, 1] @ x, rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(e_trans, pair_sum, rtol=1e-8, atol=1e-8)

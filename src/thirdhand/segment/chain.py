@@ -214,4 +214,145 @@ def viterbi(
     return _viterbi(u, np.ascontiguousarray(trans, np.float64), _offsets(offsets, len(u)))
 
 
-__all__ = ["forward_backward", "pairwise_marginals", "viterbi"]
+@numba.njit(cache=True, nogil=True)
+def _binary_expectations(  # pragma: no cover - compiled
+    x: FloatArray, offsets: IntArray, w: FloatArray, trans: FloatArray
+) -> tuple[float, FloatArray, FloatArray, bool]:
+    """Σ log Z and expected features of a binary chain CRF by scaled forward–backward.
+
+    Unary potentials are ``(0, x_t·w)``. Each step's potentials are shifted by
+    their maximum before exponentiation and every forward/backward vector is
+    normalised, so nothing overflows; shifts and normalisers are added back in
+    log space. Returns ``ok = False`` when a normaliser underflowed to zero
+    (transition weights beyond about ±700), for the caller to fall back to the
+    log-space recursions.
+    """
+    n, d = x.shape
+    tmax = max(max(trans[0, 0], trans[0, 1]), max(trans[1, 0], trans[1, 1]))
+    m00 = np.exp(trans[0, 0] - tmax)
+    m01 = np.exp(trans[0, 1] - tmax)
+    m10 = np.exp(trans[1, 0] - tmax)
+    m11 = np.exp(trans[1, 1] - tmax)
+    a0 = np.empty(n)
+    a1 = np.empty(n)
+    p0 = np.empty(n)
+    p1 = np.empty(n)
+    e_state = np.zeros(d)
+    e_trans = np.zeros((2, 2))
+    log_z = 0.0
+    ok = True
+    for q in range(offsets.size - 1):
+        lo = offsets[q]
+        hi = offsets[q + 1]
+        if hi <= lo:
+            continue
+        # Product of normalisers, flushed into log_z before it can underflow.
+        prod = 1.0
+        log_z += tmax * (hi - lo - 1)
+        for t in range(lo, hi):
+            u = 0.0
+            for j in range(d):
+                u += x[t, j] * w[j]
+            if u > 0.0:
+                e0 = np.exp(-u)
+                e1 = 1.0
+                log_z += u
+            else:
+                e0 = 1.0
+                e1 = np.exp(u)
+            p0[t] = e0
+            p1[t] = e1
+            if t == lo:
+                f0 = e0
+                f1 = e1
+            else:
+                f0 = e0 * (m00 * a0[t - 1] + m01 * a1[t - 1])
+                f1 = e1 * (m10 * a0[t - 1] + m11 * a1[t - 1])
+            c = f0 + f1
+            if not c > 0.0:
+                ok = False
+                c = 1.0
+            a0[t] = f0 / c
+            a1[t] = f1 / c
+            prod *= c
+            if prod < 1e-200:
+                log_z += np.log(prod)
+                prod = 1.0
+        log_z += np.log(prod)
+        b0 = 1.0
+        b1 = 1.0
+        for t in range(hi - 1, lo - 1, -1):
+            mz = a0[t] * b0 + a1[t] * b1
+            if not mz > 0.0:
+                ok = False
+                mz = 1.0
+            q1 = a1[t] * b1 / mz
+            for j in range(d):
+                e_state[j] += q1 * x[t, j]
+            if t > lo:
+                # p(y_t = a, y_{t-1} = b) ∝ alpha_{t-1}(b) M(a, b) psi_t(a) beta_t(a)
+                r0 = p0[t] * b0
+                r1 = p1[t] * b1
+                s00 = a0[t - 1] * m00 * r0
+                s01 = a1[t - 1] * m01 * r0
+                s10 = a0[t - 1] * m10 * r1
+                s11 = a1[t - 1] * m11 * r1
+                sz = s00 + s01 + s10 + s11
+                if not sz > 0.0:
+                    ok = False
+                    sz = 1.0
+                e_trans[0, 0] += s00 / sz
+                e_trans[0, 1] += s01 / sz
+                e_trans[1, 0] += s10 / sz
+                e_trans[1, 1] += s11 / sz
+                nb0 = m00 * r0 + m10 * r1
+                nb1 = m01 * r0 + m11 * r1
+                bz = nb0 + nb1
+                if not bz > 0.0:
+                    ok = False
+                    bz = 1.0
+                b0 = nb0 / bz
+                b1 = nb1 / bz
+    return log_z, e_state, e_trans, ok
+
+
+def binary_expectations(
+    x: FloatArray, offsets: IntArray, w: FloatArray, trans: FloatArray
+) -> tuple[float, FloatArray, FloatArray]:
+    """Log partition function and expected features of a binary chain CRF.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n, d)
+        State features of all chains, concatenated; the unary potential of
+        ``y_t = 1`` is ``x_t·w`` and of ``y_t = 0`` is 0.
+    offsets : ndarray of int, shape (n_chains + 1,)
+    w : ndarray, shape (d,)
+    trans : ndarray, shape (2, 2)
+        ``trans[a, b]`` weighs ``y_t = a`` after ``y_{t-1} = b``.
+
+    Returns
+    -------
+    log_z : float
+        ``Σ_chains log Z``.
+    e_state : ndarray, shape (d,)
+        ``Σ_t p(y_t = 1 | x) x_t``.
+    e_trans : ndarray, shape (2, 2)
+        ``Σ_{t≥1} p(y_t = a, y_{t-1} = b | x)``.
+    """
+    xc = np.ascontiguousarray(x, np.float64)
+    tc = np.ascontiguousarray(trans, np.float64)
+    oc = np.ascontiguousarray(offsets, np.int64)
+    # Transition weights spread by more than ~600 make exp() of the shifted weights
+    # subnormal, losing relative precision: those take the log-space recursions.
+    if float(np.ptp(tc)) < 600.0:
+        log_z, e_s, e_t, ok = _binary_expectations(xc, oc, np.ascontiguousarray(w, np.float64), tc)
+        if ok:
+            return log_z, e_s, e_t
+    u = np.zeros((len(xc), 2))
+    u[:, 1] = xc @ w
+    lz, marg, pair_sum = forward_backward(u, tc, oc)
+    return float(lz.sum()), marg[:, 1] @ xc, pair_sum
+
+
+__all__ = ["binary_expectations", "forward_backward", "pairwise_marginals", "viterbi"]

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from thirdhand.segment.chain import forward_backward, viterbi
+from thirdhand.segment.chain import binary_expectations, forward_backward, viterbi
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.logistic import fit_logistic_newton
 
@@ -122,16 +122,10 @@ class PairCRF:
             raise SegmentationError("the objective needs labels")
         trans = theta[:N_TRANS].reshape(2, 2)
         w = theta[N_TRANS:]
-        u = _unary(data.x, w)
-        log_z, marg, pair_sum = forward_backward(u, trans, data.offsets)
-        score = float(u[data.y == 1, 1].sum() + np.sum(trans * data.trans_counts))
-        f = float(log_z.sum()) - score + 0.5 * self.l2 * float(theta @ theta)
-        g = np.concatenate(
-            [
-                (pair_sum - data.trans_counts).ravel(),
-                marg[:, 1] @ data.x - data.state_counts,
-            ]
-        )
+        log_z, e_state, e_trans = binary_expectations(data.x, data.offsets, w, trans)
+        score = float(w @ data.state_counts + np.sum(trans * data.trans_counts))
+        f = log_z - score + 0.5 * self.l2 * float(theta @ theta)
+        g = np.concatenate([(e_trans - data.trans_counts).ravel(), e_state - data.state_counts])
         return f, g + self.l2 * theta
 
     def fit(self, xs: Sequence[FloatArray], ys: Sequence[IntArray]) -> PairCRF:
