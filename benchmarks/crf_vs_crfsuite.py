@@ -5,8 +5,9 @@ step, float-valued attributes) and the same labels, from noisy synthetic
 pick-and-place scenes (train and test seeds disjoint), and the same L2 penalty
 (thirdhand minimises ``NLL + ½ λ ||θ||²``; CRFsuite ``NLL + c2 ||θ||²``, so
 ``c2 = λ / 2``; CRFsuite keeps a state weight per label, so its effective
-penalty on the state weights is half thirdhand's). CRFsuite gets every possible state and transition feature
-(``feature.minfreq=0``, ``possible_states``, ``possible_transitions``); the
+penalty on the state weights is half thirdhand's). CRFsuite gets every possible
+state and transition feature (``feature.minfreq=0``, ``possible_states``,
+``possible_transitions``); the
 log features are passed negated (see :func:`items`).
 
 Printed: training time of each and their ratio; on the test set, the sequence
