@@ -13,7 +13,7 @@ from thirdhand.constraints.models import (
     fit_revolute,
     prepare_track,
 )
-from thirdhand.constraints.select import bic_weights, fit_constraint, fit_relative
+from thirdhand.constraints.select import bic_weights, demo_track, fit_constraint, fit_relative
 from thirdhand.constraints.types import (
     DOF_NAMES,
     MODEL_TYPES,
@@ -29,6 +29,7 @@ __all__ = [
     "ConstraintFitError",
     "NoiseModel",
     "bic_weights",
+    "demo_track",
     "fit_constraint",
     "fit_cylindrical",
     "fit_fixed",

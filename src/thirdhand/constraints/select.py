@@ -6,7 +6,7 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
 from thirdhand.constraints.models import (
     MIN_SAMPLES,
@@ -22,6 +22,8 @@ from thirdhand.constraints.types import (
     NoiseModel,
 )
 from thirdhand.demonstration import Demonstration
+
+FloatArray = NDArray[np.float64]
 
 #: Models compared by default. Cylindrical needs orientations and is skipped
 #: silently for position-only tracks.
@@ -123,6 +125,56 @@ def fit_constraint(
     return to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
 
 
+def demo_track(
+    demo: Demonstration,
+    *,
+    parent: str | None = None,
+    child: str | None = None,
+) -> tuple[FloatArray, FloatArray | None, str]:
+    """The pose track a constraint is fitted to, from a recording.
+
+    A single-body recording (an articulation log) gives that body's pose in the
+    world; with two or more bodies, ``parent`` and ``child`` pick the pose of the
+    child in the parent.
+
+    Returns
+    -------
+    pos : ndarray, shape (T, 3)
+        Metres; NaN where either body is invalid.
+    quat : ndarray, shape (T, 4) or None
+        x y z w; None when a body is position-only.
+    where : str
+        A name of the track for messages.
+
+    Raises
+    ------
+    ConstraintFitError
+        For an unknown body, or several bodies without ``parent``/``child``.
+    """
+    names = demo.body_names
+    for name in (parent, child):
+        if name is not None and name not in demo:
+            raise ConstraintFitError(
+                f"no body {name!r} in the recording; bodies are {', '.join(names)}"
+            )
+    if parent is None and child is None and len(names) == 1:
+        body = names[0]
+        valid = demo.valid(body)
+        pos = np.where(valid[:, None], demo.pos(body), np.nan)
+        quat = np.where(valid[:, None], demo.quat(body), np.nan)
+        return pos, quat if demo.info(body).oriented else None, body
+    if parent is None or child is None:
+        raise ConstraintFitError(
+            f"the recording has {len(names)} bodies ({', '.join(names)}); "
+            "name the track with parent and child"
+        )
+    p, q, valid = demo.relative_pose(parent, child)
+    pos = np.where(valid[:, None], p, np.nan)
+    oriented = demo.info(parent).oriented and demo.info(child).oriented
+    rel_quat = np.where(valid[:, None], q, np.nan) if oriented else None
+    return pos, rel_quat, f"{child} in {parent}"
+
+
 def fit_relative(
     demo: Demonstration,
     parent: str,
@@ -150,22 +202,12 @@ def fit_relative(
     ConstraintFitError
         For an unknown body, or too few frames where both bodies are valid.
     """
-    for name in (parent, child):
-        if name not in demo:
-            raise ConstraintFitError(
-                f"no body {name!r} in the demonstration; bodies are {', '.join(demo.body_names)}"
-            )
-    p, q, valid = demo.relative_pose(parent, child)
-    keep = valid.copy()
+    p, q, where = demo_track(demo, parent=parent, child=child)
+    keep = np.ones(demo.n_frames, dtype=bool)
     if start is not None:
         keep &= demo.t >= start
     if end is not None:
         keep &= demo.t <= end
-    oriented = demo.info(parent).oriented and demo.info(child).oriented
     return fit_constraint(
-        p[keep],
-        q[keep] if oriented else None,
-        models=models,
-        noise=noise,
-        where=f"{child} in {parent}",
+        p[keep], None if q is None else q[keep], models=models, noise=noise, where=where
     )

@@ -1,0 +1,115 @@
+"""``thirdhand constraints``: fit kinematic constraint models to recorded tracks.
+
+``thirdhand constraints fit TRACK [--parent A --child B] [--json]`` loads any
+recording :func:`thirdhand.io.load` reads, takes the single body's pose (an
+articulation log) or the child's pose in the parent, fits every model and prints
+the chosen one with the BIC of all.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from thirdhand.constraints.select import DEFAULT_MODELS, bic_weights, demo_track, fit_constraint
+from thirdhand.constraints.types import MODEL_TYPES, Constraint, ConstraintFitError, NoiseModel
+
+app = typer.Typer(
+    help="Kinematic constraints (fixed, prismatic, revolute, cylindrical, free) of a track.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+out = Console(highlight=False, soft_wrap=True)
+
+#: Noise presets by name (see :class:`~thirdhand.constraints.types.NoiseModel`).
+NOISE_PRESETS = {"mocap": NoiseModel, "camera": NoiseModel.camera}
+
+
+@app.callback()
+def _group() -> None:
+    """Kinematic constraints (fixed, prismatic, revolute, cylindrical, free) of a track."""
+
+
+def _vec(v: np.ndarray | None, digits: int = 4) -> str:
+    if v is None:
+        return "-"
+    return "[" + ", ".join(f"{x:.{digits}f}" for x in v) + "]"
+
+
+def _print_table(path: Path, where: str, c: Constraint) -> None:
+    out.print(f"[bold]{path.name}[/bold] ({where}, {c.n_samples} valid samples)")
+    out.print(f"  type        {c.type}   confidence {c.confidence:.3f}")
+    out.print(f"  axis        {_vec(c.axis)}")
+    out.print(f"  origin      {_vec(c.origin)} m")
+    if c.radius is not None:
+        out.print(f"  radius      {c.radius:.4f} m")
+    rms_rot = "" if c.rms_rot is None else f", {math.degrees(c.rms_rot):.2f} deg"
+    out.print(
+        f"  residual    {1000 * c.rms_pos:.2f} mm{rms_rot} rms, outliers {c.outlier_fraction:.1%}"
+    )
+    free = [(n, r) for n, r in zip(("tx", "ty", "tz", "rx", "ry", "rz"), c.ranges, strict=True)]
+    out.print(
+        "  range       "
+        + (
+            ", ".join(
+                f"{n} [{lo:.4f}, {hi:.4f}] {'m' if n[0] == 't' else 'rad'}"
+                for n, (lo, hi) in free
+                if lo != hi
+            )
+            or "all locked"
+        )
+    )
+    table = Table("model", "BIC", "weight")
+    weights = bic_weights(c.scores)
+    for name, score in sorted(c.scores.items(), key=lambda kv: kv[1]):
+        table.add_row(name, f"{score:.1f}", f"{weights[name]:.3f}")
+    out.print(table)
+
+
+@app.command()
+def fit(
+    track: Annotated[Path, typer.Argument(help="A recording (any format thirdhand reads).")],
+    parent: Annotated[
+        str | None, typer.Option(help="Parent body (recordings of two or more bodies).")
+    ] = None,
+    child: Annotated[str | None, typer.Option(help="Child body.")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
+    noise: Annotated[
+        str, typer.Option(help="Noise preset: mocap (1 mm floor) or camera (1 cm floor).")
+    ] = "mocap",
+    models: Annotated[str, typer.Option(help="Comma-separated candidate models.")] = ",".join(
+        DEFAULT_MODELS
+    ),
+) -> None:
+    """Fit every constraint model to a track and print the best one (by BIC)."""
+    from thirdhand import io
+
+    if noise not in NOISE_PRESETS:
+        raise ConstraintFitError(
+            f"unknown noise preset {noise!r}; choose among {', '.join(NOISE_PRESETS)}"
+        )
+    names = [m.strip() for m in models.split(",") if m.strip()]
+    bad = [m for m in names if m not in MODEL_TYPES]
+    if bad or not names:
+        raise ConstraintFitError(
+            f"--models: unknown model(s) {', '.join(map(repr, bad)) or '(none)'}; "
+            f"choose among {', '.join(MODEL_TYPES)}"
+        )
+    demo = io.load(track)
+    pos, quat, where = demo_track(demo, parent=parent, child=child)
+    c = fit_constraint(
+        pos, quat, models=names, noise=NOISE_PRESETS[noise](), where=f"{track} ({where})"
+    )
+    if as_json:
+        d = {"file": str(track), "track": where, **c.to_dict()}
+        out.print_json(json.dumps(d, allow_nan=False))
+    else:
+        _print_table(track, where, c)

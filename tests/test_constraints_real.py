@@ -1,0 +1,128 @@
+"""Constraint types of real articulated-object tracks (Sturm et al.; Niekum et al.).
+
+Every track was recorded by a camera (checkerboard/marker detection, AR tags), so
+the fits use ``NoiseModel.camera()``: a 1 cm position floor, the default position
+noise of Sturm et al.'s articulation toolkit. With the 1 mm motion-capture floor,
+the cameras' slowly varying errors of a few millimetres read as evidence of a
+curved drawer path (a revolute joint of 5 m radius) or of a 2 cm slide along the
+stapler's hinge (cylindrical); ``test_mocap_floor_over_reads_camera_error``
+pins that down.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thirdhand import io, se3
+from thirdhand.constraints import NoiseModel, demo_track, fit_constraint, fit_prismatic
+
+CAMERA = NoiseModel.camera()
+
+
+def _track(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    pos, quat, _ = demo_track(io.load(path))
+    return pos, quat
+
+
+@pytest.mark.parametrize(("name", "kind"), [("door.txt", "revolute"), ("drawer.txt", "prismatic")])
+def test_oriented_articulation_tracks(shared_data: Path, name: str, kind: str) -> None:
+    pos, quat = _track(shared_data / "articulation" / name)
+    assert quat is not None
+    c = fit_constraint(pos, quat, noise=CAMERA)
+    assert c.type == kind
+    assert c.confidence > 0.99
+    # Position alone says the same.
+    assert fit_constraint(pos, noise=CAMERA).type == kind
+
+
+@pytest.mark.parametrize("index", range(1, 11))
+def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
+    pos, quat = _track(shared_data / "articulation" / "cabinet_one" / f"{index:03d}.log")
+    assert quat is None
+    c = fit_constraint(pos, noise=CAMERA)
+    assert c.type == "revolute"
+    assert c.confidence > 0.99
+    assert c.axis is not None and c.radius is not None
+    # The cabinet door turns about a vertical hinge, ~38 cm from the handle, by 75-115°.
+    assert abs(c.axis[2]) > 0.99
+    assert 0.3 < c.radius < 0.45
+    assert 75.0 < np.degrees(np.ptp(c.ranges[3])) < 115.0
+
+
+DRAWER_004_REASON = (
+    "drawer_one/004: at the end stop the tracked gripper slides 5 cm sideways along the "
+    "handle (frames 84-90, x constant), stays there 18 frames, and the last row is a "
+    "zero (lost) sample; 20 % of the track off the line in one cluster, which a "
+    "0.7 m-radius arc explains better than a line with outliers"
+)
+
+
+@pytest.mark.parametrize(
+    "index",
+    [
+        pytest.param(i, marks=pytest.mark.xfail(strict=True, reason=DRAWER_004_REASON))
+        if i == 4
+        else i
+        for i in range(1, 11)
+    ],
+)
+def test_drawer_one_is_prismatic(shared_data: Path, index: int) -> None:
+    pos, quat = _track(shared_data / "articulation" / "drawer_one" / f"{index:03d}.log")
+    c = fit_constraint(pos, noise=CAMERA)
+    assert c.type == "prismatic", c.scores
+    assert c.axis is not None
+    # Drawers open along the camera's x axis by about 45 cm.
+    assert abs(c.axis[0]) > 0.99
+    assert 0.43 < np.ptp(c.ranges[0]) < 0.47
+
+
+def test_drawer_one_004_stroke_is_prismatic(shared_data: Path) -> None:
+    """Without the sideways slide at the end stop (frames 84 on), 004 is a drawer too."""
+    pos, _ = _track(shared_data / "articulation" / "drawer_one" / "004.log")
+    assert fit_constraint(pos[:84], noise=CAMERA).type == "prismatic"
+    # The slide is real: the tail sits 5 cm off the stroke's line.
+    line = fit_prismatic(pos[:84], noise=CAMERA)
+    assert line.axis is not None
+    off = pos[95:108] - line.origin
+    dist = np.linalg.norm(off - np.outer(off @ line.axis, line.axis), axis=1)
+    assert np.all(dist > 0.03)
+
+
+def _stapler(shared_data: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    z = np.load(shared_data / "niekum" / "stapler_revolute.npz")
+    o1, o2 = z["object1"], z["object2"]
+    p, q = se3.relative_pose(o1[:, :3], o1[:, 3:], o2[:, :3], o2[:, 3:])
+    return {
+        "relative1": (z["relative1"][:, :3], z["relative1"][:, 3:]),
+        "relative2": (z["relative2"][:, :3], z["relative2"][:, 3:]),
+        "object2 in object1": (p, q),
+    }
+
+
+def test_stapler_relative_tracks_are_revolute(shared_data: Path) -> None:
+    tracks = _stapler(shared_data)
+    # relative2 is exactly the inverse of relative1 (object1 in object2).
+    p_inv, q_inv = se3.pose_invert(*tracks["relative1"])
+    np.testing.assert_allclose(p_inv, tracks["relative2"][0], atol=1e-12)
+    assert np.max(se3.quat_angle(q_inv, tracks["relative2"][1])) < 1e-6
+    fits = {k: fit_constraint(p, q, noise=CAMERA) for k, (p, q) in tracks.items()}
+    for name, c in fits.items():
+        assert c.type == "revolute", (name, c.scores)
+        assert c.confidence > 0.99
+        # The stapler opens by about 160°.
+        assert 150.0 < np.degrees(np.ptp(c.ranges[3])) < 170.0
+    # relative1 is object2 in object1: same axis as the track computed from the objects.
+    a1, a12 = fits["relative1"].axis, fits["object2 in object1"].axis
+    assert a1 is not None and a12 is not None
+    assert abs(float(a1 @ a12)) > 0.999
+
+
+def test_mocap_floor_over_reads_camera_error(shared_data: Path) -> None:
+    p, q = _stapler(shared_data)["relative1"]
+    c = fit_constraint(p, q)
+    assert c.type == "cylindrical"
+    # ... by a 2 cm slide along the hinge axis, under the camera's 1 cm floor of noise.
+    assert np.ptp(c.ranges[0]) < 0.025
