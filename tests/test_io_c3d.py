@@ -317,6 +317,45 @@ def test_foreign_file_gives_right_relative_motion(tmp_path, rng):
     )
 
 
+def test_foreign_file_with_noise_stated_tolerance(tmp_path, rng):
+    angle, xyz, _ = rigid_pair_scene(rng, n=400)
+    xyz = xyz + rng.normal(0.0, 0.3e-3, xyz.shape)  # 0.3 mm marker noise
+    xyz[rng.random(xyz.shape[:2]) < 0.05] = np.nan
+    labels = [f"Tray:M{k}" for k in range(4)] + [f"Lid:M{k}" for k in range(5)]
+    path = tmp_path / "noisy.c3d"
+    write_raw(path, labels, xyz * 1000.0)
+    demo = c3d.read(path)
+    assert 0.1e-3 < demo.meta["c3d_fit_rms_m"]["Tray"] < 0.5e-3
+    p, q, v = demo.relative_pose("Tray", "Lid")
+    p_med = np.median(p[v], axis=0)
+    # B sits ~0.3 m from A's markers: A's orientation noise (~0.3 mm / 4 cm) is amplified.
+    dev = np.linalg.norm(p[v] - p_med, axis=1)
+    assert np.sqrt(np.mean(dev**2)) < 3e-3 and np.max(dev) < 1e-2
+    assert np.max(se3.quat_angle(q[v], q[v][0])) < np.radians(4.0)
+    tray = demo.track("Tray")
+    first = int(np.argmax(tray.valid))
+    turned = se3.quat_angle(tray.quat[first], tray.quat[tray.valid])
+    err = turned - np.abs(angle[tray.valid] - angle[first])
+    assert np.max(np.abs(err)) < np.radians(2.0)
+
+
+def test_body_option_on_own_file_keeps_stored_geometry(tmp_path, rng):
+    demo = sample_demo(rng, n=40)
+    path = tmp_path / "own.c3d"
+    c3d.write(demo, path)
+    seat = [f"seat:M{k}" for k in range(1, 5)]
+    back = c3d.read(path, bodies={"seat": seat}, markers_as_bodies=True)
+    assert back.body_names[0] == "seat" and len(back) == 1 + 1 + 4
+    assert back.info("/human/rh/thumb").hand == "right"
+    assert_same_motion(demo.select(["seat"]), back.select(["seat"]), pos_tol=1e-6, ang_tol=1e-5)
+    # Without the stored geometry the seat frame is the data's: same motion up to a fixed offset.
+    raw = c3d.read(path, stored_clusters=False)
+    a, b = demo.track("seat"), raw.track("seat")
+    dp, dq = se3.relative_pose(a.pos[a.valid], a.quat[a.valid], b.pos[a.valid], b.quat[a.valid])
+    assert np.max(np.abs(dp - dp[0])) < 1e-6
+    assert np.max(se3.quat_angle(dq, dq[0])) < 1e-5
+
+
 def test_body_option_and_units(tmp_path, rng):
     _, xyz, _ = rigid_pair_scene(rng, n=30)
     labels = [f"a{k}" for k in range(4)] + [f"b{k}" for k in range(5)]
@@ -406,6 +445,25 @@ def test_damaged_parameter_records_are_caught_before_ezc3d(tmp_path, rng):
     path.write_bytes(bytes(bad))
     with pytest.raises(FormatError, match="processor type"):
         c3d.read(path)
+
+
+def test_too_many_frames(tmp_path, rng):
+    n = c3d.MAX_FRAMES + 1000
+    path = tmp_path / "long.c3d"
+    # ezc3d writes every frame but can index (and read back) only 65535.
+    write_raw(path, ["a"], rng.uniform(0, 100, (n, 1, 3)))
+    with pytest.raises(
+        FormatError, match=r"long\.c3d \(frame 65535\).*about 665.. frames, more than"
+    ):
+        c3d.read(path)
+    demo = Demonstration(
+        np.arange(n) / 100.0,
+        [BodyInfo("a", oriented=False)],
+        {"a": np.zeros((n, 3))},
+        {"a": np.zeros((n, 4))},
+    )
+    with pytest.raises(FormatError, match="at most 65535 frames"):
+        c3d.write(demo, path)
 
 
 def test_sniff(tmp_path, rng):

@@ -377,11 +377,11 @@ def reference_cluster(xyz: ArrayLike) -> FloatArray:
     first = int(np.argmax(counts == counts.max()))
     ref0 = canonical_cluster(obs[first])
     use = np.all(np.isfinite(ref0), axis=1)
-    p, q, _ = se3.kabsch(ref0[use], obs[:, use])
-    idx = np.flatnonzero(np.all(np.isfinite(p), axis=1))
-    if idx.size > _MAX_MEDIAN_FRAMES:
+    idx = np.flatnonzero(seen[:, use].sum(axis=1) >= MIN_CLUSTER)
+    if idx.size > _MAX_MEDIAN_FRAMES:  # evenly spread frames are plenty for a median
         idx = idx[np.linspace(0, idx.size - 1, _MAX_MEDIAN_FRAMES).round().astype(int)]
-    local = se3.quat_rotate(se3.quat_conjugate(q[idx])[:, None], obs[idx] - p[idx, None])
+    p, q, _ = se3.kabsch(ref0[use], obs[idx][:, use])
+    local = se3.quat_rotate(se3.quat_conjugate(q)[:, None], obs[idx] - p[:, None])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN marker: stays NaN
         median = np.nanmedian(local, axis=0)
@@ -705,6 +705,14 @@ def _check_data_extent(p: Path, head: bytes, proc: int, size: int) -> None:
             f"truncated: the header announces {n_frames} frames ({needed} bytes), the file has "
             f"{size} bytes",
             where=f"frame {complete}",
+        )
+    extra = (size - needed - 512) // per_frame if per_frame else 0
+    if last >= MAX_FRAMES and extra > 0:
+        raise FormatError(
+            p,
+            f"holds about {n_frames + extra} frames, more than the {MAX_FRAMES} a C3D header "
+            "(and ezc3d) can index; split the recording",
+            where=f"frame {MAX_FRAMES}",
         )
 
 
