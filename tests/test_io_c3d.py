@@ -159,6 +159,16 @@ def test_reference_cluster_from_data_gives_exact_relative_motion(rng):
     assert np.max(se3.quat_angle(dq, dq[0])) < 1e-7
 
 
+def test_reference_cluster_without_any_complete_frame(rng):
+    ref = random_cluster(rng, 5)
+    pos, quat = random_poses(rng, 40)
+    xyz = place(ref, pos, quat)
+    xyz[0::2, 0] = np.nan  # markers 0 and 4 are never seen together
+    xyz[1::2, 4] = np.nan
+    est = c3d.reference_cluster(xyz)
+    np.testing.assert_allclose(est, c3d.canonical_cluster(ref), atol=1e-12)
+
+
 def test_reference_cluster_needs_three_seen_markers():
     xyz = np.full((10, 4, 3), np.nan)
     xyz[:, :2] = 1.0
@@ -241,6 +251,22 @@ def test_markers_from_demonstration(rng):
     np.testing.assert_allclose(xyz[:, 4], thumb.pos, equal_nan=True)
     np.testing.assert_allclose(xyz[:, 5:], place(cluster, leg.pos, leg.quat), equal_nan=True)
     assert np.all(np.isnan(xyz[~seat.valid, :4]))
+
+
+def test_round_trip_of_awkward_names(tmp_path):
+    n = 6
+    bodies = [BodyInfo("Sitz_ä"), BodyInfo(" thumb ", kind="finger", oriented=False)]
+    demo = Demonstration(
+        np.arange(n) / 10.0,
+        bodies,
+        {b.name: np.full((n, 3), 0.1) for b in bodies},
+        {b.name: np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)) for b in bodies},
+    )
+    path = tmp_path / "names.c3d"
+    c3d.write(demo, path)
+    assert_same_motion(demo, c3d.read(path), pos_tol=1e-6, ang_tol=1e-5)
+    raw = c3d.read(path, stored_clusters=False, markers_as_bodies=True)
+    assert raw.body_names == ["Sitz_ä", "thumb"]
 
 
 def test_default_cluster_is_deterministic_and_not_coplanar():

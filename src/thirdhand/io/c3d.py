@@ -28,9 +28,11 @@ back with their original poses. Otherwise the body frame is built from the data:
 
 1. the first frame where every marker of the cluster is seen (else the first
    frame seeing the most markers, at least 3) gives a provisional cluster;
-2. every frame is fitted to it, each seen marker is expressed in the
-   provisional body frame, and the per-coordinate median over frames gives the
-   cluster's geometry (robust to noise, gaps and occasional mislabelled frames);
+2. the well-seen frames (those seeing every marker, when there are at least
+   10 of them; else every frame seeing 3 markers of the provisional cluster) are
+   fitted to it, each seen marker is expressed in the provisional body frame,
+   and the per-coordinate median over frames gives the cluster's geometry
+   (robust to noise and occasional mislabelled frames);
 3. the body frame of that median cluster has its origin at the centroid of the
    markers and its axes along the cluster's principal axes, x the direction of
    largest spread, then y, and z = x × y (right-handed). The sign of x and y is
@@ -65,6 +67,7 @@ import os
 import struct
 import warnings
 import zlib
+from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -114,6 +117,7 @@ MIN_CLUSTER = 3
 _CHUNK = 200  # characters per string of the JSON document (C3D strings hold <= 255)
 _CHUNKS_PER_PARAM = 120  # keeps every parameter record well under 32 kB
 _MAX_MEDIAN_FRAMES = 4000
+_MIN_WELL_SEEN = 10  # complete frames needed to take the median geometry from them alone
 _MAGIC = 0x50
 _PROCESSORS = {84: "<", 85: "<", 86: ">"}  # Intel, DEC, MIPS
 
@@ -377,7 +381,9 @@ def reference_cluster(xyz: ArrayLike) -> FloatArray:
     first = int(np.argmax(counts == counts.max()))
     ref0 = canonical_cluster(obs[first])
     use = np.all(np.isfinite(ref0), axis=1)
-    idx = np.flatnonzero(seen[:, use].sum(axis=1) >= MIN_CLUSTER)
+    idx = np.flatnonzero(counts == m)
+    if idx.size < _MIN_WELL_SEEN:  # too few complete frames: any frame that can be fitted
+        idx = np.flatnonzero(seen[:, use].sum(axis=1) >= MIN_CLUSTER)
     if idx.size > _MAX_MEDIAN_FRAMES:  # evenly spread frames are plenty for a median
         idx = idx[np.linspace(0, idx.size - 1, _MAX_MEDIAN_FRAMES).round().astype(int)]
     p, q, _ = se3.kabsch(ref0[use], obs[idx][:, use])
@@ -476,7 +482,7 @@ def _load_markers(p: Path, units: str | None) -> _Markers:
             f"{len(labels)} point labels for {points.shape[1]} markers",
             where="POINT:LABELS",
         )
-    dup = sorted({lab for lab in labels if labels.count(lab) > 1})
+    dup = sorted(lab for lab, k in Counter(labels).items() if k > 1)
     if dup:
         raise FormatError(p, f"duplicate marker label(s) {', '.join(dup)}", where="POINT:LABELS")
     unit = units if units is not None else _param_str(params, "POINT", "UNITS") or "mm"
@@ -789,10 +795,14 @@ def _layout(
     labels: list[str] = []
     offsets: dict[str, FloatArray] = {}
     for info in demo.bodies:
+        # C3D readers strip the blanks around labels: the labels are made without them.
+        stem = info.name.strip()
+        if not stem:
+            raise ThirdhandError(f"body {info.name!r}: a blank name makes no marker label")
         if not info.oriented:
             if info.name in given:
                 raise ThirdhandError(f"body {info.name!r} is position-only: it takes no cluster")
-            labels.append(info.name)
+            labels.append(stem)
             continue
         off = (
             _check_offsets(info.name, given[info.name])
@@ -800,10 +810,14 @@ def _layout(
             else default_cluster(info.name)
         )
         offsets[info.name] = off
-        labels.extend(f"{info.name}:M{k + 1}" for k in range(off.shape[0]))
-    dup = sorted({lab for lab in labels if labels.count(lab) > 1})
+        labels.extend(f"{stem}:M{k + 1}" for k in range(off.shape[0]))
+    counts = Counter(labels)
+    dup = sorted(lab for lab, k in counts.items() if k > 1)
     if dup:
         raise ThirdhandError(f"duplicate marker label(s) {', '.join(dup)}")
+    long = [lab for lab in counts if len(lab.encode("utf-8")) > 255]
+    if long:
+        raise ThirdhandError(f"marker label {long[0]!r} is longer than C3D's 255 bytes")
     return labels, offsets
 
 
