@@ -410,6 +410,13 @@ def test_body_option_and_units(tmp_path, rng):
     assert c3d.read(path, markers_as_bodies=True).meta["units"] == "mm"
 
 
+def test_blank_and_repeated_labels_are_made_unique(tmp_path, rng):
+    path = tmp_path / "unlabelled.c3d"
+    write_raw(path, ["*", "", "*", "a"], rng.uniform(1, 100, (4, 4, 3)))
+    demo = c3d.read(path, markers_as_bodies=True)
+    assert demo.body_names == ["*", "marker2", "*#2", "a"]
+
+
 @pytest.mark.parametrize("rate", [0.0, np.nan])
 def test_bad_rate(tmp_path, rng, rate):
     path = tmp_path / "rate.c3d"

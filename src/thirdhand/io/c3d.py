@@ -482,9 +482,6 @@ def _load_markers(p: Path, units: str | None) -> _Markers:
             f"{len(labels)} point labels for {points.shape[1]} markers",
             where="POINT:LABELS",
         )
-    dup = sorted(lab for lab, k in Counter(labels).items() if k > 1)
-    if dup:
-        raise FormatError(p, f"duplicate marker label(s) {', '.join(dup)}", where="POINT:LABELS")
     unit = units if units is not None else _param_str(params, "POINT", "UNITS") or "mm"
     scale = UNIT_SCALES.get(unit.strip().lower())
     if scale is None:
@@ -519,13 +516,31 @@ def _load_markers(p: Path, units: str | None) -> _Markers:
 
 
 def _point_labels(params: Mapping[str, Any]) -> list[str]:
+    """``POINT:LABELS`` (and ``LABELS2``...), made unique.
+
+    Unlabelled markers are often stored with blank or repeated labels: a blank
+    label becomes ``marker<k>`` (k its 1-based column), the n-th repeat of a
+    label ``<label>#<n>``.
+    """
     point = params.get("POINT", {})
-    labels: list[str] = []
+    raw: list[str] = []
     key, i = "LABELS", 1
     while key in point:
-        labels.extend(str(s).strip() for s in point[key]["value"])
+        raw.extend(str(s).strip() for s in point[key]["value"])
         i += 1
         key = f"LABELS{i}"
+    labels: list[str] = []
+    taken: set[str] = set()
+    seen: Counter[str] = Counter()
+    for k, lab in enumerate(raw):
+        name = lab or f"marker{k + 1}"
+        seen[name] += 1
+        if name in taken:
+            name = f"{name}#{seen[name]}"
+        while name in taken:
+            name += "'"
+        taken.add(name)
+        labels.append(name)
     return labels
 
 
