@@ -70,7 +70,7 @@ DRAWER_004_REASON = (
     ],
 )
 def test_drawer_one_is_prismatic(shared_data: Path, index: int) -> None:
-    pos, quat = _track(shared_data / "articulation" / "drawer_one" / f"{index:03d}.log")
+    pos, _ = _track(shared_data / "articulation" / "drawer_one" / f"{index:03d}.log")
     c = fit_constraint(pos, noise=CAMERA)
     assert c.type == "prismatic", c.scores
     assert c.axis is not None

@@ -47,13 +47,25 @@ def quat_average(q: FloatArray, w: FloatArray) -> FloatArray:
     return np.asarray(out if out[3] >= 0 else -out, dtype=np.float64)
 
 
+def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Cross product of 3-vectors, broadcasting, shape (..., 3) (cheaper than ``np.cross``)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
 def quat_mul(a: FloatArray, b: FloatArray) -> FloatArray:
     """Hamilton product ``a ⊗ b`` of x y z w quaternions, broadcasting, shape (..., 4)."""
     av, aw = a[..., :3], a[..., 3:]
     bv, bw = b[..., :3], b[..., 3:]
-    vec = aw * bv + bw * av + np.cross(av, bv)
+    vec = aw * bv + bw * av + cross3(av, bv)
     sc = aw * bw - np.sum(av * bv, axis=-1, keepdims=True)
     return np.concatenate([vec, sc], axis=-1)
+
+
+def quat_right_matrix(p: FloatArray) -> FloatArray:
+    """Matrix (4, 4) with ``q @ M = q ⊗ p`` for quaternion rows ``q``: one matmul per track."""
+    return quat_mul(np.eye(4), p)
 
 
 def quat_conj(q: FloatArray) -> FloatArray:
@@ -85,17 +97,15 @@ def quat_axis_angle(axis: FloatArray, angle: FloatArray) -> FloatArray:
 
 
 def rotate_about(axis: FloatArray, angle: FloatArray, v: FloatArray) -> FloatArray:
-    """Rotate vectors ``v (3,)`` or ``(n, 3)`` by ``angle (n,)`` about unit ``axis (3,)``.
+    """Rotate one vector ``v (3,)`` by each of ``angle (n,)`` about unit ``axis (3,)``.
 
     Rodrigues' formula, vectorised; shape (n, 3).
     """
-    c = np.cos(angle)[:, None]
-    s = np.sin(angle)[:, None]
-    cross = np.cross(axis, v)
-    par = np.multiply.outer(np.atleast_1d(v @ axis), axis)
-    if v.ndim == 1:
-        par = np.broadcast_to(par, (angle.shape[0], 3))
-    return np.asarray(c * v + s * cross + (1.0 - c) * par, dtype=np.float64)
+    par = (v @ axis) * axis
+    return np.asarray(
+        np.outer(np.cos(angle), v - par) + np.outer(np.sin(angle), cross3(axis, v)) + par,
+        dtype=np.float64,
+    )
 
 
 def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:

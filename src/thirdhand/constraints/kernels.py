@@ -44,6 +44,13 @@ class Projection:
     latent: FloatArray
     g_pos: FloatArray
     g_rot: FloatArray
+    #: Squared norms of ``e_pos`` and ``e_rot``, shape (n,), filled on construction.
+    d2_pos: FloatArray = field(init=False)
+    d2_rot: FloatArray | None = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.d2_pos = np.einsum("ij,ij->i", self.e_pos, self.e_pos)
+        self.d2_rot = None if self.e_rot is None else np.einsum("ij,ij->i", self.e_rot, self.e_rot)
 
 
 @dataclass
@@ -60,9 +67,10 @@ class Geometry:
 
 
 def _rot_residual(q: FloatArray | None, q_pred: FloatArray | None) -> FloatArray | None:
+    """Rotation vectors of ``q ⊗ q_pred⁻¹`` for a constant ``q_pred (4,)``, shape (n, 3)."""
     if q is None or q_pred is None:
         return None
-    return g.quat_log(g.quat_mul(q, g.quat_conj(q_pred)))
+    return g.quat_log(q @ g.quat_right_matrix(g.quat_conj(q_pred)))
 
 
 def _wrap(a: FloatArray) -> FloatArray:
@@ -175,7 +183,7 @@ class Revolute(Kernel):
         centroid, axes, _ = g.plane_fit(p, w)
         normal = axes[2]
         e1 = axes[0]
-        e2 = np.cross(normal, e1)
+        e2 = g.cross3(normal, e1)
         basis = np.stack([e1, e2])
         xy = (p - centroid) @ basis.T
         c2, r = g.circle_fit_2d(xy, w)
@@ -191,7 +199,7 @@ class Revolute(Kernel):
         lev = geom.lever - (geom.lever @ a) * a
         r = float(np.linalg.norm(lev))
         e1 = lev / r if r > 1e-12 else np.zeros(3)
-        e2 = np.cross(a, e1)
+        e2 = g.cross3(a, e1)
         v = p - geom.pos
         return np.arctan2(v @ e2, v @ e1), v @ a, np.full(p.shape[0], r)
 
@@ -220,12 +228,16 @@ class Revolute(Kernel):
             lat.append(height)
             gp.append(np.ones_like(theta))
             gr.append(np.zeros_like(theta))
-        q_pred = None
+        e_rot = None
         if q is not None and geom.quat is not None:
-            q_pred = g.quat_mul(g.quat_axis_angle(a, theta), geom.quat)
+            # q ⊗ (rot(a, θ) ⊗ q0)⁻¹ = (q ⊗ q0⁻¹) ⊗ (cos θ/2, -sin θ/2 a): two matmuls.
+            x = q @ g.quat_right_matrix(g.quat_conj(geom.quat))
+            y = x @ g.quat_right_matrix(np.append(-a, 0.0))
+            half = 0.5 * theta
+            e_rot = g.quat_log(np.cos(half)[:, None] * x + np.sin(half)[:, None] * y)
         return Projection(
             p - pred,
-            _rot_residual(q, q_pred),
+            e_rot,
             np.stack(lat, axis=1),
             np.stack(gp, axis=1),
             np.stack(gr, axis=1),

@@ -181,9 +181,9 @@ def _inlier_loglik(
     inlier: NDArray[np.bool_],
 ) -> FloatArray:
     """Per-sample inlier log-likelihood, latent integrated out (Laplace), shape (n,)."""
-    ll = -1.5 * (_LOG2PI + 2.0 * math.log(sp)) - 0.5 * np.sum(proj.e_pos**2, axis=1) / sp**2
-    if proj.e_rot is not None:
-        ll += -1.5 * (_LOG2PI + 2.0 * math.log(sr)) - 0.5 * np.sum(proj.e_rot**2, axis=1) / sr**2
+    ll = -1.5 * (_LOG2PI + 2.0 * math.log(sp)) - 0.5 * proj.d2_pos / sp**2
+    if proj.d2_rot is not None:
+        ll += -1.5 * (_LOG2PI + 2.0 * math.log(sr)) - 0.5 * proj.d2_rot / sr**2
     d = proj.latent.shape[1]
     if d:
         inv_sr2 = 1.0 / sr**2 if proj.e_rot is not None else 0.0
@@ -211,14 +211,27 @@ def _noise_mle(proj: Projection, resp: FloatArray, sp: float, sr: float) -> tupl
         absorbed_pos = np.sum(hp / (hp + hr), axis=1)
     total = resp.sum()
     dof_pos = 3.0 * total - resp @ absorbed_pos
-    sp_new = math.sqrt(resp @ np.sum(proj.e_pos**2, axis=1) / max(dof_pos, 1e-9))
+    sp_new = math.sqrt(resp @ proj.d2_pos / max(dof_pos, 1e-9))
     sr_new = sr
     if oriented:
-        assert proj.e_rot is not None
+        assert proj.d2_rot is not None
         absorbed_rot = proj.latent.shape[1] - absorbed_pos
         dof_rot = 3.0 * total - resp @ absorbed_rot
-        sr_new = math.sqrt(resp @ np.sum(proj.e_rot**2, axis=1) / max(dof_rot, 1e-9))
+        sr_new = math.sqrt(resp @ proj.d2_rot / max(dof_rot, 1e-9))
     return sp_new, sr_new
+
+
+def _total(
+    ll_in: FloatArray, inlier: NDArray[np.bool_], log_out: float, n_model: int, oriented: bool
+) -> tuple[float, int]:
+    """Total log-likelihood (inliers, and outliers at rate γ = their fraction) and ``k``."""
+    n = ll_in.shape[0]
+    n_out = int(n - inlier.sum())
+    ll = float(ll_in[inlier].sum())
+    if n_out:
+        gamma = n_out / n
+        ll += (n - n_out) * math.log1p(-gamma) + n_out * (math.log(gamma) + log_out)
+    return ll, n_model + (2 if oriented else 1) + (1 if n_out else 0)
 
 
 def _trimmed_start(
@@ -238,10 +251,10 @@ def _trimmed_start(
     w = np.ones(pos.shape[0])
     g_cur: Geometry | None = geom
     for _ in range(_C_STEPS):
-        d2 = np.sum(proj.e_pos**2, axis=1)
+        d2 = proj.d2_pos
         d2 = d2 / max(float(np.median(d2)), 1e-300)
-        if proj.e_rot is not None:
-            r2 = np.sum(proj.e_rot**2, axis=1)
+        if proj.d2_rot is not None:
+            r2 = proj.d2_rot
             d2 = d2 + r2 / max(float(np.median(r2)), 1e-300)
         if d2.max() < _HEAVY_TAIL * (2.0 if proj.e_rot is not None else 1.0):
             break
@@ -260,6 +273,7 @@ def fit_model(
     quat: FloatArray | None,
     *,
     noise: NoiseModel | None = None,
+    stop_above: float = math.inf,
 ) -> ModelFit | None:
     """Fit one model robustly (EM over inlier/outlier and noise), on a prepared track.
 
@@ -272,6 +286,9 @@ def fit_model(
     quat : ndarray, shape (n, 4) or None
         Unit child orientations in the parent frame, x y z w.
     noise : NoiseModel, optional
+    stop_above : float
+        Stop iterating as soon as the model's BIC (after its robust start) is above
+        this: a model far behind another needs no converged score to lose.
 
     Returns
     -------
@@ -298,8 +315,10 @@ def fit_model(
     geom: Geometry | None = None
     proj: Projection | None = None
     ll_in = np.zeros(n)
+    refit = True
     for it in range(_EM_ITERATIONS):
-        geom = kernel.fit(pos, quat, w, sp / sr)
+        if refit:
+            geom = kernel.fit(pos, quat, w, sp / sr)
         if geom is None:
             return None
         proj = kernel.project(geom, pos, quat, sp / sr)
@@ -311,11 +330,11 @@ def fit_model(
             # Robust start: scales from the median residual, immune to outliers.
             keep = w > 0
             d_latent = proj.latent.shape[1]
-            med = float(np.median(np.sum(proj.e_pos[keep] ** 2, axis=1)))
+            med = float(np.median(proj.d2_pos[keep]))
             sp = math.sqrt(med / _CHI2_3_MEDIAN * 3.0 / max(3.0 - d_latent, 1.0))
             if proj.e_rot is not None:
-                e_rot = proj.e_rot[keep]
-                sr = math.sqrt(float(np.median(np.sum(e_rot**2, axis=1))) / _CHI2_3_MEDIAN)
+                assert proj.d2_rot is not None
+                sr = math.sqrt(float(np.median(proj.d2_rot[keep])) / _CHI2_3_MEDIAN)
         else:
             sp, sr = _noise_mle(proj, w, sp, sr)
         sp = min(max(sp, lo_p), hi_p)
@@ -327,18 +346,19 @@ def fit_model(
             worst = np.argpartition(-gain, max_out - 1)[:max_out]
             new_inlier[worst[gain[worst] > 0.0]] = False
         converged = it > 0 and np.array_equal(new_inlier, inlier)
+        # The geometry depends on the weights only (the noise ratio enters the projection).
+        refit = not np.array_equal(new_inlier, w > 0)
         inlier = new_inlier
         w = inlier.astype(np.float64)
         if converged:
             break
+        if it > 0 and math.isfinite(stop_above):
+            ll, k = _total(ll_in, inlier, log_out, kernel.n_params[int(oriented)], oriented)
+            if -2.0 * ll + k * math.log(n) > stop_above:
+                break
     assert geom is not None and proj is not None
     ll_in = _inlier_loglik(proj, sp, sr, inlier)
-    n_out = int(n - inlier.sum())
-    ll = float(ll_in[inlier].sum())
-    if n_out:
-        gamma = n_out / n
-        ll += (n - n_out) * math.log1p(-gamma) + n_out * (math.log(gamma) + log_out)
-    k = kernel.n_params[int(oriented)] + (2 if oriented else 1) + (1 if n_out else 0)
+    ll, k = _total(ll_in, inlier, log_out, kernel.n_params[int(oriented)], oriented)
     return ModelFit(
         kernel=kernel,
         geom=geom,
@@ -361,7 +381,7 @@ def _frame_from_axes(x: FloatArray, y_hint: FloatArray) -> FloatArray:
         y = np.eye(3)[int(np.argmin(np.abs(x)))]
         y = y - (y @ x) * x
     y = y / np.linalg.norm(y)
-    z = np.cross(x, y)
+    z = g.cross3(x, y)
     return se3.quat_from_matrix(np.stack([x, y, z], axis=1))
 
 
@@ -372,7 +392,7 @@ def _align_x(q: FloatArray, axis: FloatArray) -> FloatArray:
     if cos < -1.0 + 1e-12:
         turn = np.append(se3.quat_rotate(q, np.array([0.0, 1.0, 0.0])), 0.0)
     else:
-        turn = np.append(np.cross(x, axis), 1.0 + cos)
+        turn = np.append(g.cross3(x, axis), 1.0 + cos)
     return g.quat_mul(turn / np.linalg.norm(turn), q)
 
 
@@ -448,10 +468,10 @@ def to_constraint(
             assert geom.quat is not None
             q_end = g.quat_mul(g.quat_axis_angle(geom.axis, np.array([theta_end])), geom.quat)[0]
     w_in = fit.inlier.astype(np.float64)
-    rms_pos = math.sqrt(float(w_in @ np.sum(proj.e_pos**2, axis=1)) / w_in.sum())
+    rms_pos = math.sqrt(float(w_in @ proj.d2_pos) / w_in.sum())
     rms_rot = None
-    if proj.e_rot is not None:
-        rms_rot = math.sqrt(float(w_in @ np.sum(proj.e_rot**2, axis=1)) / w_in.sum())
+    if proj.d2_rot is not None:
+        rms_rot = math.sqrt(float(w_in @ proj.d2_rot) / w_in.sum())
     if q_end is not None and q_end[3] < 0:
         q_end = -q_end
     if frame_q[3] < 0:

@@ -43,6 +43,14 @@ def bic_weights(scores: dict[str, float]) -> dict[str, float]:
     return out
 
 
+_FIT_ORDER = ("fixed", "free", "prismatic", "revolute", "cylindrical")
+
+
+def _margin(best: float) -> float:
+    """How far behind the best BIC so far a model may fall before its fit stops early."""
+    return 200.0 + 0.1 * abs(best) if math.isfinite(best) else math.inf
+
+
 def effective_samples(fits: dict[str, ModelFit]) -> float:
     """Effective number of independent samples of a track, from its best model's residuals.
 
@@ -89,7 +97,9 @@ def fit_constraint(
     Constraint
         The chosen model; ``scores`` holds the BIC of every candidate (``inf``
         for one that cannot describe the track) and ``confidence`` the chosen
-        model's BIC weight.
+        model's BIC weight. A candidate whose BIC falls far behind (by 200 plus
+        10 %) a model fitted before it stops iterating early: its score is then
+        an upper bound, not a converged value.
 
     Raises
     ------
@@ -104,12 +114,15 @@ def fit_constraint(
         )
     p, q = prepare_track(pos, quat, where=where)
     fits: dict[str, ModelFit] = {}
-    for name in dict.fromkeys(models):
+    best_bic = math.inf
+    # Cheap models first: their BIC lets the joint models that fall far behind stop early.
+    for name in sorted(dict.fromkeys(models), key=_FIT_ORDER.index):
         if name == "cylindrical" and q is None:
             continue
-        fit = fit_model(name, p, q, noise=noise)
+        fit = fit_model(name, p, q, noise=noise, stop_above=best_bic + _margin(best_bic))
         if fit is not None:
             fits[name] = fit
+            best_bic = min(best_bic, fit.bic)
     if not fits:
         raise ConstraintFitError(
             f"{where}: none of the models {', '.join(models)} can describe this track"
