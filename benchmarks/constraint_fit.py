@@ -44,9 +44,7 @@ def main() -> None:
     for kind, oriented in CASES:
         rng = np.random.default_rng(1)
         tracks = [
-            random_joint_track(
-                kind, rng, n=args.n, pos_noise=1e-3, rot_noise=math.radians(0.5)
-            )
+            random_joint_track(kind, rng, n=args.n, pos_noise=1e-3, rot_noise=math.radians(0.5))
             for _ in range(args.tracks)
         ]
         inputs = [(t.pos, t.quat if oriented else None) for t in tracks]
@@ -65,7 +63,8 @@ def main() -> None:
             f"{kind:12s} {'yes' if oriented else 'no':7s} {fits / elapsed:8.0f} "
             f"{1000 * elapsed / fits:7.2f} {correct:>4d}/{len(inputs)}"
         )
-    print(f"{'all':12s} {'':7s} {total_fits / total_time:8.0f} {1000 * total_time / total_fits:7.2f}")
+    rate = total_fits / total_time
+    print(f"{'all':12s} {'':7s} {rate:8.0f} {1000 / rate:7.2f}")
 
 
 if __name__ == "__main__":
