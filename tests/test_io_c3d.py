@@ -343,6 +343,23 @@ def test_foreign_file_gives_right_relative_motion(tmp_path, rng):
     )
 
 
+def test_non_rigid_prefix_group_is_not_a_body(tmp_path, rng):
+    _, xyz, _ = rigid_pair_scene(rng, n=50)
+    skin = xyz[:, :3] + np.cumsum(rng.normal(0, 0.01, (50, 3, 3)), axis=0)  # drifting apart
+    labels = [f"Tray:M{k}" for k in range(4)] + [f"Lid:M{k}" for k in range(5)]
+    labels += ["Arm:elbow", "Arm:wrist", "Arm:hand"]
+    path = tmp_path / "skin.c3d"
+    write_raw(path, labels, np.concatenate([xyz, skin], axis=1) * 1000.0)
+    demo = c3d.read(path)
+    assert demo.body_names == ["Tray", "Lid"]
+    assert demo.meta["c3d_nonrigid_groups"]["Arm"] > 0.005
+    assert c3d.read(path, max_rms=1.0).body_names == ["Tray", "Lid", "Arm"]
+    loose = c3d.read(path, markers_as_bodies=True)
+    assert loose.body_names == ["Tray", "Lid", "Arm:elbow", "Arm:wrist", "Arm:hand"]
+    named = c3d.read(path, bodies={"Arm": labels[-3:]})  # the user's word is kept
+    assert named.body_names == ["Arm"]
+
+
 def test_foreign_file_with_noise_stated_tolerance(tmp_path, rng):
     angle, xyz, _ = rigid_pair_scene(rng, n=400)
     xyz = xyz + rng.normal(0.0, 0.3e-3, xyz.shape)  # 0.3 mm marker noise
@@ -456,6 +473,21 @@ def test_malformed_files_raise_format_error_naming_the_file(tmp_path, rng):
             c3d.read(path)
     with pytest.raises(FormatError, match=r"truncated.*frame"):
         c3d.read(tmp_path / "cut_data.c3d")
+
+
+def test_truncated_file_on_request(tmp_path, rng):
+    demo = sample_demo(rng, n=100)
+    good = tmp_path / "good.c3d"
+    c3d.write(demo, good)
+    data = good.read_bytes()
+    cut = tmp_path / "cut.c3d"
+    cut.write_bytes(data[: len(data) - 1000])
+    part = c3d.read(cut, allow_truncated=True)
+    k = part.n_frames
+    assert 0 < k < 100
+    assert_same_motion(demo.slice(end=demo.t[k - 1]), part, pos_tol=1e-6, ang_tol=1e-5)
+    raw = c3d.read(cut, allow_truncated=True, stored_clusters=False)
+    assert "truncated" in raw.meta["c3d_truncated"]
 
 
 def test_damaged_parameter_records_are_caught_before_ezc3d(tmp_path, rng):

@@ -152,6 +152,7 @@ class _Markers:
     first_frame: int
     units: str
     doc: dict[str, Any] | None
+    truncated: str | None = None
 
 
 def read(
@@ -161,6 +162,8 @@ def read(
     markers_as_bodies: bool = False,
     units: str | None = None,
     stored_clusters: bool = True,
+    allow_truncated: bool = False,
+    max_rms: float = 0.005,
 ) -> Demonstration:
     """Read a C3D file into a :class:`Demonstration` of rigid bodies.
 
@@ -179,6 +182,15 @@ def read(
     stored_clusters : bool
         Use the cluster geometry stored in a ``THIRDHAND`` group (the default);
         False builds every body frame from the data as a foreign file would.
+    allow_truncated : bool
+        Read the complete frames of a file shorter than it announces (and say so
+        in ``meta["c3d_truncated"]``) instead of raising.
+    max_rms : float
+        Metres. A body guessed from label prefixes whose median fit residual
+        exceeds this is not rigid (a person's skin markers, a whole subject):
+        it is not made a body, and its markers count as belonging to none
+        (``meta["c3d_nonrigid_groups"]`` lists such groups). Bodies named by
+        ``bodies`` or stored by :func:`write` are always kept.
 
     Returns
     -------
@@ -193,38 +205,51 @@ def read(
         Naming the file and the frame, marker, body or parameter at fault.
     """
     p = Path(path)
-    mk = _load_markers(p, units)
+    mk = _load_markers(p, units, allow_truncated=allow_truncated)
     doc = mk.doc if stored_clusters else None
     stored = {b["name"]: b for b in doc["bodies"]} if doc is not None else {}
-    specs = _body_specs(p, mk.labels, bodies, doc, markers_as_bodies=markers_as_bodies)
+    specs, inferred = _body_specs(p, mk.labels, bodies, doc)
     index = {lab: i for i, lab in enumerate(mk.labels)}
-    infos: list[BodyInfo] = []
-    pos: dict[str, FloatArray] = {}
-    quat: dict[str, FloatArray] = {}
+    tracks: dict[str, tuple[BodyInfo, FloatArray, FloatArray]] = {}
     rms_med: dict[str, float] = {}
+    nonrigid: dict[str, float] = {}
     for name, members, oriented in specs:
-        if name in pos:
-            raise FormatError(p, "two bodies of this name", where=f"body {name}")
         entry = stored.get(name)
-        infos.append(_info(p, entry, name, oriented=oriented))
         xyz = mk.xyz[:, [index[m] for m in members]]
         if not oriented:
-            pos[name] = xyz[:, 0]
-            quat[name] = np.where(np.isfinite(xyz[:, 0, :1]), se3.quat_identity((1,)), np.nan)
+            tracks[name] = (_info(p, entry, name, oriented=False), *_point_track(xyz[:, 0]))
             continue
         if entry is not None and _oriented(entry) and list(entry["markers"]) == members:
             ref = np.asarray(entry["offsets"], dtype=np.float64)
         else:
             ref = reference_cluster(xyz)
-        pos[name], quat[name], rms = fit_cluster(ref, xyz)
-        rms_med[name] = float(np.nanmedian(rms)) if np.any(np.isfinite(rms)) else float("nan")
+        p_b, q_b, rms = fit_cluster(ref, xyz)
+        med = float(np.nanmedian(rms)) if np.any(np.isfinite(rms)) else float("nan")
+        if inferred and not med <= max_rms:
+            nonrigid[name] = med
+            continue
+        rms_med[name] = med
+        tracks[name] = (_info(p, entry, name, oriented=True), p_b, q_b)
+    clusters = {name: members for name, members, _ in specs if name not in nonrigid}
+    if markers_as_bodies:
+        used = {m for members in clusters.values() for m in members}
+        single = {b["markers"][0]: b for b in stored.values() if not _oriented(b)}
+        for lab in mk.labels:
+            if lab in used:
+                continue
+            entry = single.get(lab)
+            name = lab if entry is None else entry["name"]
+            if name in tracks:
+                raise FormatError(p, "marker named as a body", where=f"marker {lab}")
+            info = _info(p, entry, name, oriented=False)
+            tracks[name] = (info, *_point_track(mk.xyz[:, index[lab]]))
     n = mk.xyz.shape[0]
     labels = None
     if doc is not None:
         t = float(doc["t0"]) + np.arange(n) / float(doc["rate"])
         meta = dict(doc.get("meta", {}))
         try:
-            labels = _labels_within(labels_from_dict(doc.get("labels", {})), set(pos))
+            labels = _labels_within(labels_from_dict(doc.get("labels", {})), set(tracks))
         except ThirdhandError as exc:
             raise FormatError(p, str(exc), where=f"{GROUP}:DOC") from None
     else:
@@ -234,13 +259,29 @@ def read(
             "format": "c3d",
             "units": mk.units,
             "rate_hz": mk.rate,
-            "markers": {name: members for name, members, _ in specs},
+            "markers": clusters,
             "c3d_fit_rms_m": rms_med,
         }
+        if nonrigid:
+            meta["c3d_nonrigid_groups"] = nonrigid
+        if mk.truncated:
+            meta["c3d_truncated"] = mk.truncated
     try:
-        return Demonstration(t, infos, pos, quat, labels=labels, meta=meta)
+        return Demonstration(
+            t,
+            [info for info, _, _ in tracks.values()],
+            {name: tr[1] for name, tr in tracks.items()},
+            {name: tr[2] for name, tr in tracks.items()},
+            labels=labels,
+            meta=meta,
+        )
     except ThirdhandError as exc:
         raise FormatError(p, str(exc)) from None
+
+
+def _point_track(xyz: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Position and identity orientation (NaN where missing) of a single marker."""
+    return xyz, np.where(np.isfinite(xyz[:, :1]), se3.quat_identity((1,)), np.nan)
 
 
 def _body_specs(
@@ -248,21 +289,18 @@ def _body_specs(
     labels: Sequence[str],
     bodies: Mapping[str, Sequence[str]] | None,
     doc: Mapping[str, Any] | None,
-    *,
-    markers_as_bodies: bool,
-) -> list[tuple[str, list[str], bool]]:
-    """``(body name, marker labels, oriented)`` for every body to build, in order."""
-    specs: list[tuple[str, list[str], bool]]
+) -> tuple[list[tuple[str, list[str], bool]], bool]:
+    """``(body name, marker labels, oriented)`` per body to build, and whether guessed."""
     if bodies is not None:
         specs = [(n, m, True) for n, m in _check_body_option(p, bodies, labels).items()]
-    elif doc is not None:
+        return specs, False
+    if doc is not None:
         specs = [(b["name"], list(b["markers"]), _oriented(b)) for b in doc["bodies"]]
-    else:
-        specs = [(n, m, True) for n, m in group_by_prefix(labels).items()]
-    if markers_as_bodies:
-        used = {m for _, members, _ in specs for m in members}
-        specs += [(lab, [lab], False) for lab in labels if lab not in used]
-    return specs
+        names = [s[0] for s in specs]
+        if len(set(names)) != len(names):
+            raise FormatError(p, "a body is described twice", where=f"{GROUP}:DOC")
+        return specs, False
+    return [(n, m, True) for n, m in group_by_prefix(labels).items()], True
 
 
 def _labels_within(labels: Labels, names: set[str]) -> Labels:
@@ -451,11 +489,11 @@ def fit_cluster(reference: ArrayLike, xyz: ArrayLike) -> tuple[FloatArray, Float
     return p, se3.quat_make_continuous(q), rms
 
 
-def _load_markers(p: Path, units: str | None) -> _Markers:
+def _load_markers(p: Path, units: str | None, *, allow_truncated: bool = False) -> _Markers:
     """Validate the file's structure, read it with ezc3d and convert to metres."""
     import ezc3d
 
-    _check_structure(p)
+    truncated = _check_structure(p, allow_truncated=allow_truncated)
     try:
         c = ezc3d.c3d(str(p))
     except (OSError, RuntimeError, ValueError) as exc:
@@ -467,7 +505,7 @@ def _load_markers(p: Path, units: str | None) -> _Markers:
         raise FormatError(p, f"point data of shape {points.shape}, expected (4, markers, frames)")
     n_frames = points.shape[2]
     announced = int(header["last_frame"]) - int(header["first_frame"]) + 1
-    if n_frames < announced:
+    if n_frames < announced and not truncated:
         raise FormatError(
             p,
             f"truncated: the header announces {announced} frames, the file holds {n_frames}",
@@ -511,7 +549,8 @@ def _load_markers(p: Path, units: str | None) -> _Markers:
         rate=rate,
         first_frame=int(header["first_frame"]),
         units=unit.strip(),
-        doc=_read_doc(p, params, labels, n_frames),
+        doc=_read_doc(p, params, labels, None if truncated else n_frames),
+        truncated=truncated,
     )
 
 
@@ -552,8 +591,12 @@ def _param_str(params: Mapping[str, Any], group: str, name: str) -> str | None:
 
 
 def _read_doc(
-    p: Path, params: Mapping[str, Any], labels: Sequence[str], n_frames: int
+    p: Path, params: Mapping[str, Any], labels: Sequence[str], n_frames: int | None
 ) -> dict[str, Any] | None:
+    """The JSON description of a ``THIRDHAND`` group, checked against the file.
+
+    ``n_frames`` None skips the frame count check (a truncated file read on purpose).
+    """
     group = params.get(GROUP)
     if group is None:
         return None
@@ -596,7 +639,7 @@ def _read_doc(
                 raise FormatError(
                     p, "a position-only body has one marker", where=f"body {b['name']}"
                 )
-        if int(doc["n_frames"]) != n_frames:
+        if n_frames is not None and int(doc["n_frames"]) != n_frames:
             raise FormatError(
                 p,
                 f"{GROUP} describes {doc['n_frames']} frames, the file holds {n_frames}",
@@ -615,12 +658,14 @@ def _read_doc(
     return out
 
 
-def _check_structure(p: Path) -> None:
+def _check_structure(p: Path, *, allow_truncated: bool = False) -> str | None:
     """Check the header and parameter section before handing the file to ezc3d.
 
     ezc3d trusts the sizes stored in the file; a damaged parameter record can
-    make it read out of bounds, so every record's extent is checked here, and a
-    file shorter than its announced frames is reported as truncated.
+    make it read out of bounds, so every record's extent is checked here. A
+    file shorter than its announced frames is reported as truncated (ezc3d would
+    silently read the complete frames): raised, or with ``allow_truncated``
+    returned as a message.
     """
     try:
         size = p.stat().st_size
@@ -656,11 +701,21 @@ def _check_structure(p: Path) -> None:
             f"the file holds {len(section) // 512}",
             where="parameters",
         )
-    _check_parameter_records(p, section[:end], _PROCESSORS[proc])
-    _check_data_extent(p, head, proc, size)
+    point_frames = _check_parameter_records(p, section[:end], proc)
+    try:
+        _check_data_extent(p, head, proc, size, point_frames)
+    except FormatError as exc:
+        if allow_truncated and exc.message.startswith("truncated"):
+            return exc.message
+        raise
+    return None
 
 
-def _check_parameter_records(p: Path, sec: bytes, endian: str) -> None:
+def _check_parameter_records(p: Path, sec: bytes, proc: int) -> int | None:
+    """Walk the parameter records, checking every extent; return ``POINT:FRAMES`` if set."""
+    endian = _PROCESSORS[proc]
+    groups: dict[int, str] = {}
+    frames: list[tuple[int, int, int]] = []  # (group id, type, byte of the value)
     pos, end = 4, len(sec)
     while True:
         if pos + 2 > end:
@@ -669,11 +724,11 @@ def _check_parameter_records(p: Path, sec: bytes, endian: str) -> None:
             )
         nlen, gid = struct.unpack_from("bb", sec, pos)
         if nlen == 0:
-            return
+            break
         name_end = pos + 2 + abs(nlen)
         if name_end + 2 > end or gid == 0:
             raise FormatError(p, f"malformed parameter record at byte {pos}", where="parameters")
-        name = sec[pos + 2 : name_end].decode("latin-1")
+        name = sec[pos + 2 : name_end].decode("latin-1").upper()
         (offset,) = struct.unpack_from(endian + "H", sec, name_end)
         rec = name_end + 2
         if gid > 0:
@@ -687,21 +742,35 @@ def _check_parameter_records(p: Path, sec: bytes, endian: str) -> None:
                     p, f"bad type {ptype} or dimension count {ndim}", where=f"parameter {name}"
                 )
             dims = sec[rec + 2 : rec + 2 + ndim]
+            if name == "FRAMES" and ptype > 0:
+                frames.append((gid, ptype, rec + 2 + ndim))
             rec += 2 + ndim + abs(ptype) * int(np.prod(list(dims), dtype=np.int64))
+        else:
+            groups[-gid] = name
         where = f"{'parameter' if gid > 0 else 'group'} {name}"
         if rec >= end or rec + 1 + sec[rec] > end:
             raise FormatError(p, "record runs past the parameter section", where=where)
         if sec[rec] > 127:  # ezc3d reads this length as a signed byte and then crashes
             raise FormatError(p, f"description length {sec[rec]} > 127", where=where)
         if offset == 0:
-            return
+            break
         nxt = name_end + offset
         if nxt <= pos or nxt > end:
             raise FormatError(p, f"record points to byte {nxt} outside the section", where=name)
         pos = nxt
+    for gid, ptype, at in frames:
+        if groups.get(gid) != "POINT" or (ptype == 4 and proc == 85):
+            continue
+        fmt = {1: "B", 2: "H", 4: "f"}[ptype]
+        (value,) = struct.unpack_from(endian + fmt, sec, at)
+        return int(value) if np.isfinite(value) and value > 0 else None
+    return None
 
 
-def _check_data_extent(p: Path, head: bytes, proc: int, size: int) -> None:
+def _check_data_extent(
+    p: Path, head: bytes, proc: int, size: int, point_frames: int | None
+) -> None:
+    """The file holds the frames announced (``POINT:FRAMES`` over the header, as ezc3d)."""
     endian = _PROCESSORS[proc]
     n_points, n_analog, first, last = struct.unpack_from(endian + "4H", head, 2)
     (data_start,) = struct.unpack_from(endian + "H", head, 16)
@@ -713,7 +782,8 @@ def _check_data_extent(p: Path, head: bytes, proc: int, size: int) -> None:
             )
     sign_byte = {84: 15, 85: 13, 86: 12}[proc]
     word = 4 if head[sign_byte] & 0x80 else 2  # negative scale factor: float data
-    n_frames = max(last - first + 1, 0)
+    # ezc3d: a first frame of 0 means both numbers are 0-based, else both are 1-based.
+    n_frames = point_frames or max(last + 1 if first == 0 else last - first + 1, 0)
     per_frame = word * (4 * n_points + n_analog)
     data_at = (max(data_start, 1) - 1) * 512
     if n_frames and per_frame and data_at + per_frame > size:
@@ -723,7 +793,7 @@ def _check_data_extent(p: Path, head: bytes, proc: int, size: int) -> None:
         complete = max((size - data_at) // per_frame, 0) if per_frame else 0
         raise FormatError(
             p,
-            f"truncated: the header announces {n_frames} frames ({needed} bytes), the file has "
+            f"truncated: the file announces {n_frames} frames ({needed} bytes), but has "
             f"{size} bytes",
             where=f"frame {complete}",
         )
