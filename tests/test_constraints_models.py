@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -309,3 +310,33 @@ def test_degenerate_model_requests_raise() -> None:
     # A straight line with revolute the only candidate cannot be described.
     with pytest.raises(ConstraintFitError, match="none of the models"):
         fit_constraint(line, models=["revolute"])
+
+
+def test_cli_two_body_recording(tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from thirdhand import io
+    from thirdhand.constraints.cli import app
+
+    track = random_joint_track("prismatic", np.random.default_rng(21), pos_noise=NOISE_POS)
+    n = len(track.pos)
+    demo = Demonstration(
+        np.arange(n) / 100.0,
+        [BodyInfo("base"), BodyInfo("drawer")],
+        {"base": np.zeros((n, 3)), "drawer": track.pos},
+        {"base": se3.quat_identity((n,)), "drawer": track.quat},
+    )
+    path = tmp_path / "drawer.parquet"
+    io.save(demo, path)
+    runner = CliRunner()
+    result = runner.invoke(
+        app, ["fit", str(path), "--parent", "base", "--child", "drawer", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    d = json.loads(result.output)
+    assert d["type"] == "prismatic"
+    assert d["track"] == "drawer in base"
+    np.testing.assert_allclose(d["axis"], track.axis, atol=0.01)
+    result = runner.invoke(app, ["fit", str(path)])
+    assert isinstance(result.exception, ConstraintFitError)
+    assert "name the track with parent and child" in str(result.exception)

@@ -126,3 +126,51 @@ def test_mocap_floor_over_reads_camera_error(shared_data: Path) -> None:
     assert c.type == "cylindrical"
     # ... by a 2 cm slide along the hinge axis, under the camera's 1 cm floor of noise.
     assert np.ptp(c.ranges[0]) < 0.025
+
+
+def test_cli_fit_prints_json_and_table(shared_data: Path) -> None:
+    import json
+
+    from typer.testing import CliRunner
+
+    from thirdhand.constraints.cli import app
+
+    runner = CliRunner()
+    door = shared_data / "articulation" / "door.txt"
+    result = runner.invoke(app, ["fit", str(door), "--json", "--noise", "camera"])
+    assert result.exit_code == 0, result.output
+    d = json.loads(result.output)
+    assert d["type"] == "revolute"
+    assert d["track"] == "door"
+    assert set(d["scores"]) == {"fixed", "prismatic", "revolute", "cylindrical", "free"}
+    assert d["confidence"] > 0.99
+    log = shared_data / "articulation" / "drawer_one" / "001.log"
+    result = runner.invoke(app, ["fit", str(log), "--noise", "camera"])
+    assert result.exit_code == 0, result.output
+    assert "prismatic" in result.output
+    assert "tx [" in result.output
+
+
+def test_cli_errors_are_thirdhand_errors(shared_data: Path, tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from thirdhand.constraints.cli import app
+    from thirdhand.errors import ThirdhandError
+
+    runner = CliRunner()
+    door = str(shared_data / "articulation" / "door.txt")
+    for args, match in (
+        (["fit", door, "--noise", "loud"], "unknown noise preset 'loud'"),
+        (["fit", door, "--models", "fixed,hinge"], "unknown model"),
+        (["fit", door, "--parent", "table", "--child", "door"], "no body 'table'"),
+        (["fit", str(tmp_path / "none.txt")], "no such file"),
+    ):
+        result = runner.invoke(app, args)
+        assert result.exit_code != 0
+        assert isinstance(result.exception, ThirdhandError), args
+        assert match in str(result.exception)
+    short = tmp_path / "short.txt"
+    short.write_text("0 0 0\n0.1 0 0\n0.2 0 0\n")
+    result = runner.invoke(app, ["fit", str(short)])
+    assert isinstance(result.exception, ThirdhandError)
+    assert "3 valid sample(s) of 3" in str(result.exception)

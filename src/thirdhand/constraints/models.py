@@ -38,7 +38,7 @@ _SO3_VOLUME = 8.0 * math.pi**2
 _LOG2PI = math.log(2.0 * math.pi)
 #: Median of a chi-square with 3 degrees of freedom (robust start of σ).
 _CHI2_3_MEDIAN = 2.365974
-_EM_ITERATIONS = 8
+_EM_ITERATIONS = 5
 #: Concentration steps of the trimmed start, and the squared residual (in units of
 #: its median) beyond which residuals count as heavy-tailed (outliers present).
 _C_STEPS = 3
