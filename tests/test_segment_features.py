@@ -110,13 +110,19 @@ def test_pair_stats_matches_se3_relative_pose(rng: np.random.Generator) -> None:
 
 
 def test_design_matrix_log_transform_and_no_evidence_rows() -> None:
-    cfg = FeatureConfig(eps_pos=1e-6, eps_rot=1e-5)
+    cfg = FeatureConfig(eps_pos=1e-6, eps_rot=1e-5, eps_dist=0.01)
     raw = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 2.0, 3.0, 4.0]])
-    x = design_matrix(raw, np.array([True, False]), cfg)
-    np.testing.assert_allclose(x[0], [1.0, np.log(1e-6), np.log(1e-5), np.log(1e-6), np.log(1e-5)])
+    dist = np.array([0.0, 0.5])
+    x = design_matrix(raw, np.array([True, False]), cfg, dist)
+    ref = [1.0, np.log(1e-6), np.log(1e-5), np.log(1e-6), np.log(1e-5), np.log(0.01)]
+    np.testing.assert_allclose(x[0], ref)
     np.testing.assert_array_equal(x[1], 0.0)
-    lin = design_matrix(raw, np.array([True, True]), FeatureConfig(transform="linear"))
+    report = FeatureConfig(transform="linear", distance=False)
+    lin = design_matrix(raw, np.array([True, True]), report)
     np.testing.assert_array_equal(lin[1], [1, 1, 2, 3, 4])
+    assert report.feature_names == ["bias", "nu_pos", "nu_rot", "zeta_pos", "zeta_rot"]
+    with pytest.raises(SegmentationError, match="needs the pair distance"):
+        design_matrix(raw, np.array([True, True]), cfg)
     with pytest.raises(SegmentationError, match="transform"):
         FeatureConfig(transform="sqrt")
 

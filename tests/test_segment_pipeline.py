@@ -75,6 +75,10 @@ def test_result_json_and_model_round_trip(clean_model: SegmentModel, tmp_path: P
     np.testing.assert_array_equal(again.coef_state, clean_model.coef_state)
     np.testing.assert_array_equal(again.coef_transition, clean_model.coef_transition)
     assert again.features == clean_model.features
+    assert set(again.per_kind) == set(clean_model.per_kind) == {"finger-object"}
+    for kind, (t, w) in clean_model.per_kind.items():
+        np.testing.assert_array_equal(again.per_kind[kind][0], t)
+        np.testing.assert_array_equal(again.per_kind[kind][1], w)
 
 
 def test_malformed_model_files(tmp_path: Path) -> None:
@@ -85,10 +89,10 @@ def test_malformed_model_files(tmp_path: Path) -> None:
     bad.write_text(json.dumps({"format": "other"}))
     with pytest.raises(ModelFileError, match="expected format"):
         load_model(bad)
-    doc = SegmentModel(FeatureConfig(), np.zeros((2, 2)), np.zeros(5)).to_dict()
+    doc = SegmentModel(FeatureConfig(), np.zeros((2, 2)), np.zeros(6)).to_dict()
     doc["theta"]["state"] = [1.0, 2.0]
     bad.write_text(json.dumps(doc))
-    with pytest.raises(ModelFileError, match="5 state weights"):
+    with pytest.raises(ModelFileError, match="6 state weights"):
         load_model(bad)
     with pytest.raises(ModelFileError, match="cannot read"):
         load_model(tmp_path / "absent.json")

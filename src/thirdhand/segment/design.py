@@ -1,12 +1,22 @@
 """From a demonstration and body pairs to the CRF's design matrices.
 
-The design row of a latent step is ``[1, f(ν_π), f(ν_ρ), f(ζ_π), f(ζ_ρ)]``: a
-bias, then the four core features of :mod:`thirdhand.segment.features` through
+The design row of a latent step is ``[1, f(ν_π), f(ν_ρ), f(ζ_π), f(ζ_ρ), g(d̄)]``:
+a bias, then the four core features of :mod:`thirdhand.segment.features` through
 a monotone transform ``f``: ``log(ε + v)`` (the default, ``ε`` per unit:
 ``eps_pos`` m², ``eps_rot`` for quaternion variances) or ``v`` itself
-(``transform="linear"``). Steps without evidence (fewer valid samples in the
-window than ``min_valid_fraction`` of its nominal frame count) get an all-zero
-row: a zero state potential for both labels.
+(``transform="linear"``), then (``distance=True``, the default) the log of the
+window-mean distance between the two bodies' origins, ``g(d̄) = log(eps_dist + d̄)``.
+
+Why the distance: the report's four variances describe relative and absolute
+*motion*; when both bodies are still they say nothing. In the synthetic scenes
+most steps of a finger holding a part still (a seat held while a leg is screwed
+in) and of a resting hand next to a resting part look identical to them, and
+the chain can only guess. The distance separates these cases. It is an
+addition: ``FeatureConfig(distance=False)`` gives the report's features exactly.
+
+Steps without evidence (fewer valid samples in the window than
+``min_valid_fraction`` of its nominal frame count) get an all-zero row: a zero
+state potential for both labels.
 """
 
 from __future__ import annotations
@@ -50,6 +60,13 @@ class FeatureConfig:
         ``ε`` of the log transform for quaternion variances.
     min_valid_fraction : float
         Fraction of a window's frames that must be valid (both bodies) for evidence.
+    distance : bool
+        Append ``log(eps_dist + d̄)``, ``d̄`` the window mean of the distance between
+        the two bodies' origins (m): an addition to the report's features. Without
+        it, a finger resting still near a still part and a finger holding that part
+        still have the same variances (see the module docstring).
+    eps_dist : float
+        ``ε`` of the distance feature, metres.
     """
 
     latent_rate: float = 10.0
@@ -58,6 +75,8 @@ class FeatureConfig:
     eps_pos: float = 1e-7
     eps_rot: float = 1e-6
     min_valid_fraction: float = 0.25
+    distance: bool = True
+    eps_dist: float = 0.02
 
     def __post_init__(self) -> None:
         if self.transform not in ("log", "linear"):
@@ -72,14 +91,20 @@ class FeatureConfig:
     def feature_names(self) -> list[str]:
         """Names of the design columns."""
         wrap = "log_eps_{}" if self.transform == "log" else "{}"
-        return ["bias", *(wrap.format(n) for n in RAW_FEATURE_NAMES)]
+        extra = ["log_eps_distance"] if self.distance else []
+        return ["bias", *(wrap.format(n) for n in RAW_FEATURE_NAMES), *extra]
 
     def to_dict(self) -> dict[str, object]:
         """JSON-able form."""
         return asdict(self)
 
 
-def design_matrix(raw: FloatArray, evidence: BoolArray, config: FeatureConfig) -> FloatArray:
+def design_matrix(
+    raw: FloatArray,
+    evidence: BoolArray,
+    config: FeatureConfig,
+    distance: FloatArray | None = None,
+) -> FloatArray:
     """Design rows from raw features.
 
     Parameters
@@ -88,10 +113,12 @@ def design_matrix(raw: FloatArray, evidence: BoolArray, config: FeatureConfig) -
         Columns ``ν_π`` (m²), ``ν_ρ``, ``ζ_π`` (m²), ``ζ_ρ``.
     evidence : ndarray of bool, shape (n_steps,)
     config : FeatureConfig
+    distance : ndarray, shape (n_steps,), metres, optional
+        Window mean distance between the bodies; required when ``config.distance``.
 
     Returns
     -------
-    ndarray, shape (n_steps, 5)
+    ndarray, shape (n_steps, len(config.feature_names))
     """
     raw = np.maximum(np.asarray(raw, dtype=np.float64), 0.0)
     if config.transform == "log":
@@ -99,7 +126,12 @@ def design_matrix(raw: FloatArray, evidence: BoolArray, config: FeatureConfig) -
         feats = np.log(eps + raw)
     else:
         feats = raw
-    x = np.concatenate([np.ones((raw.shape[0], 1)), feats], axis=1)
+    cols = [np.ones((raw.shape[0], 1)), feats]
+    if config.distance:
+        if distance is None:
+            raise SegmentationError("this feature configuration needs the pair distance")
+        cols.append(np.log(config.eps_dist + np.maximum(distance, 0.0))[:, None])
+    x = np.concatenate(cols, axis=1)
     x[~np.asarray(evidence, dtype=bool)] = 0.0
     return x
 
@@ -152,7 +184,7 @@ class DemoFeatures:
         sab = pair_stats(self._track(a), self._track(b), self.axis, self.config.window)
         raw = raw_pair_features(self.body(a), self.body(b), sab)
         evidence = (sab.count >= self.config.min_valid_fraction * self.nominal) & (sab.count >= 2)
-        return design_matrix(raw, evidence, self.config), evidence
+        return design_matrix(raw, evidence, self.config, sab.distance), evidence
 
 
 def pair_design(

@@ -169,14 +169,16 @@ def _block_stats(  # pragma: no cover - compiled
 @numba.njit(cache=True, nogil=True)
 def _window_merge(  # pragma: no cover - compiled
     cnt: FloatArray, mean: FloatArray, m2: FloatArray, window: int
-) -> tuple[FloatArray, FloatArray]:
+) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Merge per-step statistics over centred windows (Chan et al.).
 
-    Returns the per-step window variance (trace, unitless mean over samples) and count.
+    Returns the per-step window variance (trace of the covariance), sample count
+    and mean (zero where the window is empty).
     """
     k_steps, d = mean.shape
     var = np.zeros(k_steps)
     n_out = np.zeros(k_steps)
+    mean_out = np.zeros((k_steps, d))
     mu = np.zeros(d)
     half = window // 2
     for k in range(k_steps):
@@ -205,7 +207,10 @@ def _window_merge(  # pragma: no cover - compiled
             n = tot
         n_out[k] = n
         var[k] = max(m / n, 0.0) if n > 0.0 else 0.0
-    return var, n_out
+        if n > 0.0:
+            for j in range(d):
+                mean_out[k, j] = mu[j]
+    return var, n_out, mean_out
 
 
 @numba.njit(cache=True, nogil=True)
@@ -305,6 +310,14 @@ def windowed_variance(
     count : ndarray, shape (n_steps,)
         Number of valid samples in the window.
     """
+    var, count, _ = windowed_moments(x, valid, axis, window)
+    return var, count
+
+
+def windowed_moments(
+    x: FloatArray, valid: BoolArray, axis: LatentAxis, window: int
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """As :func:`windowed_variance`, also returning the window mean, shape (n_steps, d)."""
     if window < 1:
         raise SegmentationError(f"window must be at least 1 latent step, got {window}")
     xv = np.where(valid[:, None], x, 0.0).astype(np.float64)
@@ -322,11 +335,14 @@ class BodyStats:
     var_rot : ndarray, shape (n_steps,), unitless (quaternion components)
     count : ndarray, shape (n_steps,)
         Valid samples per window.
+    distance : ndarray, shape (n_steps,), metres, or None
+        For a pair: window mean of the distance between the two origins.
     """
 
     var_pos: FloatArray
     var_rot: FloatArray
     count: FloatArray
+    distance: FloatArray | None = None
 
 
 def body_stats(
@@ -376,7 +392,9 @@ def pair_stats(
     )
     vp, n = windowed_variance(dp, v, axis, window)
     vr, _ = windowed_variance(dq, v, axis, window)
-    return BodyStats(var_pos=vp, var_rot=vr, count=n)
+    dist = np.sqrt(np.sum(dp * dp, axis=1))[:, None]
+    _, _, mean_dist = windowed_moments(dist, v, axis, window)
+    return BodyStats(var_pos=vp, var_rot=vr, count=n, distance=mean_dist[:, 0])
 
 
 def raw_pair_features(sa: BodyStats, sb: BodyStats, sab: BodyStats) -> FloatArray:
@@ -395,5 +413,6 @@ __all__ = [
     "latent_axis",
     "pair_stats",
     "raw_pair_features",
+    "windowed_moments",
     "windowed_variance",
 ]

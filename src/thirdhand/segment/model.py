@@ -6,6 +6,7 @@ Document (``"format": "thirdhand.segment/1"``)::
      "features": {"latent_rate": 10.0, "window": 5, "transform": "log", ...},
      "feature_names": ["bias", "log_eps_nu_pos", ...],
      "theta": {"transition": [[w00, w01], [w10, w11]], "state": [...]},
+     "per_kind": {"part-part": {"transition": ..., "state": ...}, ...},
      "hand": {"min_fingers": 2}, "max_gap_s": 1.0, "training": {...}}
 
 ``transition[a][b]`` weighs ``y_t = a`` after ``y_{t-1} = b``.
@@ -54,6 +55,9 @@ class SegmentModel:
         (probability unknown) instead of being bridged by the chain.
     training : dict
         Free-form provenance (data set, seeds, penalty, scores).
+    per_kind : dict kind -> (transition (2, 2), state (n_features,))
+        Optional weights for one pair kind (``"finger-object"``, ``"tool-part"``,
+        ``"part-part"``...), used instead of the shared ones for pairs of that kind.
     """
 
     features: FeatureConfig
@@ -62,17 +66,22 @@ class SegmentModel:
     min_fingers: int = 2
     max_gap_s: float = 1.0
     training: dict[str, Any] = field(default_factory=dict)
+    per_kind: dict[str, tuple[FloatArray, FloatArray]] = field(default_factory=dict)
 
     @classmethod
     def from_crf(cls, crf: PairCRF, features: FeatureConfig, **kwargs: Any) -> SegmentModel:
         """Wrap a fitted :class:`PairCRF`."""
         return cls(features, crf.coef_transition_.copy(), crf.coef_state_.copy(), **kwargs)
 
-    def crf(self) -> PairCRF:
-        """A :class:`PairCRF` holding these weights."""
-        return PairCRF().set_params_theta(
-            np.concatenate([self.coef_transition.ravel(), self.coef_state])
-        )
+    def crf(self, kind: str | None = None) -> PairCRF:
+        """A :class:`PairCRF` holding the weights of pair kind ``kind`` (shared by default).
+
+        A hand–object pair without weights of its own uses the finger–object ones.
+        """
+        if kind == "hand-object" and kind not in self.per_kind:
+            kind = "finger-object"
+        trans, state = self.per_kind.get(kind or "", (self.coef_transition, self.coef_state))
+        return PairCRF().set_params_theta(np.concatenate([trans.ravel(), state]))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able document."""
@@ -84,6 +93,10 @@ class SegmentModel:
             "theta": {
                 "transition": self.coef_transition.tolist(),
                 "state": self.coef_state.tolist(),
+            },
+            "per_kind": {
+                k: {"transition": t.tolist(), "state": w.tolist()}
+                for k, (t, w) in self.per_kind.items()
             },
             "hand": {"min_fingers": self.min_fingers},
             "max_gap_s": self.max_gap_s,
@@ -102,19 +115,27 @@ class SegmentModel:
             state = np.asarray(d["theta"]["state"], dtype=np.float64)
             min_f = int(d.get("hand", {}).get("min_fingers", 2))
             max_gap = float(d.get("max_gap_s", 1.0))
-        except (KeyError, TypeError, ValueError) as exc:
+            kinds = {
+                str(k): (
+                    np.asarray(v["transition"], dtype=np.float64),
+                    np.asarray(v["state"], dtype=np.float64),
+                )
+                for k, v in d.get("per_kind", {}).items()
+            }
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ModelFileError(
                 f"{source}: malformed model: {type(exc).__name__}: {exc}"
             ) from None
         n = len(feats.feature_names)
-        if trans.shape != (2, 2) or state.shape != (n,):
-            raise ModelFileError(
-                f"{source}: expected a 2x2 transition matrix and {n} state weights, got "
-                f"shapes {trans.shape} and {state.shape}"
-            )
-        if not (np.all(np.isfinite(trans)) and np.all(np.isfinite(state))):
-            raise ModelFileError(f"{source}: model weights must be finite")
-        return cls(feats, trans, state, min_f, max_gap, dict(d.get("training", {})))
+        for where, (t, w) in {"theta": (trans, state), **kinds}.items():
+            if t.shape != (2, 2) or w.shape != (n,):
+                raise ModelFileError(
+                    f"{source} ({where}): expected a 2x2 transition matrix and {n} state "
+                    f"weights, got shapes {t.shape} and {w.shape}"
+                )
+            if not (np.all(np.isfinite(t)) and np.all(np.isfinite(w))):
+                raise ModelFileError(f"{source} ({where}): model weights must be finite")
+        return cls(feats, trans, state, min_f, max_gap, dict(d.get("training", {})), kinds)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the JSON document atomically (temporary file, then rename)."""

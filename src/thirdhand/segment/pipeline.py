@@ -225,7 +225,7 @@ def segment_demonstration(
     pairs = default_pairs(demo) if pairs is None else [tuple(p) for p in pairs]  # type: ignore[misc]
     feats = DemoFeatures(demo, model.features)
     axis = feats.axis
-    crf = model.crf()
+    crfs: dict[str, Any] = {}
     max_steps = math.floor(model.max_gap_s * axis.rate + 1e-9)
     has_truth = bool(demo.labels.interactions)
     # Ground truth only for the pair kinds the labels cover (see labelled_kinds).
@@ -233,10 +233,11 @@ def segment_demonstration(
     result = SegmentationResult(times=axis.times, edges=axis.edges)
     for a, b in pairs:
         x, ev = feats.pair(a, b)
+        kind = pair_kind(demo, a, b)
+        crf = crfs.setdefault(kind, model.crf(kind))
         prob = crf.predict_proba([x])[0].copy()
         label = crf.predict([x])[0].copy()
         _blank_long_gaps(prob, label, ev, max_steps)
-        kind = pair_kind(demo, a, b)
         truth = (
             labels_from_intervals(pair_intervals(demo.labels, a, b), axis.times)
             if kind in covered

@@ -108,20 +108,50 @@ def fit_model(
     *,
     l2: float = 1.0,
     hand: str | None = None,
+    per_kind: bool = True,
+    min_sequences: int = 4,
     training: dict[str, Any] | None = None,
 ) -> SegmentModel:
-    """Train a CRF segmentation model on labelled demonstrations."""
+    """Train a CRF segmentation model on labelled demonstrations.
+
+    Parameters
+    ----------
+    demos : sequence of Demonstration
+    config : FeatureConfig, optional
+    l2 : float
+        Ridge penalty.
+    hand : {"left", "right"}, optional
+        Learn from that hand's finger/hand–object pairs only.
+    per_kind : bool
+        Also fit separate weights per pair kind (finger–object, tool–part,
+        part–part...) having at least ``min_sequences`` sequences and one interval;
+        the shared weights, fitted on every pair, serve the other kinds.
+    min_sequences : int
+    training : dict, optional
+        Provenance merged into :attr:`SegmentModel.training`.
+    """
     config = FeatureConfig() if config is None else config
     data = labelled_sequences(demos, config, hand=hand)
     crf = PairCRF(l2=l2).fit(data.xs, data.ys)
-    info = {
+    info: dict[str, Any] = {
         "l2": l2,
         "sequences": len(data.xs),
         "latent_variables": data.n_steps,
         "train_nll_per_variable": crf.nll(data.xs, data.ys) / data.n_steps,
         **(training or {}),
     }
-    return SegmentModel.from_crf(crf, config, training=info)
+    kinds: dict[str, tuple[FloatArray, FloatArray]] = {}
+    if per_kind:
+        for kind in sorted({p[3] for p in data.pairs}):
+            idx = [i for i, p in enumerate(data.pairs) if p[3] == kind]
+            xs = [data.xs[i] for i in idx]
+            ys = [data.ys[i] for i in idx]
+            if len(idx) < min_sequences or not any(y.any() for y in ys):
+                continue
+            k_crf = PairCRF(l2=l2).fit(xs, ys)
+            kinds[kind] = (k_crf.coef_transition_, k_crf.coef_state_)
+            info[f"train_nll_per_variable[{kind}]"] = k_crf.nll(xs, ys) / sum(map(len, ys))
+    return SegmentModel.from_crf(crf, config, training=info, per_kind=kinds)
 
 
 def scores(data: SequenceSet, pred: Sequence[IntArray]) -> dict[str, float]:
