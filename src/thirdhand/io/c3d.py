@@ -18,7 +18,9 @@ fewer than 3 seen markers is invalid. The clusters come from, in order:
 2. a ``THIRDHAND`` parameter group written by :func:`write`;
 3. the labels' prefixes: ``Seat:M1`` (everything before the first ``:``), else
    ``chair/seat/M1`` (before the last ``/``), else ``Seat_M1`` (before the last
-   ``_``); a prefix shared by at least 3 markers makes a body of that name.
+   ``_``); a prefix shared by at least 3 markers makes a body of that name,
+   unless the group is not rigid (median fit residual above ``max_rms``, 5 mm
+   by default: a person's skin markers, a Vicon subject's skeleton).
 
 Body frame convention
 ---------------------
@@ -58,6 +60,14 @@ The time axis must be regular, and ``ezc3d`` stores at most 65535 frames.
 
 Markers that belong to no body are dropped, or with ``markers_as_bodies=True``
 kept as position-only bodies (:attr:`BodyInfo.oriented` False) named by their label.
+
+Damaged files
+-------------
+ezc3d trusts the sizes written in a file, and crashes the interpreter on some
+damaged parameter sections; it also reads a truncated file silently. The header
+and every parameter record are therefore checked first, and a file shorter than
+the frames it announces raises :class:`FormatError` (or, with
+``allow_truncated=True``, yields its complete frames).
 """
 
 from __future__ import annotations
