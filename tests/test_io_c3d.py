@@ -292,7 +292,11 @@ def test_write_rejects_bad_input(tmp_path, rng):
     t[5:] += 0.002
     with pytest.raises(FormatError, match=r"frame 5.*regular"):
         c3d.write(demo.replace(t=t), path)
+    with pytest.raises(FormatError, match="meta cannot be stored"):
+        c3d.write(demo.replace(meta={"x": object()}), path)
     assert not path.exists()
+    c3d.write(demo.replace(meta={"x": np.float32(1.5), "a": np.arange(3)}), path)
+    assert c3d.read(path).meta == {"x": 1.5, "a": [0, 1, 2]}
 
 
 # ----------------------------------------------------- files from elsewhere

@@ -986,7 +986,11 @@ def write(
     }
     c.add_parameter("POINT", "UNITS", ["mm"])
     c.add_parameter(GROUP, "FORMAT", [FORMAT_VERSION])
-    for key, chunk in _doc_params(_document(demo, labels, offsets, t0, hz)).items():
+    try:
+        params = _doc_params(_document(demo, labels, offsets, t0, hz))
+    except (TypeError, ValueError) as exc:
+        raise FormatError(p, f"demo.meta cannot be stored as JSON: {exc}") from None
+    for key, chunk in params.items():
         c.add_parameter(GROUP, key, chunk)
     tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp.c3d")
     try:
@@ -1051,13 +1055,21 @@ def _document(
     }
 
 
+def _plain(obj: Any) -> Any:
+    """numpy scalars and arrays in ``meta`` as plain JSON values."""
+    if isinstance(obj, np.generic | np.ndarray):
+        return obj.tolist()
+    raise TypeError(f"{type(obj).__name__} is not JSON serialisable")
+
+
 def _doc_params(doc: Mapping[str, Any]) -> dict[str, list[str]]:
     """The JSON document as C3D string parameters ``DOC``, ``DOC2``...
 
     C3D strings are at most 255 characters and readers strip trailing blanks,
     so the compact ASCII JSON has its spaces (only ever inside strings) escaped.
     """
-    text = json.dumps(doc, ensure_ascii=True, separators=(",", ":")).replace(" ", "\\u0020")
+    text = json.dumps(doc, ensure_ascii=True, separators=(",", ":"), default=_plain)
+    text = text.replace(" ", "\\u0020")
     chunks = [text[i : i + _CHUNK] for i in range(0, len(text), _CHUNK)]
     out: dict[str, list[str]] = {}
     for j in range(0, len(chunks), _CHUNKS_PER_PARAM):
