@@ -108,6 +108,40 @@ def rotate_about(axis: FloatArray, angle: FloatArray, v: FloatArray) -> FloatArr
     )
 
 
+def wrap_angle(a: FloatArray) -> FloatArray:
+    """Angles wrapped to [-π, π), radians."""
+    return np.asarray((a + np.pi) % (2.0 * np.pi) - np.pi, dtype=np.float64)
+
+
+def unwrap_masked(theta: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:
+    """Unwrap angles in time along the ``mask`` samples only; others join their neighbour.
+
+    ``np.unwrap`` over every sample lets two consecutive outliers shift the rest of
+    the track by 2π (the positions and rotations are the same, but the range is
+    not). Unwrapping the inliers alone and putting each outlier on the branch of the
+    last inlier before it (the first inlier, for leading outliers) avoids that.
+
+    Parameters
+    ----------
+    theta : ndarray, shape (n,)
+        Angles, radians, any branch.
+    mask : ndarray of bool, shape (n,)
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    idx = np.flatnonzero(mask)
+    if idx.size == 0 or idx.size == theta.shape[0]:
+        return np.asarray(np.unwrap(theta), dtype=np.float64)
+    ref_in = np.unwrap(theta[idx])
+    nearest = np.clip(np.searchsorted(idx, np.arange(theta.shape[0]), side="right") - 1, 0, None)
+    ref = ref_in[nearest]
+    out = ref + wrap_angle(theta - ref)
+    out[idx] = ref_in
+    return out
+
+
 def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Axis of a one-parameter rotation family ``q_i = q(a, θ_i) ⊗ q_0``, and its angles.
 
@@ -126,7 +160,8 @@ def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
     axis : ndarray, shape (3,)
         Unit rotation axis, in the frame the quaternions are expressed in.
     theta : ndarray, shape (n,)
-        Rotation angles about ``axis`` relative to ``q0``, radians, unwrapped in time.
+        Rotation angles about ``axis`` relative to ``q0``, radians, unwrapped in time
+        over the samples of positive weight (see :func:`unwrap_masked`).
     q0 : ndarray, shape (4,)
         The orientation at ``theta = 0``, unit quaternion.
     """
@@ -138,7 +173,7 @@ def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
     axis = axis / np.linalg.norm(axis)
     v_exact = quat_mul(np.append(axis, 0.0), u)
     # q = cos α u + sin α v_exact = q(a, 2α) ⊗ u; the sign of q only shifts θ by 2π.
-    theta = np.unwrap(2.0 * np.arctan2(q @ v_exact, q @ u))
+    theta = unwrap_masked(2.0 * np.arctan2(q @ v_exact, q @ u), w > 0)
     return axis, np.asarray(theta, dtype=np.float64), u
 
 

@@ -63,6 +63,7 @@ class Geometry:
     lever: FloatArray | None = None
     theta: FloatArray | None = None
     basis: FloatArray | None = None
+    mask: NDArray[np.bool_] | None = None
     extra: dict[str, float] = field(default_factory=dict)
 
 
@@ -71,10 +72,6 @@ def _rot_residual(q: FloatArray | None, q_pred: FloatArray | None) -> FloatArray
     if q is None or q_pred is None:
         return None
     return g.quat_log(q @ g.quat_right_matrix(g.quat_conj(q_pred)))
-
-
-def _wrap(a: FloatArray) -> FloatArray:
-    return np.asarray((a + np.pi) % (2.0 * np.pi) - np.pi, dtype=np.float64)
 
 
 class Kernel:
@@ -190,7 +187,9 @@ class Revolute(Kernel):
         if not np.isfinite(r):
             return None
         centre = centroid + c2 @ basis
-        return Geometry(pos=centre, quat=None, axis=normal, lever=r * e1, basis=basis)
+        return Geometry(
+            pos=centre, quat=None, axis=normal, lever=r * e1, basis=basis, mask=w > 0
+        )
 
     def _angles(self, geom: Geometry, p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Angle of each position about the axis from the lever, and the radii."""
@@ -210,14 +209,15 @@ class Revolute(Kernel):
         a = geom.axis
         theta_pos, height, radius = self._angles(geom, p)
         if q is None or geom.theta is None:
-            theta = np.unwrap(theta_pos)
+            mask = np.ones(p.shape[0], dtype=bool) if geom.mask is None else geom.mask
+            theta = g.unwrap_masked(theta_pos, mask)
             rot_w = np.zeros_like(theta)
         else:
             # Weighted least squares of the two angle estimates: position error
             # r·Δθ against σ_pos, rotation error Δθ against σ_rot.
             r2 = radius * radius
             frac = r2 / (r2 + ratio * ratio)
-            theta = geom.theta + frac * _wrap(theta_pos - geom.theta)
+            theta = geom.theta + frac * g.wrap_angle(theta_pos - geom.theta)
             rot_w = np.ones_like(theta)
         pred = geom.pos + g.rotate_about(a, theta, geom.lever)
         lat = [theta]

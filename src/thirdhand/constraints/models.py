@@ -352,7 +352,7 @@ def fit_model(
         w = inlier.astype(np.float64)
         if converged:
             break
-        if it > 0 and math.isfinite(stop_above):
+        if math.isfinite(stop_above):
             ll, k = _total(ll_in, inlier, log_out, kernel.n_params[int(oriented)], oriented)
             if -2.0 * ll + k * math.log(n) > stop_above:
                 break

@@ -43,7 +43,7 @@ def bic_weights(scores: dict[str, float]) -> dict[str, float]:
     return out
 
 
-_FIT_ORDER = ("fixed", "free", "prismatic", "revolute", "cylindrical")
+_FIT_ORDER = ("free", "fixed", "prismatic", "revolute", "cylindrical")
 
 
 def _margin(best: float) -> float:
