@@ -187,9 +187,7 @@ class Revolute(Kernel):
         if not np.isfinite(r):
             return None
         centre = centroid + c2 @ basis
-        return Geometry(
-            pos=centre, quat=None, axis=normal, lever=r * e1, basis=basis, mask=w > 0
-        )
+        return Geometry(pos=centre, quat=None, axis=normal, lever=r * e1, basis=basis, mask=w > 0)
 
     def _angles(self, geom: Geometry, p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Angle of each position about the axis from the lever, and the radii."""
