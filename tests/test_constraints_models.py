@@ -22,8 +22,10 @@ from thirdhand.constraints import (
     fit_prismatic,
     fit_relative,
     fit_revolute,
+    fit_screw,
 )
 from thirdhand.constraints import geometry as g
+from thirdhand.constraints.select import DEFAULT_MODELS
 from thirdhand.constraints.synthetic import JointTrack, random_joint_track
 from thirdhand.demonstration import BodyInfo, Demonstration
 
@@ -36,8 +38,10 @@ def _axis_error_deg(a: np.ndarray, b: np.ndarray) -> float:
     return math.degrees(math.atan2(np.linalg.norm(np.cross(a, b)), abs(float(a @ b))))
 
 
-def _check_exact(track: JointTrack, *, oriented: bool = True) -> None:
-    c = fit_constraint(track.pos, track.quat if oriented else None)
+def _check_exact(
+    track: JointTrack, *, oriented: bool = True, models: tuple[str, ...] = DEFAULT_MODELS
+) -> None:
+    c = fit_constraint(track.pos, track.quat if oriented else None, models=models)
     assert c.type == track.type
     np.testing.assert_allclose(c.origin, track.origin, atol=1e-9)
     np.testing.assert_allclose(c.ranges, track.ranges, atol=1e-9)
@@ -56,6 +60,32 @@ def _check_exact(track: JointTrack, *, oriented: bool = True) -> None:
 @pytest.mark.parametrize("seed", range(5))
 def test_noise_free_tracks_are_recovered_exactly(kind: str, seed: int) -> None:
     _check_exact(random_joint_track(kind, np.random.default_rng(seed)))
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_noise_free_screw_is_recovered_exactly(seed: int) -> None:
+    track = random_joint_track("screw", np.random.default_rng(seed))
+    _check_exact(track, models=MODEL_TYPES)
+    c = fit_constraint(track.pos, track.quat, models=MODEL_TYPES)
+    assert c.pitch is not None and c.ranges[0, 0] < c.ranges[0, 1]
+    np.testing.assert_allclose(
+        c.pitch * np.ptp(c.ranges[3]), np.ptp(c.ranges[0]) * np.sign(c.pitch)
+    )
+
+
+def test_noisy_screw_tracks_when_screw_is_a_candidate() -> None:
+    """Screw is opt-in; with it, 1 mm / 0.5° screw tracks are screws (axis < 1°)."""
+    rng = np.random.default_rng(2026)
+    for _ in range(20):
+        track = random_joint_track("screw", rng, pos_noise=NOISE_POS, rot_noise=NOISE_ROT)
+        c = fit_constraint(track.pos, track.quat, models=MODEL_TYPES)
+        assert c.type == "screw", c.scores
+        assert c.axis is not None and track.axis is not None
+        assert _axis_error_deg(c.axis, track.axis) < 1.0
+        assert c.pitch is not None
+        true_pitch = np.ptp(track.ranges[0]) / np.ptp(track.ranges[3])
+        assert abs(abs(c.pitch) - true_pitch) < 1e-3
+    assert "screw" not in fit_constraint(track.pos, track.quat).scores
 
 
 @pytest.mark.parametrize("kind", ("fixed", "prismatic", "revolute"))
@@ -127,7 +157,7 @@ def _noisy_stats(
 
 
 @pytest.mark.parametrize("outliers", [0.0, 0.1])
-@pytest.mark.parametrize("kind", MODEL_TYPES)
+@pytest.mark.parametrize("kind", DEFAULT_MODELS)
 def test_noisy_oriented_tracks(kind: str, outliers: float) -> None:
     """1 mm / 0.5° noise, 10 % gross outliers: 50 of 50 right, axis < 1°, axis line < 3 mm.
 
@@ -251,6 +281,7 @@ def test_single_model_fits_report_their_own_score() -> None:
         (fit_prismatic, "prismatic"),
         (fit_revolute, "revolute"),
         (fit_cylindrical, "cylindrical"),
+        (fit_screw, "screw"),
         (fit_free, "free"),
     ):
         c = fit(track.pos, track.quat)
@@ -370,3 +401,22 @@ def test_cli_two_body_recording(tmp_path: Path) -> None:
     result = runner.invoke(app, ["fit", str(path)])
     assert isinstance(result.exception, ConstraintFitError)
     assert "name the track with parent and child" in str(result.exception)
+
+
+def test_leg_spinning_about_its_own_axis_is_revolute_of_zero_radius() -> None:
+    """The user-study case: a leg screwed into its seat turns about its own axis."""
+    rng = np.random.default_rng(30)
+    n = 300
+    axis = np.array([0.0, 0.0, 1.0])
+    theta = np.linspace(-3.0, 0.0, n)
+    quat = g.quat_mul(g.quat_axis_angle(axis, theta), se3.random_quat(rng))
+    pos = np.tile([0.1, 0.2, 0.3], (n, 1))
+    c = fit_constraint(pos, quat)
+    assert c.type == "revolute"
+    assert c.axis is not None and c.radius is not None
+    np.testing.assert_allclose(c.axis, axis, atol=1e-9)
+    np.testing.assert_allclose(c.origin, pos[0], atol=1e-9)
+    assert c.radius < 1e-9
+    np.testing.assert_allclose(c.ranges[3], [-3.0, 0.0], atol=1e-9)
+    # Seen by position alone, the leg does not move.
+    assert fit_constraint(pos).type == "fixed"

@@ -2,7 +2,8 @@
 
 Models: ``fixed`` (constant relative pose), ``prismatic`` (translation along an
 axis), ``revolute`` (rotation about an axis), ``cylindrical`` (both, about one
-axis) and ``free``; :func:`fit_constraint` fits them all and chooses by BIC.
+axis, independent), ``screw`` (both, coupled by a pitch; opt-in) and ``free``;
+:func:`fit_constraint` fits them and chooses by BIC.
 """
 
 from thirdhand.constraints.models import (
@@ -11,6 +12,7 @@ from thirdhand.constraints.models import (
     fit_free,
     fit_prismatic,
     fit_revolute,
+    fit_screw,
     prepare_track,
 )
 from thirdhand.constraints.select import bic_weights, demo_track, fit_constraint, fit_relative
@@ -37,5 +39,6 @@ __all__ = [
     "fit_prismatic",
     "fit_relative",
     "fit_revolute",
+    "fit_screw",
     "prepare_track",
 ]

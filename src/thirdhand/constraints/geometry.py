@@ -314,3 +314,45 @@ def revolute_centre(
     if planar:
         lever = lever - (lever @ axis) * axis
     return centre, lever
+
+
+def refine_axis_with_plane(
+    axis: FloatArray, p: FloatArray, theta: FloatArray, w: FloatArray, ratio: float
+) -> FloatArray:
+    """Combine a rotation axis with the normal of the plane the positions turn in.
+
+    The axis from the rotations alone is off by the rotation noise; a revolute
+    joint's positions lie in a plane normal to the axis, which tilts it back.
+    Linearised about ``axis``, with the tilt ``δ ⊥ axis``: the positions give
+    ``S δ = -P C a`` (``C`` their weighted scatter, ``P = I - a aᵀ``,
+    ``S = P C P``), in units of ``1/σ_pos²``; the rotations pin ``δ = 0`` with
+    information ``Σ w (θ - θ̄)² / σ_rot²``. The two are added.
+
+    Parameters
+    ----------
+    axis : ndarray, shape (3,)
+        Unit axis from the rotations.
+    p : ndarray, shape (n, 3)
+        Positions, metres.
+    theta : ndarray, shape (n,)
+        Angles about ``axis``, radians.
+    w : ndarray, shape (n,)
+    ratio : float
+        ``σ_pos / σ_rot``, metres per radian.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        Unit axis, same sign as ``axis``.
+    """
+    _, cov = weighted_cov(p, w)
+    sw = w.sum()
+    t_mean = (w @ theta) / sw
+    info_rot = ratio * ratio * (w @ (theta - t_mean) ** 2) / sw
+    proj = np.eye(3) - np.outer(axis, axis)
+    lhs = proj @ cov @ proj + info_rot * proj + np.outer(axis, axis)
+    # Minimum-norm solution: a direction neither the plane nor the rotations
+    # determine (a straight track, no rotation) keeps the rotation axis.
+    delta = np.linalg.lstsq(lhs, -(proj @ cov @ axis), rcond=1e-9)[0]
+    out = axis + proj @ delta
+    return np.asarray(out / np.linalg.norm(out), dtype=np.float64)

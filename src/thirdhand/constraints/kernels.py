@@ -165,7 +165,10 @@ class Revolute(Kernel):
     name = "revolute"
     n_latent = 1
     n_params = (8, 11)
+    #: Translation along the axis is a free latent (cylindrical).
     planar = False
+    #: Translation along the axis is ``pitch · θ`` (screw).
+    coupled = False
 
     def fit(
         self, p: FloatArray, q: FloatArray | None, w: FloatArray, ratio: float
@@ -173,6 +176,8 @@ class Revolute(Kernel):
         if q is None:
             return self._fit_positions(p, w)
         axis, theta, q0 = g.rotation_plane_axis(q, w)
+        if not self.planar:
+            axis = g.refine_axis_with_plane(axis, p, theta, w, ratio)
         centre, lever = g.revolute_centre(p, axis, theta, w, planar=self.planar)
         return Geometry(pos=centre, quat=q0, axis=axis, lever=lever, theta=theta)
 
@@ -211,16 +216,28 @@ class Revolute(Kernel):
             theta = g.unwrap_masked(theta_pos, mask)
             rot_w = np.zeros_like(theta)
         else:
-            # Weighted least squares of the two angle estimates: position error
-            # r·Δθ against σ_pos, rotation error Δθ against σ_rot.
+            # Weighted least squares of the angle estimates: position error r·Δθ
+            # against σ_pos, rotation error Δθ against σ_rot (and, for a screw, the
+            # height error pitch·Δθ against σ_pos).
             r2 = radius * radius
-            frac = r2 / (r2 + ratio * ratio)
-            theta = geom.theta + frac * g.wrap_angle(theta_pos - geom.theta)
+            on_branch = geom.theta + g.wrap_angle(theta_pos - geom.theta)
+            num = ratio * ratio * geom.theta + r2 * on_branch
+            den = ratio * ratio + r2
+            if self.coupled:
+                pitch, h0 = geom.extra["pitch"], geom.extra["h0"]
+                if abs(pitch) > 1e-12:
+                    num = num + pitch * (height - h0)
+                    den = den + pitch * pitch
+            theta = num / den
             rot_w = np.ones_like(theta)
         pred = geom.pos + g.rotate_about(a, theta, geom.lever)
         lat = [theta]
         gp = [radius * radius]
         gr = [rot_w]
+        if self.coupled:
+            pitch, h0 = geom.extra["pitch"], geom.extra["h0"]
+            pred = pred + (h0 + pitch * theta)[:, None] * a
+            gp = [radius * radius + pitch * pitch]
         if self.planar:
             pred = pred + (height - geom.lever @ a)[:, None] * a
             lat.append(height)
@@ -258,6 +275,37 @@ class Cylindrical(Revolute):
         return super().fit(p, q, w, ratio)
 
 
+class Screw(Revolute):
+    """Rotation about an axis coupled to translation along it, ``h = h0 + pitch · θ``.
+
+    Needs orientations. The axis and angles come from the rotations, the centre
+    from the positions projected on the plane normal to the axis, the pitch from a
+    weighted line fit of the height along the axis against the angle.
+    """
+
+    name = "screw"
+    n_params = (12, 12)
+    coupled = True
+
+    def fit(
+        self, p: FloatArray, q: FloatArray | None, w: FloatArray, ratio: float
+    ) -> Geometry | None:
+        if q is None:
+            return None
+        axis, theta, q0 = g.rotation_plane_axis(q, w)
+        centre, lever = g.revolute_centre(p, axis, theta, w, planar=True)
+        height = (p - centre) @ axis
+        sw = w.sum()
+        t_mean = (w @ theta) / sw
+        h_mean = (w @ height) / sw
+        dt = theta - t_mean
+        var = w @ (dt * dt)
+        pitch = float(w @ (dt * (height - h_mean)) / var) if var > 1e-18 * sw else 0.0
+        geom = Geometry(pos=centre, quat=q0, axis=axis, lever=lever, theta=theta)
+        geom.extra = {"pitch": pitch, "h0": float(h_mean - pitch * t_mean)}
+        return geom
+
+
 KERNELS: dict[str, Kernel] = {
-    k.name: k for k in (Fixed(), Prismatic(), Revolute(), Cylindrical(), Free())
+    k.name: k for k in (Fixed(), Prismatic(), Revolute(), Cylindrical(), Screw(), Free())
 }

@@ -460,6 +460,11 @@ def to_constraint(
         if name == "cylindrical":
             p_end = p_end + (proj.latent[last, 1] - geom.lever @ geom.axis) * geom.axis
             ranges[0] = [rel[:, 1].min(), rel[:, 1].max()]
+        if name == "screw":
+            pitch = geom.extra["pitch"]
+            p_end = p_end + (geom.extra["h0"] + pitch * theta_end) * geom.axis
+            # Coupled: the translation along the (turned) axis is pitch · angle.
+            ranges[0] = np.sort(pitch * np.array([rel[:, 0].min(), rel[:, 0].max()]))
         frame_p = geom.pos + ((p_end - geom.pos) @ axis) * axis
         frame_q = _frame_from_axes(axis, p_end - frame_p)
         radius = float(np.linalg.norm(p_end - frame_p))
@@ -486,6 +491,7 @@ def to_constraint(
         quat=q_end,
         ranges=ranges,
         radius=radius,
+        pitch=geom.extra.get("pitch") if name == "screw" else None,
         rms_pos=rms_pos,
         rms_rot=rms_rot,
         sigma_pos=fit.sigma_pos,
@@ -563,6 +569,18 @@ def fit_cylindrical(
     ``ranges[3]`` (rx) are free. Needs orientations.
     """
     return _fit_one("cylindrical", pos, quat, noise)
+
+
+def fit_screw(
+    pos: ArrayLike, quat: ArrayLike | None = None, *, noise: NoiseModel | None = None
+) -> Constraint:
+    """Fit a screw constraint: rotation about an axis coupled to translation along it.
+
+    Parameters and result as :func:`fit_fixed`; ``pitch`` is the translation per
+    radian (metres, along ``axis``), ``ranges[3]`` (rx) the observed angles and
+    ``ranges[0]`` (tx) the translation they imply. Needs orientations.
+    """
+    return _fit_one("screw", pos, quat, noise)
 
 
 def fit_free(

@@ -25,9 +25,12 @@ from thirdhand.demonstration import Demonstration
 
 FloatArray = NDArray[np.float64]
 
-#: Models compared by default. Cylindrical needs orientations and is skipped
-#: silently for position-only tracks.
-DEFAULT_MODELS: tuple[str, ...] = MODEL_TYPES
+#: Models compared by default. Cylindrical (and screw) need orientations and are
+#: skipped silently for position-only tracks. Screw is opt-in: its pitch also
+#: soaks up a few millimetres of systematic error along a revolute axis, and a
+#: cylindrical joint whose slide and turn move together is, per sample, cheaper
+#: to describe as a screw with a larger noise (one latent instead of two).
+DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrical", "free")
 
 
 def bic_weights(scores: dict[str, float]) -> dict[str, float]:
@@ -43,7 +46,8 @@ def bic_weights(scores: dict[str, float]) -> dict[str, float]:
     return out
 
 
-_FIT_ORDER = ("free", "fixed", "prismatic", "revolute", "cylindrical")
+_NEEDS_ORIENTATION = ("cylindrical", "screw")
+_FIT_ORDER = ("free", "fixed", "prismatic", "revolute", "cylindrical", "screw")
 
 
 def _margin(best: float) -> float:
@@ -86,7 +90,8 @@ def fit_constraint(
         Child orientations in the parent frame, x y z w; None for a position-only
         track (then cylindrical is not a candidate).
     models : sequence of str
-        Candidates, among :data:`~thirdhand.constraints.types.MODEL_TYPES`.
+        Candidates, among :data:`~thirdhand.constraints.types.MODEL_TYPES`
+        (default :data:`DEFAULT_MODELS`: all but ``screw``).
     noise : NoiseModel, optional
         Noise bounds (defaults: 1 mm to 2.5 cm, 0.5° to 6°).
     where : str
@@ -117,7 +122,7 @@ def fit_constraint(
     best_bic = math.inf
     # Cheap models first: their BIC lets the joint models that fall far behind stop early.
     for name in sorted(dict.fromkeys(models), key=_FIT_ORDER.index):
-        if name == "cylindrical" and q is None:
+        if name in _NEEDS_ORIENTATION and q is None:
             continue
         fit = fit_model(name, p, q, noise=noise, stop_above=best_bic + _margin(best_bic))
         if fit is not None:
@@ -131,7 +136,7 @@ def fit_constraint(
     scores = {
         name: (fits[name].bic_at(n_eff) if name in fits else math.inf)
         for name in dict.fromkeys(models)
-        if not (name == "cylindrical" and q is None)
+        if not (name in _NEEDS_ORIENTATION and q is None)
     }
     weights = bic_weights(scores)
     best = min(fits, key=lambda k: scores[k])

@@ -57,7 +57,7 @@ def random_joint_track(
     rot_noise: float = 0.0,
     outliers: float = 0.0,
 ) -> JointTrack:
-    """A random track of a fixed, prismatic, revolute, cylindrical or free joint.
+    """A random track of a fixed, prismatic, revolute, cylindrical, screw or free joint.
 
     Joint axes are uniform on the sphere; revolute radii 5–40 cm and angles
     40–150°; prismatic strokes 10–40 cm; the configuration moves monotonically
@@ -101,7 +101,7 @@ def random_joint_track(
         theta = np.zeros(n)
         disp = np.zeros(n)
         lever = np.zeros(3)
-        if kind in ("revolute", "cylindrical"):
+        if kind in ("revolute", "cylindrical", "screw"):
             span = np.radians(rng.uniform(40.0, 150.0))
             theta = -span + span * prog
             perp = np.cross(axis, _unit(rng))
@@ -111,8 +111,17 @@ def random_joint_track(
         if kind in ("prismatic", "cylindrical"):
             stroke = rng.uniform(0.1, 0.4)
             direction = 1.0 if kind == "prismatic" else rng.choice([-1.0, 1.0])
-            disp = direction * (-stroke + stroke * prog)
+            # A cylindrical joint's slide is not tied to its turn: linear in time,
+            # while the turn follows the smooth profile.
+            drive = s if kind == "cylindrical" else prog
+            disp = direction * (-stroke + stroke * drive)
             ranges[0] = [-stroke, 0.0] if direction > 0 else [0.0, stroke]
+        if kind == "screw":
+            # 5-30 mm per radian either way (an M6 thread is 0.16 mm/rad; a lid
+            # or a coarse wooden thread is in this range).
+            pitch = rng.choice([-1.0, 1.0]) * rng.uniform(0.005, 0.03)
+            disp = pitch * theta
+            ranges[0] = np.sort(pitch * ranges[3])
         rot = g.quat_axis_angle(axis, theta)
         pos = centre + g.rotate_about(axis, theta, lever) + disp[:, None] * axis
         quat = g.quat_mul(rot, q_rest)

@@ -14,8 +14,9 @@ from thirdhand.errors import ThirdhandError
 
 FloatArray = NDArray[np.float64]
 
-#: Every model :func:`thirdhand.constraints.fit_constraint` can choose from.
-MODEL_TYPES: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrical", "free")
+#: Every model :func:`thirdhand.constraints.fit_constraint` can choose from
+#: (``screw`` only when asked for).
+MODEL_TYPES: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrical", "screw", "free")
 #: Order of the rows of :attr:`Constraint.ranges`.
 DOF_NAMES: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 
@@ -122,7 +123,9 @@ class Constraint:
         tracks say nothing of rotations: their rotation rows are locked except a
         revolute joint's ``rx``.
     radius : float or None
-        Distance of the child from a revolute or cylindrical axis, metres.
+        Distance of the child from a revolute, cylindrical or screw axis, metres.
+    pitch : float or None
+        Of a screw: translation along ``axis`` per radian turned about it, metres.
     rms_pos : float
         Root-mean-square position residual of the inliers, metres.
     rms_rot : float or None
@@ -152,6 +155,7 @@ class Constraint:
     quat: FloatArray | None
     ranges: FloatArray
     radius: float | None
+    pitch: float | None
     rms_pos: float
     rms_rot: float | None
     sigma_pos: float
@@ -208,6 +212,7 @@ class Constraint:
             "ranges": {n: _floats(r) for n, r in zip(DOF_NAMES, self.ranges, strict=True)},
             "free_dofs": self.free_dofs,
             "radius": num(self.radius),
+            "pitch": num(self.pitch),
             "rms_pos": num(self.rms_pos),
             "rms_rot": num(self.rms_rot),
             "sigma_pos": num(self.sigma_pos),
