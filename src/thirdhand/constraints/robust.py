@@ -1,0 +1,379 @@
+"""Fit one constraint model to a relative-pose track, robustly, with its likelihood.
+
+The likelihood
+--------------
+Each sample is an inlier or a gross outlier, uniform over the track's bounding
+box (and over SO(3) for orientations), at rate ``γ``. An inlier's position and
+rotation residuals are isotropic Gaussians of levels ``σ_pos`` and ``σ_rot``;
+the model's latent configuration (angle, displacement) is integrated out under
+a uniform prior over its observed range ``L`` (Laplace approximation), so that a
+joint does not win just by absorbing noise along its free direction: per sample
+and latent coordinate it pays ``log V`` with ``V = sqrt(L² + 2π σ_latent²)`` and
+gains ``½ log(2π σ_latent²)``, which cancel when the range is no wider than the
+noise.
+
+The fit
+-------
+Hard EM: a least-squares fit (with least-trimmed-squares concentration steps
+when the residuals are heavy-tailed), noise levels from the median residual,
+then alternately: classify samples (outlier when the uniform density, at prior
+odds 1:19, beats the inlier density; at most ``NoiseModel.max_outliers`` of
+them), refit the geometry on the inliers, and re-estimate ``σ_pos``, ``σ_rot``
+by maximum likelihood (the latent's share of each residual's degrees of freedom
+removed), clipped to the :class:`~thirdhand.constraints.types.NoiseModel`
+bounds. The ``free`` model has no outliers and a spread of at least the ceiling.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from thirdhand.constraints.kernels import KERNELS, Geometry, Kernel, Projection
+from thirdhand.constraints.types import ConstraintFitError, NoiseModel
+
+FloatArray = NDArray[np.float64]
+
+#: Fewest valid samples a track must have.
+MIN_SAMPLES = 5
+#: Volume of SO(3) in rotation-vector measure (the density of a uniform rotation).
+_SO3_VOLUME = 8.0 * math.pi**2
+_LOG2PI = math.log(2.0 * math.pi)
+#: Median of a chi-square with 3 degrees of freedom (robust start of σ).
+_CHI2_3_MEDIAN = 2.365974
+_EM_ITERATIONS = 5
+#: Concentration steps of the trimmed start, and the squared residual (in units of
+#: its median) beyond which residuals count as heavy-tailed (outliers present).
+_C_STEPS = 3
+_HEAVY_TAIL = 25.0
+#: Prior odds of a sample being a gross outlier, when classifying samples.
+_OUTLIER_PRIOR = 0.05
+
+
+@dataclass
+class ModelFit:
+    """One model fitted to a track, with what model selection needs.
+
+    Attributes
+    ----------
+    kernel : Kernel
+    geom : Geometry
+    proj : Projection
+    sigma_pos, sigma_rot : float
+        Noise levels, metres and radians (``sigma_rot`` NaN for position-only).
+    outlier_fraction : float
+    inlier : ndarray of bool, shape (n,)
+        Samples whose inlier responsibility is at least one half.
+    weights : ndarray, shape (n,)
+        Weights of the last geometric fit (1 for inliers, 0 for outliers).
+    log_likelihood : float
+        Total, nats.
+    n_params : int
+        Free parameters, for the BIC.
+    """
+
+    kernel: Kernel
+    geom: Geometry
+    proj: Projection
+    sigma_pos: float
+    sigma_rot: float
+    outlier_fraction: float
+    inlier: NDArray[np.bool_]
+    weights: FloatArray
+    log_likelihood: float
+    n_params: int
+
+    @property
+    def bic(self) -> float:
+        """Bayesian information criterion ``-2 log L + k log n`` (lower is better)."""
+        return self.bic_at(float(self.weights.shape[0]))
+
+    def bic_at(self, n_eff: float) -> float:
+        """BIC with ``n_eff`` effective samples: the log-likelihood is scaled by ``n_eff / n``.
+
+        Successive samples of a track are not independent (the sensor's error is
+        correlated in time); counting each as a full observation overstates the
+        evidence for a more flexible model.
+        """
+        n = self.weights.shape[0]
+        return -2.0 * self.log_likelihood * n_eff / n + self.n_params * math.log(n_eff)
+
+    def residual_autocorrelation(self) -> float:
+        """Lag-1 autocorrelation of the whitened inlier residuals, in [0, 1).
+
+        Residuals are divided by the noise levels and stacked (position, rotation);
+        0 when the residuals vanish (a noise-free track).
+        """
+        e = self.proj.e_pos[self.inlier] / self.sigma_pos
+        if self.proj.e_rot is not None:
+            e = np.hstack([e, self.proj.e_rot[self.inlier] / self.sigma_rot])
+        e = e - e.mean(axis=0)
+        den = float(np.sum(e * e))
+        if e.shape[0] < 3 or den < 1e-12 * e.size:
+            return 0.0
+        rho = float(np.sum(e[1:] * e[:-1])) / den
+        return min(max(rho, 0.0), 0.99)
+
+
+def prepare_track(
+    pos: ArrayLike, quat: ArrayLike | None = None, *, where: str = "track"
+) -> tuple[FloatArray, FloatArray | None]:
+    """Validate a relative-pose track and drop its invalid samples.
+
+    Parameters
+    ----------
+    pos : array_like, shape (n, 3)
+        Child positions in the parent frame, metres.
+    quat : array_like, shape (n, 4), optional
+        Child orientations in the parent frame, x y z w (any signs, any norms).
+    where : str
+        Name of the track for error messages.
+
+    Returns
+    -------
+    pos : ndarray, shape (m, 3)
+        The samples whose position (and quaternion) are finite, quaternion non-zero.
+    quat : ndarray, shape (m, 4) or None
+        Unit quaternions of those samples.
+
+    Raises
+    ------
+    ConstraintFitError
+        For wrong shapes, or fewer than :data:`MIN_SAMPLES` valid samples.
+    """
+    p = np.asarray(pos, dtype=np.float64)
+    if p.ndim != 2 or p.shape[1] != 3:
+        raise ConstraintFitError(f"{where}: expected positions of shape (n, 3), got {p.shape}")
+    ok = np.all(np.isfinite(p), axis=1)
+    q = None
+    if quat is not None:
+        q = np.asarray(quat, dtype=np.float64)
+        if q.shape != (p.shape[0], 4):
+            raise ConstraintFitError(
+                f"{where}: expected quaternions of shape ({p.shape[0]}, 4), got {q.shape}"
+            )
+        with np.errstate(invalid="ignore"):
+            norm = np.linalg.norm(q, axis=1)
+        ok &= np.all(np.isfinite(q), axis=1) & (norm > 1e-9)
+        q = q[ok] / norm[ok, None]
+    n_ok = int(ok.sum())
+    if n_ok < MIN_SAMPLES:
+        raise ConstraintFitError(
+            f"{where}: {n_ok} valid sample(s) of {p.shape[0]}; a constraint fit needs at "
+            f"least {MIN_SAMPLES} (samples with a NaN position or quaternion are dropped)"
+        )
+    p = p[ok]
+    if np.ptp(p, axis=0).max() > 1e3:
+        raise ConstraintFitError(
+            f"{where}: positions span {np.ptp(p, axis=0).max():.3g} m; expected metres "
+            "(a relative track of an assembly spans well under a kilometre)"
+        )
+    return p, q
+
+
+def _log_outlier(p: FloatArray, oriented: bool) -> float:
+    side = np.maximum(np.ptp(p, axis=0), 0.1)
+    out = -float(np.sum(np.log(side)))
+    return out - math.log(_SO3_VOLUME) if oriented else out
+
+
+def _inlier_loglik(
+    proj: Projection,
+    sp: float,
+    sr: float,
+    inlier: NDArray[np.bool_],
+) -> FloatArray:
+    """Per-sample inlier log-likelihood, latent integrated out (Laplace), shape (n,)."""
+    ll = -1.5 * (_LOG2PI + 2.0 * math.log(sp)) - 0.5 * proj.d2_pos / sp**2
+    if proj.d2_rot is not None:
+        ll += -1.5 * (_LOG2PI + 2.0 * math.log(sr)) - 0.5 * proj.d2_rot / sr**2
+    d = proj.latent.shape[1]
+    if d:
+        inv_sr2 = 1.0 / sr**2 if proj.e_rot is not None else 0.0
+        h = proj.g_pos / sp**2 + proj.g_rot * inv_sr2
+        lat = proj.latent[inlier] if inlier.any() else proj.latent
+        span = np.ptp(lat, axis=0)
+        h_mean = np.mean(h, axis=0)
+        log_v = 0.5 * np.log(span**2 + 2.0 * math.pi / h_mean)
+        ll += np.sum(0.5 * _LOG2PI - 0.5 * np.log(h) - log_v, axis=1)
+    return np.asarray(ll, dtype=np.float64)
+
+
+def _noise_mle(proj: Projection, resp: FloatArray, sp: float, sr: float) -> tuple[float, float]:
+    """Maximum-likelihood noise levels given the responsibilities.
+
+    The latent absorbs part of each residual's degrees of freedom: a fraction
+    ``(g_pos/σ_pos²) / H`` of a latent coordinate's information comes from the
+    position, the rest from the rotation.
+    """
+    oriented = proj.e_rot is not None
+    absorbed_pos = np.zeros(resp.shape[0])
+    if proj.latent.shape[1]:
+        hp = proj.g_pos / sp**2
+        hr = proj.g_rot / sr**2 if oriented else np.zeros_like(hp)
+        absorbed_pos = np.sum(hp / (hp + hr), axis=1)
+    total = resp.sum()
+    dof_pos = 3.0 * total - resp @ absorbed_pos
+    sp_new = math.sqrt(resp @ proj.d2_pos / max(dof_pos, 1e-9))
+    sr_new = sr
+    if oriented:
+        assert proj.d2_rot is not None
+        absorbed_rot = proj.latent.shape[1] - absorbed_pos
+        dof_rot = 3.0 * total - resp @ absorbed_rot
+        sr_new = math.sqrt(resp @ proj.d2_rot / max(dof_rot, 1e-9))
+    return sp_new, sr_new
+
+
+def _total(
+    ll_in: FloatArray, inlier: NDArray[np.bool_], log_out: float, n_model: int, oriented: bool
+) -> tuple[float, int]:
+    """Total log-likelihood (inliers, and outliers at rate γ = their fraction) and ``k``."""
+    n = ll_in.shape[0]
+    n_out = int(n - inlier.sum())
+    ll = float(ll_in[inlier].sum())
+    if n_out:
+        gamma = n_out / n
+        ll += (n - n_out) * math.log1p(-gamma) + n_out * (math.log(gamma) + log_out)
+    return ll, n_model + (2 if oriented else 1) + (1 if n_out else 0)
+
+
+def _trimmed_start(
+    kernel: Kernel,
+    pos: FloatArray,
+    quat: FloatArray | None,
+    geom: Geometry,
+    proj: Projection,
+    n_keep: int,
+) -> tuple[Geometry | None, Projection, FloatArray]:
+    """Concentration steps of a least-trimmed-squares fit, when residuals are heavy-tailed.
+
+    A least-squares start is pulled by gross outliers, so far that the EM may not
+    tell them apart; refitting on the ``n_keep`` samples of smallest residual
+    (twice) moves the start back to the bulk of the track.
+    """
+    w = np.ones(pos.shape[0])
+    g_cur: Geometry | None = geom
+    for _ in range(_C_STEPS):
+        d2 = proj.d2_pos
+        d2 = d2 / max(float(np.median(d2)), 1e-300)
+        if proj.d2_rot is not None:
+            r2 = proj.d2_rot
+            d2 = d2 + r2 / max(float(np.median(r2)), 1e-300)
+        if d2.max() < _HEAVY_TAIL * (2.0 if proj.e_rot is not None else 1.0):
+            break
+        cut = np.partition(d2, n_keep - 1)[n_keep - 1]
+        w = (d2 <= cut).astype(np.float64)
+        g_cur = kernel.fit(pos, quat, w, 1.0)
+        if g_cur is None:
+            return None, proj, w
+        proj = kernel.project(g_cur, pos, quat, 1.0)
+    return g_cur, proj, w
+
+
+def fit_model(
+    name: str,
+    pos: FloatArray,
+    quat: FloatArray | None,
+    *,
+    noise: NoiseModel | None = None,
+    stop_above: float = math.inf,
+) -> ModelFit | None:
+    """Fit one model robustly (EM over inlier/outlier and noise), on a prepared track.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`thirdhand.constraints.kernels.KERNELS`.
+    pos : ndarray, shape (n, 3)
+        Valid child positions in the parent frame, metres (see :func:`prepare_track`).
+    quat : ndarray, shape (n, 4) or None
+        Unit child orientations in the parent frame, x y z w.
+    noise : NoiseModel, optional
+    stop_above : float
+        Stop iterating as soon as the model's BIC (after its robust start) is above
+        this: a model far behind another needs no converged score to lose.
+
+    Returns
+    -------
+    ModelFit or None
+        None when the model cannot describe the track at all (a cylindrical joint
+        on a position-only track, a circle through collinear points).
+    """
+    nm = noise or NoiseModel()
+    kernel = KERNELS[name]
+    free = name == "free"
+    oriented = quat is not None
+    n = pos.shape[0]
+    lo_p, hi_p = (nm.pos_ceiling, math.inf) if free else (nm.pos_floor, nm.pos_ceiling)
+    lo_r, hi_r = (nm.rot_ceiling, math.inf) if free else (nm.rot_floor, nm.rot_ceiling)
+    log_out = _log_outlier(pos, oriented)
+    # At most this many samples may be called outliers: a model that needs more is
+    # a bad model of the track, not a good model of part of it.
+    max_out = 0 if free else int(nm.max_outliers * n)
+    log_prior = math.log(_OUTLIER_PRIOR) - math.log1p(-_OUTLIER_PRIOR)
+
+    w = np.ones(n)
+    inlier = np.ones(n, dtype=bool)
+    sp, sr = nm.pos_ceiling, nm.rot_ceiling
+    geom: Geometry | None = None
+    proj: Projection | None = None
+    ll_in = np.zeros(n)
+    refit = True
+    for it in range(_EM_ITERATIONS):
+        if refit:
+            geom = kernel.fit(pos, quat, w, sp / sr)
+        if geom is None:
+            return None
+        proj = kernel.project(geom, pos, quat, sp / sr)
+        if it == 0:
+            if max_out:
+                geom, proj, w = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
+                if geom is None:
+                    return None
+            # Robust start: scales from the median residual, immune to outliers.
+            keep = w > 0
+            d_latent = proj.latent.shape[1]
+            med = float(np.median(proj.d2_pos[keep]))
+            sp = math.sqrt(med / _CHI2_3_MEDIAN * 3.0 / max(3.0 - d_latent, 1.0))
+            if proj.e_rot is not None:
+                assert proj.d2_rot is not None
+                sr = math.sqrt(float(np.median(proj.d2_rot[keep])) / _CHI2_3_MEDIAN)
+        else:
+            sp, sr = _noise_mle(proj, w, sp, sr)
+        sp = min(max(sp, lo_p), hi_p)
+        sr = min(max(sr, lo_r), hi_r)
+        ll_in = _inlier_loglik(proj, sp, sr, inlier)
+        new_inlier = np.ones(n, dtype=bool)
+        if max_out:
+            gain = log_prior + log_out - ll_in
+            worst = np.argpartition(-gain, max_out - 1)[:max_out]
+            new_inlier[worst[gain[worst] > 0.0]] = False
+        converged = it > 0 and np.array_equal(new_inlier, inlier)
+        # The geometry depends on the weights only (the noise ratio enters the projection).
+        refit = not np.array_equal(new_inlier, w > 0)
+        inlier = new_inlier
+        w = inlier.astype(np.float64)
+        if converged:
+            break
+        if math.isfinite(stop_above):
+            ll, k = _total(ll_in, inlier, log_out, kernel.n_params[int(oriented)], oriented)
+            if -2.0 * ll + k * math.log(n) > stop_above:
+                break
+    assert geom is not None and proj is not None
+    ll_in = _inlier_loglik(proj, sp, sr, inlier)
+    ll, k = _total(ll_in, inlier, log_out, kernel.n_params[int(oriented)], oriented)
+    return ModelFit(
+        kernel=kernel,
+        geom=geom,
+        proj=proj,
+        sigma_pos=sp,
+        sigma_rot=sr if oriented else math.nan,
+        outlier_fraction=float(1.0 - inlier.mean()),
+        inlier=inlier,
+        weights=w,
+        log_likelihood=ll,
+        n_params=k,
+    )
