@@ -420,3 +420,21 @@ def test_leg_spinning_about_its_own_axis_is_revolute_of_zero_radius() -> None:
     np.testing.assert_allclose(c.ranges[3], [-3.0, 0.0], atol=1e-9)
     # Seen by position alone, the leg does not move.
     assert fit_constraint(pos).type == "fixed"
+
+
+def test_quaternion_helpers_match_scipy() -> None:
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(40)
+    p = se3.random_quat(rng)
+    q = se3.random_quat(rng, 100)
+    np.testing.assert_allclose(q @ g.quat_right_matrix(p), g.quat_mul(q, p), atol=1e-15)
+    np.testing.assert_allclose(g.quat_mul(q, p), se3.quat_multiply(q, p), atol=1e-15)
+    np.testing.assert_allclose(g.quat_log(q), Rotation.from_quat(q).as_rotvec(), atol=1e-12)
+    np.testing.assert_allclose(g.quat_log(-q), g.quat_log(q), atol=1e-12)
+    assert np.all(g.quat_log(np.array([[0.0, 0.0, 0.0, -1.0]])) == 0.0)
+    v = rng.standard_normal(3)
+    angle = rng.uniform(-4, 4, 20)
+    axis = v / np.linalg.norm(v)
+    expected = Rotation.from_rotvec(angle[:, None] * axis).apply(np.array([0.3, -0.2, 0.1]))
+    np.testing.assert_allclose(g.rotate_about(axis, angle, np.array([0.3, -0.2, 0.1])), expected)

@@ -65,7 +65,15 @@ def quat_mul(a: FloatArray, b: FloatArray) -> FloatArray:
 
 def quat_right_matrix(p: FloatArray) -> FloatArray:
     """Matrix (4, 4) with ``q @ M = q ⊗ p`` for quaternion rows ``q``: one matmul per track."""
-    return quat_mul(np.eye(4), p)
+    x, y, z, w = (float(c) for c in p)
+    return np.array(
+        [
+            [w, -z, y, -x],
+            [z, w, -x, -y],
+            [-y, x, w, -z],
+            [x, y, z, w],
+        ]
+    )
 
 
 def quat_conj(q: FloatArray) -> FloatArray:
@@ -74,17 +82,17 @@ def quat_conj(q: FloatArray) -> FloatArray:
 
 
 def quat_log(q: FloatArray) -> FloatArray:
-    """Rotation vectors (..., 3), radians, of unit quaternions (..., 4), angle in [0, π]."""
-    v = q[..., :3]
-    s = q[..., 3:]
-    sign = np.where(s < 0.0, -1.0, 1.0)
-    v = v * sign
-    s = s * sign
-    norm = np.linalg.norm(v, axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(norm, s)
-    # angle / sin(angle / 2) -> 2 as the angle goes to 0.
-    scale = np.where(norm > 1e-12, angle / np.where(norm > 1e-12, norm, 1.0), 2.0)
-    return np.asarray(v * scale, dtype=np.float64)
+    """Rotation vectors (n, 3), radians, of unit quaternions (n, 4), angle in [0, π]."""
+    v = q[:, :3]
+    s = np.abs(q[:, 3])
+    norm = np.sqrt(np.einsum("ij,ij->i", v, v))
+    # angle / sin(angle / 2) -> 2 as the angle goes to 0; the sign of w picks the
+    # shorter of the two rotations q and -q describe.
+    small = norm < 1e-12
+    scale = 2.0 * np.arctan2(norm, s) / np.where(small, 1.0, norm)
+    scale[small] = 2.0
+    scale *= np.where(q[:, 3] < 0.0, -1.0, 1.0)
+    return np.asarray(v * scale[:, None], dtype=np.float64)
 
 
 def quat_axis_angle(axis: FloatArray, angle: FloatArray) -> FloatArray:
