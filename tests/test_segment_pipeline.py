@@ -11,6 +11,7 @@ from typer.testing import CliRunner
 
 from thirdhand import io
 from thirdhand.demonstration import BodyInfo, Demonstration, DemonstrationError
+from thirdhand.errors import ThirdhandError
 from thirdhand.segment.cli import app
 from thirdhand.segment.design import FeatureConfig
 from thirdhand.segment.evaluate import frame_f1
@@ -179,3 +180,17 @@ def test_cli_segment_train_evaluate(tmp_path: Path, clean_model: SegmentModel) -
     assert "CRF" in r.output and "logistic" in r.output
     r = runner.invoke(app, [str(paths[0]), "--model", str(out_json)])
     assert r.exit_code != 0 and isinstance(r.exception, ModelFileError)
+
+
+def test_labels_from_a_kvg_annotation_file(tmp_path: Path) -> None:
+    from thirdhand.segment.cli import read_label_file
+
+    demo = random_pick_place_demo(np.random.default_rng(4), n_parts=1, duration=10.0)
+    ann = tmp_path / "ann_kvg.kvg"
+    ann.write_text("TS carrier part0 { lock { from=120 to=360 } }\n")
+    labels = read_label_file(ann, demo)
+    (iv,) = labels.interactions
+    assert (iv.a, iv.b) == ("carrier", "part0")
+    assert iv.start == pytest.approx(demo.t[120]) and iv.end == pytest.approx(demo.t[360])
+    with pytest.raises(ThirdhandError, match="unknown label file type"):
+        read_label_file(tmp_path / "labels.csv", demo)
