@@ -175,12 +175,27 @@ def demo(
     (output / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
 
 
+#: Sub-command groups: name -> module holding a typer ``app``. A group whose
+#: module cannot be imported (an optional extra not installed) is left out.
+SUBAPPS: dict[str, str] = {
+    "segment": "thirdhand.segment.cli",
+    "constraints": "thirdhand.constraints.cli",
+    "primitives": "thirdhand.primitives.cli",
+    "irl": "thirdhand.relational.cli",
+}
+
+
 def _mount_subapps() -> None:
-    try:
-        from thirdhand.segment.cli import app as segment_app
-    except ImportError:
-        return
-    app.add_typer(segment_app, name="segment")
+    import importlib
+
+    for name, module in SUBAPPS.items():
+        try:
+            sub = importlib.import_module(module)
+        except ModuleNotFoundError as exc:
+            if exc.name is not None and module.startswith(exc.name):
+                continue  # the stage is not part of this installation
+            raise
+        app.add_typer(sub.app, name=name)
 
 
 _mount_subapps()
