@@ -3,9 +3,12 @@
 Both get the same design rows (bias + four log-variance features per latent
 step, float-valued attributes) and the same labels, from noisy synthetic
 pick-and-place scenes (train and test seeds disjoint), and the same L2 penalty
-(thirdhand minimises ``NLL + ½ λ ||θ||²``; CRFsuite ``NLL + c2 ||θ||²``, so
-``c2 = λ / 2``; CRFsuite keeps a state weight per label, so its effective
-penalty on the state weights is half thirdhand's). CRFsuite gets every possible
+(thirdhand minimises ``NLL + ½ λ ||θ||²``, CRFsuite ``NLL + c2 ||θ||²``.
+CRFsuite keeps a state weight per label, ``w₀ = −w₁ = δ/2`` at the optimum, so
+its penalty on a state weight difference ``δ`` is ``c2 δ²/2``: ``c2 = λ`` (the
+default) matches thirdhand's state penalty exactly and doubles the one on the
+four transition weights; ``--c2-factor 0.5`` matches the transitions instead
+and halves the state penalty.) CRFsuite gets every possible
 state and transition feature (``feature.minfreq=0``, ``possible_states``,
 ``possible_transitions``); the
 log features are passed negated (see :func:`items`).
@@ -72,6 +75,9 @@ def main() -> None:
     ap.add_argument("--test", type=int, default=4, help="test scenes")
     ap.add_argument("--duration", type=float, default=60.0, help="seconds per scene")
     ap.add_argument("--l2", type=float, default=1.0, help="L2 penalty λ")
+    ap.add_argument(
+        "--c2-factor", type=float, default=1.0, help="CRFsuite c2 = factor × λ (see above)"
+    )
     args = ap.parse_args()
 
     xs, ys = sequences(range(args.train), args.duration)
@@ -93,7 +99,7 @@ def main() -> None:
     trainer.set_params(
         {
             "c1": 0.0,
-            "c2": args.l2 / 2.0,
+            "c2": args.l2 * args.c2_factor,
             "max_iterations": 1000,
             "feature.minfreq": 0,
             "feature.possible_states": True,

@@ -92,7 +92,7 @@ class PairCRF:
     max_iter : int
         L-BFGS iterations.
     tol : float
-        L-BFGS gradient tolerance (``gtol``), relative to the number of steps.
+        L-BFGS relative tolerance on the objective (``ftol``).
 
     Attributes
     ----------
@@ -108,7 +108,7 @@ class PairCRF:
         l2: float = 1.0,
         init: str = "logistic",
         max_iter: int = 500,
-        tol: float = 1e-7,
+        tol: float = 1e-9,
     ) -> None:
         self.l2 = l2
         self.init = init
@@ -129,24 +129,45 @@ class PairCRF:
         return f, g + self.l2 * theta
 
     def fit(self, xs: Sequence[FloatArray], ys: Sequence[IntArray]) -> PairCRF:
-        """Maximum-likelihood fit on sequences ``xs[i]`` (n_i, d), labels ``ys[i]`` (n_i,)."""
+        """Maximum-likelihood fit on sequences ``xs[i]`` (n_i, d), labels ``ys[i]`` (n_i,).
+
+        L-BFGS runs on preconditioned variables: the state weights are whitened
+        by the Cholesky factor of the logistic regression's Hessian at the
+        starting point, and the transition weights scaled by ``sqrt(n / 20)``,
+        ``n`` the number of steps (a rough curvature of transition counts), which
+        about halves the iterations on badly scaled features.
+        """
         data = _Data(xs, ys)
+        assert data.y is not None
         d = data.x.shape[1]
-        theta0 = np.zeros(N_TRANS + d)
         if self.init == "logistic":
-            assert data.y is not None
-            theta0[N_TRANS:] = fit_logistic_newton(data.x, data.y.astype(float), l2=self.l2)
-        elif self.init != "zero":
+            w0 = fit_logistic_newton(data.x, data.y.astype(float), l2=self.l2)
+        elif self.init == "zero":
+            w0 = np.zeros(d)
+        else:
             raise SegmentationError(f"init must be 'logistic' or 'zero', got {self.init!r}")
+        s = data.x @ w0
+        p = np.exp(-np.logaddexp(0.0, -s))
+        hess = (data.x * (p * (1.0 - p))[:, None]).T @ data.x
+        chol = np.linalg.cholesky(hess + max(self.l2, 1e-6) * np.eye(d))
+        t_scale = np.sqrt(max(data.n_steps, 1) / 20.0)
+
+        def to_theta(phi: FloatArray) -> FloatArray:
+            return np.concatenate([phi[:N_TRANS] / t_scale, np.linalg.solve(chol.T, phi[N_TRANS:])])
+
+        def objective(phi: FloatArray) -> tuple[float, FloatArray]:
+            f, g = self.objective(to_theta(phi), data)
+            return f, np.concatenate([g[:N_TRANS] / t_scale, np.linalg.solve(chol, g[N_TRANS:])])
+
+        phi0 = np.concatenate([np.zeros(N_TRANS), chol.T @ w0])
         res = minimize(
-            self.objective,
-            theta0,
-            args=(data,),
+            objective,
+            phi0,
             jac=True,
             method="L-BFGS-B",
-            options={"maxiter": self.max_iter, "gtol": self.tol * max(data.n_steps, 1)},
+            options={"maxiter": self.max_iter, "ftol": self.tol, "gtol": 1e-9},
         )
-        self.set_params_theta(res.x)
+        self.set_params_theta(to_theta(res.x))
         self.n_iter_ = int(res.nit)
         return self
 
