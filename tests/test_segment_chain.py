@@ -10,6 +10,7 @@ from scipy.optimize import check_grad, minimize
 
 from thirdhand.segment.chain import (
     binary_expectations,
+    binary_marginals,
     forward_backward,
     pairwise_marginals,
     viterbi,
@@ -160,3 +161,6 @@ def test_scaled_binary_kernel_matches_log_space(rng: np.random.Generator, scale:
     np.testing.assert_allclose(log_z, lz_ref.sum(), rtol=1e-10)
     np.testing.assert_allclose(e_state, marg[:, 1] @ x, rtol=1e-8, atol=1e-8)
     np.testing.assert_allclose(e_trans, pair_sum, rtol=1e-8, atol=1e-8)
+    np.testing.assert_allclose(
+        binary_marginals(x @ w, trans, offsets), marg[:, 1], rtol=1e-8, atol=1e-10
+    )

@@ -316,6 +316,96 @@ def _binary_expectations(  # pragma: no cover - compiled
     return log_z, e_state, e_trans, ok
 
 
+@numba.njit(cache=True, nogil=True)
+def _binary_marginals(  # pragma: no cover - compiled
+    score1: FloatArray, offsets: IntArray, trans: FloatArray
+) -> tuple[FloatArray, bool]:
+    """``p(y_t = 1 | x)`` of a binary chain by scaled forward–backward (see above)."""
+    n = score1.size
+    tmax = max(max(trans[0, 0], trans[0, 1]), max(trans[1, 0], trans[1, 1]))
+    m00 = np.exp(trans[0, 0] - tmax)
+    m01 = np.exp(trans[0, 1] - tmax)
+    m10 = np.exp(trans[1, 0] - tmax)
+    m11 = np.exp(trans[1, 1] - tmax)
+    a0 = np.empty(n)
+    a1 = np.empty(n)
+    p0 = np.empty(n)
+    p1 = np.empty(n)
+    out = np.empty(n)
+    ok = True
+    for q in range(offsets.size - 1):
+        lo = offsets[q]
+        hi = offsets[q + 1]
+        for t in range(lo, hi):
+            u = score1[t]
+            if u > 0.0:
+                e0 = np.exp(-u)
+                e1 = 1.0
+            else:
+                e0 = 1.0
+                e1 = np.exp(u)
+            p0[t] = e0
+            p1[t] = e1
+            if t == lo:
+                f0 = e0
+                f1 = e1
+            else:
+                f0 = e0 * (m00 * a0[t - 1] + m01 * a1[t - 1])
+                f1 = e1 * (m10 * a0[t - 1] + m11 * a1[t - 1])
+            c = f0 + f1
+            if not c > 0.0:
+                ok = False
+                c = 1.0
+            a0[t] = f0 / c
+            a1[t] = f1 / c
+        b0 = 1.0
+        b1 = 1.0
+        for t in range(hi - 1, lo - 1, -1):
+            mz = a0[t] * b0 + a1[t] * b1
+            if not mz > 0.0:
+                ok = False
+                mz = 1.0
+            out[t] = a1[t] * b1 / mz
+            if t > lo:
+                r0 = p0[t] * b0
+                r1 = p1[t] * b1
+                nb0 = m00 * r0 + m10 * r1
+                nb1 = m01 * r0 + m11 * r1
+                bz = nb0 + nb1
+                if not bz > 0.0:
+                    ok = False
+                    bz = 1.0
+                b0 = nb0 / bz
+                b1 = nb1 / bz
+    return out, ok
+
+
+def binary_marginals(score1: FloatArray, trans: FloatArray, offsets: IntArray) -> FloatArray:
+    """``p(y_t = 1 | x)`` of binary chains with unary potentials ``(0, score1[t])``.
+
+    Parameters
+    ----------
+    score1 : ndarray, shape (n,)
+        Unary log-potential of ``y_t = 1`` (that of ``y_t = 0`` is 0), all chains.
+    trans : ndarray, shape (2, 2)
+    offsets : ndarray of int, shape (n_chains + 1,)
+
+    Returns
+    -------
+    ndarray, shape (n,)
+    """
+    sc = np.ascontiguousarray(score1, np.float64)
+    tc = np.ascontiguousarray(trans, np.float64)
+    oc = np.ascontiguousarray(offsets, np.int64)
+    if float(np.ptp(tc)) < 600.0:
+        marg, ok = _binary_marginals(sc, oc, tc)
+        if ok:
+            return marg
+    u = np.zeros((sc.size, 2))
+    u[:, 1] = sc
+    return forward_backward(u, tc, oc)[1][:, 1]
+
+
 def binary_expectations(
     x: FloatArray, offsets: IntArray, w: FloatArray, trans: FloatArray
 ) -> tuple[float, FloatArray, FloatArray]:
@@ -355,4 +445,10 @@ def binary_expectations(
     return float(lz.sum()), marg[:, 1] @ xc, pair_sum
 
 
-__all__ = ["binary_expectations", "forward_backward", "pairwise_marginals", "viterbi"]
+__all__ = [
+    "binary_expectations",
+    "binary_marginals",
+    "forward_backward",
+    "pairwise_marginals",
+    "viterbi",
+]

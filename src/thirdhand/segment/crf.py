@@ -20,7 +20,12 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
-from thirdhand.segment.chain import binary_expectations, forward_backward, viterbi
+from thirdhand.segment.chain import (
+    binary_expectations,
+    binary_marginals,
+    forward_backward,
+    viterbi,
+)
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.logistic import fit_logistic_newton
 
@@ -190,10 +195,8 @@ class PairCRF:
     def predict_proba(self, xs: Sequence[FloatArray]) -> list[FloatArray]:
         """Marginals ``p(y_t = 1 | x)`` per sequence, each of shape (n_i,)."""
         data = _Data(xs, None)
-        _, marg, _ = forward_backward(
-            _unary(data.x, self.coef_state_), self.coef_transition_, data.offsets
-        )
-        return self._split(data, np.clip(marg[:, 1], 0.0, 1.0))  # type: ignore[return-value]
+        marg = binary_marginals(data.x @ self.coef_state_, self.coef_transition_, data.offsets)
+        return self._split(data, np.clip(marg, 0.0, 1.0))  # type: ignore[return-value]
 
     def predict(self, xs: Sequence[FloatArray]) -> list[IntArray]:
         """Viterbi labelling per sequence, each of shape (n_i,)."""

@@ -320,8 +320,9 @@ def windowed_moments(
     """As :func:`windowed_variance`, also returning the window mean, shape (n_steps, d)."""
     if window < 1:
         raise SegmentationError(f"window must be at least 1 latent step, got {window}")
-    xv = np.where(valid[:, None], x, 0.0).astype(np.float64)
-    cnt, mean, m2 = _block_stats(xv, valid.astype(np.bool_), axis.frame_step, axis.n_steps)
+    xv = np.ascontiguousarray(x, dtype=np.float64)
+    vb = np.ascontiguousarray(valid, dtype=np.bool_)
+    cnt, mean, m2 = _block_stats(xv, vb, axis.frame_step, axis.n_steps)
     return _window_merge(cnt, mean, m2, int(window))
 
 
@@ -392,7 +393,7 @@ def pair_stats(
     )
     vp, n = windowed_variance(dp, v, axis, window)
     vr, _ = windowed_variance(dq, v, axis, window)
-    dist = np.sqrt(np.sum(dp * dp, axis=1))[:, None]
+    dist = np.sqrt(np.einsum("ij,ij->i", dp, dp))[:, None]
     _, _, mean_dist = windowed_moments(dist, v, axis, window)
     return BodyStats(var_pos=vp, var_rot=vr, count=n, distance=mean_dist[:, 0])
 
