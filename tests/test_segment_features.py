@@ -110,7 +110,7 @@ def test_pair_stats_matches_se3_relative_pose(rng: np.random.Generator) -> None:
 
 
 def test_design_matrix_log_transform_and_no_evidence_rows() -> None:
-    cfg = FeatureConfig(eps_pos=1e-6, eps_rot=1e-5, eps_dist=0.01)
+    cfg = FeatureConfig(eps_pos=1e-6, eps_rot=1e-5, distance=True, eps_dist=0.01)
     raw = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 2.0, 3.0, 4.0]])
     dist = np.array([0.0, 0.5])
     x = design_matrix(raw, np.array([True, False]), cfg, dist)

@@ -90,10 +90,10 @@ def test_malformed_model_files(tmp_path: Path) -> None:
     bad.write_text(json.dumps({"format": "other"}))
     with pytest.raises(ModelFileError, match="expected format"):
         load_model(bad)
-    doc = SegmentModel(FeatureConfig(), np.zeros((2, 2)), np.zeros(6)).to_dict()
+    doc = SegmentModel(FeatureConfig(), np.zeros((2, 2)), np.zeros(5)).to_dict()
     doc["theta"]["state"] = [1.0, 2.0]
     bad.write_text(json.dumps(doc))
-    with pytest.raises(ModelFileError, match="6 state weights"):
+    with pytest.raises(ModelFileError, match="5 state weights"):
         load_model(bad)
     with pytest.raises(ModelFileError, match="cannot read"):
         load_model(tmp_path / "absent.json")
