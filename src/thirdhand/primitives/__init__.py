@@ -1,0 +1,27 @@
+"""Motor primitives: DMPs (position and orientation), ProMPs, alignment, the primitive library.
+
+::
+
+    from thirdhand.primitives import DMP, PoseDMP, ProMP, PrimitiveLibrary
+
+    dmp = PoseDMP(30).fit(t, pos, quat)                  # child in parent frame
+    s, p, q = dmp.rollout(start_pos=new_start)           # still reaches the goal
+    lib = PrimitiveLibrary(3, threshold=0.05).fit([(t, y), ...])
+    lib.parse(t_new, y_new).bounds                       # most likely segmentation
+"""
+
+from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.dmp import DMP
+from thirdhand.primitives.library import Parse, PrimitiveLibrary
+from thirdhand.primitives.promp import ProMP
+from thirdhand.primitives.quaternion_dmp import PoseDMP, QuaternionDMP
+
+__all__ = [
+    "DMP",
+    "Parse",
+    "PoseDMP",
+    "PrimitiveError",
+    "PrimitiveLibrary",
+    "ProMP",
+    "QuaternionDMP",
+]

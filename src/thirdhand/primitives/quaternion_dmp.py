@@ -1,0 +1,355 @@
+"""Orientation DMPs: the quaternion DMP of Ude et al. (2014) and the seven-DMP variant.
+
+:class:`QuaternionDMP` works on the unit-quaternion group: with ``ω`` the angular
+velocity in the parent (base) frame, ``e = 2 log(g ⊗ q̄)`` the rotation vector that
+takes the current orientation to the goal, and the same phase and gains as
+:class:`~thirdhand.primitives.dmp.DMP`::
+
+    tau² ω̇ = K e − D tau ω − K e0 x + f(x),     q̇ = ½ ω ⊗ q
+
+(``e0`` is ``e`` at the start, the analogue of the ``(g − y0) x`` term).
+Integrated with RK4 on ``(q, ω)`` and a renormalisation after each step.
+
+:class:`PoseDMP` puts a position DMP beside either that orientation DMP
+(``orientation="quaternion"``) or, as in the 3rdHand report, one scalar DMP per
+quaternion component renormalised after integration (``orientation="seven"``).
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from thirdhand import se3
+from thirdhand.primitives._checks import PrimitiveError, check_trajectory, check_unit_quaternions
+from thirdhand.primitives.dmp import DMP, basis_centres, forcing_features, phase
+
+FloatArray = NDArray[np.float64]
+
+
+def quat_log(q: ArrayLike) -> FloatArray:
+    """Logarithm of unit quaternions (..., 4) x y z w: half the rotation vector, (..., 3).
+
+    Uses the shorter of ``q`` and ``−q`` so the result has norm at most π/2.
+    """
+    qa = np.asarray(q, dtype=np.float64)
+    qa = np.where(qa[..., 3:4] < 0.0, -qa, qa)
+    v = qa[..., :3]
+    nv = np.linalg.norm(v, axis=-1, keepdims=True)
+    ang = np.arctan2(nv, qa[..., 3:4])
+    scale = np.where(nv > 1e-12, ang / np.where(nv > 1e-12, nv, 1.0), 1.0)
+    return v * scale
+
+
+def quat_exp(r: ArrayLike) -> FloatArray:
+    """Exponential of pure quaternions (..., 3) into unit quaternions (..., 4) x y z w."""
+    ra = np.asarray(r, dtype=np.float64)
+    n = np.linalg.norm(ra, axis=-1, keepdims=True)
+    sinc = np.where(n > 1e-12, np.sin(n) / np.where(n > 1e-12, n, 1.0), 1.0)
+    return np.concatenate([ra * sinc, np.cos(n)], axis=-1)
+
+
+def angular_velocity(s: FloatArray, q: FloatArray) -> FloatArray:
+    """Angular velocity in the base frame, rad/s, shape (n, 3), from a continuous track (n, 4).
+
+    ``ω = 2 vec(q̇ ⊗ q̄)`` with ``q̇`` by second-order finite differences.
+    """
+    qd = np.gradient(q, s, axis=0, edge_order=2)
+    return 2.0 * se3.quat_multiply(qd, se3.quat_conjugate(q))[:, :3]
+
+
+class QuaternionDMP:
+    """Orientation DMP on unit quaternions (Ude, Nemec, Petrič, Morimoto 2014).
+
+    Parameters
+    ----------
+    n_weights : int
+        RBFs per rotation axis.
+    alpha : float
+        Damping ``D``; stiffness ``alpha² / 4``.
+    alpha_x : float, optional
+        Phase decay (default: phase 0.01 at the demonstrated duration).
+    regularization : float
+        Ridge coefficient.
+    substeps : int
+        RK4 steps per output sample.
+
+    Attributes
+    ----------
+    weights_ : ndarray, shape (n_weights, 3)
+    tau_, dt_ : float
+        Demonstrated duration and sample interval, seconds.
+    start_, goal_ : ndarray, shape (4,), x y z w
+    start_velocity_ : ndarray, shape (3,), rad/s, base frame
+    """
+
+    def __init__(
+        self,
+        n_weights: int = 30,
+        *,
+        alpha: float = 25.0,
+        alpha_x: float | None = None,
+        regularization: float = 1e-10,
+        substeps: int = 2,
+    ) -> None:
+        self.n_weights = n_weights
+        self.alpha = alpha
+        self.alpha_x = alpha_x
+        self.regularization = regularization
+        self.substeps = substeps
+
+    @property
+    def stiffness(self) -> float:
+        """``K = alpha² / 4``."""
+        return self.alpha**2 / 4.0
+
+    @property
+    def alpha_x_(self) -> float:
+        """The phase decay actually used."""
+        return float(-np.log(0.01)) if self.alpha_x is None else float(self.alpha_x)
+
+    def fit(self, t: ArrayLike, q: ArrayLike, *, name: str = "orientation track") -> QuaternionDMP:
+        """Learn from one orientation track.
+
+        Parameters
+        ----------
+        t : array_like, shape (n,)
+            Strictly increasing times, seconds.
+        q : array_like, shape (n, 4)
+            Quaternions x y z w; normalised and made sign-continuous here (sign
+            flips in the input are harmless).
+        """
+        ta, qa = check_trajectory(t, q, name=name)
+        qa = check_unit_quaternions(qa, name=name)
+        s = ta - ta[0]
+        tau = float(s[-1])
+        w = angular_velocity(s, qa)
+        wd = np.gradient(w, s, axis=0, edge_order=2)
+        g, q0 = qa[-1], qa[0]
+        e = 2.0 * quat_log(se3.quat_multiply(g, se3.quat_conjugate(qa)))
+        e0 = e[0]
+        x = phase(s, tau, self.alpha_x_)
+        k, d = self.stiffness, self.alpha
+        target = tau**2 * wd - k * e + d * tau * w + k * e0 * x[:, None]
+        feats = forcing_features(x, *basis_centres(self.n_weights, self.alpha_x_))
+        gram = feats.T @ feats
+        gram[np.diag_indices_from(gram)] += self.regularization * max(np.trace(gram), 1e-12)
+        self.weights_ = np.linalg.solve(gram, feats.T @ target)
+        self.tau_ = tau
+        self.start_, self.goal_ = q0.copy(), g.copy()
+        self.start_velocity_ = w[0].copy()
+        self.dt_ = float(np.median(np.diff(s)))
+        return self
+
+    def rollout(
+        self,
+        *,
+        start: ArrayLike | None = None,
+        goal: ArrayLike | None = None,
+        start_velocity: ArrayLike | None = None,
+        duration: float | None = None,
+        run_time: float | None = None,
+        dt: float | None = None,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Integrate from one or several starts.
+
+        Parameters
+        ----------
+        start : array_like, shape (4,) or (batch, 4), optional
+            Start orientations x y z w; default the demonstrated one.
+        goal : array_like, shape (4,), optional
+        start_velocity : array_like, shape (3,) or (batch, 3), optional
+            rad/s in the base frame; default the demonstrated one (time-scaled).
+        duration, run_time, dt : float, optional
+            As in :meth:`DMP.rollout`.
+
+        Returns
+        -------
+        s : ndarray, shape (n,)
+        q : ndarray, shape (n, 4) or (n, batch, 4)
+            Unit quaternions x y z w (batch axis only when ``start`` is 2-D).
+        w : ndarray, shape (n, 3) or (n, batch, 3)
+            Angular velocity, rad/s, base frame.
+        """
+        tau = self.tau_ if duration is None else float(duration)
+        run = tau if run_time is None else float(run_time)
+        step = self.dt_ * tau / self.tau_ if dt is None else float(dt)
+        if not (tau > 0 and run > 0 and step > 0):
+            raise PrimitiveError(
+                f"quaternion DMP rollout: duration, run time and dt must be > 0, "
+                f"got {tau}, {run}, {step}"
+            )
+        n = max(round(run / step) + 1, 2)
+        s = np.linspace(0.0, run, n)
+        q0 = self.start_ if start is None else np.asarray(start, dtype=np.float64)
+        batched = q0.ndim == 2
+        q = np.atleast_2d(q0).copy()
+        if q.shape[-1] != 4 or not np.isfinite(q).all():
+            raise PrimitiveError(
+                f"quaternion DMP rollout: start must be (4,) or (b, 4), got {q.shape}"
+            )
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+        g = self.goal_ if goal is None else np.asarray(goal, dtype=np.float64).reshape(4)
+        g = g / np.linalg.norm(g)
+        if start_velocity is None:
+            w = np.broadcast_to(self.start_velocity_ * self.tau_ / tau, (q.shape[0], 3)).copy()
+        else:
+            w = np.broadcast_to(
+                np.asarray(start_velocity, dtype=np.float64), (q.shape[0], 3)
+            ).copy()
+        k, d = self.stiffness, self.alpha
+        e0 = 2.0 * quat_log(se3.quat_multiply(g, se3.quat_conjugate(q)))
+        # forcing minus the start-offset term on a half-step grid, for the RK4 stages
+        m = self.substeps
+        fine = np.linspace(0.0, run, 2 * m * (n - 1) + 1)
+        x = phase(fine, tau, self.alpha_x_)
+        fx = forcing_features(x, *basis_centres(self.n_weights, self.alpha_x_)) @ self.weights_
+        drive = (fx[:, None, :] - k * e0[None] * x[:, None, None]) / tau**2
+        h = (s[1] - s[0]) / m
+        g_b = np.broadcast_to(g, q.shape)
+
+        def deriv(qq: FloatArray, ww: FloatArray, j: int) -> tuple[FloatArray, FloatArray]:
+            e = 2.0 * quat_log(se3.quat_multiply(g_b, se3.quat_conjugate(qq)))
+            wdot = k / tau**2 * e - d / tau * ww + drive[j]
+            qdot = 0.5 * se3.quat_multiply(np.concatenate([ww, np.zeros((len(ww), 1))], 1), qq)
+            return qdot, wdot
+
+        q_out = np.empty((n, *q.shape))
+        w_out = np.empty((n, *w.shape))
+        q_out[0], w_out[0] = q, w
+        for i in range(1, n):
+            for sub in range(m):
+                j = 2 * ((i - 1) * m + sub)
+                k1q, k1w = deriv(q, w, j)
+                k2q, k2w = deriv(q + 0.5 * h * k1q, w + 0.5 * h * k1w, j + 1)
+                k3q, k3w = deriv(q + 0.5 * h * k2q, w + 0.5 * h * k2w, j + 1)
+                k4q, k4w = deriv(q + h * k3q, w + h * k3w, j + 2)
+                q = q + h / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q)
+                w = w + h / 6.0 * (k1w + 2 * k2w + 2 * k3w + k4w)
+                q /= np.linalg.norm(q, axis=1, keepdims=True)
+            q_out[i], w_out[i] = q, w
+        if not batched:
+            return s, q_out[:, 0], w_out[:, 0]
+        return s, q_out, w_out
+
+
+class PoseDMP:
+    """Position DMP plus an orientation DMP for a 6-DoF pose trajectory.
+
+    Parameters
+    ----------
+    n_weights : int
+        RBFs per dimension.
+    orientation : {"quaternion", "seven"}
+        ``"quaternion"``: :class:`QuaternionDMP` (Ude et al. 2014). ``"seven"``: one
+        scalar DMP per quaternion component, renormalised after integration (the
+        3rdHand report's variant).
+    alpha : float
+        Damping ``D``.
+
+    Attributes
+    ----------
+    position_ : DMP
+    orientation_ : QuaternionDMP or DMP
+    """
+
+    def __init__(
+        self,
+        n_weights: int = 30,
+        *,
+        orientation: Literal["quaternion", "seven"] = "quaternion",
+        alpha: float = 25.0,
+    ) -> None:
+        if orientation not in ("quaternion", "seven"):
+            raise PrimitiveError(
+                f"orientation must be 'quaternion' or 'seven', got {orientation!r}"
+            )
+        self.n_weights = n_weights
+        self.orientation = orientation
+        self.alpha = alpha
+
+    def fit(
+        self, t: ArrayLike, pos: ArrayLike, quat: ArrayLike, *, name: str = "pose trajectory"
+    ) -> PoseDMP:
+        """Learn from one trajectory: ``pos`` (n, 3) metres and ``quat`` (n, 4) x y z w."""
+        ta, pa = check_trajectory(t, pos, name=name)
+        _, qa = check_trajectory(ta, quat, name=name)
+        qa = check_unit_quaternions(qa, name=name)
+        self.position_ = DMP(self.n_weights, alpha=self.alpha).fit(ta, pa, name=name)
+        self.orientation_: QuaternionDMP | DMP
+        if self.orientation == "quaternion":
+            self.orientation_ = QuaternionDMP(self.n_weights, alpha=self.alpha).fit(
+                ta, qa, name=name
+            )
+        else:
+            self.orientation_ = DMP(self.n_weights, alpha=self.alpha).fit(ta, qa, name=name)
+        return self
+
+    def rollout(
+        self,
+        *,
+        start_pos: ArrayLike | None = None,
+        start_quat: ArrayLike | None = None,
+        goal_pos: ArrayLike | None = None,
+        goal_quat: ArrayLike | None = None,
+        duration: float | None = None,
+        run_time: float | None = None,
+        at_rest: bool = False,
+    ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Roll out the pose.
+
+        Parameters
+        ----------
+        start_pos, goal_pos : array_like, shape (3,), metres, optional
+        start_quat, goal_quat : array_like, shape (4,), x y z w, optional
+        duration, run_time : float, optional
+            As in :meth:`DMP.rollout`.
+        at_rest : bool
+            Start with zero velocity instead of the demonstrated one.
+
+        Returns
+        -------
+        s : ndarray, shape (n,), seconds
+        pos : ndarray, shape (n, 3), metres
+        quat : ndarray, shape (n, 4), x y z w, unit
+        """
+        s, p, _ = self.position_.rollout(
+            start=start_pos,
+            goal=goal_pos,
+            start_velocity=np.zeros(3) if at_rest else None,
+            duration=duration,
+            run_time=run_time,
+        )
+        o = self.orientation_
+        if isinstance(o, QuaternionDMP):
+            _, q, _ = o.rollout(
+                start=start_quat,
+                goal=goal_quat,
+                start_velocity=np.zeros(3) if at_rest else None,
+                duration=duration,
+                run_time=run_time,
+            )
+        else:
+            g = None if goal_quat is None else _near(goal_quat, o.goal_)
+            st = None if start_quat is None else _near(start_quat, o.start_)
+            _, q7, _ = o.rollout(
+                start=st,
+                goal=g,
+                start_velocity=np.zeros(4) if at_rest else None,
+                duration=duration,
+                run_time=run_time,
+            )
+            norms = np.linalg.norm(q7, axis=1, keepdims=True)
+            if (norms < 1e-9).any():
+                raise PrimitiveError("seven-DMP rollout passed through a zero quaternion")
+            q = q7 / norms
+        return s, p, q
+
+
+def _near(q: ArrayLike, ref: FloatArray) -> FloatArray:
+    """``q`` or ``−q``, whichever is closer to ``ref`` (component-wise DMPs need one sign)."""
+    qa = np.asarray(q, dtype=np.float64).reshape(4)
+    qa = qa / np.linalg.norm(qa)
+    return -qa if float(qa @ ref) < 0.0 else qa

@@ -1,0 +1,116 @@
+"""Dynamic programmes over cut points: segment marginals and the most likely segmentation.
+
+A trajectory with ``M`` candidate cuts has nodes ``0 … M+1`` (its start, the cuts,
+its end); a segmentation is a subset of the cuts, i.e. a path ``0 = a_0 < a_1 <
+… < a_m = M+1`` through the nodes, with probability proportional to
+``Π_h exp(score[a_h, a_{h+1}])`` under a uniform prior over the ``2^M`` subsets.
+The marginal of segment ``(a, b)`` — the sum of the posteriors of the
+segmentations that contain it, ``u_h = Σ_j γ_j [S_h ∈ D_j]`` — comes from one
+forward and one backward pass, ``O(M²)`` for given scores.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.special import logsumexp
+
+from thirdhand.primitives._checks import PrimitiveError
+
+FloatArray = NDArray[np.float64]
+
+
+def _check_scores(scores: FloatArray) -> int:
+    if scores.ndim != 2 or scores.shape[0] != scores.shape[1] or scores.shape[0] < 2:
+        raise PrimitiveError(
+            f"segment scores must be a square (M+2, M+2) array, got {scores.shape}"
+        )
+    if np.isnan(scores).any():
+        raise PrimitiveError("segment scores contain NaN")
+    return scores.shape[0]
+
+
+def segment_marginals(scores: FloatArray) -> tuple[FloatArray, float]:
+    """Posterior probability of every segment, by forward–backward over the cuts.
+
+    Parameters
+    ----------
+    scores : ndarray, shape (M+2, M+2)
+        ``scores[a, b]`` = log-likelihood of the segment from node ``a`` to node
+        ``b`` (only ``a < b`` is read; ``−inf`` forbids a segment).
+
+    Returns
+    -------
+    marginals : ndarray, shape (M+2, M+2)
+        ``u[a, b]``, zero below the diagonal.
+    log_z : float
+        ``log Σ_j Π_{h ∈ D_j} exp(score_h)`` over all segmentations.
+    """
+    n = _check_scores(scores)
+    upper = np.triu(np.ones((n, n), dtype=bool), k=1)
+    s = np.where(upper, scores, -np.inf)
+    alpha = np.full(n, -np.inf)
+    alpha[0] = 0.0
+    for b in range(1, n):
+        alpha[b] = logsumexp(alpha[:b] + s[:b, b])
+    beta = np.full(n, -np.inf)
+    beta[-1] = 0.0
+    for a in range(n - 2, -1, -1):
+        beta[a] = logsumexp(s[a, a + 1 :] + beta[a + 1 :])
+    log_z = float(alpha[-1])
+    if not np.isfinite(log_z):
+        raise PrimitiveError("no segmentation has a finite score (every path is forbidden)")
+    with np.errstate(invalid="ignore"):
+        u = np.exp(alpha[:, None] + s + beta[None, :] - log_z)
+    return np.where(upper, np.nan_to_num(u, nan=0.0), 0.0), log_z
+
+
+def best_segmentation(scores: FloatArray) -> tuple[list[int], float]:
+    """Most likely segmentation (Viterbi over the cuts).
+
+    Returns
+    -------
+    nodes : list of int
+        The path ``0 = a_0 < … < a_m = M+1``.
+    score : float
+        Its summed score.
+    """
+    n = _check_scores(scores)
+    upper = np.triu(np.ones((n, n), dtype=bool), k=1)
+    s = np.where(upper, scores, -np.inf)
+    best = np.full(n, -np.inf)
+    best[0] = 0.0
+    back = np.zeros(n, dtype=np.int64)
+    for b in range(1, n):
+        cand = best[:b] + s[:b, b]
+        back[b] = int(np.argmax(cand))
+        best[b] = cand[back[b]]
+    if not np.isfinite(best[-1]):
+        raise PrimitiveError("no segmentation has a finite score (every path is forbidden)")
+    path = [n - 1]
+    while path[-1] != 0:
+        path.append(int(back[path[-1]]))
+    return path[::-1], float(best[-1])
+
+
+def brute_force_marginals(scores: FloatArray) -> tuple[FloatArray, float]:
+    """Same as :func:`segment_marginals` by enumerating all ``2^M`` segmentations (M ≤ 16)."""
+    n = _check_scores(scores)
+    m = n - 2
+    if m > 16:
+        raise PrimitiveError(f"brute force over 2^{m} segmentations refused (M ≤ 16)")
+    logs, paths = [], []
+    for mask in itertools.product((False, True), repeat=m):
+        nodes = [0, *[i + 1 for i in range(m) if mask[i]], n - 1]
+        logs.append(sum(float(scores[a, b]) for a, b in itertools.pairwise(nodes)))
+        paths.append(nodes)
+    la = np.array(logs)
+    log_z = float(logsumexp(la))
+    gamma = np.exp(la - log_z)
+    u = np.zeros((n, n))
+    for g, nodes in zip(gamma, paths, strict=True):
+        for a, b in itertools.pairwise(nodes):
+            u[a, b] += g
+    return u, log_z
