@@ -1,0 +1,1 @@
+"""Relational domains: blocks world, chair world, assembly plans."""

@@ -1,0 +1,119 @@
+"""Blocks world with colours, and the variant with an unmovable block.
+
+Objects are the blocks ``b1..bn`` and ``floor``; predicates ``on(X,Y)``,
+``clear(X)``, ``cube(X)``, ``floor(X)``, ``red(X)``, ``blue(X)``, ``movable(X)``.
+``move(X,Y)`` has three rules (block to block, block to floor, floor to block);
+``wait()`` is always applicable and changes nothing.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.relational.logic import Atom, RelationalError, parse_atom
+from thirdhand.relational.mdp import ActionSchema, Domain, GroundMDP, Rule, State, ground
+
+PREDICATES = {"on": 2, "clear": 1, "cube": 1, "floor": 1, "red": 1, "blue": 1, "movable": 1}
+REWARDS = ("stack", "unstack")
+
+
+def _fix(text: str) -> tuple[Atom, ...]:
+    return tuple(parse_atom(t) for t in text.split(";"))
+
+
+_MOVE = ActionSchema(
+    "move",
+    ("X", "Y"),
+    (
+        Rule(
+            _fix("on(X,Z);clear(X);clear(Y);cube(Y);cube(Z);movable(X)"),
+            _fix("on(X,Y);clear(X);cube(Y);cube(Z);clear(Z);movable(X)"),
+        ),
+        Rule(
+            _fix("on(X,Z);clear(X);floor(Y);cube(Z);movable(X)"),
+            _fix("on(X,Y);clear(X);floor(Y);cube(Z);clear(Z);movable(X)"),
+        ),
+        Rule(
+            _fix("on(X,Z);clear(X);clear(Y);cube(Y);floor(Z);movable(X)"),
+            _fix("on(X,Y);clear(X);cube(Y);floor(Z);movable(X)"),
+        ),
+    ),
+)
+_WAIT = ActionSchema("wait", (), (Rule((), ()),))
+
+
+def block_names(n_blocks: int) -> tuple[str, ...]:
+    """``("b1", ..., "bn")``."""
+    return tuple(f"b{i + 1}" for i in range(n_blocks))
+
+
+def tower_heights(state: State) -> tuple[int, ...]:
+    """The relational configuration: sorted heights of the towers."""
+    below = {a.args[0]: a.args[1] for a in state if a.pred == "on"}
+    heights: dict[str, int] = {}
+    for b, under in below.items():
+        if under == "floor":
+            heights[b] = 0
+    for b in below:
+        h, x = 0, b
+        while below[x] != "floor":
+            x, h = below[x], h + 1
+        heights[x] = max(heights[x], h)
+    return tuple(sorted(h + 1 for h in heights.values()))
+
+
+def blocks_domain(n_blocks: int, *, unmovable: tuple[str, ...] = ()) -> Domain:
+    """The blocks world with ``n_blocks`` blocks (odd ones red, even ones blue).
+
+    ``unmovable`` blocks lack ``movable(X)``, so ``move`` never applies to them.
+    """
+    if n_blocks < 1:
+        raise RelationalError(f"blocks world: expected at least 1 block, got {n_blocks}")
+    return Domain(
+        f"blocks{n_blocks}",
+        PREDICATES,
+        (*block_names(n_blocks), "floor"),
+        (_MOVE, _WAIT),
+        tower_heights,
+    )
+
+
+def floor_state(n_blocks: int, *, unmovable: tuple[str, ...] = ()) -> State:
+    """Every block on the floor (with the static colour, cube and movable atoms)."""
+    atoms = {Atom("floor", ("floor",))}
+    for i, b in enumerate(block_names(n_blocks)):
+        atoms |= {Atom("on", (b, "floor")), Atom("clear", (b,)), Atom("cube", (b,))}
+        atoms.add(Atom("red" if i % 2 == 0 else "blue", (b,)))
+        if b not in unmovable:
+            atoms.add(Atom("movable", (b,)))
+    return frozenset(atoms)
+
+
+@lru_cache(maxsize=16)
+def blocks_mdp(n_blocks: int, *, unmovable: tuple[str, ...] = ()) -> GroundMDP:
+    """The grounded blocks world (cached). With ``unmovable``, the states are those of
+    the movable world (every configuration), with the unmovable blocks frozen."""
+    if not unmovable:
+        return ground(blocks_domain(n_blocks), [floor_state(n_blocks)])
+    full = blocks_mdp(n_blocks)
+    starts = [s - {Atom("movable", (b,)) for b in unmovable} for s in full.states]
+    return ground(blocks_domain(n_blocks, unmovable=unmovable), starts)
+
+
+def blocks_reward(mdp: GroundMDP, kind: str) -> NDArray[np.float64]:
+    """True reward per pair, shape (P,): ``stack`` (one tower) or ``unstack`` (all on the floor)."""
+    f = mdp.domain.objects.index("floor")
+    n_blocks = len(mdp.domain.objects) - 1
+    on_floor = mdp.tables["on"][:, :, f].sum(axis=1)
+    if kind == "stack":
+        goal = on_floor == 1
+    elif kind == "unstack":
+        goal = on_floor == n_blocks
+    else:
+        raise RelationalError(
+            f"blocks world: unknown reward {kind!r}, expected one of {', '.join(REWARDS)}"
+        )
+    return goal.astype(np.float64)[mdp.pair_state]
