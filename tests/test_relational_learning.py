@@ -1,0 +1,191 @@
+"""Relational IRL: expert data, BLMRIL, RCSI, shaping, experiments, plans, CLI."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from thirdhand.relational.assembly import learn_assembly, load_trajectory, part_names, plan_assembly
+from thirdhand.relational.boosting import fit_boosted
+from thirdhand.relational.cli import app
+from thirdhand.relational.csi import csi_targets, fit_rcsi
+from thirdhand.relational.data import expert_pairs, random_pairs, wait_kind
+from thirdhand.relational.domains.blocks import blocks_mdp, blocks_reward
+from thirdhand.relational.domains.plans import (
+    PlanModel,
+    Step,
+    Trajectory,
+    expert_pairs_of,
+    parts_of,
+)
+from thirdhand.relational.evaluate import perf_of_reward, perf_of_scores
+from thirdhand.relational.experiments import Trial, format_table, run_experiment, run_trial
+from thirdhand.relational.logic import RelationalError
+from thirdhand.relational.mdp import optimal_pairs, value_iteration
+from thirdhand.relational.shaping import binned_entropy, fit_shaping
+
+
+def test_expert_and_random_pairs() -> None:
+    mdp = blocks_mdp(4)
+    r = blocks_reward(mdp, "unstack")
+    e = expert_pairs(mdp, r, 20, np.random.default_rng(0))
+    _, q = value_iteration(mdp, r, 0.9)
+    assert optimal_pairs(mdp, q)[e].all()
+    waits = np.flatnonzero(mdp.pair_kind[e] == wait_kind(mdp))
+    assert waits.size == 20 and waits[-1] == e.size - 1
+    # Consecutive steps of an episode chain through the transitions.
+    starts = np.r_[0, waits[:-1] + 1]
+    for a, b in zip(starts, waits, strict=True):
+        assert np.array_equal(mdp.pair_next[e[a:b]], mdp.pair_state[e[a + 1 : b + 1]])
+    d = random_pairs(mdp, 500, np.random.default_rng(1))
+    assert d.min() >= 0 and d.max() < mdp.n_pairs
+
+
+def test_perf_of_true_reward_is_one() -> None:
+    mdp = blocks_mdp(4)
+    r = blocks_reward(mdp, "stack")
+    states = mdp.sample_states(200, np.random.default_rng(0))
+    assert perf_of_reward(mdp, r, r, 0.9, states) == pytest.approx(1.0)
+    # A reward that prefers the opposite task does worse.
+    assert perf_of_reward(mdp, blocks_reward(mdp, "unstack"), r, 0.9, states) < 0.5
+
+
+def test_blmril_and_rcsi_unstack() -> None:
+    mdp = blocks_mdp(5)
+    r = blocks_reward(mdp, "unstack")
+    rng = np.random.default_rng(3)
+    e = expert_pairs(mdp, r, 15, rng)
+    d = random_pairs(mdp, 300, rng)
+    states = mdp.sample_states(500, rng)
+    q = fit_boosted([(mdp, e)], n_trees=40)
+    assert perf_of_scores(mdp, q.predict(mdp), r, 0.9, states) > 0.9
+    model = fit_rcsi([(mdp, e)], [(mdp, d)], q=q)
+    assert perf_of_reward(mdp, model.reward_of(mdp), r, 0.9, states) > 0.95
+    # The targets are the classifier's implied rewards.
+    t = csi_targets(q, mdp, e[:1], 0.9)
+    nxt = mdp.pair_next[e[0]]
+    best = q.predict(mdp, np.arange(mdp.ptr[nxt], mdp.ptr[nxt + 1])).max()
+    assert t[0] == pytest.approx(q.predict(mdp, e[:1])[0] - 0.9 * best)
+
+
+def test_boosting_separates_expert_actions() -> None:
+    mdp = blocks_mdp(4)
+    r = blocks_reward(mdp, "stack")
+    e = expert_pairs(mdp, r, 30, np.random.default_rng(0))
+    q = fit_boosted([(mdp, e)], n_trees=40).predict(mdp)
+    s = mdp.pair_state[e]
+    best = np.maximum.reduceat(q, mdp.ptr[:-1])
+    # The expert's action scores highest in most demonstrated states.
+    assert np.mean(q[e] >= best[s] - 1e-9) > 0.9
+    with pytest.raises(RelationalError, match="no expert example"):
+        fit_boosted([(mdp, np.zeros(0, dtype=np.int64))])
+
+
+def test_entropy_and_shaping() -> None:
+    assert binned_entropy(np.array([0.0, 0.0, 1.0, 1.0]), 0.5) == pytest.approx(np.log(2))
+    rng = np.random.default_rng(0)
+    phi = rng.random((200, 3))
+    phi_n = rng.random((200, 3))
+    w_true = np.array([1.0, -2.0, 0.5])
+    # Targets = a two-valued signal distorted by a shaping term; CMA-ES undoes it.
+    base = rng.integers(0, 2, 200).astype(float)
+    targets = base - (phi - 0.9 * phi_n) @ w_true
+    w = fit_shaping(phi, phi_n, targets, 0.9, seed=0, max_evals=2000)
+    width = float(np.std(targets)) / 8
+    after = binned_entropy(targets + (phi - 0.9 * phi_n) @ w, width)
+    assert after < binned_entropy(targets, width)
+
+
+def test_trial_and_table() -> None:
+    trial = Trial("unstack", ("blocks4",), ("blocks4", "blocks4-fixed"), n_trees=10, n_eval=100)
+    res = run_trial(trial)
+    assert set(res) == {"BLMRIL", "RCSI", "RCSI+shaping"}
+    for per in res.values():
+        assert set(per) == {"blocks4", "blocks4-fixed"}
+        assert all(0.0 <= v <= 1.0 + 1e-9 for v in per.values())
+    with pytest.raises(RelationalError, match="unknown experiment"):
+        run_experiment("bogus")
+    table = format_table(
+        {
+            "experiment": "noise",
+            "runs": 3,
+            "columns": ["RCSI"],
+            "rows": [
+                {"label": "stack", "values": {"RCSI": (0.9, 0.01, 3)}, "paper": {"RCSI": 0.97}}
+            ],
+        }
+    )
+    assert "0.900 ± 0.010" in table and "RCSI: 0.97" in table
+
+
+CHAIR_PLANS = [
+    ["leg2", "leg3", "leg1", "leg4", "back"],
+    ["leg1", "leg4", "leg2", "leg3", "back"],
+    ["leg3", "leg1", "leg4", "leg2", "back"],
+]
+
+
+def _chair(order: list[str], source: str = "demo") -> Trajectory:
+    return Trajectory(tuple(Step("seating", c, f"c{i + 1}") for i, c in enumerate(order)), source)
+
+
+def test_plans_learn_and_transfer() -> None:
+    model = learn_assembly([_chair(o) for o in CHAIR_PLANS], n_trees=20)
+    bench = plan_assembly(model, part_names({"seating": 1, "leg": 4}))
+    assert bench.complete and len(bench.steps) == 4 and bench.perf > 0.99
+    three = plan_assembly(model, part_names({"seating": 1, "leg": 3, "back": 1}))
+    assert three.complete and three.steps[-1] == "action(seating,back,c)"
+    assert sorted(three.steps[:3]) == [f"action(seating,leg{i},c)" for i in (1, 2, 3)]
+
+
+def test_plans_malformed() -> None:
+    good = _chair(CHAIR_PLANS[0])
+    pm = PlanModel.from_trajectories([good])
+    mdp, _ = pm.ground(parts_of(good))
+    twice = Trajectory((Step("seating", "leg1", "c1"), Step("seating", "leg1", "c2")), "bad.json")
+    with pytest.raises(
+        RelationalError, match=r"bad.json step 1: action action\(seating,leg1,c\) is not applicable"
+    ):
+        expert_pairs_of(pm, mdp, twice)
+    with pytest.raises(RelationalError, match="no step"):
+        PlanModel.from_trajectories([Trajectory((), "empty")])
+
+
+def _task(path: Path, order: list[str]) -> Path:
+    doc = {
+        "schema": "thirdhand.task/1",
+        "objects": [{"name": n} for n in ["seating", *order]],
+        "plan": [
+            {"parent": "seating", "child": c, "symbol": f"c{i + 1}"} for i, c in enumerate(order)
+        ],
+    }
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_cli_learn_from_task_files(tmp_path: Path) -> None:
+    files = [_task(tmp_path / f"t{i}.json", o) for i, o in enumerate(CHAIR_PLANS)]
+    assert load_trajectory(files[0]).steps[0] == Step("seating", "leg2", "c1")
+    out = tmp_path / "out.json"
+    res = CliRunner().invoke(app, ["learn", *map(str, files), "--legs", "5", "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    plans = json.loads(out.read_text())["plans"]
+    assert plans["bench"]["complete"] and plans["chair with 5 legs"]["complete"]
+    assert len(plans["chair with 5 legs"]["steps"]) == 6
+    empty = tmp_path / "empty.json"
+    empty.write_text(json.dumps({"schema": "thirdhand.task/1"}))
+    res = CliRunner().invoke(app, ["learn", str(empty)])
+    assert isinstance(res.exception, RelationalError) and "has no plan" in str(res.exception)
+
+
+def test_cli_experiment(tmp_path: Path) -> None:
+    out = tmp_path / "dyn.json"
+    res = CliRunner().invoke(app, ["experiment", "dynamics", "--runs", "2", "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "0.98 -> 0.57" in res.output
+    data = json.loads(out.read_text())
+    assert data["runs"] == 2 and len(data["rows"]) == 2
