@@ -9,6 +9,7 @@ Objects are the blocks ``b1..bn`` and ``floor``; predicates ``on(X,Y)``,
 from __future__ import annotations
 
 from functools import lru_cache
+from itertools import pairwise
 
 import numpy as np
 from numpy.typing import NDArray
@@ -101,6 +102,40 @@ def blocks_mdp(n_blocks: int, *, unmovable: tuple[str, ...] = ()) -> GroundMDP:
     full = blocks_mdp(n_blocks)
     starts = [s - {Atom("movable", (b,)) for b in unmovable} for s in full.states]
     return ground(blocks_domain(n_blocks, unmovable=unmovable), starts)
+
+
+def partitions(n: int, largest: int | None = None) -> list[tuple[int, ...]]:
+    """Integer partitions of ``n`` (tower heights, non-increasing)."""
+    if n == 0:
+        return [()]
+    top = n if largest is None else min(n, largest)
+    return [(h, *rest) for h in range(top, 0, -1) for rest in partitions(n - h, h)]
+
+
+def random_state(n_blocks: int, rng: np.random.Generator) -> State:
+    """A state from P_state without enumeration: tower heights (a partition) uniformly,
+    then the blocks in a uniformly random order."""
+    parts = partitions(n_blocks)
+    heights = parts[int(rng.integers(len(parts)))]
+    order = [block_names(n_blocks)[i] for i in rng.permutation(n_blocks)]
+    atoms = set(floor_state(n_blocks)) - {
+        a for a in floor_state(n_blocks) if a.pred in ("on", "clear")
+    }
+    k = 0
+    for h in heights:
+        tower = order[k : k + h]
+        k += h
+        atoms.add(Atom("on", (tower[0], "floor")))
+        atoms.update(Atom("on", (a, b)) for b, a in pairwise(tower))
+        atoms.add(Atom("clear", (tower[-1],)))
+    return frozenset(atoms)
+
+
+def optimal_steps(state: State, kind: str) -> int:
+    """Fewest moves to the goal: stack n − (tallest tower), unstack the blocks not on the floor."""
+    heights = tower_heights(state)
+    n = sum(heights)
+    return n - max(heights) if kind == "stack" else n - len(heights)
 
 
 def blocks_reward(mdp: GroundMDP, kind: str) -> NDArray[np.float64]:
