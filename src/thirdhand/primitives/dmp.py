@@ -10,7 +10,11 @@ and the transformation system is the goal-offset form of Pastor et al. (2009)::
     tau² ÿ = K (g − y) − D tau ẏ − K (g − y0) x + f(x),
     f(x)   = x Σ_i ψ_i(x) w_i / Σ_i ψ_i(x),   ψ_i(x) = exp(−h_i (x − c_i)²)
 
-with ``D = alpha`` and ``K = alpha² / 4`` (critically damped). The ``(g − y0) x``
+with ``D = alpha`` and ``K = alpha² / 4`` (critically damped). Beyond the
+demonstrated duration the forcing term is faded out by a half-Gaussian gate
+(width ``TAIL_WIDTH × tau``): the last RBF weights can be large when a
+demonstration stops abruptly, and ``x`` alone would let them act long after
+``tau``; with the gate the spring–damper settles on the goal. The ``(g − y0) x``
 term makes the learnt forcing term the deviation from a straight approach, so a
 new start or goal keeps the shape and the goal is reached whatever ``g − y0``
 is (no division by a near-zero ``g − y0``).
@@ -35,10 +39,20 @@ FloatArray = NDArray[np.float64]
 #: Phase at the end of the demonstrated duration (sets ``alpha_x``).
 FINAL_PHASE = 0.01
 
+#: Width of the forcing term's fade-out after ``tau``, as a fraction of ``tau``.
+TAIL_WIDTH = 0.05
+
 
 def phase(s: ArrayLike, tau: float, alpha_x: float) -> FloatArray:
     """Canonical phase ``exp(−alpha_x s / tau)``, shape of ``s`` (``s`` in seconds)."""
     return np.exp(-alpha_x * np.asarray(s, dtype=np.float64) / tau)
+
+
+def tail_gate(s: ArrayLike, tau: float) -> FloatArray:
+    """1 up to ``tau``, then ``exp(−½ ((s − tau) / (TAIL_WIDTH tau))²)``, shape of ``s``."""
+    sa = np.asarray(s, dtype=np.float64)
+    over = np.maximum(sa - tau, 0.0) / (TAIL_WIDTH * tau)
+    return np.exp(-0.5 * over**2)
 
 
 def basis_centres(n_weights: int, alpha_x: float) -> tuple[FloatArray, FloatArray]:
@@ -259,7 +273,7 @@ class DMP:
             v0 = _vec(start_velocity, dims, "start velocity")
         x = phase(s, tau, self.alpha_x_)
         k = self.stiffness
-        u = (self.forcing(x) - k * (g - y0) * x[:, None]) / tau**2
+        u = (self.forcing(x) * tail_gate(s, tau)[:, None] - k * (g - y0) * x[:, None]) / tau**2
         e, ed = linear_rollout(s, u, y0 - g, v0, k=k, d=self.alpha, tau=tau)
         return s, e + g, ed
 

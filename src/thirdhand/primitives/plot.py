@@ -1,0 +1,85 @@
+"""Figures of learnt skills and parses (matplotlib, Agg backend; nothing is shown)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.primitives.library import Parse, PrimitiveLibrary
+
+FloatArray = NDArray[np.float64]
+
+
+def plot_library(
+    library: PrimitiveLibrary,
+    path: str | os.PathLike[str],
+    *,
+    tracks: Sequence[tuple[FloatArray, FloatArray]] = (),
+    n_samples: int = 20,
+    seed: int = 0,
+) -> None:
+    """Samples from each skill's ProMP (normalised segment frame) and parsed tracks.
+
+    Parameters
+    ----------
+    library : PrimitiveLibrary
+        Fitted.
+    path : path-like
+        PNG (or any matplotlib format) to write.
+    tracks : sequence of (t (n,), y (n, dims)), optional
+        Drawn below the skills, coloured by the skill of each parsed segment.
+    n_samples : int
+        Trajectories sampled per skill.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    skills = library.skills()
+    k = len(skills)
+    rows = 1 + len(tracks)
+    fig, axes = plt.subplots(rows, k, figsize=(3.2 * k, 2.6 * rows), squeeze=False)
+    z = np.linspace(0.0, 1.0, 60)
+    colours = plt.get_cmap("tab10")
+    for i, sk in enumerate(skills):
+        ax = axes[0, i]
+        samples = sk.sample(z, n_samples, rng=seed + i)
+        mean = sk.mean_trajectory(z)
+        if sk.dims_ == 1:
+            ax.plot(z, samples[:, :, 0].T, color=colours(i), alpha=0.3, lw=0.8)
+            ax.plot(z, mean[:, 0], color="k", lw=1.5)
+            ax.set_xlabel("phase")
+        else:
+            for s in samples:
+                ax.plot(s[:, 0], s[:, 1], color=colours(i), alpha=0.3, lw=0.8)
+            ax.plot(mean[:, 0], mean[:, 1], color="k", lw=1.5)
+            ax.set_aspect("equal", adjustable="datalim")
+        ax.set_title(f"skill {i} (π = {library.mixture_.weights_[i]:.2f})")
+    for r, (t, y) in enumerate(tracks, start=1):
+        parse = library.parse(t, y)
+        ax = axes[r, 0]
+        _draw_parse(ax, np.asarray(t), np.asarray(y), parse, colours)
+        for extra in axes[r, 1:]:
+            extra.axis("off")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _draw_parse(ax: object, t: FloatArray, y: FloatArray, parse: Parse, colours: object) -> None:
+    y2 = y[:, None] if y.ndim == 1 else y
+    for (a, b), lab in zip(
+        zip(parse.bounds[:-1], parse.bounds[1:], strict=True), parse.labels, strict=True
+    ):
+        if y2.shape[1] == 1:
+            ax.plot(t[a : b + 1], y2[a : b + 1, 0], color=colours(int(lab)))  # type: ignore[attr-defined, operator]
+        else:
+            ax.plot(y2[a : b + 1, 0], y2[a : b + 1, 1], color=colours(int(lab)))  # type: ignore[attr-defined, operator]
+    for c in parse.candidates:
+        if y2.shape[1] == 1:
+            ax.axvline(t[c], color="0.8", lw=0.5, zorder=0)  # type: ignore[attr-defined]
+    ax.set_title(f"parse: {len(parse.labels)} segments of {len(parse.candidates) + 1}")  # type: ignore[attr-defined]

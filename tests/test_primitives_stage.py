@@ -1,0 +1,142 @@
+"""Segments per constraint, the primitives stage, serialisation, alignment, generalisation."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from thirdhand import se3
+from thirdhand.primitives import PrimitiveError
+from thirdhand.primitives.align import average, dtw
+from thirdhand.primitives.segments import constraint_segments, group_segments
+from thirdhand.primitives.serialize import (
+    dmp_from_dict,
+    dmp_to_dict,
+    pose_dmp_from_dict,
+    promp_from_dict,
+)
+from thirdhand.primitives.stage import (
+    fit_constraint_primitive,
+    generalisation_check,
+    primitives_stage,
+    rollout_in_world,
+)
+from thirdhand.synth import make_scene
+
+
+@pytest.fixture(scope="module")
+def chair() -> list:
+    return [make_scene("chair", seed=s, sensor=None) for s in range(2)]
+
+
+def test_segments_end_at_the_constraint_pose(chair: list) -> None:
+    segs = constraint_segments(chair[0])
+    assert [s.event.child for s in segs] == [
+        e.child for e in sorted(chair[0].labels.constraints, key=lambda e: e.time)
+    ]
+    for s in segs:
+        np.testing.assert_allclose(s.pos[-1], s.event.pos, atol=2e-3)
+        assert se3.quat_angle(s.quat[-1], np.array(s.event.quat)) < np.radians(1.0)
+        assert s.t[-1] <= s.event.time + 1e-9
+        # the child was resting before the segment: it starts within the motion
+        assert s.duration > 1.0
+    starts = [s.t[0] for s in segs]
+    events = [s.event.time for s in segs]
+    assert all(a >= b for a, b in zip(starts[1:], events[:-1], strict=True))
+
+
+def test_keyframes_argument_moves_the_start(chair: list) -> None:
+    ev = sorted(chair[0].labels.constraints, key=lambda e: e.time)
+    late = ev[0].time - 0.5
+    segs = constraint_segments(chair[0], keyframe_times=[late, *[e.time for e in ev]])
+    assert segs[0].t[0] >= late
+
+
+def test_stage_block_is_json_and_rebuilds(chair: list) -> None:
+    block = primitives_stage(chair, promp_weights=5)
+    text = json.dumps(block)
+    back = json.loads(text)
+    assert set(back["constraints"]) == {"c1", "c2", "c3", "c4", "c5"}
+    c5 = back["constraints"]["c5"]
+    assert c5["n_examples"] == 2 and c5["child"] == "back"
+    dmp = pose_dmp_from_dict(c5["dmp"])
+    _, p, _ = dmp.rollout(
+        goal_pos=c5["goal"]["pos"], goal_quat=c5["goal"]["quat"], run_time=2 * dmp.position_.tau_
+    )
+    np.testing.assert_allclose(p[-1], c5["goal"]["pos"], atol=1e-4)
+    pm = promp_from_dict(c5["promp"])
+    assert pm.mean_trajectory([1.0]).shape == (1, 7)
+    for c in back["constraints"].values():
+        assert c["imitation_error"]["pos_m"] < 1e-3
+
+
+def test_dmp_dict_round_trip_is_exact(chair: list) -> None:
+    segs = group_segments([s for d in chair for s in constraint_segments(d)])
+    prim = fit_constraint_primitive(segs["c5"], n_weights=20)
+    for part in (prim.dmp.position_, prim.dmp.orientation_):
+        again = dmp_from_dict(json.loads(json.dumps(dmp_to_dict(part))))
+        np.testing.assert_array_equal(again.rollout()[1], part.rollout()[1])
+    with pytest.raises(PrimitiveError, match="missing field 'weights'"):
+        d = dmp_to_dict(prim.dmp.position_)
+        del d["weights"]
+        dmp_from_dict(d)
+
+
+def test_generalisation_from_a_range_of_starts(chair: list) -> None:
+    segs = group_segments([s for d in chair for s in constraint_segments(d)])
+    prim = fit_constraint_primitive(segs["c3"])
+    grid = np.array([[dx, 0.0, dz] for dx in (-0.2, 0.0, 0.2) for dz in (-0.2, 0.0, 0.2)])
+    pe, re = generalisation_check(
+        prim.dmp, goal_pos=prim.goal_pos, goal_quat=prim.goal_quat, offsets=grid, run_factor=2.0
+    )
+    assert pe.max() < 1e-3 and np.degrees(re.max()) < 0.1
+
+
+def test_primitive_transfers_when_the_parent_moves(chair: list) -> None:
+    segs = group_segments([s for d in chair for s in constraint_segments(d)])
+    prim = fit_constraint_primitive(segs["c5"], n_weights=30)
+    parent_p, parent_q = np.array([1.0, 2.0, 0.5]), np.array([0.0, 0.0, np.sin(0.6), np.cos(0.6)])
+    start_p, start_q = parent_p + np.array([0.3, 0.2, 0.4]), np.array([0.1, 0.0, 0.0, 1.0])
+    _, pw, qw = rollout_in_world(
+        prim.dmp,
+        parent_pos=parent_p,
+        parent_quat=parent_q,
+        start_pos=start_p,
+        start_quat=start_q / np.linalg.norm(start_q),
+        goal_pos=prim.goal_pos,
+        goal_quat=prim.goal_quat,
+        run_time=3 * prim.dmp.position_.tau_,
+    )
+    np.testing.assert_allclose(pw[0], start_p, atol=1e-12)
+    gp, gq = se3.pose_compose(parent_p, parent_q, prim.goal_pos, prim.goal_quat)
+    np.testing.assert_allclose(pw[-1], gp, atol=1e-4)
+    assert se3.quat_angle(qw[-1], gq) < 1e-4
+
+
+def test_dtw_identity_and_average() -> None:
+    a = np.sin(np.linspace(0, 3, 40))
+    path, cost = dtw(a, a)
+    assert cost == 0.0 and np.all(path[:, 0] == path[:, 1])
+    t = np.linspace(0, 1, 100)
+    warped = [(t, np.sin(np.pi * t ** (1 + 0.3 * i))[:, None]) for i in range(4)]
+    _, ph = average(warped, method="phase")
+    _, dt = average(warped, method="dtw")
+    assert dt.max() > ph.max()  # DTW keeps the peak that phase averaging blurs
+    assert dt.max() == pytest.approx(1.0, abs=2e-3)
+
+
+def test_average_handles_quaternion_sign_flips() -> None:
+    t = np.linspace(0, 1, 50)
+    q = np.stack([np.zeros(50), np.zeros(50), np.sin(t / 2), np.cos(t / 2)], axis=1)
+    flipped = q.copy()
+    flipped[10:20] *= -1
+    _, m = average([(t, q), (t, -flipped)], quaternion_columns=slice(0, 4))
+    assert se3.quat_angle(m, q).max() < 1e-9
+
+
+def test_no_constraint_is_a_clear_error(chair: list) -> None:
+    demo = chair[0].replace(labels=type(chair[0].labels)())
+    with pytest.raises(PrimitiveError, match="no constraint event"):
+        constraint_segments(demo)
