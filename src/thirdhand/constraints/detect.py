@@ -9,9 +9,11 @@ relying on the motion of at least one of the two parts:
 - *co-motion*: during the run one of the parts moves in the world (by more than
   ``co_motion``) while the other follows it; or
 - *approach*: the run starts as the child's motion relative to the parent stops
-  (there was relative motion just before) and, when segmentation phases are
-  given, a hand released the child (or still holds it) around that moment; the
-  parts are then also within ``contact_distance`` of each other.
+  (there was relative motion just before) and the parts are within
+  ``contact_distance`` of each other, or farther apart but the segmentation
+  phases (when given) show a hand holding one of them around that moment. The
+  CRF's hand phases are a weak cue on noisy data (they miss short grasps), so
+  they widen the evidence rather than veto it.
 
 Two parts that lie still on the table have a constant relative pose but neither
 kind of evidence. Pairs connected only through earlier constraints (two legs of
@@ -175,6 +177,9 @@ class DetectOptions:
     max_gap : float
         Constrained runs of a pair separated by at most this many seconds are one
         run (a step or two of poor tracking does not remove a constraint).
+    same_pose : tuple of (float, float)
+        Consecutive constrained runs of a pair whose poses agree within these
+        bounds (metres, radians) are one constraint.
     simultaneity : float
         Runs of several pairs starting within this many seconds of each other are
         candidates for one new constraint (the child joins a rigid group of parts:
@@ -208,6 +213,7 @@ class DetectOptions:
     min_duration: float = 0.5
     max_gap: float = 1.0
     simultaneity: float = 1.0
+    same_pose: tuple[float, float] = (0.02, math.radians(10.0))
     near_ratio: float = 1.5
     co_motion: tuple[float, float] = (0.03, math.radians(10.0))
     approach_motion: tuple[float, float] = (0.01, math.radians(5.0))
@@ -270,6 +276,31 @@ def _merge_runs(runs: list[tuple[int, int]], gap: int) -> list[tuple[int, int]]:
             out[-1] = (out[-1][0], hi)
         else:
             out.append((lo, hi))
+    return out
+
+
+def _merge_same_pose(
+    runs: list[tuple[int, int]],
+    p: FloatArray,
+    q: FloatArray,
+    fallback: FloatArray,
+    tol: tuple[float, float],
+) -> list[tuple[int, int]]:
+    """Join consecutive runs of one pair whose mean poses agree within ``tol`` (m, rad).
+
+    A real tracker (a camera on AR tags) loses a pose for seconds or jitters out of
+    the constrained state; the constraint is the same when the part comes back to
+    the same pose.
+    """
+    out: list[tuple[int, int]] = []
+    for lo, hi in runs:
+        if out:
+            p0, q0 = _run_pose(p[out[-1][0] : out[-1][1]], q[out[-1][0] : out[-1][1]], fallback)
+            p1, q1 = _run_pose(p[lo:hi], q[lo:hi], fallback)
+            if np.linalg.norm(p1 - p0) <= tol[0] and float(se3.quat_angle(q0, q1)) <= tol[1]:
+                out[-1] = (out[-1][0], hi)
+                continue
+        out.append((lo, hi))
     return out
 
 
@@ -371,7 +402,8 @@ def detect_constraints(
     candidates: list[tuple[float, int, int, int, float]] = []
     gap_steps = max(1, round(opt.max_gap / float(edges[1] - edges[0])))
     for k, (a, b) in enumerate(pairs):
-        for lo, hi in _merge_runs(_runs(posterior[k] > 0.5), gap_steps):
+        runs = _merge_runs(_runs(posterior[k] > 0.5), gap_steps)
+        for lo, hi in _merge_same_pose(runs, rel_p[k], rel_q[k], th_p[k], opt.same_pose):
             reaches_end = hi >= times.size - 1 or not np.any(
                 np.all(np.isfinite(rel_p[k, hi:]), axis=1)
             )
@@ -430,12 +462,13 @@ def _supported(
         return False
     pa = rel_p[k, lo:hi]
     dist = np.nanmedian(np.linalg.norm(pa, axis=1)) if np.any(np.isfinite(pa)) else np.inf
-    if not dist < opt.contact_distance:
-        return False
+    if dist < opt.contact_distance:
+        return True
+    # Farther apart: only when the segmentation saw a hand bring one of them there.
     if phases is not None and getattr(phases, "hands", None):
         t0, t1 = times[before], times[min(hi, lo + w) - 1]
         return _held(phases, a, t0, t1) or _held(phases, b, t0, t1)
-    return True
+    return False
 
 
 def _assign_parents(

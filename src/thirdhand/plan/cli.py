@@ -1,0 +1,127 @@
+"""``thirdhand learn`` and ``thirdhand experiment constraints|plan|corrections``.
+
+The integrator mounts :data:`learn_command` as ``thirdhand learn`` and
+:data:`experiment_app` as ``thirdhand experiment``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from thirdhand.errors import ThirdhandError
+
+out = Console(highlight=False, soft_wrap=True)
+err = Console(stderr=True, highlight=False, soft_wrap=True)
+
+app = typer.Typer(
+    help="Learn a task file from recordings; accuracy experiments.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+experiment_app = typer.Typer(
+    help="Accuracy experiments on synthetic scenes, beside the report's numbers.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+
+
+def _load(path: Path) -> object:
+    from thirdhand import io
+
+    if path.is_dir() and sorted(path.glob("*.bag")) and not (path / "metadata.yaml").exists():
+        from thirdhand.io import rosbag
+
+        return rosbag.read(sorted(path.glob("*.bag")))
+    return io.load(path)
+
+
+@app.command("learn")
+def learn_command(
+    demos: Annotated[
+        list[Path],
+        typer.Argument(
+            help="Recordings (any format thirdhand.io reads; a folder of ROS 1 .bag parts "
+            "is read as one recording)."
+        ),
+    ],
+    output: Annotated[Path, typer.Option("-o", "--output", help="Task file to write.")],
+    report: Annotated[
+        Path | None, typer.Option("--report", help="Folder for the HTML report.")
+    ] = None,
+    no_segment: Annotated[
+        bool, typer.Option("--no-segment", help="Skip the interaction segmentation.")
+    ] = False,
+) -> None:
+    """Learn constraints, symbols and the assembly plan; write the task file."""
+    from thirdhand.demonstration import Demonstration
+    from thirdhand.plan.learn import learn
+    from thirdhand.taskfile import save_task
+
+    try:
+        loaded = []
+        for p in demos:
+            d = _load(p)
+            assert isinstance(d, Demonstration)
+            loaded.append(d)
+        result = learn(loaded, names=[p.name for p in demos], segment=not no_segment, inputs=demos)
+        task = result.task()
+        save_task(task, output)
+    except ThirdhandError as exc:
+        err.print(f"error: {exc}")
+        raise typer.Exit(1) from None
+    out.print(f"root: {result.plan.root}")
+    for line in result.plan.lines():
+        out.print(f"  {line}")
+    out.print(f"{len(task.constraints)} constraints, {len(task.plan)} steps → {output}")
+    if report is not None:
+        from thirdhand.plan.report import write_report
+
+        out.print(f"report → {write_report(result, report)}")
+
+
+def _table(title: str, rows: list, ours: str = "thirdhand") -> None:
+    t = Table(title=title)
+    t.add_column("case")
+    t.add_column(ours)
+    t.add_column("report (its own data)")
+    for r in rows:
+        t.add_row(r.label, r.ours, r.report)
+    out.print(t)
+
+
+@experiment_app.command("constraints")
+def experiment_constraints(
+    seeds: Annotated[int, typer.Option(help="Seeds per scene and noise level.")] = 5,
+) -> None:
+    """Constraint pose error on the synthetic chair and bench across noise levels."""
+    from thirdhand.plan.experiments import constraint_error_table
+
+    _table("Constraint pose error", constraint_error_table(seeds=range(seeds)))
+
+
+@experiment_app.command("plan")
+def experiment_plan(
+    runs: Annotated[int, typer.Option(help="Seeded runs.")] = 96,
+    scene: Annotated[str, typer.Option(help="Synthetic scene.")] = "chair",
+) -> None:
+    """Plan success with 1–4 demonstrations."""
+    from thirdhand.plan.experiments import plan_success_table
+
+    _table("Plan success", plan_success_table(scene=scene, runs=runs))
+
+
+@experiment_app.command("corrections")
+def experiment_corrections(
+    seeds: Annotated[int, typer.Option(help="Seeds per scene.")] = 4,
+) -> None:
+    """Constraint parameters a user would still correct (chair of 30, bench)."""
+    from thirdhand.plan.experiments import corrections_table
+
+    _table("Parameters to correct", corrections_table(seeds=range(seeds)))

@@ -1,0 +1,288 @@
+"""Recordings to a task file: segmentation, constraint detection, symbols, plan.
+
+``learn(demos)`` runs the whole pipeline on one or several demonstrations of the
+same task and returns a :class:`Learned` bundle whose :meth:`Learned.task` is the
+``thirdhand.task/1`` document; :func:`run_stage` is the step of ``thirdhand demo``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from thirdhand.constraints.detect import (
+    ConstraintInstance,
+    DetectionResult,
+    DetectOptions,
+    detect_constraints,
+)
+from thirdhand.demonstration import Demonstration
+from thirdhand.plan.assembly import AssemblyPlan, plan_from_demos
+from thirdhand.plan.keyframes import Keyframe, keyframes
+from thirdhand.plan.symbols import Symbol, assign_symbols
+from thirdhand.taskfile import TaskFile
+
+_KINDS = {"part", "tool", "finger", "hand", "head"}
+
+
+@dataclass
+class Learned:
+    """Everything the pipeline found.
+
+    Attributes
+    ----------
+    demos : list of Demonstration
+    names : list of str
+        A name per demonstration (file name or ``demo1``...).
+    phases : list
+        Segmentation results (``thirdhand.segment.SegmentationResult``), or None each
+        when segmentation was skipped.
+    detections : list of DetectionResult
+    symbols : list of Symbol
+    plan : AssemblyPlan
+    keyframes : list of list of Keyframe
+        Per demonstration.
+    inputs : list of path-like
+        Files the demonstrations were read from (hashed into the provenance).
+    """
+
+    demos: list[Demonstration]
+    names: list[str]
+    phases: list[Any]
+    detections: list[DetectionResult]
+    symbols: list[Symbol]
+    plan: AssemblyPlan
+    keyframes: list[list[Keyframe]]
+    inputs: list[str | os.PathLike[str]] = field(default_factory=list)
+
+    @property
+    def instances(self) -> list[list[ConstraintInstance]]:
+        """Each demonstration's constraint instances."""
+        return [d.instances for d in self.detections]
+
+    def task(self) -> TaskFile:
+        """The task file: objects, one constraint per symbol, the plan, stage blocks."""
+        demo = self.demos[0]
+        objects = [
+            {"name": b.name, "kind": b.kind if b.kind in _KINDS else "other"} for b in demo.bodies
+        ]
+        known = {o["name"] for o in objects}
+        for d in self.demos[1:]:
+            for b in d.bodies:
+                if b.name not in known:
+                    objects.append({"name": b.name, "kind": b.kind})
+                    known.add(b.name)
+        by_symbol = {s.name: s for s in self.symbols}
+        constraints = []
+        for step in self.plan.steps:
+            s = by_symbol[step.symbol]
+            first = s.members[0]
+            constraints.append(
+                {
+                    "id": s.name,
+                    "parent": step.parent,
+                    "child": step.child,
+                    "type": s.type,
+                    "pos": [float(v) for v in s.pos],
+                    "quat": [float(v) for v in s.quat],
+                    "frame": {
+                        "pos": [float(v) for v in s.frame_pos],
+                        "quat": [float(v) for v in s.frame_quat],
+                    },
+                    "free_dofs": {
+                        n: (float(lo), float(hi))
+                        for n, (lo, hi) in zip(
+                            ("tx", "ty", "tz", "rx", "ry", "rz"), s.ranges, strict=True
+                        )
+                    },
+                    "symbol": s.name,
+                    "confidence": min(1.0, max(0.0, s.confidence)),
+                    "time": first.start,
+                    "demo": first.demo,
+                }
+            )
+        plan = []
+        kf0 = {(k.parent, k.child): k for k in self.keyframes[0]} if self.keyframes else {}
+        for step in self.plan.steps:
+            key = next(
+                (
+                    (m.parent, m.child)
+                    for m in by_symbol[step.symbol].members
+                    if m.demo == self.names[0]
+                ),
+                None,
+            )
+            kf = kf0.get(key) if key else None
+            plan.append(
+                {
+                    "parent": step.parent,
+                    "child": step.child,
+                    "symbol": step.symbol,
+                    "constraint": step.symbol,
+                    "time": step.times[0] if step.times else None,
+                    "keyframe": {
+                        n: {"pos": [float(v) for v in p], "quat": [float(v) for v in q]}
+                        for n, (p, q) in (kf.poses.items() if kf else [])
+                    },
+                    "after": list(step.after),
+                }
+            )
+        stages: dict[str, dict[str, Any]] = {
+            "constraints": {
+                "method": "two-state HMM per part pair, fixed-constraint observations, EM",
+                "root": self.plan.root,
+                "demos": [
+                    {
+                        "name": n,
+                        "root": det.root,
+                        "instances": [i.to_dict() for i in det.instances],
+                        "hmm": {
+                            "sigma_pos_m": det.params.sigma_pos,
+                            "sigma_rot_deg": math.degrees(det.params.sigma_rot),
+                            "transition": det.params.transition.tolist(),
+                        },
+                    }
+                    for n, det in zip(self.names, self.detections, strict=True)
+                ],
+            },
+            "plan": {
+                "n_demos": self.plan.n_demos,
+                "steps": [str(s) for s in self.plan.steps],
+                "relational_trajectory": [sorted(s) for s in self.plan.relational_trajectory()],
+                "interchangeable": [list(p) for p in self.plan.interchangeable()],
+            },
+        }
+        return TaskFile.new(
+            objects=objects,
+            constraints=constraints,
+            plan=plan,
+            stages=stages,
+            inputs=list(self.inputs),
+            parameters={"demos": self.names},
+        )
+
+
+def learn(
+    demos: Sequence[Demonstration],
+    *,
+    names: Sequence[str] | None = None,
+    phases: Sequence[Any] | None = None,
+    segment: bool = True,
+    options: DetectOptions | None = None,
+    inputs: Sequence[str | os.PathLike[str]] = (),
+) -> Learned:
+    """Run constraint detection, symbols and planning on one or several demonstrations.
+
+    Parameters
+    ----------
+    demos : sequence of Demonstration
+        Demonstrations of one task (same part names).
+    names : sequence of str, optional
+        A name per demonstration.
+    phases : sequence of SegmentationResult, optional
+        Segmentations already computed (one per demonstration); otherwise the CRF
+        runs when ``segment`` is true.
+    segment : bool
+        Run the interaction segmentation when ``phases`` is not given.
+    options : DetectOptions, optional
+    inputs : sequence of path-like
+        Source files, recorded in the provenance.
+    """
+    demo_list = list(demos)
+    nm = list(names) if names is not None else [f"demo{i + 1}" for i in range(len(demo_list))]
+    if phases is not None:
+        ph = list(phases)
+    elif segment:
+        from thirdhand.segment import segment_demonstration
+
+        ph = [segment_demonstration(d) for d in demo_list]
+    else:
+        ph = [None] * len(demo_list)
+    dets = [
+        detect_constraints(d, phases=p, options=options, demo_name=n)
+        for d, p, n in zip(demo_list, ph, nm, strict=True)
+    ]
+    all_inst = [i for det in dets for i in det.instances if i.end is None]
+    symbols = assign_symbols(all_inst)
+    plan = plan_from_demos([det.instances for det in dets], symbols)
+    kfs = [keyframes(d, det.instances) for d, det in zip(demo_list, dets, strict=True)]
+    return Learned(demo_list, nm, ph, dets, symbols, plan, kfs, list(inputs))
+
+
+def run_stage(
+    demos_or_demo: Demonstration | Sequence[Demonstration],
+    out_dir: Path,
+    summary: dict[str, Any],
+    *,
+    phases: Any = None,
+    report: bool = True,
+) -> TaskFile:
+    """The planning stage of ``thirdhand demo``: ``task.json`` and a ``report/`` folder.
+
+    Parameters
+    ----------
+    demos_or_demo : Demonstration or sequence of Demonstration
+    out_dir : pathlib.Path
+        Output folder.
+    summary : dict
+        Receives ``lines``, ``files`` and a ``plan`` block of figures.
+    phases : SegmentationResult or sequence of them, optional
+        The segmentation already computed (not recomputed when given).
+    report : bool
+        Write the HTML report.
+    """
+    from thirdhand.fileops import backup_existing
+    from thirdhand.taskfile import save_task
+
+    demos = [demos_or_demo] if isinstance(demos_or_demo, Demonstration) else list(demos_or_demo)
+    ph = None
+    if phases is not None:
+        ph = list(phases) if isinstance(phases, list | tuple) else [phases]
+    result = learn(demos, phases=ph)
+    task = result.task()
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / "task.json"
+    save_task(task, path)
+    summary.setdefault("files", []).append(str(path))
+    block: dict[str, Any] = {
+        "root": result.plan.root,
+        "steps": [str(s) for s in result.plan.steps],
+        "constraints": [
+            {
+                "child": i.child,
+                "parent": i.parent,
+                "type": i.type,
+                "start": i.start,
+                "symbol": i.symbol,
+            }
+            for i in result.instances[0]
+        ],
+    }
+    truth = demos[0].labels.constraints
+    if truth:
+        from thirdhand.plan.experiments import pose_errors
+
+        errs = pose_errors(result.instances[0], truth)
+        if errs:
+            block["pos_error_cm"] = 100 * float(sum(e[0] for e in errs) / len(errs))
+            block["rot_error_deg"] = float(sum(e[1] for e in errs) / len(errs))
+    summary["plan"] = block
+    line = f"plan: {len(result.plan.steps)} steps " + ", ".join(block["steps"])
+    if "pos_error_cm" in block:
+        line += f" (pose error {block['pos_error_cm']:.2f} cm, {block['rot_error_deg']:.2f}°)"
+    summary.setdefault("lines", []).append(f"{line} → {path}")
+    if report:
+        from thirdhand.plan.report import write_report
+
+        folder = out / "report"
+        if (folder / "index.html").exists():
+            backup_existing(folder / "index.html")
+        index = write_report(result, folder)
+        summary["files"].append(str(index))
+        summary["lines"].append(f"plan report → {index}")
+    return task
