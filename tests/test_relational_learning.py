@@ -23,7 +23,13 @@ from thirdhand.relational.domains.plans import (
     parts_of,
 )
 from thirdhand.relational.evaluate import perf_of_reward, perf_of_scores
-from thirdhand.relational.experiments import Trial, format_table, run_experiment, run_trial
+from thirdhand.relational.experiments import (
+    Trial,
+    format_markdown,
+    format_table,
+    run_experiment,
+    run_trial,
+)
 from thirdhand.relational.logic import RelationalError
 from thirdhand.relational.mdp import optimal_pairs, value_iteration
 from thirdhand.relational.shaping import binned_entropy, fit_shaping
@@ -120,6 +126,17 @@ def test_trial_and_table() -> None:
         }
     )
     assert "0.900 ± 0.010" in table and "RCSI: 0.97" in table
+    md = format_markdown(
+        {
+            "experiment": "noise",
+            "runs": 3,
+            "columns": ["RCSI"],
+            "rows": [
+                {"label": "stack", "values": {"RCSI": (0.9, 0.01, 3)}, "paper": {"RCSI": 0.97}}
+            ],
+        }
+    )
+    assert md.splitlines()[2] == "| stack | 0.900 ± 0.010 | RCSI: 0.97 |"
 
 
 CHAIR_PLANS = [

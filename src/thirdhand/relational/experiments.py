@@ -339,6 +339,23 @@ def format_table(result: dict[str, Any]) -> str:
     return "\n".join(out)
 
 
+def format_markdown(result: dict[str, Any]) -> str:
+    """The table of :func:`format_table` as Markdown."""
+    cols = result["columns"]
+    lines = [
+        "| setting | " + " | ".join(cols) + " | paper |",
+        "|" + "---|" * (len(cols) + 2),
+    ]
+    for r in result["rows"]:
+        cells = []
+        for c in cols:
+            v = r["values"].get(c)
+            cells.append("–" if v is None else f"{v[0]:.3f} ± {v[1]:.3f}")
+        paper = "; ".join(f"{k}: {v}" for k, v in r["paper"].items() if v != "")
+        lines.append(f"| {r['label']} | " + " | ".join(cells) + f" | {paper} |")
+    return "\n".join(lines)
+
+
 def run_experiment(
     name: str, *, runs: int = 100, jobs: int = 1, out: str | os.PathLike[str] | None = None
 ) -> dict[str, Any]:
