@@ -1,0 +1,98 @@
+"""Constraint detection over time: the HMM, exact recovery on synthetic scenes, real data."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from thirdhand import se3
+from thirdhand.constraints.detect import detect_constraints
+from thirdhand.constraints.hmm import HMMParams, forward_backward
+from thirdhand.constraints.types import ConstraintFitError
+from thirdhand.plan.experiments import corrections, pose_errors
+from thirdhand.synth import SensorModel, make_scene
+
+
+def test_forward_backward_matches_brute_force(rng: np.random.Generator) -> None:
+    n_t = 5
+    log_b = rng.normal(size=(2, n_t, 2))
+    trans = np.array([[0.9, 0.1], [0.3, 0.7]])
+    init = np.array([0.6, 0.4])
+    gamma, xi, loglik = forward_backward(log_b, trans, init)
+    total = 0.0
+    for p in range(2):
+        marg = np.zeros((n_t, 2))
+        z = 0.0
+        for path in itertools.product((0, 1), repeat=n_t):
+            w = init[path[0]] * math.exp(log_b[p, 0, path[0]])
+            for t in range(1, n_t):
+                w *= trans[path[t - 1], path[t]] * math.exp(log_b[p, t, path[t]])
+            z += w
+            for t, s in enumerate(path):
+                marg[t, s] += w
+        np.testing.assert_allclose(gamma[p], marg / z, rtol=1e-10)
+        total += math.log(z)
+    assert loglik == pytest.approx(total, rel=1e-10)
+    assert xi.sum() == pytest.approx(2 * (n_t - 1))
+
+
+@pytest.mark.parametrize("scene", ["chair", "bench"])
+def test_noise_free_scene_is_recovered_exactly(scene: str) -> None:
+    demo = make_scene(scene, seed=0, sensor=None)
+    det = detect_constraints(demo)
+    truth = demo.labels.constraints
+    assert det.root == "seating"
+    got = [(i.parent, i.child, i.type) for i in det.instances]
+    assert got == [(c.parent, c.child, c.type) for c in truth]
+    for inst, ev in zip(det.instances, truth, strict=True):
+        assert inst.end is None
+        assert abs(inst.start - ev.time) < 0.15
+        np.testing.assert_allclose(inst.pos, ev.pos, atol=1e-4)
+        assert float(se3.quat_angle(inst.quat, np.asarray(ev.quat))) < math.radians(0.05)
+        np.testing.assert_allclose(inst.ranges, np.asarray(ev.free_dofs), atol=1e-12)
+    assert corrections(det.instances, truth)[0] == 0
+
+
+def test_default_noise_chair_within_bounds() -> None:
+    demo = make_scene("chair", seed=1, sensor=SensorModel())
+    det = detect_constraints(demo)
+    errs = pose_errors(det.instances, demo.labels.constraints)
+    assert len(errs) == 5
+    assert max(e[0] for e in errs) <= 0.003
+    assert max(e[1] for e in errs) <= 1.5
+    wrong, total = corrections(det.instances, demo.labels.constraints)
+    assert total == 30
+    assert wrong <= 3
+
+
+def test_one_part_is_rejected() -> None:
+    demo = make_scene("chair", seed=0, sensor=None)
+    with pytest.raises(ConstraintFitError, match="at least two parts"):
+        detect_constraints(demo, parts=["seating"])
+    with pytest.raises(ConstraintFitError, match="no body 'stool'"):
+        detect_constraints(demo, parts=["seating", "stool"])
+
+
+def test_hmm_params_defaults_are_independent() -> None:
+    a, b = HMMParams(), HMMParams()
+    a.transition[0, 0] = 0.5
+    assert b.transition[0, 0] != 0.5
+
+
+def test_ikea_leg_goes_from_free_to_fixed(shared_data) -> None:  # type: ignore[no-untyped-def]
+    from thirdhand.io import rosbag
+
+    folder = shared_data / "niekum" / "ikea_table_leg_pos_1"
+    demo = rosbag.read([folder / f"part{i}.bag" for i in range(1, 5)])
+    det = detect_constraints(demo)
+    assert len(det.instances) == 1
+    inst = det.instances[0]
+    assert {inst.parent, inst.child} == {"ar_0", "ar_13"}
+    assert inst.type in ("fixed", "prismatic", "revolute")
+    assert inst.end is None
+    post = det.pair_posterior("ar_0", "ar_13")
+    assert np.nanmax(post[det.times < inst.start - 5.0]) < 0.5
+    assert 20.0 < inst.start < demo.t[-1] - 5.0

@@ -1,0 +1,98 @@
+"""Symbols, the assembly plan, ``learn`` and its task file, the CLI."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from thirdhand import io
+from thirdhand.plan.assembly import plan_success, truth_slot
+from thirdhand.plan.learn import learn, run_stage
+from thirdhand.synth import SensorModel, make_scene
+from thirdhand.taskfile import dump_task, load_task, parse_task
+
+
+def _bijection(pairs: list[tuple[str, str]]) -> bool:
+    fwd = dict(pairs)
+    return len(set(fwd.values())) == len(fwd) and all(fwd[a] == b for a, b in pairs)
+
+
+def test_noise_free_symbols_order_and_plan() -> None:
+    demos = [make_scene("chair", seed=s, sensor=None) for s in (0, 1)]
+    res = learn(demos, segment=False)
+    assert len(res.symbols) == 5
+    # Our symbols name the same slots as the truth's, whichever leg went where.
+    pairs = [
+        (i.symbol, ev.symbol)
+        for det, d in zip(res.detections, demos, strict=True)
+        for i, ev in zip(det.instances, d.labels.constraints, strict=True)
+    ]
+    assert _bijection(pairs)  # type: ignore[arg-type]
+    assert plan_success(res.plan, res.symbols, demos[0].labels.constraints)
+    # Legs went in different orders: some leg steps are interchangeable; the back is last.
+    assert res.plan.steps[-1].child == "back"
+    assert res.plan.interchangeable()
+    traj = res.plan.relational_trajectory()
+    assert traj[0] == frozenset() and len(traj[-1]) == 5
+    one = learn(demos[:1], segment=False)
+    order = [(s.parent, s.child) for s in one.plan.steps]
+    assert order == [(c.parent, c.child) for c in demos[0].labels.constraints]
+    for sym in one.symbols:
+        assert truth_slot(sym, demos[0].labels.constraints) is not None
+
+
+def test_plan_fails_when_a_slot_is_used_twice() -> None:
+    demo = make_scene("bench", seed=0, sensor=None)
+    res = learn([demo], segment=False)
+    assert plan_success(res.plan, res.symbols, demo.labels.constraints)
+    res.plan.steps[1].symbol = res.plan.steps[0].symbol
+    assert not plan_success(res.plan, res.symbols, demo.labels.constraints)
+
+
+def test_task_file_validates_and_round_trips(tmp_path: Path) -> None:
+    demo = make_scene("chair", seed=2, sensor=SensorModel())
+    summary: dict = {"lines": [], "files": []}
+    task = run_stage(demo, tmp_path, summary)
+    loaded = load_task(tmp_path / "task.json")
+    assert dump_task(parse_task(dump_task(loaded))) == dump_task(loaded)
+    assert len(task.constraints) == 5
+    by_child = {c.child: c for c in loaded.constraints}
+    for leg in ("leg1", "leg2", "leg3", "leg4"):
+        assert by_child[leg].free_dofs.free() == ["rx"]
+        assert by_child[leg].free_dofs.rx == pytest.approx((-np.pi, np.pi))
+    assert by_child["back"].free_dofs.free() == []
+    assert [s.constraint for s in loaded.plan] == [c.id for c in loaded.constraints]
+    assert all(s.keyframe for s in loaded.plan)
+    assert (tmp_path / "report" / "index.html").read_text().count("data:image/png") >= 2
+    assert summary["plan"]["pos_error_cm"] < 0.3
+    assert any(line.startswith("plan: 5 steps") for line in summary["lines"])
+
+
+def test_cli_learn(tmp_path: Path) -> None:
+    import typer
+
+    from thirdhand.plan.cli import learn_command
+
+    demo = make_scene("bench", seed=3, sensor=None)
+    path = tmp_path / "bench.parquet"
+    io.save(demo, path)
+    app = typer.Typer()
+    app.command()(learn_command)
+    r = CliRunner().invoke(
+        app, [str(path), "-o", str(tmp_path / "t.json"), "--report", str(tmp_path / "rep")]
+    )
+    assert r.exit_code == 0, r.output
+    assert "action(seating" in r.output
+    assert len(load_task(tmp_path / "t.json").constraints) == 4
+    r = CliRunner().invoke(app, [str(tmp_path / "missing.c3d"), "-o", str(tmp_path / "x.json")])
+    assert r.exit_code != 0
+
+
+def test_toolbox_excerpt_runs_despite_missing_frames(shared_data: Path, tmp_path: Path) -> None:
+    demo = io.load(shared_data / "3rdhand" / "toolbox_coop_4_excerpt")
+    summary: dict = {"lines": [], "files": []}
+    task = run_stage(demo, tmp_path, summary)
+    assert load_task(tmp_path / "task.json").schema_ == task.schema_
