@@ -96,3 +96,13 @@ def test_toolbox_excerpt_runs_despite_missing_frames(shared_data: Path, tmp_path
     summary: dict = {"lines": [], "files": []}
     task = run_stage(demo, tmp_path, summary)
     assert load_task(tmp_path / "task.json").schema_ == task.schema_
+
+
+def test_experiment_tables_with_few_runs() -> None:
+    from thirdhand.plan.experiments import corrections_table, plan_success_table
+
+    rows = plan_success_table(scene="bench", runs=1, max_demos=2, scale=None)
+    assert [r.ours for r in rows] == ["1.000 (1/1)", "1.000 (1/1)"]
+    assert rows[0].report == "0.52"
+    (row,) = corrections_table(scenes=("bench",), seeds=[0], scale=None)
+    assert row.ours.startswith("0.00 of 24")
