@@ -179,11 +179,13 @@ def _assign_children(order: list[str], seqs: list[list[ConstraintInstance]]) -> 
         if sym in order and sym not in out and child not in used:
             out[sym] = child
             used.add(child)
+    # Slots whose voted children are all taken get the parts still unused (identical
+    # parts, such as legs, go anywhere), so that every part is placed once.
+    spare = sorted({c for (_, c) in votes} - used)
     for sym in order:
         if sym not in out:
-            # Every candidate child is taken: keep the most voted one anyway.
             cands = sorted((v, c) for (s, c), v in votes.items() if s == sym)
-            out[sym] = cands[-1][1]
+            out[sym] = spare.pop(0) if spare else cands[-1][1]
     return out
 
 
