@@ -96,3 +96,29 @@ def test_ikea_leg_goes_from_free_to_fixed(shared_data) -> None:  # type: ignore[
     post = det.pair_posterior("ar_0", "ar_13")
     assert np.nanmax(post[det.times < inst.start - 5.0]) < 0.5
     assert 20.0 < inst.start < demo.t[-1] - 5.0
+
+
+def test_lid_on_its_hinge_is_revolute_with_its_opening_range() -> None:
+    demo = make_scene("lid", seed=0, sensor=None)
+    (ev,) = demo.labels.constraints
+    det = detect_constraints(demo)
+    (inst,) = det.instances
+    assert (inst.parent, inst.child, inst.type) == ("box", "lid", "revolute")
+    assert inst.free_dofs == ["rx"]
+    assert inst.ranges[3, 0] == pytest.approx(0.0, abs=1e-6)
+    # The range is the opening seen in the demonstration (at most the true 110°).
+    assert math.radians(60.0) < inst.ranges[3, 1] <= ev.free_dofs[3][1] + 1e-6
+    assert abs(inst.start - ev.time) < 0.3
+    np.testing.assert_allclose(inst.pos, ev.pos, atol=1e-3)
+
+
+def test_drawer_slides_in_its_rails() -> None:
+    demo = make_scene("drawer", seed=0, sensor=SensorModel())
+    (ev,) = demo.labels.constraints
+    (inst,) = detect_constraints(demo).instances
+    assert (inst.parent, inst.child, inst.type) == ("frame", "drawer", "prismatic")
+    assert inst.free_dofs == ["tx"]
+    assert inst.ranges[0, 1] > 0.1
+    np.testing.assert_allclose(inst.pos, ev.pos, atol=3e-3)
+    # The drawer comes in along its rails: the slide starts at or before the rails.
+    assert inst.start <= ev.time + 0.2

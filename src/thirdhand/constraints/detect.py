@@ -50,7 +50,8 @@ from numpy.typing import NDArray
 
 from thirdhand import se3
 from thirdhand.constraints.hmm import HMMParams, fit_hmm
-from thirdhand.constraints.types import DOF_NAMES, ConstraintFitError
+from thirdhand.constraints.select import fit_constraint
+from thirdhand.constraints.types import DOF_NAMES, Constraint, ConstraintFitError
 from thirdhand.demonstration import Demonstration
 
 FloatArray = NDArray[np.float64]
@@ -283,6 +284,7 @@ def _merge_same_pose(
     runs: list[tuple[int, int]],
     p: FloatArray,
     q: FloatArray,
+    held: BoolArray,
     fallback: FloatArray,
     tol: tuple[float, float],
 ) -> list[tuple[int, int]]:
@@ -295,8 +297,9 @@ def _merge_same_pose(
     out: list[tuple[int, int]] = []
     for lo, hi in runs:
         if out:
-            p0, q0 = _run_pose(p[out[-1][0] : out[-1][1]], q[out[-1][0] : out[-1][1]], fallback)
-            p1, q1 = _run_pose(p[lo:hi], q[lo:hi], fallback)
+            a, b = out[-1]
+            p0, q0 = _run_pose(p[a:b], q[a:b], fallback, held[a:b])
+            p1, q1 = _run_pose(p[lo:hi], q[lo:hi], fallback, held[lo:hi])
             if np.linalg.norm(p1 - p0) <= tol[0] and float(se3.quat_angle(q0, q1)) <= tol[1]:
                 out[-1] = (out[-1][0], hi)
                 continue
@@ -399,11 +402,12 @@ def detect_constraints(
         th_p[k], th_q[k] = _last_valid_pose(p, q)
     posterior, params, th_p, th_q = fit_hmm(rel_p, rel_q, th_p, th_q, n_iter=opt.n_iter)
     t_end = float(demo.t[-1])
-    candidates: list[tuple[float, int, int, int, float]] = []
+    candidates: list[_Run] = []
     gap_steps = max(1, round(opt.max_gap / float(edges[1] - edges[0])))
     for k, (a, b) in enumerate(pairs):
-        runs = _merge_runs(_runs(posterior[k] > 0.5), gap_steps)
-        for lo, hi in _merge_same_pose(runs, rel_p[k], rel_q[k], th_p[k], opt.same_pose):
+        held = posterior[k] > 0.5
+        runs = _merge_runs(_runs(held), gap_steps)
+        for lo, hi in _merge_same_pose(runs, rel_p[k], rel_q[k], held, th_p[k], opt.same_pose):
             reaches_end = hi >= times.size - 1 or not np.any(
                 np.all(np.isfinite(rel_p[k, hi:]), axis=1)
             )
@@ -411,9 +415,15 @@ def detect_constraints(
                 continue
             if _supported(k, lo, hi, a, b, pairs, world, rel_p, rel_q, times, phases, opt):
                 conf = float(np.nanmean(posterior[k, lo:hi]))
-                candidates.append((float(edges[lo]), k, lo, hi, conf))
-    candidates.sort()
-    instances, root = _assign_parents(candidates, pairs, th_p, rel_p, rel_q, times, t_end, opt)
+                start = _joint_start(rel_p[k], rel_q[k], held, lo, hi, params)
+                joint = start is not None
+                lo_j = lo if start is None else start
+                candidates.append(_Run(float(edges[lo_j]), k, lo_j, hi, conf, joint, held))
+    candidates.sort(key=lambda c: (c.start, c.k))
+    motion = {n: _path_length(*world[n]) for n in names}
+    instances, root = _assign_parents(
+        candidates, pairs, th_p, rel_p, rel_q, times, t_end, motion, opt
+    )
     for inst in instances:
         inst.demo = demo_name
     return DetectionResult(
@@ -424,6 +434,86 @@ def detect_constraints(
         root=root,
         params=params,
     )
+
+
+@dataclass
+class _Run:
+    """A candidate constraint: a pair's constrained span."""
+
+    start: float
+    k: int
+    lo: int
+    hi: int
+    conf: float
+    joint: bool
+    held: BoolArray
+
+
+def _path_length(pos: FloatArray, quat: FloatArray) -> float:
+    """Distance a body travels in the world, metres (over valid consecutive steps)."""
+    d = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    return float(np.nansum(d))
+
+
+def _joint_residuals(p: FloatArray, q: FloatArray, c: Constraint) -> tuple[FloatArray, FloatArray]:
+    """Distance (m) and angle (rad) of each pose from a prismatic or revolute joint's path."""
+    axis = np.asarray(c.axis, dtype=np.float64)
+    final_q = np.asarray(c.quat, dtype=np.float64)
+    # Orientation: the rotation from the final orientation, less its part about the axis
+    # (a slide keeps the orientation; a hinge turns about the axis only).
+    dq = se3.quat_multiply(q, se3.quat_conjugate(final_q))
+    dq = dq * np.where(dq[:, 3:4] < 0, -1.0, 1.0)
+    sin = np.linalg.norm(dq[:, :3], axis=1)
+    ang = 2.0 * np.arctan2(sin, dq[:, 3])
+    rv = np.where(sin[:, None] > 1e-12, dq[:, :3] / np.maximum(sin, 1e-12)[:, None], 0.0)
+    rv = rv * ang[:, None]
+    if c.type == "prismatic":
+        d = p - c.pos
+        off = d - (d @ axis)[:, None] * axis
+        return np.linalg.norm(off, axis=1), np.linalg.norm(rv, axis=1)
+    d = p - c.origin
+    radial = np.linalg.norm(d - (d @ axis)[:, None] * axis, axis=1)
+    r0 = 0.0 if c.radius is None else c.radius
+    along = (p - c.pos) @ axis
+    off_axis = rv - (rv @ axis)[:, None] * axis
+    return np.abs(radial - r0) + np.abs(along), np.linalg.norm(off_axis, axis=1)
+
+
+def _joint_start(
+    p: FloatArray, q: FloatArray, held: BoolArray, lo: int, hi: int, params: HMMParams
+) -> int | None:
+    """Start of an articulated constraint (a drawer in its rails, a lid on its pins).
+
+    A span whose constrained runs are interrupted by excursions (the drawer opened
+    and closed again) is fitted with the fixed, prismatic and revolute models; if a
+    joint wins and moves by more than 1 cm or 5°, the constraint started as soon
+    as the child's pose joined the joint's path: walking back from the span's
+    start while the pose stays within ``max(5σ, 3 mm)`` and ``max(5σ, 2°)`` of it.
+    None when the span is not articulated.
+    """
+    ok = np.all(np.isfinite(p[lo:hi]), axis=1) & np.all(np.isfinite(q[lo:hi]), axis=1)
+    if not np.any(ok & ~held[lo:hi]) or ok.sum() < 10:
+        return None
+    try:
+        c = fit_constraint(p[lo:hi], q[lo:hi], models=("fixed", "prismatic", "revolute"))
+    except ConstraintFitError:
+        return None
+    span = c.ranges[:, 1] - c.ranges[:, 0]
+    if c.type not in ("prismatic", "revolute") or not (
+        span[:3].max() > 0.01 or span[3:].max() > math.radians(5.0)
+    ):
+        return None
+    tol_p = max(5 * params.sigma_pos, 0.003)
+    tol_r = max(5 * params.sigma_rot, math.radians(2.0))
+    dp, dr = _joint_residuals(p[:lo], q[:lo], c)
+    on = (dp <= tol_p) & (dr <= tol_r)
+    missing = ~(np.isfinite(dp) & np.isfinite(dr))
+    i = lo - 1
+    gap = 0
+    while i >= 0 and (on[i] or (missing[i] and gap < 5)):
+        gap = 0 if on[i] else gap + 1
+        i -= 1
+    return i + 1 + gap
 
 
 def _default_parts(demo: Demonstration) -> list[str]:
@@ -472,16 +562,21 @@ def _supported(
 
 
 def _assign_parents(
-    candidates: list[tuple[float, int, int, int, float]],
+    candidates: list[_Run],
     pairs: list[tuple[str, str]],
     th_p: FloatArray,
     rel_p: FloatArray,
     rel_q: FloatArray,
     times: FloatArray,
     t_end: float,
+    motion: dict[str, float],
     opt: DetectOptions,
 ) -> tuple[list[ConstraintInstance], str | None]:
-    """Union–find in time order: keep the runs that join two rigid groups."""
+    """Union–find in time order: keep the runs that join two rigid groups.
+
+    The root is the part with most direct constraints; among equals, the one that
+    travelled least in the world (the base stays put while parts are brought to it).
+    """
     group: dict[str, int] = {}
     members: dict[int, set[str]] = {}
 
@@ -491,41 +586,35 @@ def _assign_parents(
             members[group[n]] = {n}
         return group[n]
 
-    direct: list[tuple[int, int, int, float, str]] = []  # (pair, lo, hi, conf, child)
+    direct: list[_Run] = []
     degree: dict[str, int] = {}
     # Runs starting within ``simultaneity`` seconds of each other are decided together.
-    batches: list[list[tuple[float, int, int, int, float]]] = []
+    batches: list[list[_Run]] = []
     for c in candidates:
-        if batches and c[0] - batches[-1][0][0] <= opt.simultaneity:
+        if batches and c.start - batches[-1][0].start <= opt.simultaneity:
             batches[-1].append(c)
         else:
             batches.append([c])
     for batch in batches:
         # Among runs joining the same two groups: the hub among the near parts.
-        options: dict[tuple[int, int], list[tuple[float, int, int, int, int, float]]] = {}
+        options: dict[tuple[int, int], list[tuple[float, int, _Run]]] = {}
         for c in batch:
-            _, k, lo, hi, conf = c
-            a, b = pairs[k]
+            a, b = pairs[c.k]
             ga, gb = gid(a), gid(b)
             if ga != gb:
                 hub = max(degree.get(a, 0), degree.get(b, 0))
-                dist = float(np.linalg.norm(th_p[k]))
-                options.setdefault((min(ga, gb), max(ga, gb)), []).append(
-                    (dist, hub, k, lo, hi, conf)
-                )
-        best: dict[tuple[int, int], tuple[int, int, int, float]] = {}
+                dist = float(np.linalg.norm(th_p[c.k]))
+                options.setdefault((min(ga, gb), max(ga, gb)), []).append((dist, hub, c))
+        best: dict[tuple[int, int], _Run] = {}
         for key, opts in options.items():
             near = min(o[0] for o in opts) * opt.near_ratio + 0.01
-            pick = min((o for o in opts if o[0] <= near), key=lambda o: (-o[1], o[0]))
-            best[key] = pick[2:]
-        for _, (k, lo, hi, conf) in sorted(best.items()):
-            a, b = pairs[k]
+            pick = min((o for o in opts if o[0] <= near), key=lambda o: (-o[1], o[0], o[2].k))
+            best[key] = pick[2]
+        for _, c in sorted(best.items()):
+            a, b = pairs[c.k]
             if group[a] == group[b]:
                 continue
-            # The smaller group (or the later-seen part) moves onto the larger one.
-            sa, sb = members[group[a]], members[group[b]]
-            child = b if len(sb) < len(sa) or (len(sb) == len(sa)) else a
-            direct.append((k, lo, hi, conf, child))
+            direct.append(c)
             for n in (a, b):
                 degree[n] = degree.get(n, 0) + 1
             keep, drop = group[a], group[b]
@@ -534,26 +623,21 @@ def _assign_parents(
             members[keep] |= members.pop(drop)
     if not direct:
         return [], None
-    root = max(sorted(degree), key=lambda n: degree[n])
-    parent_of = _orient(direct, pairs, root)
+    root = min(sorted(degree), key=lambda n: (-degree[n], motion.get(n, 0.0)))
+    parent_of = _orient([pairs[c.k] for c in direct], root)
     out = []
-    for k, lo, hi, conf, _ in direct:
-        a, b = pairs[k]
+    for c in direct:
+        a, b = pairs[c.k]
         child = b if parent_of.get(b) == a else a
         parent = a if child == b else b
-        out.append(
-            _instance(k, lo, hi, conf, parent, child, pairs, th_p, rel_p, rel_q, times, t_end, opt)
-        )
+        out.append(_instance(c, parent, child, pairs, th_p, rel_p, rel_q, times, t_end, opt))
     return out, root
 
 
-def _orient(
-    direct: list[tuple[int, int, int, float, str]], pairs: list[tuple[str, str]], root: str
-) -> dict[str, str]:
+def _orient(edges: list[tuple[str, str]], root: str) -> dict[str, str]:
     """Parent of each part in the tree of direct constraints, by breadth-first search."""
     adj: dict[str, list[str]] = {}
-    for k, *_ in direct:
-        a, b = pairs[k]
+    for a, b in edges:
         adj.setdefault(a, []).append(b)
         adj.setdefault(b, []).append(a)
     parent: dict[str, str] = {}
@@ -568,9 +652,8 @@ def _orient(
                     parent[m] = n
                     nxt.append(m)
         frontier = nxt
-    # Components without the root: each oriented from its own most connected part.
-    for k, *_ in direct:
-        a, b = pairs[k]
+    # Components without the root: each edge oriented as the pair is named.
+    for a, b in edges:
         if a not in seen and b not in seen:
             parent[b] = a
             seen |= {a, b}
@@ -578,10 +661,7 @@ def _orient(
 
 
 def _instance(
-    k: int,
-    lo: int,
-    hi: int,
-    conf: float,
+    c: _Run,
     parent: str,
     child: str,
     pairs: list[tuple[str, str]],
@@ -592,34 +672,79 @@ def _instance(
     t_end: float,
     opt: DetectOptions,
 ) -> ConstraintInstance:
+    k, lo, hi = c.k, c.lo, c.hi
     a, _ = pairs[k]
     p_run, q_run = rel_p[k], rel_q[k]
-    pos, quat = _run_pose(p_run[lo:hi], q_run[lo:hi], th_p[k])
+    pos, quat = _run_pose(p_run[lo:hi], q_run[lo:hi], th_p[k], c.held[lo:hi])
     if parent != a:
         pos, quat = se3.pose_invert(pos, quat)
         p_run, q_run = se3.pose_invert(rel_p[k], rel_q[k])
     step = float(times[1] - times[0]) if times.size > 1 else 0.1
     start = float(times[lo] - 0.5 * step)
     end = None if hi >= times.size - 1 else float(times[hi - 1] + 0.5 * step)
-    frame_q, ranges, spin = _free_spin(p_run, q_run, lo, pos, quat, opt)
+    frame_p = np.zeros(3)
+    joint = _joint_dofs(p_run[lo:hi], q_run[lo:hi]) if c.joint else None
+    if joint is not None:
+        typ, frame_p, frame_q, ranges = joint
+        spin = 0.0
+    else:
+        frame_q, ranges, spin = _free_spin(p_run, q_run, lo, pos, quat, opt)
+        typ = "revolute" if np.any(ranges[3:, 1] > ranges[3:, 0]) else "fixed"
     return ConstraintInstance(
         parent=parent,
         child=child,
-        type="revolute" if np.any(ranges[3:, 1] > ranges[3:, 0]) else "fixed",
+        type=typ,
         start=max(start, float(times[0])),
         end=None if end is None or end >= t_end else end,
         pos=pos,
         quat=quat,
+        frame_pos=frame_p,
         frame_quat=frame_q,
         ranges=ranges,
-        confidence=conf,
+        confidence=c.conf,
         spin=spin,
     )
 
 
-def _run_pose(p: FloatArray, q: FloatArray, fallback: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """Mean pose of a run's valid steps (position mean, chordal quaternion mean)."""
+def _joint_dofs(
+    p: FloatArray, q: FloatArray
+) -> tuple[str, FloatArray, FloatArray, FloatArray] | None:
+    """Type, constraint frame (position and quaternion in the child frame) and ranges of
+    an articulated span, fitted in the parent's frame.
+
+    The frame is snapped to the child's axes when the joint axis is within 15° of
+    one of them (a drawer sliding along its own x): its orientation is then the
+    identity and the range sits on that axis (negated for an opposite axis). A
+    hinge keeps its axis point as the frame's position.
+    """
+    try:
+        fit = fit_constraint(p, q, models=("fixed", "prismatic", "revolute"))
+    except ConstraintFitError:
+        return None
+    if fit.type not in ("prismatic", "revolute") or fit.quat is None:
+        return None
+    fp, fq = fit.frame_in_child()
+    dof = 0 if fit.type == "prismatic" else 3
+    lo, hi = (float(v) for v in fit.ranges[dof])
+    axis = se3.quat_rotate(fq, np.array([1.0, 0.0, 0.0]))
+    k = int(np.argmax(np.abs(axis)))
+    ranges = np.zeros((6, 2))
+    if abs(axis[k]) >= math.cos(math.radians(15.0)):
+        sign = 1.0 if axis[k] > 0 else -1.0
+        ranges[dof + k] = sorted((sign * lo, sign * hi))
+        origin = np.zeros(3) if fit.type == "prismatic" else np.asarray(fp, dtype=np.float64)
+        return fit.type, origin, np.array([0.0, 0.0, 0.0, 1.0]), ranges
+    ranges[dof] = (lo, hi)
+    return fit.type, np.asarray(fp, dtype=np.float64), np.asarray(fq, dtype=np.float64), ranges
+
+
+def _run_pose(
+    p: FloatArray, q: FloatArray, fallback: FloatArray, mask: BoolArray | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """Mean pose of the valid (and ``mask``-ed) steps of a run (chordal quaternion mean)."""
     ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
+    if mask is not None and np.any(ok & mask):
+        ok &= mask
     if not np.any(ok):
         return fallback.copy(), np.array([0.0, 0.0, 0.0, 1.0])
     qq = q[ok]
