@@ -11,13 +11,11 @@ and the transformation system is the goal-offset form of Pastor et al. (2009)::
     f(x)   = x Σ_i ψ_i(x) w_i / Σ_i ψ_i(x),   ψ_i(x) = exp(−h_i (x − c_i)²)
 
 with ``D = alpha`` and ``K = alpha² / 4`` (critically damped). Beyond the
-demonstrated duration the forcing term is faded out by a half-Gaussian gate
-(width ``TAIL_WIDTH × tau``): the last RBF weights can be large when a
-demonstration stops abruptly, and ``x`` alone would let them act long after
-``tau``; with the gate the spring–damper settles on the goal. The ``(g − y0) x``
-term makes the learnt forcing term the deviation from a straight approach, so a
-new start or goal keeps the shape and the goal is reached whatever ``g − y0``
-is (no division by a near-zero ``g − y0``).
+demonstrated duration ``f(x) − K (g − y0) x`` is switched off: a demonstration
+that stops abruptly leaves large weights on the last RBFs, and ``x`` alone
+would let them (and a fraction ``x`` of a changed ``g − y0``) act long after
+``tau`` and throw the motion off the goal it has reached; without them the
+critically damped spring settles on the goal.
 
 The system is linear in ``(y, ẏ)`` and its input is a known function of time, so
 the rollout is the exact solution for an input that is linear between samples
@@ -39,9 +37,6 @@ FloatArray = NDArray[np.float64]
 #: Phase at the end of the demonstrated duration (sets ``alpha_x``).
 FINAL_PHASE = 0.01
 
-#: Width of the forcing term's fade-out after ``tau``, as a fraction of ``tau``.
-TAIL_WIDTH = 0.05
-
 
 def phase(s: ArrayLike, tau: float, alpha_x: float) -> FloatArray:
     """Canonical phase ``exp(−alpha_x s / tau)``, shape of ``s`` (``s`` in seconds)."""
@@ -49,10 +44,9 @@ def phase(s: ArrayLike, tau: float, alpha_x: float) -> FloatArray:
 
 
 def tail_gate(s: ArrayLike, tau: float) -> FloatArray:
-    """1 up to ``tau``, then ``exp(−½ ((s − tau) / (TAIL_WIDTH tau))²)``, shape of ``s``."""
+    """1 up to ``tau`` (inclusive, to rounding), 0 after; shape of ``s``."""
     sa = np.asarray(s, dtype=np.float64)
-    over = np.maximum(sa - tau, 0.0) / (TAIL_WIDTH * tau)
-    return np.exp(-0.5 * over**2)
+    return (sa <= tau * (1.0 + 1e-12)).astype(np.float64)
 
 
 def basis_centres(n_weights: int, alpha_x: float) -> tuple[FloatArray, FloatArray]:
@@ -273,7 +267,8 @@ class DMP:
             v0 = _vec(start_velocity, dims, "start velocity")
         x = phase(s, tau, self.alpha_x_)
         k = self.stiffness
-        u = (self.forcing(x) * tail_gate(s, tau)[:, None] - k * (g - y0) * x[:, None]) / tau**2
+        gate = tail_gate(s, tau)[:, None]
+        u = gate * (self.forcing(x) - k * (g - y0) * x[:, None]) / tau**2
         e, ed = linear_rollout(s, u, y0 - g, v0, k=k, d=self.alpha, tau=tau)
         return s, e + g, ed
 

@@ -8,7 +8,7 @@ takes the current orientation to the goal, and the same phase and gains as
     tau² ω̇ = K e − D tau ω − K e0 x + f(x),     q̇ = ½ ω ⊗ q
 
 (``e0`` is ``e`` at the start, the analogue of the ``(g − y0) x`` term; the
-forcing term fades out after ``tau`` as in :mod:`~thirdhand.primitives.dmp`).
+forcing term is switched off after ``tau`` as in :mod:`~thirdhand.primitives.dmp`).
 Integrated with RK4 on ``(q, ω)`` and a renormalisation after each step.
 
 :class:`PoseDMP` puts a position DMP beside either that orientation DMP
@@ -207,8 +207,8 @@ class QuaternionDMP:
         fine = np.linspace(0.0, run, 2 * m * (n - 1) + 1)
         x = phase(fine, tau, self.alpha_x_)
         fx = forcing_features(x, *basis_centres(self.n_weights, self.alpha_x_)) @ self.weights_
-        fx *= tail_gate(fine, tau)[:, None]
-        drive = (fx[:, None, :] - k * e0[None] * x[:, None, None]) / tau**2
+        gate = tail_gate(fine, tau)[:, None, None]
+        drive = gate * (fx[:, None, :] - k * e0[None] * x[:, None, None]) / tau**2
         h = (s[1] - s[0]) / m
         g_b = np.broadcast_to(g, q.shape)
 
