@@ -1,0 +1,49 @@
+"""Synthetic assembly demonstrations with exact ground truth.
+
+``make_scene(name, seed=..., sensor=SensorModel(), n_people=1, **options)`` returns a
+:class:`thirdhand.Demonstration` of a person (or two) assembling a ``chair``, a
+``bench``, a ``toolbox``, or mounting a ``drawer`` (prismatic) or a ``lid``
+(revolute), with the interactions, constraints and plan in ``demo.labels``.
+
+Ground truth, exactly as simulated (see :mod:`thirdhand.synth.script`):
+
+- finger–part (and finger–tool) interactions: from the instant the fingers close
+  on the object to the instant they start opening; in between, each fingertip's
+  pose in the object's frame is constant.
+- tool–part interactions: the screwdriver and the screw it drives, from
+  engagement to disengagement (the screwdriver's pose in the screw is constant;
+  the hand releases and regrips the handle between strokes meanwhile).
+- part–part interactions: from the moment a constraint is established to the end
+  of the recording (or its removal), for every pair of parts the established
+  constraints connect. A constraint is established at the first instant from which
+  the child's pose in the parent stays within the constraint for good: a chair
+  leg when its last screwing turn ends (while it is screwed in it turns about and
+  advances along its axis, so the leg–seat pair is *not* an interaction during
+  screwing), a screw when it is tight, a toolbox board when its last screw is
+  tight, the back when it is pushed home, a drawer when it enters its rails, a lid
+  when it is on its hinge pins. For fixed constraints the relative pose is then
+  constant; for the drawer and the lid it moves only along the free DOF.
+- constraints: ``pos``/``quat`` are the child's pose in the parent at the joint's
+  reference: the pose at the moment it is established for fixed constraints and
+  legs (equal to the final pose), the closed position for the drawer and the lid
+  (also their final pose). Free DOFs are expressed in that frame: a leg spins
+  freely about its own ``x`` axis (``rx ∈ [−π, π]``), the drawer slides along
+  ``tx ∈ [0, travel]``, the lid opens about ``rx ∈ [0, 110°]``.
+- plan: one step per constraint, in time order, symbols named by slot (``c1``…
+  by position on the base, ``s1``… by screw hole) whichever part goes there.
+"""
+
+from thirdhand.synth.build import SCENES, make_scene
+from thirdhand.synth.geometry import PartGeometry, read_stl, stl_bounds
+from thirdhand.synth.motion import min_jerk
+from thirdhand.synth.sensor import SensorModel
+
+__all__ = [
+    "SCENES",
+    "PartGeometry",
+    "SensorModel",
+    "make_scene",
+    "min_jerk",
+    "read_stl",
+    "stl_bounds",
+]

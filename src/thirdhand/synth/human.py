@@ -1,0 +1,203 @@
+"""The human: hands with tracked thumb, index and middle fingertips, and a head.
+
+A hand is a virtual frame ``H`` that is not tracked itself: origin at the centre
+of the grasp, ``z`` the approach direction (from the palm towards the object),
+``y`` the closing direction (from the thumb towards the fingers), ``x = y × z``.
+The tracked fingertip sensors sit on the nails, at fixed offsets in ``H`` that
+depend on the aperture (distance between the thumb and finger pads, metres):
+the fingers open and close by changing the aperture, and curl slightly with it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from thirdhand import se3
+from thirdhand.demonstration import BodyInfo
+from thirdhand.synth.motion import PosePath, Tremor, min_jerk, phase, quat_exp
+
+FloatArray = NDArray[np.float64]
+
+FINGERS: tuple[str, ...] = ("thumb", "index", "middle")
+#: Nail sensor above the finger pad, metres.
+NAIL = 0.009
+#: Extra opening beyond the object's width before closing, metres.
+PREGRASP_OPENING = 0.045
+#: Aperture of a relaxed hand, metres.
+RELAXED_APERTURE = 0.05
+_ALONG = np.array([0.0, 0.014, -0.012])  # fingertip spread along x_H, metres
+_DEPTH = np.array([0.0, 0.0, 0.006])  # middle finger reaches a little further, metres
+_SIDE = np.array([-1.0, 1.0, 1.0])  # thumb on -y_H, fingers on +y_H
+_CURL = 2.5  # curl angle per metre of closing, radians
+
+
+def finger_offsets(aperture: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Fingertip sensor poses in the hand frame for apertures ``a`` (n,) metres.
+
+    Returns
+    -------
+    pos : ndarray, shape (n, 3 fingers, 3), metres, hand frame
+    quat : ndarray, shape (n, 3 fingers, 4), x y z w, hand frame
+    """
+    a = np.atleast_1d(np.asarray(aperture, dtype=np.float64))
+    half = 0.5 * a[:, None] + NAIL
+    shape = (a.size, len(FINGERS))
+    pos = np.stack(
+        [np.broadcast_to(_ALONG, shape), _SIDE * half, np.broadcast_to(_DEPTH, shape)], axis=-1
+    )
+    curl = _CURL * (0.12 - a)[:, None] * _SIDE  # thumb curls the other way
+    rv = np.zeros((*curl.shape, 3))
+    rv[..., 0] = curl
+    base = np.array([[0.0, 0.0, 1.0, 0.0], [0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 1.0]])
+    return pos, se3.quat_multiply(base, quat_exp(rv))
+
+
+def finger_pose_in_hand(index: int, aperture: float) -> tuple[FloatArray, FloatArray]:
+    """One fingertip's pose in the hand frame at one aperture: (3,) and (4,)."""
+    p, q = finger_offsets(aperture)
+    return p[0, index], q[0, index]
+
+
+@dataclass(frozen=True)
+class FingerOnHand:
+    """A fingertip following a moving hand while the aperture changes.
+
+    Attributes
+    ----------
+    hand : PosePath
+        The virtual hand frame's path, world frame.
+    index : int
+        0 thumb, 1 index, 2 middle.
+    t0, t1 : float
+        When the aperture changes, seconds.
+    a0, a1 : float
+        Aperture before and after, metres.
+    jitter : Tremor or None
+        The finger's own small motion, faded by the hand path's envelope.
+    """
+
+    hand: PosePath
+    index: int
+    t0: float
+    t1: float
+    a0: float
+    a1: float
+    jitter: Tremor | None = None
+
+    def __call__(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        hp, hq = self.hand(t)
+        a = self.a0 + (self.a1 - self.a0) * min_jerk(phase(t, self.t0, self.t1))
+        op, oq = finger_offsets(a)
+        p = hp + se3.quat_rotate(hq, op[:, self.index])
+        if self.jitter is not None:
+            env = np.sin(np.pi * phase(t, self.hand.t0, self.hand.t1))[:, None] ** 2
+            p = p + env * self.jitter(t)
+        return p, se3.quat_multiply(hq, oq[:, self.index])
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """Where a hand holds an object: the hand frame in the object's frame.
+
+    Attributes
+    ----------
+    pos : ndarray, shape (3,), metres, object frame
+    quat : ndarray, shape (4,), x y z w, object frame
+    width : float
+        Object thickness between the finger pads, metres (the closed aperture).
+    """
+
+    pos: FloatArray
+    quat: FloatArray
+    width: float
+
+
+def grasp_from_axes(
+    point: ArrayLike, approach: ArrayLike, closing: ArrayLike, width: float
+) -> Grasp:
+    """A grasp at ``point`` with hand ``z`` along ``approach`` and ``y`` along ``closing``.
+
+    Parameters
+    ----------
+    point : array_like, shape (3,), metres, object frame
+    approach : array_like, shape (3,), object frame; made orthogonal to nothing, unit-normalised
+    closing : array_like, shape (3,), object frame; orthogonalised against ``approach``
+    width : float, metres
+    """
+    z = np.asarray(approach, dtype=np.float64)
+    z = z / np.linalg.norm(z)
+    y = np.asarray(closing, dtype=np.float64)
+    y = y - (y @ z) * z
+    y = y / np.linalg.norm(y)
+    x = np.cross(y, z)
+    q = se3.quat_from_matrix(np.stack([x, y, z], axis=1))
+    return Grasp(np.asarray(point, dtype=np.float64), q, float(width))
+
+
+@dataclass
+class Hand:
+    """State of one hand while a scene is scripted.
+
+    Attributes
+    ----------
+    name : str
+        Prefix of its finger bodies, e.g. ``"rh"`` or ``"p2_lh"``.
+    side : {"left", "right"}
+    person : str
+    rest : tuple of ndarray (3,), (4,)
+        Resting pose of the hand frame, world.
+    tremor : Tremor
+    jitters : list of Tremor, one per finger
+    t_free : float
+        End of the hand's last scripted motion, seconds.
+    pose : tuple of ndarray (3,), (4,)
+        Hand frame pose at ``t_free`` when not holding anything, world.
+    aperture : float
+        Aperture at ``t_free``, metres.
+    holding : str or None
+        Body the hand holds since ``grasp_time``.
+    """
+
+    name: str
+    side: str
+    person: str
+    rest: tuple[FloatArray, FloatArray]
+    tremor: Tremor
+    jitters: list[Tremor]
+    t_free: float = 0.0
+    pose: tuple[FloatArray, FloatArray] = field(default_factory=lambda: (np.zeros(3), np.zeros(4)))
+    aperture: float = RELAXED_APERTURE
+    holding: str | None = None
+    grasp: Grasp | None = None
+    grasp_time: float = 0.0
+
+    @property
+    def fingers(self) -> list[str]:
+        """Names of the finger bodies: ``<name>_thumb``, ``<name>_index``, ``<name>_middle``."""
+        return [f"{self.name}_{f}" for f in FINGERS]
+
+    def body_infos(self) -> list[BodyInfo]:
+        """Metadata of the finger bodies."""
+        return [
+            BodyInfo(f, kind="finger", hand=self.side, hand_body=self.name, person=self.person)  # type: ignore[arg-type]
+            for f in self.fingers
+        ]
+
+
+def make_hand(
+    name: str, side: str, person: str, rest: tuple[FloatArray, FloatArray], rng: np.random.Generator
+) -> Hand:
+    """A hand at rest with its own tremor and finger jitter."""
+    hand = Hand(
+        name=name,
+        side=side,
+        person=person,
+        rest=rest,
+        tremor=Tremor.random(rng),
+        jitters=[Tremor.random(rng, amplitude=1.5e-4, drift=4e-4) for _ in FINGERS],
+    )
+    hand.pose = (rest[0].copy(), rest[1].copy())
+    return hand

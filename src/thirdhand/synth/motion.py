@@ -1,0 +1,226 @@
+"""Motion building blocks: minimum-jerk timing, pose paths, screw motions, tremor.
+
+Every motion is a small object with ``__call__(t) -> (pos, quat)`` that evaluates
+a pose at an array of times, vectorised. A motion is either absolute (world
+frame) or relative to a parent body; :mod:`thirdhand.synth.engine` composes them.
+Outside its own ``[t0, t1]`` a motion holds its end poses (the phase is clipped),
+so a body keeps still after its last motion ends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from thirdhand import se3
+
+FloatArray = NDArray[np.float64]
+
+
+def min_jerk(tau: ArrayLike) -> FloatArray:
+    """Minimum-jerk phase ``10τ³ − 15τ⁴ + 6τ⁵`` of a normalised time, clipped to [0, 1].
+
+    Zero velocity and acceleration at both ends; its derivative is a bell-shaped
+    speed profile with a single peak at ``τ = 0.5``.
+    """
+    x = np.clip(np.asarray(tau, dtype=np.float64), 0.0, 1.0)
+    return x * x * x * (10.0 - 15.0 * x + 6.0 * x * x)
+
+
+def phase(t: FloatArray, t0: float, t1: float) -> FloatArray:
+    """Normalised time ``(t − t0) / (t1 − t0)`` clipped to [0, 1], shape of ``t``."""
+    return np.clip((t - t0) / max(t1 - t0, 1e-12), 0.0, 1.0)
+
+
+def quat_exp(rotvec: ArrayLike) -> FloatArray:
+    """Unit quaternions (..., 4) x y z w of rotation vectors (..., 3), radians."""
+    rv = np.asarray(rotvec, dtype=np.float64)
+    angle = np.linalg.norm(rv, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    # sin(θ/2)/θ, with its limit 1/2 at θ = 0.
+    k = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
+    return np.concatenate([rv * k, np.cos(half)], axis=-1)
+
+
+def quat_log(q: ArrayLike) -> FloatArray:
+    """Rotation vectors (..., 3), radians, angle in [0, π], of unit quaternions (..., 4)."""
+    qa = np.asarray(q, dtype=np.float64)
+    qa = np.where(qa[..., 3:4] < 0.0, -qa, qa)
+    s = np.linalg.norm(qa[..., :3], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, qa[..., 3:4])
+    k = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0)
+    return qa[..., :3] * k
+
+
+def axis_angle_quat(axis: ArrayLike, angle: float) -> FloatArray:
+    """Quaternion (4,) x y z w of a rotation by ``angle`` radians about ``axis``."""
+    a = np.asarray(axis, dtype=np.float64)
+    return quat_exp(a / np.linalg.norm(a) * angle)
+
+
+@dataclass(frozen=True)
+class Tremor:
+    """Band-limited hand tremor and drift: a sum of sinusoids per axis.
+
+    Attributes
+    ----------
+    freqs : ndarray, shape (k,), Hz
+    amps : ndarray, shape (k, 3), metres
+    phases : ndarray, shape (k, 3), radians
+    """
+
+    freqs: FloatArray
+    amps: FloatArray
+    phases: FloatArray
+
+    @classmethod
+    def random(
+        cls, rng: np.random.Generator, *, amplitude: float = 3e-4, drift: float = 1.5e-3
+    ) -> Tremor:
+        """Physiological tremor (6–11 Hz, ``amplitude`` m) plus slow drift (0.1–0.5 Hz)."""
+        freqs = np.concatenate([rng.uniform(6.0, 11.0, 3), rng.uniform(0.1, 0.5, 2)])
+        scale = np.array([amplitude] * 3 + [drift] * 2)[:, None]
+        amps = scale * rng.uniform(0.5, 1.0, (5, 3)) / np.sqrt(2.0)
+        return cls(freqs, amps, rng.uniform(0.0, 2.0 * np.pi, (5, 3)))
+
+    def __call__(self, t: FloatArray) -> FloatArray:
+        """Displacement, shape (n, 3), metres, at times ``t`` (n,) seconds."""
+        arg = 2.0 * np.pi * t[:, None, None] * self.freqs[None, :, None] + self.phases[None]
+        return np.einsum("nkd,kd->nd", np.sin(arg), self.amps)
+
+
+@dataclass(frozen=True)
+class Hold:
+    """A constant pose (absolute or relative to the parent)."""
+
+    pos: FloatArray
+    quat: FloatArray
+
+    def __call__(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        n = t.shape[0]
+        return np.broadcast_to(self.pos, (n, 3)).copy(), np.broadcast_to(self.quat, (n, 4)).copy()
+
+
+@dataclass(frozen=True)
+class PosePath:
+    """Minimum-jerk pose path from ``(p0, q0)`` over ``[t0, t1]``.
+
+    ``p(s) = p0 + s dp + 4 s (1 − s) bump``, ``q(s) = q0 ⊗ exp(s rotvec)`` with
+    ``s`` the minimum-jerk phase: straight or arced translation, rotation at constant
+    axis (slerp when ``rotvec = log(q0⁻¹ q1)``). An optional tremor, faded in and out
+    by ``sin²(πτ)``, is added to the position so both end poses stay exact.
+
+    Attributes
+    ----------
+    t0, t1 : float, seconds
+    p0 : ndarray, shape (3,), metres
+    q0 : ndarray, shape (4,), x y z w
+    dp : ndarray, shape (3,), metres
+    rotvec : ndarray, shape (3,), radians, in the frame of ``q0``
+    bump : ndarray, shape (3,), metres, peak arc offset at mid-path
+    tremor : Tremor or None
+    """
+
+    t0: float
+    t1: float
+    p0: FloatArray
+    q0: FloatArray
+    dp: FloatArray
+    rotvec: FloatArray
+    bump: FloatArray
+    tremor: Tremor | None = None
+
+    @classmethod
+    def between(
+        cls,
+        t0: float,
+        t1: float,
+        start: tuple[FloatArray, FloatArray],
+        end: tuple[FloatArray, FloatArray],
+        *,
+        bump: ArrayLike = (0.0, 0.0, 0.0),
+        tremor: Tremor | None = None,
+    ) -> PosePath:
+        """Shortest-rotation path from pose ``start`` to pose ``end``."""
+        p0, q0 = (np.asarray(a, dtype=np.float64) for a in start)
+        p1, q1 = (np.asarray(a, dtype=np.float64) for a in end)
+        rv = quat_log(se3.quat_multiply(se3.quat_conjugate(q0), q1))
+        return cls(t0, t1, p0, q0, p1 - p0, rv, np.asarray(bump, dtype=np.float64), tremor)
+
+    def end(self) -> tuple[FloatArray, FloatArray]:
+        """Pose at ``t1``: position (3,), quaternion (4,)."""
+        return self.p0 + self.dp, se3.quat_multiply(self.q0, quat_exp(self.rotvec))
+
+    def __call__(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        tau = phase(t, self.t0, self.t1)
+        s = min_jerk(tau)[:, None]
+        p = self.p0 + s * self.dp + (4.0 * s * (1.0 - s)) * self.bump
+        if self.tremor is not None:
+            p = p + np.sin(np.pi * tau)[:, None] ** 2 * self.tremor(t)
+        q = se3.quat_multiply(self.q0, quat_exp(s * self.rotvec))
+        return p, q
+
+
+@dataclass(frozen=True)
+class ScrewPath:
+    """Screw motion of a child in its parent: spin about and slide along one body axis.
+
+    ``q(s) = q_ref ⊗ exp(axis (θ0 + s dθ))`` and
+    ``p(s) = p_ref + R(q_ref) axis (d0 + s dd)`` with ``s`` the minimum-jerk phase.
+    ``dd = 0`` is a pure revolute turn, ``dθ = 0`` a pure prismatic slide.
+
+    Attributes
+    ----------
+    t0, t1 : float, seconds
+    p_ref : ndarray, shape (3,), metres, parent frame (the joint's reference pose)
+    q_ref : ndarray, shape (4,), x y z w, parent frame
+    axis : ndarray, shape (3,), unit, child frame
+    theta0, dtheta : float, radians
+    d0, dd : float, metres
+    """
+
+    t0: float
+    t1: float
+    p_ref: FloatArray
+    q_ref: FloatArray
+    axis: FloatArray
+    theta0: float
+    dtheta: float
+    d0: float
+    dd: float
+
+    def at(self, s: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Relative pose at phases ``s`` (n,): positions (n, 3), quaternions (n, 4)."""
+        theta = (self.theta0 + s * self.dtheta)[:, None]
+        d = (self.d0 + s * self.dd)[:, None]
+        direction = se3.quat_rotate(self.q_ref, self.axis)
+        return self.p_ref + d * direction, se3.quat_multiply(
+            self.q_ref, quat_exp(theta * self.axis)
+        )
+
+    def end(self) -> tuple[FloatArray, FloatArray]:
+        """Relative pose at ``t1``: position (3,), quaternion (4,)."""
+        p, q = self.at(np.ones(1))
+        return p[0], q[0]
+
+    def __call__(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        return self.at(min_jerk(phase(t, self.t0, self.t1)))
+
+
+@dataclass(frozen=True)
+class Sway:
+    """Slow head motion: a base pose plus smooth sinusoidal drift in position and yaw/pitch."""
+
+    pos: FloatArray
+    quat: FloatArray
+    tremor: Tremor
+    angle_amp: float
+
+    def __call__(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        d = self.tremor(t)
+        p = self.pos + d
+        rv = np.stack([np.zeros_like(t), d[:, 0], d[:, 1]], axis=1)
+        rv *= self.angle_amp / max(float(np.abs(self.tremor.amps).sum()), 1e-12)
+        return p, se3.quat_multiply(self.quat, quat_exp(rv))

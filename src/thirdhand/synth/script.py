@@ -1,0 +1,310 @@
+"""Scripting a demonstration: hand and object primitives that record exact labels.
+
+A :class:`Sim` holds the timeline of every body and the state of every hand.
+Primitives (reach and grasp, release, carry, screw, hold still) append motion
+segments and, at the same moments, the ground-truth labels, so the labels are
+exactly what was simulated:
+
+- a finger–object interaction runs from the instant the fingers close on the
+  object (their pose becomes a constant pose in the object's frame) to the
+  instant they start to open;
+- a tool–part interaction (screwdriver–screw) runs from engagement to
+  disengagement, the tool's pose being constant in the screw's frame;
+- a part–part interaction runs from the instant a constraint is established
+  (see :meth:`Sim.establish`) to the end of the recording, for every pair of
+  parts that the established constraints connect, directly or through others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from thirdhand import se3
+from thirdhand.demonstration import BodyInfo, ConstraintEvent, InteractionInterval, PlanStep
+from thirdhand.synth.engine import Timeline
+from thirdhand.synth.human import (
+    PREGRASP_OPENING,
+    RELAXED_APERTURE,
+    FingerOnHand,
+    Grasp,
+    Hand,
+    finger_pose_in_hand,
+)
+from thirdhand.synth.motion import Hold, PosePath, ScrewPath, Sway, Tremor
+
+FloatArray = NDArray[np.float64]
+Pose = tuple[FloatArray, FloatArray]
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def compose(a: Pose, b: Pose) -> Pose:
+    """Pose ``a ∘ b`` of single poses: (3,), (4,)."""
+    return se3.pose_compose(a[0], a[1], b[0], b[1])
+
+
+def offset(pose: Pose, local: ArrayLike) -> Pose:
+    """``pose`` moved by ``local`` (3,) metres expressed in its own frame."""
+    return pose[0] + se3.quat_rotate(pose[1], np.asarray(local, dtype=np.float64)), pose[1]
+
+
+@dataclass
+class Sim:
+    """Timeline, hands and labels of one scripted demonstration (one assembly cycle)."""
+
+    rng: np.random.Generator
+    timeline: Timeline = field(default_factory=Timeline)
+    bodies: dict[str, BodyInfo] = field(default_factory=dict)
+    hands: dict[str, Hand] = field(default_factory=dict)
+    interactions: list[InteractionInterval] = field(default_factory=list)
+    constraints: list[ConstraintEvent] = field(default_factory=list)
+    plan: list[PlanStep] = field(default_factory=list)
+    joins: list[tuple[float, str, str]] = field(default_factory=list)
+    open_pairs: dict[tuple[str, str], float] = field(default_factory=dict)
+    end: float = 0.0
+
+    # ------------------------------------------------------------ bodies
+    def add_part(self, info: BodyInfo, pose: Pose, parent: str | None = None) -> None:
+        """Add a part or tool resting at ``pose`` (world, or in ``parent``) from time 0."""
+        self.bodies[info.name] = info
+        self.timeline.put(info.name, 0.0, Hold(*_arrays(pose)), parent)
+
+    def add_hand(self, hand: Hand) -> None:
+        """Add a hand's fingers, at rest from time 0."""
+        self.hands[hand.name] = hand
+        for info in hand.body_infos():
+            self.bodies[info.name] = info
+        self._free(hand, 0.0, 0.0, hand.pose, hand.aperture)
+
+    def add_head(self, name: str, person: str, pose: Pose) -> None:
+        """A tracked head swaying slowly around ``pose``."""
+        self.bodies[name] = BodyInfo(name, kind="head", person=person)
+        sway = Tremor.random(self.rng, amplitude=0.0, drift=0.01)
+        self.timeline.put(name, 0.0, Sway(*_arrays(pose), sway, 0.08))
+
+    def pose(self, body: str, t: float) -> Pose:
+        """World pose of ``body`` at ``t`` seconds: (3,), (4,)."""
+        return self.timeline.pose_at(body, t)
+
+    # ------------------------------------------------------------ hand motion
+    def _free(
+        self,
+        hand: Hand,
+        t0: float,
+        t1: float,
+        target: Pose,
+        aperture: float,
+        *,
+        bump: ArrayLike = (0.0, 0.0, 0.0),
+        close: tuple[float, float] | None = None,
+    ) -> None:
+        if hand.holding is not None:
+            raise RuntimeError(f"hand {hand.name} moves freely while holding {hand.holding}")
+        if t0 > hand.t_free + 1e-9:
+            self._free(hand, hand.t_free, t0, hand.pose, hand.aperture)
+        path = PosePath.between(t0, t1, hand.pose, target, bump=bump, tremor=hand.tremor)
+        ta, tb = close if close is not None else (t0, t1)
+        for i, name in enumerate(hand.fingers):
+            motion = FingerOnHand(path, i, ta, tb, hand.aperture, aperture, hand.jitters[i])
+            self.timeline.put(name, t0, motion)
+        hand.pose = path.end()
+        hand.aperture = aperture
+        hand.t_free = t1
+
+    def move_hand(
+        self, hand: Hand, t0: float, dur: float, target: Pose, aperture: float | None = None
+    ) -> float:
+        """Minimum-jerk move of a free hand to ``target`` along a low arc; returns the end time.
+
+        ``dur`` is stretched, if needed, to :func:`movement_time` of the move.
+        """
+        target = _arrays(target)
+        dist = float(np.linalg.norm(target[0] - hand.pose[0]))
+        dur = max(dur, movement_time(hand.pose, target))
+        bump = UP * min(0.12 * dist, 0.05)
+        a = hand.aperture if aperture is None else aperture
+        self._free(hand, t0, t0 + dur, target, a, bump=bump)
+        return t0 + dur
+
+    def rest(self, hand: Hand, t0: float, dur: float) -> float:
+        """Return a free hand to its resting pose, relaxing the fingers."""
+        return self.move_hand(hand, t0, dur, hand.rest, RELAXED_APERTURE)
+
+    def reach(
+        self, hand: Hand, obj: str, grasp: Grasp, t0: float, dur: float, *, approach: float = 0.04
+    ) -> float:
+        """Reach ``obj`` and close the fingers on it; returns the grasp time.
+
+        The hand moves to a pre-grasp pose ``approach`` metres back along its
+        approach axis with the fingers open, then moves in and closes. The object
+        must not move during the reach.
+        """
+        hg = compose(self.pose(obj, t0 + dur), (grasp.pos, grasp.quat))
+        pre = offset(hg, (0.0, 0.0, -approach))
+        d_app = min(0.35, 0.4 * dur)
+        t_g = t0 + max(dur, d_app + movement_time(hand.pose, pre))
+        t_a = t_g - d_app
+        dist = float(np.linalg.norm(pre[0] - hand.pose[0]))
+        bump = UP * min(0.12 * dist, 0.05)
+        opened = grasp.width + PREGRASP_OPENING
+        self._free(hand, t0, t_a, pre, opened, bump=bump)
+        self._free(hand, t_a, t_g, hg, grasp.width, close=(t_a + 0.3 * d_app, t_g))
+        self.attach_hand(hand, obj, grasp, t_g)
+        return t_g
+
+    def attach_hand(self, hand: Hand, obj: str, grasp: Grasp, t: float) -> None:
+        """From ``t`` the fingers ride rigidly on ``obj`` at ``grasp``."""
+        for i, name in enumerate(hand.fingers):
+            rel = compose((grasp.pos, grasp.quat), finger_pose_in_hand(i, grasp.width))
+            self.timeline.put(name, t, Hold(*rel), obj)
+        hand.holding, hand.grasp, hand.grasp_time, hand.t_free = obj, grasp, t, t
+
+    def release(self, hand: Hand, t0: float, dur: float = 0.3, *, retreat: float = 0.03) -> float:
+        """Open the fingers and back off along the approach axis; returns the end time."""
+        obj, grasp = hand.holding, hand.grasp
+        if obj is None or grasp is None:
+            raise RuntimeError(f"hand {hand.name} releases nothing")
+        t0 = max(t0, hand.t_free)
+        for name in hand.fingers:
+            self.interactions.append(InteractionInterval(name, obj, hand.grasp_time, t0))
+        hr = compose(self.pose(obj, t0), (grasp.pos, grasp.quat))
+        hand.holding, hand.grasp = None, None
+        hand.pose, hand.aperture, hand.t_free = hr, grasp.width, t0
+        self._free(hand, t0, t0 + dur, offset(hr, (0.0, 0.0, -retreat)), grasp.width + 0.035)
+        return t0 + dur
+
+    def grasp_at(self, obj: str, world_hand: Pose, t: float, width: float) -> Grasp:
+        """The grasp on ``obj`` that puts the hand frame at ``world_hand`` at time ``t``."""
+        op, oq = self.pose(obj, t)
+        p, q = se3.relative_pose(op, oq, world_hand[0], world_hand[1])
+        return Grasp(p, q, width)
+
+    def hand_pose(self, hand: Hand, t: float) -> Pose:
+        """World pose of the hand frame at ``t`` (held or free at ``t_free``)."""
+        if hand.holding is None or hand.grasp is None:
+            return hand.pose
+        return compose(self.pose(hand.holding, t), (hand.grasp.pos, hand.grasp.quat))
+
+    # ------------------------------------------------------------ object motion
+    def carry(
+        self,
+        obj: str,
+        t0: float,
+        dur: float,
+        target: Pose,
+        *,
+        arc: float = 0.0,
+        rotvec: ArrayLike | None = None,
+        tremor: Tremor | None = None,
+    ) -> float:
+        """Move ``obj`` (world frame) from its pose at ``t0`` to ``target``; returns the end time.
+
+        ``arc`` lifts the middle of the path by that many metres; ``rotvec`` (radians,
+        object frame) replaces the shortest rotation, e.g. for a half turn.
+        """
+        start = self.pose(obj, t0)
+        t1 = t0 + dur
+        if rotvec is None:
+            path = PosePath.between(t0, t1, start, _arrays(target), bump=UP * arc, tremor=tremor)
+        else:
+            path = PosePath(
+                t0, t1, start[0], start[1], np.asarray(target[0]) - start[0],
+                np.asarray(rotvec, dtype=np.float64), UP * arc, tremor,
+            )  # fmt: skip
+        self.timeline.put(obj, t0, path)
+        return t1
+
+    def screw(self, obj: str, parent: str, t0: float, dur: float, path: ScrewPath) -> float:
+        """Move ``obj`` along a screw/revolute/prismatic path in ``parent``'s frame."""
+        self.timeline.put(obj, t0, path, parent)
+        return t0 + dur
+
+    def fix_to(self, obj: str, parent: str, t: float) -> None:
+        """From ``t``, ``obj`` keeps its current pose in ``parent``'s frame."""
+        self.timeline.put(obj, t, Hold(*self.timeline.relative_at(parent, obj, t)), parent)
+
+    # ------------------------------------------------------------ labels
+    def pair(self, a: str, b: str, start: float, end: float | None = None) -> None:
+        """Label an interaction of ``a`` and ``b``; ``end=None`` opens it until :meth:`close`."""
+        if end is None:
+            self.open_pairs[(a, b)] = start
+        else:
+            self.interactions.append(InteractionInterval(a, b, start, end))
+
+    def end_pair(self, a: str, b: str, end: float) -> None:
+        """Close an interaction opened by :meth:`pair` with ``end=None``."""
+        start = self.open_pairs.pop((a, b))
+        self.interactions.append(InteractionInterval(a, b, start, end))
+
+    def establish(
+        self,
+        parent: str,
+        child: str,
+        t: float,
+        kind: str,
+        *,
+        symbol: str,
+        free_dofs: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 6,
+        pose: Pose | None = None,
+        plan: bool = True,
+    ) -> None:
+        """Record a constraint established at ``t`` and join the two parts from then on.
+
+        ``pose`` is the child's reference pose in the parent (default: its pose at ``t``).
+        """
+        p, q = self.timeline.relative_at(parent, child, t) if pose is None else pose
+        self.constraints.append(
+            ConstraintEvent(
+                time=t,
+                parent=parent,
+                child=child,
+                type=kind,
+                pos=(float(p[0]), float(p[1]), float(p[2])),
+                quat=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
+                free_dofs=free_dofs,
+                symbol=symbol,
+            )
+        )
+        if plan:
+            self.plan.append(PlanStep(parent, child, symbol, t))
+        self.joins.append((t, parent, child))
+
+    def finish(self, end: float) -> None:
+        """Close every open label at ``end`` and add the part–part pairs of the joins."""
+        self.end = end
+        for (a, b), start in sorted(self.open_pairs.items(), key=lambda kv: kv[1]):
+            self.interactions.append(InteractionInterval(a, b, start, end))
+        self.open_pairs.clear()
+        order = {name: i for i, name in enumerate(self.bodies)}
+        group: dict[str, set[str]] = {}
+        for t, a, b in sorted(self.joins, key=lambda j: j[0]):
+            ga = group.get(a, {a})
+            gb = group.get(b, {b})
+            if ga is gb:
+                continue
+            for x in sorted(ga, key=order.__getitem__):
+                for y in sorted(gb, key=order.__getitem__):
+                    u, v = (x, y) if order[x] < order[y] else (y, x)
+                    self.interactions.append(InteractionInterval(u, v, t, end))
+            merged = ga | gb
+            for name in merged:
+                group[name] = merged
+        self.interactions.sort(key=lambda i: (i.start, i.a, i.b))
+
+
+def movement_time(start: Pose, end: Pose) -> float:
+    """Shortest natural duration of a hand move, seconds: grows with distance and turn.
+
+    Keeps the minimum-jerk peak speed near 1.2 m/s for long reaches and the wrist
+    below about 8 rad/s.
+    """
+    dist = float(np.linalg.norm(np.asarray(end[0]) - np.asarray(start[0])))
+    angle = float(se3.quat_angle(start[1], end[1]))
+    return max(0.3 + 1.3 * dist, 0.2 + 0.25 * angle)
+
+
+def _arrays(pose: Pose) -> Pose:
+    return np.asarray(pose[0], dtype=np.float64), np.asarray(pose[1], dtype=np.float64)
