@@ -122,3 +122,17 @@ def test_drawer_slides_in_its_rails() -> None:
     np.testing.assert_allclose(inst.pos, ev.pos, atol=3e-3)
     # The drawer comes in along its rails: the slide starts at or before the rails.
     assert inst.start <= ev.time + 0.2
+
+
+def test_assembly_taken_apart_and_redone() -> None:
+    demo = make_scene("chair", seed=0, sensor=SensorModel(), cycles=2)
+    made = [e for e in demo.labels.constraints if not e.removed]
+    removed = {(e.child, e.parent): e.time for e in demo.labels.constraints if e.removed}
+    det = detect_constraints(demo)
+    assert [(i.parent, i.child) for i in det.instances] == [(e.parent, e.child) for e in made]
+    for inst, ev in zip(det.instances, made, strict=True):
+        assert abs(inst.start - ev.time) < 0.3
+        np.testing.assert_allclose(inst.pos, ev.pos, atol=3e-3)
+        if inst.end is not None:
+            assert abs(inst.end - removed[(ev.child, ev.parent)]) < 0.3
+    assert sum(i.end is None for i in det.instances) == 5

@@ -39,6 +39,7 @@ A constraint with a free rotation is ``revolute``, otherwise ``fixed``.
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
@@ -208,6 +209,9 @@ class DetectOptions:
         ``[−π, π]``.
     n_iter : int
         EM iterations.
+    max_poses : int
+        Most constraint poses per pair (an assembly repeated after taking it apart
+        puts a leg in another slot).
     """
 
     step: float = 0.1
@@ -223,6 +227,7 @@ class DetectOptions:
     approach_radius: float = 0.05
     full_turn: float = math.radians(90.0)
     n_iter: int = 8
+    max_poses: int = 3
 
 
 def step_edges(t: FloatArray, step: float) -> FloatArray:
@@ -287,24 +292,63 @@ def _merge_same_pose(
     held: BoolArray,
     fallback: FloatArray,
     tol: tuple[float, float],
-) -> list[tuple[int, int]]:
-    """Join consecutive runs of one pair whose mean poses agree within ``tol`` (m, rad).
+) -> list[tuple[int, int, bool]]:
+    """Join consecutive runs of one pair that are the same constraint.
 
-    A real tracker (a camera on AR tags) loses a pose for seconds or jitters out of
-    the constrained state; the constraint is the same when the part comes back to
-    the same pose.
+    Two runs at the same pose (within ``tol``, metres and radians) are one
+    constraint when, between them, the part did not go anywhere: most steps lack
+    evidence (a camera lost the tag) or the median deviation stays within ``tol``
+    (jitter out of the constrained state); or when the child moved along a joint
+    in between (a drawer opened and closed: the third element is then True).
+    A part taken off and put back in the same slot is two constraints.
     """
-    out: list[tuple[int, int]] = []
+    out: list[tuple[int, int, bool]] = []
+    ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
     for lo, hi in runs:
         if out:
-            a, b = out[-1]
+            a, b, joint = out[-1]
             p0, q0 = _run_pose(p[a:b], q[a:b], fallback, held[a:b])
             p1, q1 = _run_pose(p[lo:hi], q[lo:hi], fallback, held[lo:hi])
             if np.linalg.norm(p1 - p0) <= tol[0] and float(se3.quat_angle(q0, q1)) <= tol[1]:
-                out[-1] = (out[-1][0], hi)
-                continue
-        out.append((lo, hi))
+                gap = np.arange(b, lo)
+                seen = gap[ok[gap]]
+                if seen.size < 0.5 * gap.size or (
+                    np.median(np.linalg.norm(p[seen] - p0, axis=1)) <= tol[0]
+                    and np.median(se3.quat_angle(q[seen], q0)) <= tol[1]
+                ):
+                    out[-1] = (a, hi, joint)
+                    continue
+                if _on_joint(p[a:hi], q[a:hi]) is not None:
+                    out[-1] = (a, hi, True)
+                    continue
+        out.append((lo, hi, False))
     return out
+
+
+def _on_joint(p: FloatArray, q: FloatArray, share: float = 0.9) -> Constraint | None:
+    """The prismatic or revolute joint a span moves along, or None.
+
+    The fixed, prismatic and revolute models are fitted; a joint must win, move
+    by more than 1 cm or 5°, and hold ``share`` of the valid steps within
+    ``max(4 rms, 3 mm)`` and ``max(4 rms, 2°)`` of its path (the robust fit alone
+    would accept a part carried away and back as outliers).
+    """
+    ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
+    if ok.sum() < 10:
+        return None
+    try:
+        c = fit_constraint(p[ok], q[ok], models=("fixed", "prismatic", "revolute"))
+    except ConstraintFitError:
+        return None
+    span = c.ranges[:, 1] - c.ranges[:, 0]
+    if c.type not in ("prismatic", "revolute") or not (
+        span[:3].max() > 0.01 or span[3:].max() > math.radians(5.0)
+    ):
+        return None
+    dp, dr = _joint_residuals(p[ok], q[ok], c)
+    rms_rot = 0.0 if c.rms_rot is None else c.rms_rot
+    good = (dp <= max(4 * c.rms_pos, 0.003)) & (dr <= max(4 * rms_rot, math.radians(2.0)))
+    return c if good.mean() >= share else None
 
 
 def _last_valid_pose(pos: FloatArray, quat: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -401,22 +445,24 @@ def detect_constraints(
         rel_p[k], rel_q[k] = p, q
         th_p[k], th_q[k] = _last_valid_pose(p, q)
     posterior, params, th_p, th_q = fit_hmm(rel_p, rel_q, th_p, th_q, n_iter=opt.n_iter)
+    layers = [(k, posterior[k], th_p[k]) for k in range(len(pairs))]
+    layers += _further_poses(posterior, rel_p, rel_q, pairs, world, params, opt)
     t_end = float(demo.t[-1])
     candidates: list[_Run] = []
     gap_steps = max(1, round(opt.max_gap / float(edges[1] - edges[0])))
-    for k, (a, b) in enumerate(pairs):
-        held = posterior[k] > 0.5
+    for k, post, theta in layers:
+        a, b = pairs[k]
+        held = post > 0.5
         runs = _merge_runs(_runs(held), gap_steps)
-        for lo, hi in _merge_same_pose(runs, rel_p[k], rel_q[k], held, th_p[k], opt.same_pose):
+        for lo, hi, joint in _merge_same_pose(runs, rel_p[k], rel_q[k], held, theta, opt.same_pose):
             reaches_end = hi >= times.size - 1 or not np.any(
                 np.all(np.isfinite(rel_p[k, hi:]), axis=1)
             )
             if times[hi - 1] - times[lo] < opt.min_duration and not reaches_end:
                 continue
             if _supported(k, lo, hi, a, b, pairs, world, rel_p, rel_q, times, phases, opt):
-                conf = float(np.nanmean(posterior[k, lo:hi]))
-                start = _joint_start(rel_p[k], rel_q[k], held, lo, hi, params)
-                joint = start is not None
+                conf = float(np.nanmean(post[lo:hi]))
+                start = _joint_start(rel_p[k], rel_q[k], lo, hi, params) if joint else None
                 lo_j = lo if start is None else start
                 candidates.append(_Run(float(edges[lo_j]), k, lo_j, hi, conf, joint, held))
     candidates.sort(key=lambda c: (c.start, c.k))
@@ -426,6 +472,8 @@ def detect_constraints(
     )
     for inst in instances:
         inst.demo = demo_name
+    for k, post, _ in layers[len(pairs) :]:
+        posterior[k] = np.fmax(posterior[k], post)
     return DetectionResult(
         times=times,
         pairs=pairs,
@@ -434,6 +482,79 @@ def detect_constraints(
         root=root,
         params=params,
     )
+
+
+def _further_poses(
+    posterior: FloatArray,
+    rel_p: FloatArray,
+    rel_q: FloatArray,
+    pairs: list[tuple[str, str]],
+    world: dict[str, tuple[FloatArray, FloatArray]],
+    params: HMMParams,
+    opt: DetectOptions,
+) -> list[tuple[int, FloatArray, FloatArray]]:
+    """Constraint poses of a pair other than its last one (assembled, taken apart, redone).
+
+    The first EM pass starts each pair's constraint pose at the end of the
+    recording. Up to ``max_poses - 1`` more passes look, among the steps no pose
+    explains yet, for the longest stretch over which the pair's relative pose
+    stays still (steps within 4 σ √2 of each other) for ``min_duration`` while
+    one of the parts moves in the world (co-motion: the stricter evidence; two
+    parts resting side by side do not qualify); EM then learns that pose on the
+    unexplained steps, with the shared parameters kept.
+
+    Returns
+    -------
+    list of (pair index, posterior (n_steps,), pose position (3,))
+    """
+    out: list[tuple[int, FloatArray, FloatArray]] = []
+    explained = posterior > 0.5
+    step_p = 4.0 * math.sqrt(2.0) * params.sigma_pos
+    step_r = 4.0 * math.sqrt(2.0) * params.sigma_rot
+    min_steps = max(2, round(max(opt.min_duration, 1.0) / opt.step))
+    for _ in range(opt.max_poses - 1):
+        ks, ps, qs, tps, tqs = [], [], [], [], []
+        for k, (a, b) in enumerate(pairs):
+            p = np.where(explained[k][:, None], np.nan, rel_p[k])
+            q = np.where(explained[k][:, None], np.nan, rel_q[k])
+            dp = np.linalg.norm(np.diff(p, axis=0), axis=1)
+            dr = se3.quat_angle(q[1:], q[:-1])
+            still = np.concatenate([[False], (dp < step_p) & (dr < step_r)])
+            best = None
+            for lo, hi in _runs(still):
+                if hi - lo < min_steps or (best is not None and hi - lo <= best[1] - best[0]):
+                    continue
+                moved = any(
+                    m[0] > opt.co_motion[0] or m[1] > opt.co_motion[1]
+                    for m in (_motion(*world[n], lo, hi) for n in (a, b))
+                )
+                if moved:
+                    best = (lo, hi)
+            if best is not None:
+                tp, tq = _run_pose(p[best[0] : best[1]], q[best[0] : best[1]], np.zeros(3))
+                ks.append(k)
+                ps.append(p)
+                qs.append(q)
+                tps.append(tp)
+                tqs.append(tq)
+        if not ks:
+            break
+        # One EM over every pair with a further pose (the chain runs on all at once).
+        post, _, tp2, _ = fit_hmm(
+            np.stack(ps),
+            np.stack(qs),
+            np.stack(tps),
+            np.stack(tqs),
+            params=dataclasses.replace(params),
+            n_iter=opt.n_iter,
+            update_shared=False,
+        )
+        for j, k in enumerate(ks):
+            pk = np.where(explained[k], 0.0, post[j])
+            if np.any(pk > 0.5):
+                explained[k] |= pk > 0.5
+                out.append((k, pk, tp2[j]))
+    return out
 
 
 @dataclass
@@ -479,29 +600,15 @@ def _joint_residuals(p: FloatArray, q: FloatArray, c: Constraint) -> tuple[Float
     return np.abs(radial - r0) + np.abs(along), np.linalg.norm(off_axis, axis=1)
 
 
-def _joint_start(
-    p: FloatArray, q: FloatArray, held: BoolArray, lo: int, hi: int, params: HMMParams
-) -> int | None:
+def _joint_start(p: FloatArray, q: FloatArray, lo: int, hi: int, params: HMMParams) -> int | None:
     """Start of an articulated constraint (a drawer in its rails, a lid on its pins).
 
-    A span whose constrained runs are interrupted by excursions (the drawer opened
-    and closed again) is fitted with the fixed, prismatic and revolute models; if a
-    joint wins and moves by more than 1 cm or 5°, the constraint started as soon
-    as the child's pose joined the joint's path: walking back from the span's
-    start while the pose stays within ``max(5σ, 3 mm)`` and ``max(5σ, 2°)`` of it.
-    None when the span is not articulated.
+    The constraint started as soon as the child's pose joined the joint's path:
+    walking back from the span's start while the pose stays within
+    ``max(5σ, 3 mm)`` and ``max(5σ, 2°)`` of it (short tracking gaps allowed).
     """
-    ok = np.all(np.isfinite(p[lo:hi]), axis=1) & np.all(np.isfinite(q[lo:hi]), axis=1)
-    if not np.any(ok & ~held[lo:hi]) or ok.sum() < 10:
-        return None
-    try:
-        c = fit_constraint(p[lo:hi], q[lo:hi], models=("fixed", "prismatic", "revolute"))
-    except ConstraintFitError:
-        return None
-    span = c.ranges[:, 1] - c.ranges[:, 0]
-    if c.type not in ("prismatic", "revolute") or not (
-        span[:3].max() > 0.01 or span[3:].max() > math.radians(5.0)
-    ):
+    c = _on_joint(p[lo:hi], q[lo:hi])
+    if c is None:
         return None
     tol_p = max(5 * params.sigma_pos, 0.003)
     tol_r = max(5 * params.sigma_rot, math.radians(2.0))
@@ -572,22 +679,37 @@ def _assign_parents(
     motion: dict[str, float],
     opt: DetectOptions,
 ) -> tuple[list[ConstraintInstance], str | None]:
-    """Union–find in time order: keep the runs that join two rigid groups.
+    """Keep, in time order, the runs that join two rigid groups of parts.
 
-    The root is the part with most direct constraints; among equals, the one that
-    travelled least in the world (the base stays put while parts are brought to it).
+    The groups at a moment are the connected components of the direct constraints
+    active then (started, not yet removed), so a part taken off and put back joins
+    again. The root is the part with most direct constraints; among equals, the
+    one that travelled least in the world (the base stays put while parts are
+    brought to it).
     """
-    group: dict[str, int] = {}
-    members: dict[int, set[str]] = {}
-
-    def gid(n: str) -> int:
-        if n not in group:
-            group[n] = len(group)
-            members[group[n]] = {n}
-        return group[n]
-
+    n_steps = times.size
     direct: list[_Run] = []
     degree: dict[str, int] = {}
+
+    def groups(t: float) -> dict[str, int]:
+        parent: dict[str, str] = {}
+
+        def root_of(n: str) -> str:
+            while parent.get(n, n) != n:
+                n = parent[n]
+            return n
+
+        for c in direct:
+            active = c.start <= t + 1e-9 and (c.hi >= n_steps - 1 or times[c.hi - 1] > t)
+            if active:
+                a, b = pairs[c.k]
+                ra, rb = root_of(a), root_of(b)
+                if ra != rb:
+                    parent[rb] = ra
+        names = {n for pr in pairs for n in pr}
+        roots = sorted({root_of(n) for n in names})
+        return {n: roots.index(root_of(n)) for n in names}
+
     # Runs starting within ``simultaneity`` seconds of each other are decided together.
     batches: list[list[_Run]] = []
     for c in candidates:
@@ -596,11 +718,13 @@ def _assign_parents(
         else:
             batches.append([c])
     for batch in batches:
+        t0 = max(c.start for c in batch)
+        group = groups(t0)
         # Among runs joining the same two groups: the hub among the near parts.
         options: dict[tuple[int, int], list[tuple[float, int, _Run]]] = {}
         for c in batch:
             a, b = pairs[c.k]
-            ga, gb = gid(a), gid(b)
+            ga, gb = group[a], group[b]
             if ga != gb:
                 hub = max(degree.get(a, 0), degree.get(b, 0))
                 dist = float(np.linalg.norm(th_p[c.k]))
@@ -612,15 +736,12 @@ def _assign_parents(
             best[key] = pick[2]
         for _, c in sorted(best.items()):
             a, b = pairs[c.k]
+            group = groups(t0)
             if group[a] == group[b]:
                 continue
             direct.append(c)
             for n in (a, b):
                 degree[n] = degree.get(n, 0) + 1
-            keep, drop = group[a], group[b]
-            for n in members[drop]:
-                group[n] = keep
-            members[keep] |= members.pop(drop)
     if not direct:
         return [], None
     root = min(sorted(degree), key=lambda n: (-degree[n], motion.get(n, 0.0)))

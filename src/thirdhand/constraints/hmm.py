@@ -158,6 +158,7 @@ def fit_hmm(
     params: HMMParams | None = None,
     n_iter: int = 8,
     sigma_floor: tuple[float, float] = (3e-4, math.radians(0.2)),
+    update_shared: bool = True,
 ) -> tuple[FloatArray, HMMParams, FloatArray, FloatArray]:
     """Learn the HMM by EM and return the posterior of the constrained state.
 
@@ -177,6 +178,10 @@ def fit_hmm(
     sigma_floor : (float, float)
         Lower bounds of the constrained-state noise, metres and radians: a
         noise-free track must not make the likelihood infinite.
+    update_shared : bool
+        Re-estimate the shared parameters (noise, spreads, transitions); False
+        learns only the constraint poses (a further pose of a pair whose shared
+        parameters were learned over all pairs).
 
     Returns
     -------
@@ -203,17 +208,8 @@ def fit_hmm(
         )
         g1 = np.where(ok, gamma[..., 1], 0.0)
         g0 = np.where(ok, gamma[..., 0], 0.0)
-        w1 = g1.sum()
-        if w1 > 1e-9:
-            prm.sigma_pos = max(sigma_floor[0], math.sqrt(np.nansum(g1 * dp**2) / (3 * w1)))
-            prm.sigma_rot = max(sigma_floor[1], math.sqrt(np.nansum(g1 * dr**2) / (3 * w1)))
-        w0 = g0.sum()
-        if w0 > 1e-9:
-            # Free spreads stay well above the constrained noise: the states must not swap.
-            prm.lambda_pos = max(5 * prm.sigma_pos, float(np.nansum(g0 * dp) / (3 * w0)))
-            prm.lambda_rot = max(5 * prm.sigma_rot, float(np.nansum(g0 * dr) / (3 * w0)))
-        trans = xi + 1e-3
-        prm.transition = trans / trans.sum(axis=1, keepdims=True)
+        if update_shared:
+            _update_shared(prm, g0, g1, dp, dr, xi, sigma_floor)
         # Each pair's constraint pose: the posterior-weighted mean of its constrained steps.
         wp = g1.sum(axis=1)
         has = wp > 1e-6
@@ -225,3 +221,26 @@ def fit_hmm(
             upd = has & (norm > 1e-9)
             tq[upd] = se3.check_quat(m[upd] / norm[upd, None])
     return gamma[..., 1], prm, tp, tq
+
+
+def _update_shared(
+    prm: HMMParams,
+    g0: FloatArray,
+    g1: FloatArray,
+    dp: FloatArray,
+    dr: FloatArray,
+    xi: FloatArray,
+    sigma_floor: tuple[float, float],
+) -> None:
+    """M-step of the shared parameters."""
+    w1 = g1.sum()
+    if w1 > 1e-9:
+        prm.sigma_pos = max(sigma_floor[0], math.sqrt(np.nansum(g1 * dp**2) / (3 * w1)))
+        prm.sigma_rot = max(sigma_floor[1], math.sqrt(np.nansum(g1 * dr**2) / (3 * w1)))
+    w0 = g0.sum()
+    if w0 > 1e-9:
+        # Free spreads stay well above the constrained noise: the states must not swap.
+        prm.lambda_pos = max(5 * prm.sigma_pos, float(np.nansum(g0 * dp) / (3 * w0)))
+        prm.lambda_rot = max(5 * prm.sigma_rot, float(np.nansum(g0 * dr) / (3 * w0)))
+    trans = xi + 1e-3
+    prm.transition = trans / trans.sum(axis=1, keepdims=True)

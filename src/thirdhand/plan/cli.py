@@ -110,18 +110,26 @@ def experiment_constraints(
 def experiment_plan(
     runs: Annotated[int, typer.Option(help="Seeded runs.")] = 96,
     scene: Annotated[str, typer.Option(help="Synthetic scene.")] = "chair",
+    noise: Annotated[
+        float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
+    ] = 1.0,
 ) -> None:
     """Plan success with 1–4 demonstrations."""
     from thirdhand.plan.experiments import plan_success_table
 
-    _table("Plan success", plan_success_table(scene=scene, runs=runs))
+    rows = plan_success_table(scene=scene, runs=runs, scale=noise if noise > 0 else None)
+    _table(f"Plan success ({scene}, noise x{noise:g})", rows)
 
 
 @experiment_app.command("corrections")
 def experiment_corrections(
     seeds: Annotated[int, typer.Option(help="Seeds per scene.")] = 4,
+    noise: Annotated[
+        float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
+    ] = 1.0,
 ) -> None:
-    """Constraint parameters a user would still correct (chair of 30, bench)."""
+    """Constraint parameters a user would still correct (chair of 30, bench of 24)."""
     from thirdhand.plan.experiments import corrections_table
 
-    _table("Parameters to correct", corrections_table(seeds=range(seeds)))
+    rows = corrections_table(seeds=range(seeds), scale=noise if noise > 0 else None)
+    _table(f"Parameters to correct (noise x{noise:g})", rows)

@@ -206,7 +206,7 @@ def learn(
         detect_constraints(d, phases=p, options=options, demo_name=n)
         for d, p, n in zip(demo_list, ph, nm, strict=True)
     ]
-    all_inst = [i for det in dets for i in det.instances if i.end is None]
+    all_inst = [i for det in dets for i in det.instances]
     symbols = assign_symbols(all_inst)
     plan = plan_from_demos([det.instances for det in dets], symbols)
     kfs = [keyframes(d, det.instances) for d, det in zip(demo_list, dets, strict=True)]
