@@ -245,15 +245,27 @@ class RelationalTree:
         return "\n".join(lines)
 
 
-def _sse(y: NDArray[np.float64], w: NDArray[np.float64], m: NDArray[np.bool_]) -> float:
-    """Weighted sum of squared deviations on both sides of the split ``m``."""
-    total = 0.0
-    for side in (m, ~m):
-        ws = w[side].sum()
-        if ws > 0:
-            mu = (w[side] * y[side]).sum() / ws
-            total += float((w[side] * (y[side] - mu) ** 2).sum())
-    return total
+def _split_sse(
+    m: NDArray[np.bool_],
+    w: NDArray[np.float64],
+    wy: NDArray[np.float64],
+    sq: float,
+    total_w: float,
+    total_s: float,
+) -> float:
+    """Weighted sum of squared deviations from each side's mean for the split ``m``.
+
+    ``wy`` is ``w * y``; ``sq``, ``total_w``, ``total_s`` are Σ w y², Σ w and Σ w y.
+    """
+    mf = m.astype(np.float64)
+    w1, s1 = float(w @ mf), float(wy @ mf)
+    w0, s0 = total_w - w1, total_s - s1
+    out = sq
+    if w1 > 0:
+        out -= s1 * s1 / w1
+    if w0 > 0:
+        out -= s0 * s0 / w0
+    return out
 
 
 def fit_tree(
@@ -320,24 +332,40 @@ def fit_tree(
         node = leaf(yy, ww)
         if depth >= max_depth or yy.size < 2 * min_leaf or np.ptp(yy) == 0:
             return node
-        base = _sse(yy, ww, np.ones(yy.size, dtype=bool))
+        wy = ww * yy
+        total_w, total_s = float(ww.sum()), float(wy.sum())
+        sq = float((wy * yy).sum())
+        base = sq - total_s**2 / total_w if total_w > 0 else 0.0
         best: (
             tuple[float, tuple[Atom, ...], list[Bindings], list[str], NDArray[np.bool_]] | None
         ) = None
+        # Lookahead candidates follow their first atom: keep its bindings.
+        prefix: tuple[tuple[Atom, ...], list[Bindings], list[str]] = (
+            (),
+            [b.bindings for b in bs],
+            vars_,
+        )
         for cand in candidates(predicates, actions, n_args, vars_, max_vars):
+            if cand[:-1] != prefix[0]:
+                pb, pv = [b.bindings for b in bs], list(vars_)
+                for atom in cand[:-1]:
+                    nb = []
+                    for bt, b in zip(bs, pb, strict=True):
+                        b2, v2 = extend(Batch(bt.mdp, bt.pairs, b), pv, atom)
+                        nb.append(b2)
+                    pb, pv = nb, v2
+                prefix = (cand[:-1], pb, pv)
             new_b: list[Bindings] = []
-            v: list[str] = list(vars_)
-            for bt in bs:
-                b, v = bt.bindings, list(vars_)
-                for atom in cand:
-                    b, v = extend(Batch(bt.mdp, bt.pairs, b), v, atom)
-                new_b.append(b)
+            v: list[str] = list(prefix[2])
+            for bt, b in zip(bs, prefix[1], strict=True):
+                b2, v = extend(Batch(bt.mdp, bt.pairs, b), prefix[2], cand[-1])
+                new_b.append(b2)
             m = np.concatenate([satisfied(b) for b in new_b])
             k = int(m.sum())
             if k < min_leaf or yy.size - k < min_leaf:
                 continue
-            score = _sse(yy, ww, m)
-            if score < base - 1e-12 and (best is None or score < best[0] - 1e-12):
+            score = _split_sse(m, ww, wy, sq, total_w, total_s)
+            if score < base - 1e-9 and (best is None or score < best[0] - 1e-9):
                 best = (score, cand, new_b, v, m)
         if best is None:
             return node
