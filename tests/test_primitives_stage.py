@@ -140,3 +140,22 @@ def test_no_constraint_is_a_clear_error(chair: list) -> None:
     demo = chair[0].replace(labels=type(chair[0].labels)())
     with pytest.raises(PrimitiveError, match="no constraint event"):
         constraint_segments(demo)
+
+
+def test_average_of_screwing_motions_started_far_apart() -> None:
+    """Three turns about z to the same goal, starts 170° apart: the mean stays continuous."""
+    from scipy.spatial.transform import Rotation
+
+    t = np.linspace(0.0, 3.0, 301)
+    s = t / t[-1]
+    tracks = []
+    for tilt in (0.0, np.radians(170.0)):
+        turn = Rotation.from_rotvec(np.outer(6 * np.pi * (1 - s), [0, 0, 1]))
+        lead = Rotation.from_rotvec(np.outer(tilt * (1 - s), [1, 0, 0]))
+        q = se3.quat_make_continuous((turn * lead).as_quat())
+        tracks.append((t, q))
+    _, m = average(tracks, quaternion_columns=slice(0, 4))
+    steps = np.degrees(se3.quat_angle(m[1:], m[:-1]))
+    assert steps.max() < 5.0  # 3 turns over 300 samples are 3.6° per sample
+    assert se3.quat_angle(m[-1], tracks[0][1][-1]) < 1e-9
+    np.testing.assert_allclose(np.linalg.norm(m, axis=1), 1.0)

@@ -3,10 +3,14 @@
 ``phase``: each demonstration is resampled on its own normalised time ``[0, 1]``
 (linear temporal scaling). ``dtw``: each is warped onto a reference (the
 medoid by DTW distance) by dynamic time warping, then averaged sample by
-sample along the reference's time (one DBA step). Quaternion tracks are
-made sign-continuous and sign-consistent across demonstrations, averaged
-component-wise and renormalised (the chordal mean, accurate for spreads of
-tens of degrees).
+sample along the reference's time (one DBA step). Quaternion tracks are made
+sign-continuous and averaged in the tangent space of the reference track
+(the first demonstration, or the DTW medoid) at each of its samples: every
+matched orientation becomes the rotation vector ``2 log(q_ref(i)⁻¹ ⊗ q)``,
+those are averaged and mapped back. Multi-turn motions (screwing) are carried
+by the reference; component-wise quaternion averaging would collapse to a
+near-zero norm when demonstrations start 150° apart, which they do (a part
+picked up either way).
 """
 
 from __future__ import annotations
@@ -18,7 +22,9 @@ import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from thirdhand import se3
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory, check_unit_quaternions
+from thirdhand.primitives.quaternion_dmp import quat_exp, quat_log
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -123,27 +129,60 @@ def average(
         raise PrimitiveError(f"average: demonstrations have different dimensions {sorted(dims)}")
     if quaternion_columns is not None:
         data = [(t, _continuous(y, quaternion_columns, i)) for i, (t, y) in enumerate(data)]
-        ref_q = data[0][1][0, quaternion_columns]
-        for i, (t, y) in enumerate(data):
-            if float(y[0, quaternion_columns] @ ref_q) < 0.0:
-                y = y.copy()
-                y[:, quaternion_columns] *= -1.0
-                data[i] = (t, y)
     n = int(np.median([t.size for t, _ in data])) if n_samples is None else int(n_samples)
     if n < 2:
         raise PrimitiveError(f"average: need at least 2 output samples, got {n}")
     duration = float(np.mean([t[-1] - t[0] for t, _ in data]))
     resampled = np.stack([phase_resample(t, y, n) for t, y in data])
+    cols = np.zeros(0, dtype=np.int64)
+    if quaternion_columns is not None:
+        cols = np.arange(resampled.shape[2])[quaternion_columns]
+        if cols.size != 4:
+            raise PrimitiveError(f"average: quaternion columns must be 4, got {cols.size}")
+        q_end = resampled[0, -1, cols]
+        flip = resampled[:, -1, cols] @ q_end < 0.0
+        resampled[np.ix_(flip, np.arange(n), cols)] *= -1.0
     if method == "phase":
-        mean = resampled.mean(axis=0)
+        ref = 0
+        paths = [np.stack([np.arange(n), np.arange(n)], axis=1) for _ in resampled]
     elif method == "dtw":
-        mean = _dtw_average(resampled)
+        ref, paths = _dtw_paths(resampled)
     else:
         raise PrimitiveError(f"average: method must be 'phase' or 'dtw', got {method!r}")
-    if quaternion_columns is not None:
-        q = mean[:, quaternion_columns]
-        mean[:, quaternion_columns] = q / np.linalg.norm(q, axis=1, keepdims=True)
-    return np.linspace(0.0, duration, n), mean
+    return np.linspace(0.0, duration, n), _mean_along(resampled, ref, paths, cols)
+
+
+def _mean_along(
+    resampled: FloatArray, ref: int, paths: list[IntArray], cols: IntArray
+) -> FloatArray:
+    """Average the samples matched to each reference sample (quaternions in its tangent space)."""
+    _, n, d = resampled.shape
+    other = np.setdiff1d(np.arange(d), cols)
+    total = np.zeros((n, d))
+    rot = np.zeros((n, 3))
+    count = np.zeros(n)
+    q_ref = resampled[ref][:, cols] if cols.size else None
+    for traj, path in zip(resampled, paths, strict=True):
+        i, j = path[:, 0], path[:, 1]
+        np.add.at(total, i, traj[j])
+        if q_ref is not None:
+            rel = se3.quat_make_continuous(
+                se3.quat_multiply(se3.quat_conjugate(q_ref[i]), traj[j][:, cols])
+            )
+            # demonstrations agree at the end (the constraint pose): take the sign that is
+            # the identity there and unwrap backwards, so differences beyond 180° on the way
+            # stay continuous instead of jumping to the other side
+            if rel[-1, 3] < 0.0:
+                rel = -rel
+            np.add.at(rot, i, 2.0 * _unwrapped_log(rel))
+        np.add.at(count, i, 1.0)
+    mean = total / count[:, None]
+    if q_ref is not None:
+        out = np.empty_like(mean)
+        out[:, other] = mean[:, other]
+        out[:, cols] = se3.quat_multiply(q_ref, quat_exp(0.5 * rot / count[:, None]))
+        mean = out
+    return mean
 
 
 def _continuous(y: FloatArray, cols: slice, i: int) -> FloatArray:
@@ -152,19 +191,22 @@ def _continuous(y: FloatArray, cols: slice, i: int) -> FloatArray:
     return out
 
 
-def _dtw_average(resampled: FloatArray) -> FloatArray:
+def _unwrapped_log(q: FloatArray) -> FloatArray:
+    """Half rotation vectors (n, 3) of a sign-continuous track, angles beyond π kept."""
+    out = quat_log(q)
+    # quat_log takes the w ≥ 0 representative, which jumps by π along the axis where
+    # the track crosses w = 0; the track's own sign tells which side it is on
+    norm = np.linalg.norm(out, axis=-1, keepdims=True)
+    axis = np.where(norm > 1e-12, out / np.where(norm > 1e-12, norm, 1.0), 0.0)
+    return np.where((q[..., 3] < 0.0)[..., None], out - np.pi * axis, out)
+
+
+def _dtw_paths(resampled: FloatArray) -> tuple[int, list[IntArray]]:
+    """The medoid (by DTW cost) and every trajectory's DTW path against it."""
     k = resampled.shape[0]
-    if k == 1:
-        return resampled[0].copy()
     dist = np.zeros((k, k))
     for i in range(k):
         for j in range(i + 1, k):
             dist[i, j] = dist[j, i] = dtw(resampled[i], resampled[j])[1]
-    ref = resampled[int(np.argmin(dist.sum(axis=1)))]
-    total = np.zeros_like(ref)
-    count = np.zeros(ref.shape[0])
-    for traj in resampled:
-        path, _ = dtw(ref, traj)
-        np.add.at(total, path[:, 0], traj[path[:, 1]])
-        np.add.at(count, path[:, 0], 1.0)
-    return total / count[:, None]
+    ref = int(np.argmin(dist.sum(axis=1)))
+    return ref, [dtw(resampled[ref], traj)[0] for traj in resampled]

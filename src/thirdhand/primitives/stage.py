@@ -46,7 +46,10 @@ class ConstraintPrimitive:
         Over ``[x, y, z, qx, qy, qz, qw]`` (quaternions sign-aligned to the goal).
     n_examples : int
     imitation_pos_m, imitation_rot_deg : float
-        Largest error of the DMP's rollout against the averaged segment.
+        Largest error of the DMP's rollout against what it was fit to (the
+        averaged segment, smoothed).
+    raw_pos_m, raw_rot_deg : float
+        Largest error against the unsmoothed average (includes tracker noise).
     """
 
     key: str
@@ -60,6 +63,8 @@ class ConstraintPrimitive:
     n_examples: int
     imitation_pos_m: float
     imitation_rot_deg: float
+    raw_pos_m: float
+    raw_rot_deg: float
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able parameters (a task file's ``stages.primitives.constraints[key]``)."""
@@ -71,6 +76,7 @@ class ConstraintPrimitive:
             "goal": {"pos": self.goal_pos.tolist(), "quat": self.goal_quat.tolist()},
             "n_examples": self.n_examples,
             "imitation_error": {"pos_m": self.imitation_pos_m, "rot_deg": self.imitation_rot_deg},
+            "raw_error": {"pos_m": self.raw_pos_m, "rot_deg": self.raw_rot_deg},
             "dmp": pose_dmp_to_dict(self.dmp),
             "promp": promp_to_dict(self.promp),
         }
@@ -91,6 +97,7 @@ def fit_constraint_primitive(
     promp_weights: int = 10,
     align: Literal["phase", "dtw"] = "phase",
     orientation: Literal["quaternion", "seven"] = "quaternion",
+    smooth: float | None = 0.15,
 ) -> ConstraintPrimitive:
     """Average the segments of one constraint and learn a pose DMP and a ProMP.
 
@@ -108,6 +115,12 @@ def fit_constraint_primitive(
         How the examples are aligned before averaging.
     orientation : {"quaternion", "seven"}
         Orientation DMP (see :class:`PoseDMP`).
+    smooth : float or None
+        Savitzky–Golay window (cubic), seconds, applied to the average before the
+        DMP fit: the DMP needs accelerations, and differentiating tracker noise
+        twice (1 mm at 120 Hz is ~35 m/s²) would otherwise drown the forcing term.
+        None fits the raw average. The imitation error is measured against the
+        unsmoothed average.
     """
     if not segments:
         raise PrimitiveError("constraint primitive: no segment given")
@@ -121,8 +134,9 @@ def fit_constraint_primitive(
     t, y = average(tracks, method=align, quaternion_columns=slice(3, 7))
     if n_weights is None:
         n_weights = max(30, round(WEIGHTS_PER_SECOND * float(t[-1])))
+    y_fit = y if smooth is None else smooth_track(t, y, smooth, quaternion_columns=slice(3, 7))
     dmp = PoseDMP(n_weights, orientation=orientation).fit(
-        t, y[:, :3], y[:, 3:], name=segments[0].key
+        t, y_fit[:, :3], y_fit[:, 3:], name=segments[0].key
     )
     _, p, q = dmp.rollout()
     promp = ProMP(promp_weights).fit(tracks)
@@ -137,9 +151,33 @@ def fit_constraint_primitive(
         dmp=dmp,
         promp=promp,
         n_examples=len(segments),
-        imitation_pos_m=float(np.abs(p - y[:, :3]).max()),
-        imitation_rot_deg=float(np.degrees(se3.quat_angle(q, y[:, 3:]).max())),
+        imitation_pos_m=float(np.abs(p - y_fit[:, :3]).max()),
+        imitation_rot_deg=float(np.degrees(se3.quat_angle(q, y_fit[:, 3:]).max())),
+        raw_pos_m=float(np.abs(p - y[:, :3]).max()),
+        raw_rot_deg=float(np.degrees(se3.quat_angle(q, y[:, 3:]).max())),
     )
+
+
+def smooth_track(
+    t: FloatArray, y: FloatArray, window_s: float, *, quaternion_columns: slice | None = None
+) -> FloatArray:
+    """Cubic Savitzky–Golay smoothing over ``window_s`` seconds, shape of ``y`` (n, dims).
+
+    Quaternion columns are renormalised afterwards. Tracks shorter than the
+    window are smoothed over their whole (odd) length, or returned as they are.
+    """
+    from scipy.signal import savgol_filter
+
+    dt = float((t[-1] - t[0]) / (t.size - 1))
+    win = int(round(window_s / dt)) | 1
+    win = min(win, t.size if t.size % 2 else t.size - 1)
+    if win < 5:
+        return y.copy()
+    out = savgol_filter(y, win, 3, axis=0, mode="interp")
+    if quaternion_columns is not None:
+        q = out[:, quaternion_columns]
+        out[:, quaternion_columns] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    return np.asarray(out, dtype=np.float64)
 
 
 def primitives_stage(
