@@ -169,7 +169,7 @@ def smooth_track(
     from scipy.signal import savgol_filter
 
     dt = float((t[-1] - t[0]) / (t.size - 1))
-    win = int(round(window_s / dt)) | 1
+    win = round(window_s / dt) | 1
     win = min(win, t.size if t.size % 2 else t.size - 1)
     if win < 5:
         return y.copy()
