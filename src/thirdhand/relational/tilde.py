@@ -57,11 +57,26 @@ class Node:
 
 @dataclass
 class Batch:
-    """Pairs of one grounded MDP and the bindings of the current conjunction's variables."""
+    """Pairs of one grounded MDP and the bindings of the current conjunction's variables.
+
+    ``states``, ``kinds`` (shape (n,)) and ``args`` (shape (n, max_arity)) are the
+    pairs' state, action kind and argument indices, gathered once.
+    """
 
     mdp: GroundMDP
     pairs: NDArray[np.int64]
     bindings: Bindings
+    states: NDArray[np.int64] | None = None
+    kinds: NDArray[np.int64] | None = None
+    args: NDArray[np.int64] | None = None
+
+    def __post_init__(self) -> None:
+        if self.states is None:
+            self.states = self.mdp.pair_state[self.pairs]
+        if self.kinds is None:
+            self.kinds = self.mdp.pair_kind[self.pairs]
+        if self.args is None:
+            self.args = self.mdp.pair_args[self.pairs]
 
     @classmethod
     def start(cls, mdp: GroundMDP, pairs: NDArray[np.int64]) -> Batch:
@@ -69,10 +84,22 @@ class Batch:
         p = np.asarray(pairs, dtype=np.int64)
         return cls(mdp, p, np.ones(p.size, dtype=bool))
 
+    def with_bindings(self, bindings: Bindings) -> Batch:
+        """The same pairs with other bindings."""
+        return Batch(self.mdp, self.pairs, bindings, self.states, self.kinds, self.args)
+
     def subset(self, mask: NDArray[np.bool_], bindings: Bindings | None = None) -> Batch:
         """The pairs where ``mask`` holds, with new or current bindings."""
         b = self.bindings if bindings is None else bindings
-        return Batch(self.mdp, self.pairs[mask], b[mask])
+        assert self.states is not None and self.kinds is not None and self.args is not None
+        return Batch(
+            self.mdp,
+            self.pairs[mask],
+            b[mask],
+            self.states[mask],
+            self.kinds[mask],
+            self.args[mask],
+        )
 
 
 def _new_vars(atom: Atom, vars_: Sequence[str]) -> list[str]:
@@ -101,6 +128,7 @@ def extend(batch: Batch, vars_: Sequence[str], atom: Atom) -> tuple[Bindings, li
     new_vars : list of str
     """
     mdp, n = batch.mdp, batch.pairs.size
+    assert batch.states is not None and batch.kinds is not None and batch.args is not None
     new = _new_vars(atom, vars_)
     all_vars = [*vars_, *new]
     k = len(all_vars)
@@ -109,17 +137,17 @@ def extend(batch: Batch, vars_: Sequence[str], atom: Atom) -> tuple[Bindings, li
     if atom.pred == "@action":
         names = [a.name for a in mdp.domain.actions]
         kind = names.index(atom.args[0]) if atom.args[0] in names else -1
-        return b & (mdp.pair_kind[batch.pairs] == kind).reshape(shape), all_vars
+        return b & (batch.kinds == kind).reshape(shape), all_vars
     table = mdp.tables.get(atom.pred)
     if table is None or table.ndim != len(atom.args) + 1:
         return np.zeros(b.shape[:1] + b.shape[1:], dtype=bool), all_vars
     n_obj = len(mdp.domain.objects)
-    idx: list[NDArray[np.int64]] = [mdp.pair_state[batch.pairs].reshape(shape)]
+    idx: list[NDArray[np.int64]] = [batch.states.reshape(shape)]
     valid = np.ones(shape, dtype=bool)
     for arg in atom.args:
         if arg.startswith("A"):
             j = int(arg[1:])
-            col = mdp.pair_args[batch.pairs, j] if j < mdp.pair_args.shape[1] else np.full(n, -1)
+            col = batch.args[:, j] if j < batch.args.shape[1] else np.full(n, -1)
             valid = valid & (col >= 0).reshape(shape)
             idx.append(np.maximum(col, 0).reshape(shape))
         else:
@@ -140,8 +168,8 @@ def extend(batch: Batch, vars_: Sequence[str], atom: Atom) -> tuple[Bindings, li
                 sh2 = [1] * (k + 1)
                 sh2[all_vars.index(other) + 1] = n_obj
                 out &= mine != np.arange(n_obj).reshape(sh2)
-        for j in range(mdp.pair_args.shape[1]):
-            out &= mine != mdp.pair_args[batch.pairs, j].reshape(shape)
+        for j in range(batch.args.shape[1]):
+            out &= mine != batch.args[:, j].reshape(shape)
     return out, all_vars
 
 
@@ -213,7 +241,7 @@ class RelationalTree:
             return np.full(batch.pairs.size, node.value)
         b, v = batch.bindings, list(vars_)
         for atom in node.test:
-            b, v = extend(Batch(batch.mdp, batch.pairs, b), v, atom)
+            b, v = extend(batch.with_bindings(b), v, atom)
         ok = satisfied(b)
         out = np.empty(batch.pairs.size)
         if ok.any():
@@ -351,14 +379,14 @@ def fit_tree(
                 for atom in cand[:-1]:
                     nb = []
                     for bt, b in zip(bs, pb, strict=True):
-                        b2, v2 = extend(Batch(bt.mdp, bt.pairs, b), pv, atom)
+                        b2, v2 = extend(bt.with_bindings(b), pv, atom)
                         nb.append(b2)
                     pb, pv = nb, v2
                 prefix = (cand[:-1], pb, pv)
             new_b: list[Bindings] = []
             v: list[str] = list(prefix[2])
             for bt, b in zip(bs, prefix[1], strict=True):
-                b2, v = extend(Batch(bt.mdp, bt.pairs, b), prefix[2], cand[-1])
+                b2, v = extend(bt.with_bindings(b), prefix[2], cand[-1])
                 new_b.append(b2)
             m = np.concatenate([satisfied(b) for b in new_b])
             k = int(m.sum())
