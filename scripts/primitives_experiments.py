@@ -18,6 +18,7 @@ import numpy as np
 from thirdhand.primitives.experiments import (
     dp_check,
     lasa_join_experiment,
+    library_scaling,
     orientation_comparison,
     sine_experiment,
 )
@@ -42,6 +43,15 @@ def main() -> None:
         print(
             f"  goal moved {r['goal_change_deg']:5.0f} deg: quaternion DMP "
             f"{r['quaternion_final_deg']:.4f}, seven-DMP {r['seven_final_deg']:.4f}, "
+            f"min |q| {r['seven_min_norm']:.3f}"
+        )
+
+    print("== new start orientation: error at 1.5 tau (deg), largest step (deg), seven min |q|")
+    for r in oc["new_start"]:
+        print(
+            f"  start moved {r['start_change_deg']:5.0f} deg: quaternion DMP "
+            f"{r['quaternion_final_deg']:.4f} (step {r['quaternion_max_step_deg']:.2f}), "
+            f"seven-DMP {r['seven_final_deg']:.4f} (step {r['seven_max_step_deg']:.2f}), "
             f"min |q| {r['seven_min_norm']:.3f}"
         )
 
@@ -87,6 +97,13 @@ def main() -> None:
         )
     print(f"  M={dp['big_M']}: marginals in {1000 * dp['big_s']:.1f} ms")
 
+    ls = library_scaling()
+    print(
+        f"== library parser on one track of {ls['n_samples']} samples, {ls['n_candidates']} "
+        f"candidate cuts: fit {ls['fit_s']:.2f} s ({ls['n_init']} restarts), "
+        f"parse {ls['parse_s']:.3f} s, "
+        f"{ls['n_cuts']} cuts kept ({ls['true_cuts']} true)"
+    )
     se = sine_experiment()
     print("== sine experiment (10 training tracks, 10 test tracks)")
     print(

@@ -95,3 +95,11 @@ def test_library_bad_input() -> None:
         PrimitiveLibrary(2, threshold=0.1).fit([])
     with pytest.raises(PrimitiveError, match="at least 4 samples, got 2"):
         PrimitiveLibrary(2, threshold=0.1).fit([(t[:2], y[:2])])
+
+
+def test_two_hundred_candidate_cuts_parse_exactly() -> None:
+    from thirdhand.primitives.experiments import library_scaling
+
+    r = library_scaling()
+    assert r["n_candidates"] >= 200
+    assert r["n_cuts"] == r["true_cuts"]

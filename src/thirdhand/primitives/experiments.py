@@ -160,13 +160,41 @@ def dp_check(*, sizes: Sequence[int] = (4, 8, 12), big: int = 200, seed: int = 0
     return {"rows": rows, "big_M": big, "big_s": time.perf_counter() - t0}
 
 
+def library_scaling(*, n_tracks: int = 36, n_init: int = 8, seed: int = 0) -> dict[str, Any]:
+    """One long 1-D track (concatenated sine tracks) with about 200 candidate cuts.
+
+    Returns the number of candidate cuts, the fit time (``n_init`` restarts), the
+    parse time and the number of cuts kept.
+    """
+    parts = sine_tracks(n_tracks, seed=seed)
+    y = np.concatenate([p[1] for p in parts])
+    t = np.arange(y.shape[0]) / 100.0
+    lib = PrimitiveLibrary(3, threshold=0.05, n_init=n_init, seed=seed)
+    t0 = time.perf_counter()
+    lib.fit([(t, y)])
+    fit_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    p = lib.parse(t, y)
+    return {
+        "n_samples": int(y.shape[0]),
+        "n_candidates": int(lib.candidates_[0].size),
+        "fit_s": fit_s,
+        "n_init": n_init,
+        "parse_s": time.perf_counter() - t0,
+        "n_cuts": int(p.cuts.size),
+        "true_cuts": int(sum(len(q[3]) for q in parts) - 1),
+    }
+
+
 def orientation_comparison(*, n_weights: int = 30, seed: int = 0) -> dict[str, Any]:
     """Seven-DMP (component-wise, renormalised) vs quaternion DMP (Ude et al. 2014).
 
     On a smooth 6-DoF demonstration: imitation error, and for new goal
     orientations 30°, 90° and 170° away from the demonstrated one: error at
     ``1.5 tau`` and the smallest norm of the un-normalised seven-DMP quaternion
-    (how close the component-wise interpolation comes to the singular zero).
+    (how close the component-wise interpolation comes to the singular zero);
+    for start orientations 90° and 170° away: final error, largest rotation
+    between consecutive samples (a jump where the norm collapses), smallest norm.
     """
     t = np.linspace(0.0, 2.0, 241)
     s = t / t[-1]
@@ -174,7 +202,7 @@ def orientation_comparison(*, n_weights: int = 30, seed: int = 0) -> dict[str, A
     pos = np.stack([0.3 * blend, 0.1 * np.sin(np.pi * blend), -0.2 * blend], axis=1)
     rv = np.stack([1.2 * blend, 0.4 * np.sin(np.pi * blend), -0.6 * blend], axis=1)
     quat = Rotation.from_rotvec(rv).as_quat()
-    out: dict[str, Any] = {"imitation": {}, "new_goal": []}
+    out: dict[str, Any] = {"imitation": {}, "new_goal": [], "new_start": []}
     models = {
         "quaternion": PoseDMP(n_weights, orientation="quaternion").fit(t, pos, quat),
         "seven": PoseDMP(n_weights, orientation="seven").fit(t, pos, quat),
@@ -200,4 +228,20 @@ def orientation_comparison(*, n_weights: int = 30, seed: int = 0) -> dict[str, A
                 _, raw, _ = o.rollout(goal=g, run_time=3.0)
                 row["seven_min_norm"] = float(np.linalg.norm(raw, axis=1).min())
         out["new_goal"].append(row)
+    for angle in (90.0, 170.0):
+        axis = rng.normal(size=3)
+        axis /= np.linalg.norm(axis)
+        start = se3.quat_multiply(Rotation.from_rotvec(np.radians(angle) * axis).as_quat(), quat[0])
+        row = {"start_change_deg": angle}
+        for name, m in models.items():
+            _, _, q = m.rollout(start_quat=start, run_time=3.0)
+            row[f"{name}_final_deg"] = float(np.degrees(se3.quat_angle(q[-1], quat[-1])))
+            steps = np.degrees(se3.quat_angle(q[1:], q[:-1]))
+            row[f"{name}_max_step_deg"] = float(steps.max())
+            if name == "seven":
+                o = m.orientation_
+                st = start if float(start @ o.start_) >= 0 else -start
+                _, raw, _ = o.rollout(start=st, run_time=3.0)
+                row["seven_min_norm"] = float(np.linalg.norm(raw, axis=1).min())
+        out["new_start"].append(row)
     return out
