@@ -176,9 +176,6 @@ class DetectOptions:
     min_duration : float
         Shortest constrained run kept, seconds (a run reaching the end of the
         recording is always kept).
-    max_gap : float
-        Constrained runs of a pair separated by at most this many seconds are one
-        run (a step or two of poor tracking does not remove a constraint).
     same_pose : tuple of (float, float)
         Consecutive constrained runs of a pair whose poses agree within these
         bounds (metres, radians) are one constraint.
@@ -216,7 +213,6 @@ class DetectOptions:
 
     step: float = 0.1
     min_duration: float = 0.5
-    max_gap: float = 1.0
     simultaneity: float = 1.0
     same_pose: tuple[float, float] = (0.02, math.radians(10.0))
     near_ratio: float = 1.5
@@ -274,17 +270,6 @@ def _runs(mask: BoolArray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist(), strict=True))
 
 
-def _merge_runs(runs: list[tuple[int, int]], gap: int) -> list[tuple[int, int]]:
-    """Join runs separated by at most ``gap`` steps (one pose, so the same constraint)."""
-    out: list[tuple[int, int]] = []
-    for lo, hi in runs:
-        if out and lo - out[-1][1] <= gap:
-            out[-1] = (out[-1][0], hi)
-        else:
-            out.append((lo, hi))
-    return out
-
-
 def _merge_same_pose(
     runs: list[tuple[int, int]],
     p: FloatArray,
@@ -318,7 +303,7 @@ def _merge_same_pose(
                 ):
                     out[-1] = (a, hi, joint)
                     continue
-                if _on_joint(p[a:hi], q[a:hi]) is not None:
+                if b - a >= 3 and _on_joint(p[a:hi], q[a:hi]) is not None:
                     out[-1] = (a, hi, True)
                     continue
         out.append((lo, hi, False))
@@ -329,7 +314,8 @@ def _on_joint(p: FloatArray, q: FloatArray, share: float = 0.9) -> Constraint | 
     """The prismatic or revolute joint a span moves along, or None.
 
     The fixed, prismatic and revolute models are fitted; a joint must win, move
-    by more than 1 cm or 5°, and hold ``share`` of the valid steps within
+    by more than 1 cm or 5° (and turn by less than 300°: a hinge does not turn
+    all the way round), and hold ``share`` of the valid steps within
     ``max(4 rms, 3 mm)`` and ``max(4 rms, 2°)`` of its path (the robust fit alone
     would accept a part carried away and back as outliers).
     """
@@ -345,6 +331,8 @@ def _on_joint(p: FloatArray, q: FloatArray, share: float = 0.9) -> Constraint | 
         span[:3].max() > 0.01 or span[3:].max() > math.radians(5.0)
     ):
         return None
+    if span[3:].max() > math.radians(300.0):
+        return None  # turned all the way round: a part being screwed in, not a hinge
     dp, dr = _joint_residuals(p[ok], q[ok], c)
     rms_rot = 0.0 if c.rms_rot is None else c.rms_rot
     good = (dp <= max(4 * c.rms_pos, 0.003)) & (dr <= max(4 * rms_rot, math.radians(2.0)))
@@ -449,11 +437,10 @@ def detect_constraints(
     layers += _further_poses(posterior, rel_p, rel_q, pairs, world, params, opt)
     t_end = float(demo.t[-1])
     candidates: list[_Run] = []
-    gap_steps = max(1, round(opt.max_gap / float(edges[1] - edges[0])))
     for k, post, theta in layers:
         a, b = pairs[k]
         held = post > 0.5
-        runs = _merge_runs(_runs(held), gap_steps)
+        runs = _runs(held)
         for lo, hi, joint in _merge_same_pose(runs, rel_p[k], rel_q[k], held, theta, opt.same_pose):
             reaches_end = hi >= times.size - 1 or not np.any(
                 np.all(np.isfinite(rel_p[k, hi:]), axis=1)
