@@ -52,9 +52,18 @@ def test_cli_fit_writes_a_stage_block(tmp_path: Path) -> None:
         p = tmp_path / f"chair{s}.parquet"
         io.save(make_scene("chair", seed=s, sensor=None), p)
         paths.append(str(p))
+    from thirdhand.taskfile import TaskFile, load_task, save_task
+
+    task = tmp_path / "chair.task.json"
+    save_task(TaskFile.new(), task)
     out = tmp_path / "prims.json"
-    res = runner.invoke(app, ["fit", *paths, "-o", str(out), "--promp-weights", "5"])
+    res = runner.invoke(
+        app, ["fit", *paths, "-o", str(out), "--promp-weights", "5", "--task", str(task)]
+    )
     assert res.exit_code == 0, res.output
+    stored = load_task(task).stages["primitives"]
+    assert set(stored["constraints"]) == {"c1", "c2", "c3", "c4", "c5"}
+    assert (tmp_path / "chair.task.json.bak").exists()
     block = json.loads(out.read_text())
     assert block["schema"] == "thirdhand.primitives/1"
     assert set(block["constraints"]) == {"c1", "c2", "c3", "c4", "c5"}

@@ -15,6 +15,7 @@ from thirdhand.primitives.dmp import DMP
 from thirdhand.primitives.library import Parse, PrimitiveLibrary
 from thirdhand.primitives.promp import ProMP
 from thirdhand.primitives.quaternion_dmp import PoseDMP, QuaternionDMP
+from thirdhand.primitives.stage import primitives_stage
 
 __all__ = [
     "DMP",
@@ -24,4 +25,5 @@ __all__ = [
     "PrimitiveLibrary",
     "ProMP",
     "QuaternionDMP",
+    "primitives_stage",
 ]

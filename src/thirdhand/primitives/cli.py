@@ -49,6 +49,10 @@ def fit(
     ] = None,
     promp_weights: Annotated[int, typer.Option(help="ProMP weights per dimension.")] = 10,
     align: Annotated[str, typer.Option(help="Alignment before averaging: phase or dtw.")] = "phase",
+    task: Annotated[
+        Path | None,
+        typer.Option(help="Also store the block as stages.primitives of this task file."),
+    ] = None,
 ) -> None:
     """Learn one pose DMP and one ProMP per constraint symbol from the demonstrations."""
     from thirdhand import io
@@ -69,6 +73,16 @@ def fit(
     block["inputs"] = [str(p) for p in demos]
     backup_existing(output)
     atomic_write_bytes(output, json.dumps(block, indent=1).encode())
+    if task is not None:
+        from thirdhand.taskfile import load_task, save_task
+
+        try:
+            tf = load_task(task)
+            tf.stages["primitives"] = block
+            save_task(tf, task)
+        except ThirdhandError as exc:
+            raise _fail(exc) from None
+        out.print(f"stored as stages.primitives in {task}")
     for key, c in block["constraints"].items():
         e = c["imitation_error"]
         out.print(
