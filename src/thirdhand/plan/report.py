@@ -67,24 +67,37 @@ def _strip(learned: Any, k: int, max_frames: int = 8) -> str:
     import matplotlib.pyplot as plt
 
     kfs = learned.keyframes[k][:max_frames]
-    demo = learned.demos[k]
     parts = {n for i in learned.detections[k].instances for n in (i.parent, i.child)}
     if not kfs:
         return ""
     fig = plt.figure(figsize=(2.2 * len(kfs), 2.4))
     for j, kf in enumerate(kfs):
         ax = fig.add_subplot(1, len(kfs), j + 1, projection="3d")
+        half = 0.15
+        shown = [p for n, (p, _) in kf.poses.items() if n in parts]
+        if shown:
+            mid = np.mean(shown, axis=0)
+            half = max(0.15, float(np.max(np.abs(np.asarray(shown) - mid))) + 0.05)
+            ax.set_xlim(mid[0] - half, mid[0] + half)
+            ax.set_ylim(mid[1] - half, mid[1] + half)
+            ax.set_zlim(mid[2] - half, mid[2] + half)
         for name, (p, q) in kf.poses.items():
-            if demo.info(name).kind not in ("part", "tool") and name not in parts:
+            if name not in parts:
                 continue
             m = se3.matrix_from_quat(q)
             for c, col in enumerate(("r", "g", "b")):
-                e = p + 0.05 * m[:, c]
+                e = p + 0.2 * half * m[:, c]
                 ax.plot([p[0], e[0]], [p[1], e[1]], [p[2], e[2]], col, lw=1)
             hl = name in (kf.parent, kf.child)
             ax.scatter(*p, s=18 if hl else 6, c="k" if hl else "grey")
             if hl:
                 ax.text(p[0], p[1], p[2], name, fontsize=6)
+        ax.set_box_aspect((1, 1, 1))
+        # The constraints made so far, as parent–child links.
+        for done in learned.keyframes[k][: j + 1]:
+            if done.parent in kf.poses and done.child in kf.poses:
+                a, b = kf.poses[done.parent][0], kf.poses[done.child][0]
+                ax.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], "k-", lw=0.8)
         ax.set_title(f"{kf.time:.1f} s\n{kf.child} → {kf.parent}", fontsize=7)
         ax.set_xticks([])
         ax.set_yticks([])
