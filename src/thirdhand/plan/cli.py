@@ -13,6 +13,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 
 out = Console(highlight=False, soft_wrap=True)
@@ -32,7 +33,7 @@ experiment_app = typer.Typer(
 )
 
 
-def _load(path: Path) -> object:
+def _load(path: Path) -> Demonstration:
     from thirdhand import io
 
     if path.is_dir() and sorted(path.glob("*.bag")) and not (path / "metadata.yaml").exists():
@@ -60,18 +61,14 @@ def learn_command(
     ] = False,
 ) -> None:
     """Learn constraints, symbols and the assembly plan; write the task file."""
-    from thirdhand.demonstration import Demonstration
     from thirdhand.plan.learn import learn
     from thirdhand.taskfile import save_task
 
     try:
-        loaded = []
-        for p in demos:
-            d = _load(p)
-            assert isinstance(d, Demonstration)
-            loaded.append(d)
+        loaded = [_load(p) for p in demos]
         result = learn(loaded, names=[p.name for p in demos], segment=not no_segment, inputs=demos)
         task = result.task()
+        output.parent.mkdir(parents=True, exist_ok=True)
         save_task(task, output)
     except ThirdhandError as exc:
         err.print(f"error: {exc}")
