@@ -85,6 +85,20 @@ def main() -> None:
                     f"; {len(grid)} starts ±0.2 m: worst final error {1000 * pe.max():.3f} mm, "
                     f"{np.degrees(re.max()):.4f} deg"
                 )
+                if args.plots is not None and key == "c3":
+                    from thirdhand.primitives.plot import plot_generalisation
+
+                    args.plots.mkdir(parents=True, exist_ok=True)
+                    _, p_demo, _ = prim.dmp.rollout()
+                    plot_generalisation(
+                        prim.dmp,
+                        args.plots / "primitives_generalisation.png",
+                        goal_pos=prim.goal_pos,
+                        goal_quat=prim.goal_quat,
+                        offsets=grid,
+                        demo_pos=p_demo,
+                        title=f"{key}: {prim.child} into {prim.parent}, {len(grid)} starts",
+                    )
             print(line)
 
     dp = dp_check()

@@ -9,6 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.primitives.library import Parse, PrimitiveLibrary
+from thirdhand.primitives.quaternion_dmp import PoseDMP
 
 FloatArray = NDArray[np.float64]
 
@@ -83,3 +84,52 @@ def _draw_parse(ax: object, t: FloatArray, y: FloatArray, parse: Parse, colours:
         if y2.shape[1] == 1:
             ax.axvline(t[c], color="0.8", lw=0.5, zorder=0)  # type: ignore[attr-defined]
     ax.set_title(f"parse: {len(parse.labels)} segments of {len(parse.candidates) + 1}")  # type: ignore[attr-defined]
+
+
+def plot_generalisation(
+    dmp: PoseDMP,
+    path: str | os.PathLike[str],
+    *,
+    goal_pos: FloatArray,
+    goal_quat: FloatArray,
+    offsets: FloatArray,
+    demo_pos: FloatArray | None = None,
+    title: str = "",
+) -> None:
+    """Fig. 4 of the report: rollouts from shifted starts, all reaching the constraint pose.
+
+    Parameters
+    ----------
+    dmp : PoseDMP
+        Fitted, in the parent frame.
+    goal_pos : ndarray, shape (3,), metres, parent frame
+    goal_quat : ndarray, shape (4,), x y z w, parent frame
+    offsets : ndarray, shape (k, 3)
+        Start shifts, metres.
+    demo_pos : ndarray, shape (n, 3), optional
+        The averaged demonstration, drawn dashed.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(9, 4))
+    run = 1.5 * dmp.position_.tau_
+    for o in np.atleast_2d(offsets):
+        _, p, _ = dmp.position_.rollout(start=dmp.position_.start_ + o, goal=goal_pos, run_time=run)
+        axes[0].plot(p[:, 0], p[:, 2], lw=0.8)
+        axes[1].plot(p[:, 0], p[:, 1], lw=0.8)
+    if demo_pos is not None:
+        axes[0].plot(demo_pos[:, 0], demo_pos[:, 2], "k--", lw=1.2, label="demonstration")
+        axes[1].plot(demo_pos[:, 0], demo_pos[:, 1], "k--", lw=1.2)
+        axes[0].legend(loc="best", fontsize=8)
+    for ax, (a, b) in zip(axes, (("x", "z"), ("x", "y")), strict=True):
+        ax.plot(goal_pos[0], goal_pos[2 if b == "z" else 1], "r*", ms=12)
+        ax.set_xlabel(f"{a} (m, parent frame)")
+        ax.set_ylabel(f"{b} (m)")
+        ax.set_aspect("equal", adjustable="datalim")
+    fig.suptitle(title or "rollouts from shifted starts to the constraint pose")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
