@@ -434,7 +434,8 @@ def detect_constraints(
         th_p[k], th_q[k] = _last_valid_pose(p, q)
     posterior, params, th_p, th_q = fit_hmm(rel_p, rel_q, th_p, th_q, n_iter=opt.n_iter)
     layers = [(k, posterior[k], th_p[k]) for k in range(len(pairs))]
-    layers += _further_poses(posterior, rel_p, rel_q, pairs, world, params, opt)
+    step = float(np.median(np.diff(edges)))
+    layers += _further_poses(posterior, rel_p, rel_q, pairs, world, params, opt, step)
     t_end = float(demo.t[-1])
     candidates: list[_Run] = []
     for k, post, theta in layers:
@@ -479,6 +480,7 @@ def _further_poses(
     world: dict[str, tuple[FloatArray, FloatArray]],
     params: HMMParams,
     opt: DetectOptions,
+    step: float,
 ) -> list[tuple[int, FloatArray, FloatArray]]:
     """Constraint poses of a pair other than its last one (assembled, taken apart, redone).
 
@@ -498,7 +500,7 @@ def _further_poses(
     explained = posterior > 0.5
     step_p = 4.0 * math.sqrt(2.0) * params.sigma_pos
     step_r = 4.0 * math.sqrt(2.0) * params.sigma_rot
-    min_steps = max(2, round(max(opt.min_duration, 1.0) / opt.step))
+    min_steps = max(2, round(max(opt.min_duration, 1.0) / step))
     for _ in range(opt.max_poses - 1):
         ks, ps, qs, tps, tqs = [], [], [], [], []
         for k, (a, b) in enumerate(pairs):
