@@ -159,3 +159,25 @@ def test_average_of_screwing_motions_started_far_apart() -> None:
     assert steps.max() < 5.0  # 3 turns over 300 samples are 3.6° per sample
     assert se3.quat_angle(m[-1], tracks[0][1][-1]) < 1e-9
     np.testing.assert_allclose(np.linalg.norm(m, axis=1), 1.0)
+
+
+def test_noisy_tracks_with_gaps_and_sign_flips() -> None:
+    """Default sensor model: 1 mm / 0.5° noise, occlusion gaps, random quaternion signs."""
+    from thirdhand.synth import SensorModel
+
+    demos = [make_scene("chair", seed=s, sensor=SensorModel()) for s in range(2)]
+    block = primitives_stage(demos, promp_weights=5)
+    assert set(block["constraints"]) == {"c1", "c2", "c3", "c4", "c5"}
+    for c in block["constraints"].values():
+        assert c["imitation_error"]["pos_m"] < 5e-3 and c["imitation_error"]["rot_deg"] < 2.0
+        assert c["raw_error"]["pos_m"] < 2e-2 and c["raw_error"]["rot_deg"] < 6.0
+
+
+def test_segment_of_two_samples_is_a_clear_error(chair: list) -> None:
+    demo = chair[0]
+    ev = sorted(demo.labels.constraints, key=lambda e: e.time)[0]
+    early = type(ev)(
+        time=float(demo.t[1]), parent=ev.parent, child=ev.child, type=ev.type, symbol="c9"
+    )
+    with pytest.raises(PrimitiveError, match=r"constraint c9 .* at least 3 tracked samples.*got 2"):
+        constraint_segments(demo, events=[early])
