@@ -87,20 +87,14 @@ class ProMPMixture:
         cov = (x - mu).T @ ((x - mu) * p[:, None]) + self._floor * np.eye(x.shape[1])
         self.covs_ = np.repeat(cov[None], k, axis=0)
         self.weights_ = np.full(k, 1.0 / k)
-        self._data_var = max(float(p @ (st.sq / np.maximum(st.n_obs, 1.0))), 1e-300)
-        self._noise_floor = max(self.noise_floor * self._data_var, 1e-14)
-        self.noise_ = max(1e-2 * self._data_var, self._noise_floor)
+        data_var = max(float(p @ (st.sq / np.maximum(st.n_obs, 1.0))), 1e-300)
+        self._noise_floor = max(self.noise_floor * data_var, 1e-14)
+        self.noise_ = max(1e-2 * data_var, self._noise_floor)
         ang = st.angle[idx]
         self.angle_mean_ = ang.copy()
         avar = float(p @ (st.angle - p @ st.angle) ** 2)
         self._angle_floor = max(self.reg * avar, 1e-6)
         self.angle_var_ = np.full(k, avar + self._angle_floor)
-
-    def set_temperature(self, factor: float) -> None:
-        """Raise the noise floor to ``factor`` × its nominal value (deterministic annealing)."""
-        floor = max(self.noise_floor * max(factor, 1.0) * self._data_var, 1e-14)
-        self._noise_floor = floor
-        self.noise_ = max(self.noise_, floor)
 
     # ------------------------------------------------------------ core
     def _posterior(
