@@ -94,7 +94,10 @@ class PrimitiveLibrary:
         Smallest observation variance, relative to the segments' mean square: the
         resolution below which two shapes count as the same.
     covariance : {"full", "diag"}
-        Covariance of each skill's weights (see :class:`ProMPMixture`).
+        Covariance of each skill's weights (see :class:`ProMPMixture`). Diagonal by
+        default: with a handful of examples per skill (7 per LASA shape) full
+        covariances reach a higher likelihood by grouping different shapes, and in
+        1-D a full covariance makes a move and its mirror one skill.
     n_reseed : int
         A skill that explains (almost) no segment is moved onto the worst explained
         probable segment, at most this many times per restart.
