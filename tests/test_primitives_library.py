@@ -103,3 +103,22 @@ def test_two_hundred_candidate_cuts_parse_exactly() -> None:
     r = library_scaling()
     assert r["n_candidates"] >= 200
     assert r["n_cuts"] == r["true_cuts"]
+
+
+def test_library_e_step_equals_enumeration_on_a_real_track() -> None:
+    """The marginals used by the outer EM, with the learnt mixture's scores, vs brute force."""
+    train = sine_tracks(6, seed=3)
+    lib = PrimitiveLibrary(3, threshold=0.05, seed=0, n_init=2).fit(
+        [(t, y) for t, y, _, _ in train]
+    )
+    t, y, _, _ = max(train, key=lambda tr: tr[1].shape[0])
+    tr = lib._prepare(t, y, "track")
+    assert 3 <= tr.nodes.size - 2 <= 12
+    scores, _ = lib._scores(tr, lib.mixture_)
+    u, log_z = segment_marginals(scores)
+    u_bf, log_z_bf = brute_force_marginals(scores)
+    assert log_z == pytest.approx(log_z_bf, rel=1e-12)
+    np.testing.assert_allclose(u, u_bf, atol=1e-10)
+    # each node's outgoing marginals sum to the probability that the node is a cut
+    cut_prob = u.sum(axis=1)[1:-1]
+    np.testing.assert_allclose(cut_prob, u.sum(axis=0)[1:-1], atol=1e-10)
