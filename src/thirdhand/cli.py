@@ -73,7 +73,9 @@ def synth(
 
     if scene not in SCENES:
         _fail(f"unknown scene {scene!r}; scenes are {', '.join(SCENES)}")
-    sensor = None if noise_free else SensorModel(**({} if rate is None else {"rate": rate}))
+    sensor = None
+    if not noise_free:
+        sensor = SensorModel() if rate is None else SensorModel(rate=rate)
     demo = make_scene(scene, seed=seed, sensor=sensor)
     _check_output(output, force)
     io.save(demo, output)
@@ -196,6 +198,16 @@ def _mount_subapps() -> None:
                 continue  # the stage is not part of this installation
             raise
         app.add_typer(sub.app, name=name)
+    try:
+        from thirdhand.plan import cli as plan_cli
+    except ModuleNotFoundError as exc:
+        if exc.name is None or not "thirdhand.plan.cli".startswith(exc.name):
+            raise
+    else:
+        app.command("learn", help="Learn a task file from recordings (the whole pipeline).")(
+            plan_cli.learn_command
+        )
+        app.add_typer(plan_cli.experiment_app, name="experiment")
 
 
 _mount_subapps()

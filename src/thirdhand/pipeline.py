@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from thirdhand import io
-from thirdhand.demonstration import Demonstration
+from thirdhand.demonstration import ConstraintEvent, Demonstration, Labels
 from thirdhand.fileops import backup_existing
 
 
@@ -50,7 +50,10 @@ def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]
         f"{len(demo.labels.interactions)} labelled interactions, "
         f"{len(demo.labels.constraints)} constraints → {demo_path}"
     )
-    _run_segmentation(demo, out, summary)
+    phases = _run_segmentation(demo, out, summary)
+    task = _run_plan(demo, out, summary, phases)
+    if task is not None:
+        _run_primitives(demo, task, out, summary)
     return summary
 
 
@@ -65,9 +68,67 @@ def _demo_figures(demo: Demonstration) -> dict[str, Any]:
     }
 
 
-def _run_segmentation(demo: Demonstration, out: Path, summary: dict[str, Any]) -> None:
+def _run_segmentation(demo: Demonstration, out: Path, summary: dict[str, Any]) -> Any:
     try:
         from thirdhand.segment.pipeline import run_stage
     except ImportError:
+        return None
+    return run_stage(demo, out, summary)
+
+
+def _run_plan(demo: Demonstration, out: Path, summary: dict[str, Any], phases: Any) -> Any:
+    """Constraints, keyframes and the assembly plan → ``task.json`` and the HTML report."""
+    try:
+        from thirdhand.plan.learn import run_stage
+    except ImportError:
+        return None
+    return run_stage(demo, out, summary, phases=phases)
+
+
+def learned_constraint_events(task: Any) -> tuple[ConstraintEvent, ...]:
+    """The task file's learned constraints as constraint events on the demonstration's clock.
+
+    Later stages consume constraint events; feeding them the learned ones (not the
+    synthetic ground truth) keeps the main job honest.
+    """
+    events = []
+    for c in task.constraints:
+        if c.time is None:
+            continue
+        events.append(
+            ConstraintEvent(
+                time=float(c.time),
+                parent=c.parent,
+                child=c.child,
+                type=c.type,
+                pos=tuple(c.pos),
+                quat=tuple(c.quat),
+                free_dofs=tuple(tuple(r) for r in c.free_dof_array().tolist()),
+                symbol=c.symbol,
+            )
+        )
+    return tuple(sorted(events, key=lambda e: e.time))
+
+
+def _run_primitives(demo: Demonstration, task: Any, out: Path, summary: dict[str, Any]) -> None:
+    """Motor primitives per learned constraint, stored in the task file's stages."""
+    try:
+        from thirdhand.primitives.stage import primitives_stage
+    except ImportError:
         return
-    run_stage(demo, out, summary)
+    from thirdhand.taskfile import load_task, save_task
+
+    events = learned_constraint_events(task)
+    if not events:
+        return
+    learned = demo.replace(labels=Labels(constraints=events))
+    block = primitives_stage([learned])
+    path = out / "task.json"
+    current = load_task(path)
+    current.stages["primitives"] = block
+    save_task(current, path)
+    n = len(block.get("constraints", {}))
+    summary["primitives"] = {"constraints": sorted(block.get("constraints", {}))}
+    summary["lines"].append(
+        f"primitives: {n} constraint motions (quaternion DMP + ProMP) → {path} stages.primitives"
+    )
