@@ -127,11 +127,15 @@ def _attach_board(
     gx = rng.uniform(0.05, 0.1) * float(rng.choice([-1.0, 1.0]))
     grip = grasp_from_axes([gx, top, 0.0], -Y, Z, thick)
     t_g = sim.reach(worker, board, grip, max(t0, worker.t_free), rng.uniform(1.0, 1.4))
-    final = compose(ex["frame"], _assembled(board))
+    # The front board may have been left a few millimetres off by the helper: aim at
+    # its place relative to the front board as it is.
+    in_front = se3.relative_pose(*_assembled("side_front"), *_assembled(board))
+    t_c = t_g + 0.05 + rng.uniform(1.3, 1.8)
+    final = compose(sim.pose("side_front", t_c), in_front)
     above = (final[0] + 0.05 * Z, final[1])
-    t_c = sim.carry(board, t_g + 0.05, rng.uniform(1.3, 1.8), above, arc=0.08,
-                    tremor=worker.tremor)  # fmt: skip
-    t_i = sim.carry(board, t_c, rng.uniform(0.4, 0.6), final)
+    sim.carry(board, t_g + 0.05, t_c - t_g - 0.05, above, arc=0.08, tremor=worker.tremor)
+    t_i = t_c + rng.uniform(0.4, 0.6)
+    sim.carry(board, t_c, t_i - t_c, compose(sim.pose("side_front", t_i), in_front))
     hold = grasp_from_axes([-gx, top, 0.0], -Y, Z, thick)
     t_h = sim.reach(helper, board, hold, max(t_i - 0.6, helper.t_free), rng.uniform(0.9, 1.2))
     t_h = max(t_h, t_i)
@@ -140,15 +144,16 @@ def _attach_board(
     sd_grip = world_grasp(sd_rest, [rng.uniform(0.14, 0.18), 0, 0], -Z, Y, 0.032, axis=X)
     t = sim.reach(worker, "screwdriver", sd_grip, t, rng.uniform(0.9, 1.2))
     last = t
-    for i in rng.permutation(2):
+    for k, i in enumerate(rng.permutation(2)):
         screw, symbol = ex["hole_of"][(board, int(i))]
         last = t = _drive(sim, rng, worker, board, screw, symbol, t + 0.05)
+        if k == 1:
+            rel = sim.timeline.relative_at("side_front", board, last)
+            sim.timeline.put(board, last, _hold(rel), "side_front")
+            sim.establish("side_front", board, last, "fixed", symbol=_PLACES[board])
         sim.end_pair("screwdriver", screw, t + 0.05)
         out = offset(sim.pose("screwdriver", t + 0.05), (0.04, 0.0, 0.0))
         t = sim.carry("screwdriver", t + 0.05, 0.35, out)
-    sim.timeline.put(board, last, _hold(sim.timeline.relative_at("side_front", board, last)),
-                     "side_front")  # fmt: skip
-    sim.establish("side_front", board, last, "fixed", symbol=_PLACES[board])
     t = sim.carry("screwdriver", t, rng.uniform(1.0, 1.4), sd_rest, arc=0.06, tremor=worker.tremor)
     sim.rest(worker, sim.release(worker, t, 0.3), rng.uniform(0.8, 1.1))
     t_hr = sim.release(helper, last + rng.uniform(0.3, 0.8), 0.3)
@@ -161,10 +166,12 @@ def _drive(
     t0: float,
 ) -> float:  # fmt: skip
     """Engage the screwdriver on ``screw`` and drive it in; returns when it is tight."""
-    engaged = compose(sim.pose(screw, t0), _ENGAGED)
-    before = offset(engaged, (0.04, 0.0, 0.0))
-    t = sim.carry("screwdriver", t0, rng.uniform(0.9, 1.3), before, arc=0.05, tremor=worker.tremor)
-    t = sim.carry("screwdriver", t, rng.uniform(0.3, 0.45), engaged)
+    t = t0 + rng.uniform(0.9, 1.3)
+    before = offset(compose(sim.pose(screw, t), _ENGAGED), (0.04, 0.0, 0.0))
+    sim.carry("screwdriver", t0, t - t0, before, arc=0.05, tremor=worker.tremor)
+    t_e = t + rng.uniform(0.3, 0.45)
+    # The board moves a little in the helper's hand: engage where the screw is then.
+    t = sim.carry("screwdriver", t, t_e - t, compose(sim.pose(screw, t_e), _ENGAGED))
     sim.timeline.put("screwdriver", t, _hold(_ENGAGED), screw)
     sim.pair("screwdriver", screw, t)
     sim.end_pair(board, screw, t)
@@ -217,14 +224,15 @@ def script_drawer(sim: Sim, layout: Layout, rng: np.random.Generator) -> float:
     t_h = sim.reach(helper, "frame", steady, t0, rng.uniform(0.9, 1.2))
     handle = grasp_from_axes([0.21, 0.0, 0.03], -X, Z, 0.02)
     t_g = sim.reach(worker, "drawer", handle, t0 + 0.2, rng.uniform(1.0, 1.3))
-    frame = sim.pose("frame", t_h)
     closed = (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
     at_rails = ScrewPath(0, 1, *closed, X, 0.0, 0.0, travel, 0.0).end()
     before = ScrewPath(0, 1, *closed, X, 0.0, 0.0, travel + 0.08, 0.0).end()
     t = max(t_g + 0.05 + rng.uniform(1.2, 1.6), t_h + 0.2)
-    sim.carry("drawer", t_g + 0.05, t - t_g - 0.05, compose(frame, before), arc=0.05,
-              tremor=worker.tremor)  # fmt: skip
-    t = sim.carry("drawer", t, rng.uniform(0.5, 0.7), compose(frame, at_rails))
+    # The frame moves a little in the helper's hand: aim where it is at each end.
+    sim.carry("drawer", t_g + 0.05, t - t_g - 0.05, compose(sim.pose("frame", t), before),
+              arc=0.05, tremor=worker.tremor)  # fmt: skip
+    t_r = t + rng.uniform(0.5, 0.7)
+    t = sim.carry("drawer", t, t_r - t, compose(sim.pose("frame", t_r), at_rails))
     sim.timeline.put("drawer", t, _hold(at_rails), "frame")
     free = ((0.0, travel),) + ((0.0, 0.0),) * 5
     sim.establish("frame", "drawer", t, "prismatic", symbol="c1", free_dofs=free, pose=closed)
@@ -274,15 +282,16 @@ def script_lid(sim: Sim, layout: Layout, rng: np.random.Generator) -> float:
     t_h = sim.reach(helper, "box", steady, t0, rng.uniform(0.9, 1.2))
     edge = grasp_from_axes([rng.uniform(-0.05, 0.05), 0.2, 0.0], -Y, Z, 0.01)
     t_g = sim.reach(worker, "lid", edge, t0 + 0.2, rng.uniform(1.0, 1.3))
-    box = sim.pose("box", t_h)
     angle = float(rng.uniform(np.deg2rad(80), np.deg2rad(100)))
     closed = (_HINGE, _LID_CLOSED_Q)
     on_pins = ScrewPath(0, 1, *closed, X, angle, 0.0, 0.0, 0.0).end()
     before = ScrewPath(0, 1, *closed, X, angle, 0.0, 0.04, 0.0).end()
     t = max(t_g + 0.05 + rng.uniform(1.2, 1.6), t_h + 0.2)
-    sim.carry("lid", t_g + 0.05, t - t_g - 0.05, compose(box, before), arc=0.08,
+    # The box moves a little in the helper's hand: aim where it is at each end.
+    sim.carry("lid", t_g + 0.05, t - t_g - 0.05, compose(sim.pose("box", t), before), arc=0.08,
               tremor=worker.tremor)  # fmt: skip
-    t = sim.carry("lid", t, rng.uniform(0.5, 0.7), compose(box, on_pins))
+    t_p = t + rng.uniform(0.5, 0.7)
+    t = sim.carry("lid", t, t_p - t, compose(sim.pose("box", t_p), on_pins))
     sim.timeline.put("lid", t, _hold(on_pins), "box")
     free = ((0.0, 0.0),) * 3 + ((0.0, max_open),) + ((0.0, 0.0),) * 2
     sim.establish("box", "lid", t, "revolute", symbol="c1", free_dofs=free, pose=closed)

@@ -17,7 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
 from thirdhand.demonstration import BodyInfo
-from thirdhand.synth.motion import PosePath, Tremor, min_jerk, phase, quat_exp
+from thirdhand.synth.motion import PosePath, Tremor, hold_motion, min_jerk, phase, quat_exp
 
 FloatArray = NDArray[np.float64]
 
@@ -151,6 +151,11 @@ class Hand:
         Resting pose of the hand frame, world.
     tremor : Tremor
     jitters : list of Tremor, one per finger
+    idle_shift, idle_turn : Tremor or None
+        The hand's own small motion while it waits (metres; radians, hand frame).
+    hold_shift, hold_turn : Tremor or None
+        The low-frequency motion it gives a part it holds at rest (metres;
+        radians, world frame; see :class:`thirdhand.synth.motion.Wobble`).
     t_free : float
         End of the hand's last scripted motion, seconds.
     pose : tuple of ndarray (3,), (4,)
@@ -167,6 +172,10 @@ class Hand:
     rest: tuple[FloatArray, FloatArray]
     tremor: Tremor
     jitters: list[Tremor]
+    idle_shift: Tremor | None = None
+    idle_turn: Tremor | None = None
+    hold_shift: Tremor | None = None
+    hold_turn: Tremor | None = None
     t_free: float = 0.0
     pose: tuple[FloatArray, FloatArray] = field(default_factory=lambda: (np.zeros(3), np.zeros(4)))
     aperture: float = RELAXED_APERTURE
@@ -190,14 +199,26 @@ class Hand:
 def make_hand(
     name: str, side: str, person: str, rest: tuple[FloatArray, FloatArray], rng: np.random.Generator
 ) -> Hand:
-    """A hand at rest with its own tremor and finger jitter."""
+    """A hand at rest with its own tremor, finger jitter, idle and holding motion.
+
+    Idle: a few millimetres and about two degrees at 0.3–3 Hz (a waiting hand is
+    never still); holding: a few millimetres and a degree or two given to the part.
+    """
+    tremor = Tremor.random(rng)
+    jitters = [Tremor.random(rng, amplitude=1.5e-4, drift=4e-4) for _ in FINGERS]
+    idle_shift, idle_turn = hold_motion(rng, amplitude=3e-3, angle=np.deg2rad(2.5))
+    hold_shift, hold_turn = hold_motion(rng, amplitude=2.5e-3, angle=np.deg2rad(1.5))
     hand = Hand(
         name=name,
         side=side,
         person=person,
         rest=rest,
-        tremor=Tremor.random(rng),
-        jitters=[Tremor.random(rng, amplitude=1.5e-4, drift=4e-4) for _ in FINGERS],
+        tremor=tremor,
+        jitters=jitters,
+        idle_shift=idle_shift,
+        idle_turn=idle_turn,
+        hold_shift=hold_shift,
+        hold_turn=hold_turn,
     )
     hand.pose = (rest[0].copy(), rest[1].copy())
     return hand

@@ -9,6 +9,7 @@ so a body keeps still after its last motion ends.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -121,6 +122,9 @@ class PosePath:
     rotvec : ndarray, shape (3,), radians, in the frame of ``q0``
     bump : ndarray, shape (3,), metres, peak arc offset at mid-path
     tremor : Tremor or None
+    turn : Tremor or None
+        Rotation vector (radians, body frame) faded in and out like the tremor: an
+        idle hand's own small rotation.
     """
 
     t0: float
@@ -131,6 +135,7 @@ class PosePath:
     rotvec: FloatArray
     bump: FloatArray
     tremor: Tremor | None = None
+    turn: Tremor | None = None
 
     @classmethod
     def between(
@@ -142,12 +147,14 @@ class PosePath:
         *,
         bump: ArrayLike = (0.0, 0.0, 0.0),
         tremor: Tremor | None = None,
+        turn: Tremor | None = None,
     ) -> PosePath:
         """Shortest-rotation path from pose ``start`` to pose ``end``."""
         p0, q0 = (np.asarray(a, dtype=np.float64) for a in start)
         p1, q1 = (np.asarray(a, dtype=np.float64) for a in end)
         rv = quat_log(se3.quat_multiply(se3.quat_conjugate(q0), q1))
-        return cls(t0, t1, p0, q0, p1 - p0, rv, np.asarray(bump, dtype=np.float64), tremor)
+        bump_a = np.asarray(bump, dtype=np.float64)
+        return cls(t0, t1, p0, q0, p1 - p0, rv, bump_a, tremor, turn)
 
     def end(self) -> tuple[FloatArray, FloatArray]:
         """Pose at ``t1``: position (3,), quaternion (4,)."""
@@ -157,9 +164,12 @@ class PosePath:
         tau = phase(t, self.t0, self.t1)
         s = min_jerk(tau)[:, None]
         p = self.p0 + s * self.dp + (4.0 * s * (1.0 - s)) * self.bump
+        env = np.sin(np.pi * tau)[:, None] ** 2
         if self.tremor is not None:
-            p = p + np.sin(np.pi * tau)[:, None] ** 2 * self.tremor(t)
+            p = p + env * self.tremor(t)
         q = se3.quat_multiply(self.q0, quat_exp(s * self.rotvec))
+        if self.turn is not None:
+            q = se3.quat_multiply(q, quat_exp(env * self.turn(t)))
         return p, q
 
 
@@ -224,3 +234,94 @@ class Sway:
         rv = np.stack([np.zeros_like(t), d[:, 0], d[:, 1]], axis=1)
         rv *= self.angle_amp / max(float(np.abs(self.tremor.amps).sum()), 1e-12)
         return p, se3.quat_multiply(self.quat, quat_exp(rv))
+
+
+@dataclass(frozen=True)
+class Push:
+    """One push or twist of a held body (a screwing stroke of the other hand).
+
+    Attributes
+    ----------
+    t0, t1 : float, seconds
+    dp : ndarray, shape (3,), metres, world frame; peak displacement
+    rotvec : ndarray, shape (3,), radians, world frame; peak rotation about the pivot
+    """
+
+    t0: float
+    t1: float
+    dp: FloatArray
+    rotvec: FloatArray
+
+    def envelope(self, t: FloatArray) -> FloatArray:
+        """``sin²(π τ)`` over the push, zero outside it; shape of ``t``."""
+        inside = (t > self.t0) & (t < self.t1)
+        return np.where(inside, np.sin(np.pi * phase(t, self.t0, self.t1)) ** 2, 0.0)
+
+
+@dataclass(frozen=True)
+class Wobble:
+    """A held body at rest in the world, following the holding hand's small motion.
+
+    The body's pose is its resting pose ``(pos, quat)`` moved by a rigid
+    displacement about ``pivot`` (the grasp point): ``p = c + R (pos − c) + d``,
+    ``q = R quat`` with ``d = g (Σ sinusoids) + Σ pushes``, ``R = exp(rv)``. ``g``
+    ramps in by minimum jerk over ``ramp`` seconds from ``t_start``, so the pose is
+    continuous where the wobble starts (whatever held the body before).
+    ``pushes`` is filled while the scene is scripted (in time order: each push
+    only changes the pose inside its own interval).
+
+    Attributes
+    ----------
+    pos : ndarray, shape (3,), metres, world
+    quat : ndarray, shape (4,), x y z w, world
+    pivot : ndarray, shape (3,), metres, world
+    shift : Tremor
+        Displacement, metres.
+    turn : Tremor
+        Rotation vector, radians (read through :class:`Tremor`'s sum of sinusoids).
+    t_start, ramp : float, seconds
+    pushes : list of Push
+    """
+
+    pos: FloatArray
+    quat: FloatArray
+    pivot: FloatArray
+    shift: Tremor
+    turn: Tremor
+    t_start: float
+    ramp: float = 0.4
+    pushes: list[Push] = dataclasses.field(default_factory=list)
+
+    def offset(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Displacement (n, 3) metres and rotation vector (n, 3) radians, world frame."""
+        g = min_jerk(phase(t, self.t_start, self.t_start + self.ramp))[:, None]
+        d = g * self.shift(t)
+        rv = g * self.turn(t)
+        for push in self.pushes:
+            e = push.envelope(t)[:, None]
+            d = d + e * push.dp
+            rv = rv + e * push.rotvec
+        return d, rv
+
+    def __call__(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        d, rv = self.offset(t)
+        r = quat_exp(rv)
+        p = self.pivot + se3.quat_rotate(r, self.pos - self.pivot) + d
+        return p, se3.quat_multiply(r, np.broadcast_to(self.quat, r.shape))
+
+
+def hold_motion(
+    rng: np.random.Generator, *, amplitude: float = 2.5e-3, angle: float = np.deg2rad(1.5)
+) -> tuple[Tremor, Tremor]:
+    """Random low-frequency motion of a holding hand: (shift in m, turn in rad).
+
+    Three sinusoids per axis between 0.3 and 3 Hz; ``amplitude`` and ``angle`` are
+    the typical peak per axis.
+    """
+    freqs = np.array([rng.uniform(0.3, 0.8), rng.uniform(0.8, 1.6), rng.uniform(1.6, 3.0)])
+    weights = np.array([0.6, 0.6, 0.4])[:, None]
+    shift = Tremor(freqs, amplitude * weights * rng.uniform(0.6, 1.0, (3, 3)),
+                   rng.uniform(0.0, 2.0 * np.pi, (3, 3)))  # fmt: skip
+    turn = Tremor(freqs[::-1].copy(), angle * weights * rng.uniform(0.6, 1.0, (3, 3)),
+                  rng.uniform(0.0, 2.0 * np.pi, (3, 3)))  # fmt: skip
+    return shift, turn

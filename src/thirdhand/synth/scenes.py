@@ -137,7 +137,7 @@ def _roles(sim: Sim, n_people: int) -> tuple[Hand, Hand]:
 def _settle(sim: Sim, end: float) -> None:
     for hand in sim.hands.values():
         if hand.holding is None and hand.t_free < end:
-            sim.move_hand(hand, hand.t_free, end - hand.t_free, hand.pose)
+            sim.wait(hand, end)
 
 
 # ====================================================================== chair and bench
@@ -217,15 +217,17 @@ def _screw_leg(
     g = world_grasp(sim.pose(leg, t0), [rng.uniform(0.10, 0.18), 0, 0], -Z, Y, 2 * ex["radius"],
                     axis=X)  # fmt: skip
     t_g = sim.reach(worker, leg, g, max(t0 + 0.2, worker.t_free), rng.uniform(0.9, 1.3))
-    seat_final = sim.pose("seating", t_settle)
     proud = 0.012
     theta = float(rng.uniform(-np.pi, np.pi))
     above = ScrewPath(0, 1, slot_p, SLOT_Q, X, theta, 0.0, proud + 0.035, 0.0).end()
     inserted = ScrewPath(0, 1, slot_p, SLOT_Q, X, theta, 0.0, proud, 0.0).end()
     t_lift = t_g + 0.05
     t_c = max(t_lift + rng.uniform(1.1, 1.6), t_settle + 0.15)
-    sim.carry(leg, t_lift, t_c - t_lift, compose(seat_final, above), arc=0.06, tremor=worker.tremor)
-    t_i = sim.carry(leg, t_c, rng.uniform(0.4, 0.6), compose(seat_final, inserted))
+    # The seat moves a little in the helper's hand: aim where it is at the end.
+    above_w = compose(sim.pose("seating", t_c), above)
+    sim.carry(leg, t_lift, t_c - t_lift, above_w, arc=0.06, tremor=worker.tremor)
+    t_i = t_c + rng.uniform(0.4, 0.6)
+    sim.carry(leg, t_c, t_i - t_c, compose(sim.pose("seating", t_i), inserted))
     sim.timeline.put(leg, t_i, _hold(inserted), "seating")
     # Screwing: each turn spins the leg about its axis and draws it in; regrasp in between.
     n = int(rng.integers(turns[0], turns[1] + 1))
@@ -280,17 +282,18 @@ def _insert_back(
     t_h = sim.reach(helper, "seating", g_seat, max(t0, helper.t_free), rng.uniform(0.8, 1.1))
     g = grasp_from_axes([rng.uniform(-0.05, 0.05), -0.42, 0.0], Y, Z, 0.03)
     t_g = sim.reach(worker, "back", g, max(t0 + 0.2, worker.t_free), rng.uniform(1.1, 1.5))
-    seat = sim.pose("seating", max(t_h, t_g))
     final = (np.array(geo.CHAIR_BACK_SLOT), np.array([0.0, 0.0, 0.0, 1.0]))
     above = offset(final, (0.0, -0.06, 0.0))
     t_c = max(t_g + 0.05 + rng.uniform(1.8, 2.3), t_h + 0.2)
-    sim.carry("back", t_g + 0.05, t_c - t_g - 0.05, compose(seat, above), arc=0.08,
-              tremor=worker.tremor)  # fmt: skip
-    t_i = sim.carry("back", t_c, rng.uniform(0.45, 0.6), compose(seat, final))
+    sim.carry("back", t_g + 0.05, t_c - t_g - 0.05, compose(sim.pose("seating", t_c), above),
+              arc=0.08, tremor=worker.tremor)  # fmt: skip
+    t_i = t_c + rng.uniform(0.45, 0.6)
+    sim.carry("back", t_c, t_i - t_c, compose(sim.pose("seating", t_i), final))
     sim.timeline.put("back", t_i, _hold(final), "seating")
     sim.establish("seating", "back", t_i, "fixed", symbol="c5", pose=final)
     sim.rest(worker, sim.release(worker, t_i + 0.1, 0.3), rng.uniform(0.8, 1.1))
-    sim.rest(helper, sim.release(helper, t_i + rng.uniform(0.1, 0.4), 0.3), rng.uniform(0.8, 1.1))
+    # The helper keeps steadying the chair a moment after the back is home.
+    sim.rest(helper, sim.release(helper, t_i + rng.uniform(0.6, 1.2), 0.3), rng.uniform(0.8, 1.1))
     return t_i
 
 

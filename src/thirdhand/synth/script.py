@@ -33,7 +33,7 @@ from thirdhand.synth.human import (
     Hand,
     finger_pose_in_hand,
 )
-from thirdhand.synth.motion import Hold, PosePath, ScrewPath, Sway, Tremor
+from thirdhand.synth.motion import Hold, PosePath, Push, ScrewPath, Sway, Tremor, Wobble
 
 FloatArray = NDArray[np.float64]
 Pose = tuple[FloatArray, FloatArray]
@@ -64,6 +64,7 @@ class Sim:
     plan: list[PlanStep] = field(default_factory=list)
     joins: list[tuple[float, str, str]] = field(default_factory=list)
     open_pairs: dict[tuple[str, str], float] = field(default_factory=dict)
+    grasps: list[tuple[str, str, float, float]] = field(default_factory=list)
     end: float = 0.0
 
     # ------------------------------------------------------------ bodies
@@ -100,12 +101,17 @@ class Sim:
         *,
         bump: ArrayLike = (0.0, 0.0, 0.0),
         close: tuple[float, float] | None = None,
+        idle: bool = False,
     ) -> None:
         if hand.holding is not None:
             raise RuntimeError(f"hand {hand.name} moves freely while holding {hand.holding}")
         if t0 > hand.t_free + 1e-9:
-            self._free(hand, hand.t_free, t0, hand.pose, hand.aperture)
-        path = PosePath.between(t0, t1, hand.pose, target, bump=bump, tremor=hand.tremor)
+            self._free(hand, hand.t_free, t0, hand.pose, hand.aperture, idle=True)
+        if idle:
+            tremor, turn = hand.idle_shift, hand.idle_turn
+        else:
+            tremor, turn = hand.tremor, None
+        path = PosePath.between(t0, t1, hand.pose, target, bump=bump, tremor=tremor, turn=turn)
         ta, tb = close if close is not None else (t0, t1)
         for i, name in enumerate(hand.fingers):
             motion = FingerOnHand(path, i, ta, tb, hand.aperture, aperture, hand.jitters[i])
@@ -129,6 +135,11 @@ class Sim:
         self._free(hand, t0, t0 + dur, target, a, bump=bump)
         return t0 + dur
 
+    def wait(self, hand: Hand, t1: float) -> None:
+        """A free hand waits where it is until ``t1``, moving only by its idle sway."""
+        if t1 > hand.t_free:
+            self._free(hand, hand.t_free, t1, hand.pose, hand.aperture, idle=True)
+
     def rest(self, hand: Hand, t0: float, dur: float) -> float:
         """Return a free hand to its resting pose, relaxing the fingers."""
         return self.move_hand(hand, t0, dur, hand.rest, RELAXED_APERTURE)
@@ -147,6 +158,9 @@ class Sim:
         d_app = min(0.35, 0.4 * dur)
         t_g = t0 + max(dur, d_app + movement_time(hand.pose, pre))
         t_a = t_g - d_app
+        # A held object moves a little: close exactly where it is at the grasp time.
+        hg = compose(self.pose(obj, t_g), (grasp.pos, grasp.quat))
+        pre = offset(hg, (0.0, 0.0, -approach))
         dist = float(np.linalg.norm(pre[0] - hand.pose[0]))
         bump = UP * min(0.12 * dist, 0.05)
         opened = grasp.width + PREGRASP_OPENING
@@ -161,6 +175,7 @@ class Sim:
             rel = compose((grasp.pos, grasp.quat), finger_pose_in_hand(i, grasp.width))
             self.timeline.put(name, t, Hold(*rel), obj)
         hand.holding, hand.grasp, hand.grasp_time, hand.t_free = obj, grasp, t, t
+        self._steady(hand, t)
 
     def release(self, hand: Hand, t0: float, dur: float = 0.3, *, retreat: float = 0.03) -> float:
         """Open the fingers and back off along the approach axis; returns the end time."""
@@ -170,8 +185,10 @@ class Sim:
         t0 = max(t0, hand.t_free)
         for name in hand.fingers:
             self.interactions.append(InteractionInterval(name, obj, hand.grasp_time, t0))
+            self.grasps.append((name, obj, hand.grasp_time, t0))
         hr = compose(self.pose(obj, t0), (grasp.pos, grasp.quat))
         hand.holding, hand.grasp = None, None
+        self._let_go(obj, t0)
         hand.pose, hand.aperture, hand.t_free = hr, grasp.width, t0
         self._free(hand, t0, t0 + dur, offset(hr, (0.0, 0.0, -retreat)), grasp.width + 0.035)
         return t0 + dur
@@ -187,6 +204,67 @@ class Sim:
         if hand.holding is None or hand.grasp is None:
             return hand.pose
         return compose(self.pose(hand.holding, t), (hand.grasp.pos, hand.grasp.quat))
+
+    # ------------------------------------------------------------ held objects
+    def root(self, body: str, t: float) -> str:
+        """The body at the top of ``body``'s parent chain at time ``t``."""
+        for _ in range(64):
+            parent = self.timeline.segment_at(body, t).parent
+            if parent is None:
+                return body
+            body = parent
+        raise RuntimeError(f"parent chain of {body} loops")
+
+    def _steady(self, hand: Hand, t: float) -> None:
+        """The object ``hand`` holds (its whole assembly) follows the hand's small motion.
+
+        Applies when the assembly's root rests in the world at ``t`` and nothing is
+        scripted for it after ``t``; a carry that ends in the hand calls it again.
+        """
+        if hand.holding is None or hand.hold_shift is None or hand.hold_turn is None:
+            return
+        root = self.root(hand.holding, t)
+        segs = self.timeline.segments[root]
+        seg = self.timeline.segment_at(root, t)
+        if seg.parent is not None or isinstance(seg.motion, Wobble) or segs[-1].start > t:
+            return
+        if isinstance(seg.motion, PosePath) and t < seg.motion.t1 - 1e-9:
+            return  # being carried; the carry's end starts the wobble
+        if not isinstance(seg.motion, Hold | PosePath):
+            return
+        p, q = self.pose(root, t)
+        pivot = self.hand_pose(hand, t)[0]
+        self.timeline.put(root, t, Wobble(p, q, pivot, hand.hold_shift, hand.hold_turn, t))
+
+    def _holders(self, root: str, t: float) -> list[Hand]:
+        return [
+            h
+            for h in self.hands.values()
+            if h.holding is not None and self.root(h.holding, t) == root
+        ]
+
+    def _let_go(self, obj: str, t: float) -> None:
+        """After a release at ``t``: a wobbling assembly nobody holds stays where it is."""
+        root = self.root(obj, t)
+        seg = self.timeline.segment_at(root, t)
+        if not isinstance(seg.motion, Wobble) or self.timeline.segments[root][-1] is not seg:
+            return
+        holders = self._holders(root, t)
+        if holders:
+            return
+        self.timeline.put(root, t, Hold(*self.pose(root, t)))
+
+    def _push(self, obj: str, parent: str, t0: float, t1: float, path: ScrewPath) -> None:
+        """The reaction of a held assembly to a turn or push of ``obj`` in ``parent``."""
+        root = self.root(parent, t0)
+        seg = self.timeline.segment_at(root, t0)
+        if not isinstance(seg.motion, Wobble):
+            return
+        axis = se3.quat_rotate(self.pose(obj, t0)[1], path.axis)
+        twist = -np.sign(path.dtheta) * self.rng.uniform(0.5, 1.5) * np.deg2rad(1.0) * axis
+        shove = np.sign(path.dd) * self.rng.uniform(1.0, 3.0) * 1e-3 * axis
+        shove = shove + self.rng.normal(0.0, 1e-3, 3)
+        seg.motion.pushes.append(Push(t0, t1, shove, twist))
 
     # ------------------------------------------------------------ object motion
     def carry(
@@ -215,11 +293,18 @@ class Sim:
                 np.asarray(rotvec, dtype=np.float64), UP * arc, tremor,
             )  # fmt: skip
         self.timeline.put(obj, t0, path)
+        for hand in self._holders(obj, t1):
+            self._steady(hand, t1)
+            break
         return t1
 
     def screw(self, obj: str, parent: str, t0: float, dur: float, path: ScrewPath) -> float:
-        """Move ``obj`` along a screw/revolute/prismatic path in ``parent``'s frame."""
+        """Move ``obj`` along a screw/revolute/prismatic path in ``parent``'s frame.
+
+        A held parent assembly reacts with a small push and twist (see :class:`Push`).
+        """
         self.timeline.put(obj, t0, path, parent)
+        self._push(obj, parent, t0, t0 + dur, path)
         return t0 + dur
 
     def fix_to(self, obj: str, parent: str, t: float) -> None:
@@ -271,6 +356,8 @@ class Sim:
         if plan:
             self.plan.append(PlanStep(parent, child, symbol, t))
         self.joins.append((t, parent, child))
+        for hand in self.hands.values():
+            self._steady(hand, t)
 
     def finish(self, end: float) -> None:
         """Close every open label at ``end`` and add the part–part pairs of the joins."""
@@ -292,7 +379,84 @@ class Sim:
             merged = ga | gb
             for name in merged:
                 group[name] = merged
+        self.interactions = self._rigid_only(self.interactions)
+        self.interactions += self._carried_along()
         self.interactions.sort(key=lambda i: (i.start, i.a, i.b))
+
+    def _rigid_only(
+        self, items: list[InteractionInterval], step: float = 1.0 / 960.0
+    ) -> list[InteractionInterval]:
+        """Part–part intervals cut to the spans where the relative pose is constant.
+
+        A drawer sliding in its rails or a lid turning on its hinge is connected to
+        its parent but does not move rigidly with it; a fixed constraint is rigid
+        throughout and keeps its whole interval.
+        """
+        out = []
+        for i in items:
+            if self.bodies[i.a].kind == "part" and self.bodies[i.b].kind == "part":
+                out += [
+                    InteractionInterval(i.a, i.b, s, e)
+                    for s, e in self._rigid_spans(i.a, i.b, i.start, i.end, step)
+                ]
+            else:
+                out.append(i)
+        return out
+
+    def _carried_along(self, step: float = 1.0 / 960.0) -> list[InteractionInterval]:
+        """Finger–object interactions through a held object (the transitive rule).
+
+        A finger holding ``Q`` interacts with ``P`` while ``Q`` and ``P`` interact
+        (a labelled part–part or tool–part interval: established constraints,
+        directly or through others, a screw started in its board, a screwdriver
+        engaged in a screw) **and** ``P``'s pose in ``Q``'s frame does not change
+        (a drawer sliding in its rails, a lid turning on its hinge move relative to
+        the holder). Rigidity is checked on a ``step``-second grid, so these
+        boundaries are exact to ``step`` where a joint starts or stops moving.
+        """
+        links: dict[str, list[tuple[str, float, float]]] = {}
+        for i in self.interactions:
+            if self.bodies[i.a].kind in ("part", "tool") and self.bodies[i.b].kind in (
+                "part",
+                "tool",
+            ):
+                links.setdefault(i.a, []).append((i.b, i.start, i.end))
+                links.setdefault(i.b, []).append((i.a, i.start, i.end))
+        out: list[InteractionInterval] = []
+        rigid_cache: dict[tuple[str, str, float, float], list[tuple[float, float]]] = {}
+        for finger, q, g0, g1 in self.grasps:
+            for p, l0, l1 in links.get(q, []):
+                a, b = max(g0, l0), min(g1, l1)
+                if b <= a:
+                    continue
+                key = (q, p, a, b)
+                if key not in rigid_cache:
+                    rigid_cache[key] = self._rigid_spans(q, p, a, b, step)
+                out += [InteractionInterval(finger, p, s, e) for s, e in rigid_cache[key]]
+        return out
+
+    def _rigid_spans(
+        self, parent: str, child: str, t0: float, t1: float, step: float
+    ) -> list[tuple[float, float]]:
+        """Sub-intervals of ``[t0, t1]`` where ``child`` is still in ``parent``'s frame."""
+        n = max(int(np.ceil((t1 - t0) / step)), 1) + 1
+        t = np.linspace(t0, t1, n)
+        poses = self.timeline.evaluate(t, [parent, child])
+        rp, rq = se3.relative_pose(*poses[parent], *poses[child])
+        rq = rq * np.where(np.sum(rq * rq[:1], axis=1) < 0, -1.0, 1.0)[:, None]
+        jump = np.maximum(
+            np.linalg.norm(np.diff(rp, axis=0), axis=1), np.linalg.norm(np.diff(rq, axis=0), axis=1)
+        )
+        moving = jump > 1e-9
+        still = np.ones(n, dtype=bool)
+        still[:-1] &= ~moving
+        still[1:] &= ~moving
+        spans = []
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+        for lo, hi in zip(edges[::2], edges[1::2], strict=True):
+            if hi - lo >= 2:
+                spans.append((float(t[lo]), float(t[hi - 1])))
+        return spans
 
 
 def movement_time(start: Pose, end: Pose) -> float:
