@@ -672,9 +672,10 @@ def _assign_parents(
 
     The groups at a moment are the connected components of the direct constraints
     active then (started, not yet removed), so a part taken off and put back joins
-    again. The root is the part with most direct constraints; among equals, the
-    one that travelled least in the world (the base stays put while parts are
-    brought to it).
+    again. The root is the part with most direct constraints at the end of the
+    recording (then most overall; a short spurious constraint, made and removed,
+    must not make a leg the base); among equals, the one that travelled least in
+    the world (the base stays put while parts are brought to it).
     """
     n_steps = times.size
     direct: list[_Run] = []
@@ -709,13 +710,19 @@ def _assign_parents(
     for batch in batches:
         t0 = max(c.start for c in batch)
         group = groups(t0)
+        # The hub counts the constraints active now (a removed spurious one does not).
+        active_degree: dict[str, int] = {}
+        for d in direct:
+            if d.hi >= n_steps - 1 or times[d.hi - 1] > t0:
+                for n in pairs[d.k]:
+                    active_degree[n] = active_degree.get(n, 0) + 1
         # Among runs joining the same two groups: the hub among the near parts.
         options: dict[tuple[int, int], list[tuple[float, int, _Run]]] = {}
         for c in batch:
             a, b = pairs[c.k]
             ga, gb = group[a], group[b]
             if ga != gb:
-                hub = max(degree.get(a, 0), degree.get(b, 0))
+                hub = max(active_degree.get(a, 0), active_degree.get(b, 0))
                 dist = float(np.linalg.norm(th_p[c.k]))
                 options.setdefault((min(ga, gb), max(ga, gb)), []).append((dist, hub, c))
         best: dict[tuple[int, int], _Run] = {}
@@ -733,7 +740,12 @@ def _assign_parents(
                 degree[n] = degree.get(n, 0) + 1
     if not direct:
         return [], None
-    root = min(sorted(degree), key=lambda n: (-degree[n], motion.get(n, 0.0)))
+    final: dict[str, int] = {}
+    for c in direct:
+        if c.hi >= n_steps - 1:
+            for n in pairs[c.k]:
+                final[n] = final.get(n, 0) + 1
+    root = min(sorted(degree), key=lambda n: (-final.get(n, 0), -degree[n], motion.get(n, 0.0)))
     parent_of = _orient([pairs[c.k] for c in direct], root)
     out = []
     for c in direct:

@@ -9,7 +9,8 @@ has both; otherwise the two are interchangeable. Steps are listed by their mean
 rank over the demonstrations (a linear extension of that partial order), and each
 step's ``after`` lists its direct predecessors (the transitive reduction). With
 one demonstration the order is total. The child of a step is the part that went
-into its slot in most demonstrations, each part used once.
+into its slot in most demonstrations, each part used once. A slot becomes a step
+only when more than half of the demonstrations have it.
 """
 
 from __future__ import annotations
@@ -127,7 +128,15 @@ def plan_from_demos(
             if all(j.symbol != i.symbol for j in seq):
                 seq.append(i)
         seqs.append(seq)
-    names = sorted({i.symbol for seq in seqs for i in seq if i.symbol in by_name})
+    support: dict[str, int] = {}
+    for seq in seqs:
+        for i in seq:
+            if i.symbol in by_name:
+                support[i.symbol] = support.get(i.symbol, 0) + 1
+    # A step must appear in more than half of the demonstrations: one demonstration's
+    # spurious constraint does not become a step.
+    names = sorted(n for n, v in support.items() if 2 * v > len(seqs))
+    seqs = [[i for i in seq if i.symbol in names] for seq in seqs]
     rank: dict[str, list[float]] = {n: [] for n in names}
     times: dict[str, list[float]] = {n: [] for n in names}
     for seq in seqs:
