@@ -1,11 +1,14 @@
 """The shipped model and the Table I protocol on the synthetic assembly scenes.
 
-Measured figures (held-out seeds, shipped model) are in the training script's
-output and the model's ``training["held_out"]``; the thresholds here are the
-levels reached, so a regression fails. Finger–object and part–part F1 on these
-scenes stay far below the 0.9 asked for: the scenes label contact, including
-long still holds and excluding rigid co-motion through an assembly, which pose
-variances cannot see (see the report of the segmentation work).
+Measured figures (held-out seeds 1000+, shipped model) are in the training
+script's output and the model's ``training["held_out"]``. The issue asks for
+frame F1 >= 0.98 noise-free and >= 0.9 noisy for finger-, hand- and part-part
+pairs; the thresholds here are the levels reached (see the report of the
+segmentation work), so a regression fails: noisy finger/hand-object about 0.9,
+part-part about 0.75-0.85; noise-free finger/hand-object 0.82-0.91 and
+part-part only about 0.55 (an assembled chair standing still looks like parts
+lying on the table, and noise-free variances of still bodies sit below the
+noise floor the model mostly saw in training).
 """
 
 from __future__ import annotations
@@ -36,6 +39,25 @@ def test_tool_part_phases_on_held_out_noisy_toolbox() -> None:
     # Every finger and part of the scene was paired, and the hands aggregated.
     assert {h.hand for h in result.hands} == {"lh", "rh"}
     assert all(np.isfinite(p.probability[p.evidence]).all() for p in result.pairs)
+
+
+@pytest.mark.parametrize(
+    ("scene", "seed", "noisy", "finger", "part"),
+    [
+        ("chair", 1000, True, 0.88, 0.8),
+        ("toolbox", 1001, True, 0.9, 0.7),
+        ("chair", 1000, False, 0.88, 0.5),
+        ("toolbox", 1001, False, 0.78, 0.45),
+    ],
+)
+def test_held_out_frame_f1_per_pair_kind(
+    scene: str, seed: int, noisy: bool, finger: float, part: float
+) -> None:
+    demo = synth.make_scene(scene, seed=seed, sensor=synth.SensorModel() if noisy else None)
+    scores = scores_by_kind(segment_demonstration(demo))
+    assert scores["finger-object"]["frame_f1"] >= finger
+    assert scores["hand-object (aggregated)"]["frame_f1"] >= finger
+    assert scores["part-part"]["frame_f1"] >= part
 
 
 @pytest.mark.slow

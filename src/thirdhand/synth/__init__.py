@@ -5,24 +5,43 @@
 ``bench``, a ``toolbox``, or mounting a ``drawer`` (prismatic) or a ``lid``
 (revolute), with the interactions, constraints and plan in ``demo.labels``.
 
-Ground truth, exactly as simulated (see :mod:`thirdhand.synth.script`):
+Interaction follows the 3rdHand report's definition: two bodies interact while
+they move together under a (temporarily) rigid transformation. Ground truth,
+exactly as simulated (see :mod:`thirdhand.synth.script`):
 
-- finger–part (and finger–tool) interactions: from the instant the fingers close
-  on the object to the instant they start opening; in between, each fingertip's
-  pose in the object's frame is constant.
+- finger–part (and finger–tool) interactions, direct: from the instant the
+  fingers close on the object to the instant they start opening; in between,
+  each fingertip's pose in the object's frame is constant.
+- finger–part interactions through a held part (the transitive rule): a finger
+  holding ``Q`` also interacts with every body ``P`` that interacts with ``Q``
+  (part–part or tool–part, below) while ``P``'s pose in ``Q`` stays constant. A
+  finger holding the seat interacts with the legs already screwed in, not with
+  the leg being screwed in (not established yet) nor with a drawer sliding in a
+  frame it holds. Hands (fingers grouped by ``hand_body``) follow their fingers.
 - tool–part interactions: the screwdriver and the screw it drives, from
   engagement to disengagement (the screwdriver's pose in the screw is constant;
   the hand releases and regrips the handle between strokes meanwhile).
 - part–part interactions: from the moment a constraint is established to the end
   of the recording (or its removal), for every pair of parts the established
-  constraints connect. A constraint is established at the first instant from which
-  the child's pose in the parent stays within the constraint for good: a chair
-  leg when its last screwing turn ends (while it is screwed in it turns about and
-  advances along its axis, so the leg–seat pair is *not* an interaction during
-  screwing), a screw when it is tight, a toolbox board when its last screw is
-  tight, the back when it is pushed home, a drawer when it enters its rails, a lid
-  when it is on its hinge pins. For fixed constraints the relative pose is then
-  constant; for the drawer and the lid it moves only along the free DOF.
+  constraints connect, **while their relative pose is constant** (a drawer
+  sliding in its rails or a lid turning on its hinges is not interacting with
+  its frame or box during the motion; fixed joints and tight legs are rigid
+  throughout). Rigidity is checked on a 960 Hz grid. A constraint is
+  established at the first instant from which the child's pose in the parent
+  stays within the constraint for good: a chair leg when its last screwing
+  turn ends (while it is screwed in it turns about and advances along its
+  axis, so the leg–seat pair is *not* an interaction during screwing), a screw
+  when it is tight, a toolbox board when its last screw is tight, the back when
+  it is pushed home, a drawer when it enters its rails, a lid when it is on its
+  hinge pins. For fixed constraints the relative pose is then constant; for the
+  drawer and the lid it moves only along the free DOF.
+- the human: a held part resting in the world (and everything attached to it)
+  follows the holding hand's low-frequency motion (a few millimetres and a
+  degree or two at 0.3–3 Hz, plus a push and twist during each screwing stroke
+  or slide of the other hand; :class:`thirdhand.synth.motion.Wobble`); when
+  released it stays where the hand left it. Idle hands sway on their own (a few
+  millimetres, about two degrees). The fingers' pose in a held part is still
+  exactly constant, and constraint poses are the child's actual pose in the parent.
 - constraints: ``pos``/``quat`` are the child's pose in the parent at the joint's
   reference: the pose at the moment it is established for fixed constraints and
   legs (equal to the final pose), the closed position for the drawer and the lid
