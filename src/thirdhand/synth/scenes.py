@@ -193,6 +193,8 @@ def script_chair(
     if ex["back"]:
         t = _insert_back(sim, rng, worker, helper, t + rng.uniform(0.3, 0.8), ex)
     end = t + rng.uniform(0.8, 1.5)
+    # The helper steadies the chair a while after the back is in: let every hand finish.
+    end = max(end, *(h.t_free + 0.2 for h in sim.hands.values()))
     _settle(sim, end)
     return end
 
