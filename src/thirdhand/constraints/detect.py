@@ -277,11 +277,14 @@ def _merge_same_pose(
     held: BoolArray,
     fallback: FloatArray,
     tol: tuple[float, float],
+    min_motion: tuple[float, float],
 ) -> list[tuple[int, int, bool]]:
     """Join consecutive runs of one pair that are the same constraint.
 
     Two runs at the same pose (within ``tol``, metres and radians) are one
-    constraint when, between them, the part did not go anywhere: most steps lack
+    constraint when the interruption is brief (at most a quarter of the shorter
+    run: a real part nudged while it is tightened) or, between them, the part
+    did not go anywhere: most steps lack
     evidence (a camera lost the tag) or the median deviation stays within ``tol``
     (jitter out of the constrained state); or when the child moved along a joint
     in between (a drawer opened and closed: the third element is then True).
@@ -297,27 +300,35 @@ def _merge_same_pose(
             if np.linalg.norm(p1 - p0) <= tol[0] and float(se3.quat_angle(q0, q1)) <= tol[1]:
                 gap = np.arange(b, lo)
                 seen = gap[ok[gap]]
-                if seen.size < 0.5 * gap.size or (
-                    np.median(np.linalg.norm(p[seen] - p0, axis=1)) <= tol[0]
-                    and np.median(se3.quat_angle(q[seen], q0)) <= tol[1]
+                brief = gap.size <= 0.25 * min(b - a, hi - lo)
+                if (
+                    brief
+                    or seen.size < 0.5 * gap.size
+                    or (
+                        np.median(np.linalg.norm(p[seen] - p0, axis=1)) <= tol[0]
+                        and np.median(se3.quat_angle(q[seen], q0)) <= tol[1]
+                    )
                 ):
                     out[-1] = (a, hi, joint)
                     continue
-                if b - a >= 3 and _on_joint(p[a:hi], q[a:hi]) is not None:
+                if b - a >= 3 and _on_joint(p[a:hi], q[a:hi], min_motion) is not None:
                     out[-1] = (a, hi, True)
                     continue
         out.append((lo, hi, False))
     return out
 
 
-def _on_joint(p: FloatArray, q: FloatArray, share: float = 0.9) -> Constraint | None:
+def _on_joint(
+    p: FloatArray, q: FloatArray, min_motion: tuple[float, float], share: float = 0.9
+) -> Constraint | None:
     """The prismatic or revolute joint a span moves along, or None.
 
     The fixed, prismatic and revolute models are fitted; a joint must win, move
-    by more than 1 cm or 5° (and turn by less than 300°: a hinge does not turn
-    all the way round), and hold ``share`` of the valid steps within
-    ``max(4 rms, 3 mm)`` and ``max(4 rms, 2°)`` of its path (the robust fit alone
-    would accept a part carried away and back as outliers).
+    by more than ``min_motion`` (metres or radians; see :func:`_min_joint_motion`)
+    and turn by less than 300° (a hinge does not turn all the way round), and
+    hold ``share`` of the valid steps within ``max(4 rms, 3 mm)`` and
+    ``max(4 rms, 2°)`` of its path (the robust fit alone would accept a part
+    carried away and back as outliers).
     """
     ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
     if ok.sum() < 10:
@@ -328,7 +339,7 @@ def _on_joint(p: FloatArray, q: FloatArray, share: float = 0.9) -> Constraint | 
         return None
     span = c.ranges[:, 1] - c.ranges[:, 0]
     if c.type not in ("prismatic", "revolute") or not (
-        span[:3].max() > 0.01 or span[3:].max() > math.radians(5.0)
+        span[:3].max() > min_motion[0] or span[3:].max() > min_motion[1]
     ):
         return None
     if span[3:].max() > math.radians(300.0):
@@ -337,6 +348,12 @@ def _on_joint(p: FloatArray, q: FloatArray, share: float = 0.9) -> Constraint | 
     rms_rot = 0.0 if c.rms_rot is None else c.rms_rot
     good = (dp <= max(4 * c.rms_pos, 0.003)) & (dr <= max(4 * rms_rot, math.radians(2.0)))
     return c if good.mean() >= share else None
+
+
+def _min_joint_motion(params: HMMParams) -> tuple[float, float]:
+    """Smallest motion along a joint that makes it a joint: 2 cm or 15°, or ten times
+    the learned noise when larger (a camera's wobble of a few degrees is not a hinge)."""
+    return max(0.02, 10 * params.sigma_pos), max(math.radians(15.0), 10 * params.sigma_rot)
 
 
 def _last_valid_pose(pos: FloatArray, quat: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -442,7 +459,9 @@ def detect_constraints(
         a, b = pairs[k]
         held = post > 0.5
         runs = _runs(held)
-        for lo, hi, joint in _merge_same_pose(runs, rel_p[k], rel_q[k], held, theta, opt.same_pose):
+        for lo, hi, joint in _merge_same_pose(
+            runs, rel_p[k], rel_q[k], held, theta, opt.same_pose, _min_joint_motion(params)
+        ):
             reaches_end = hi >= times.size - 1 or not np.any(
                 np.all(np.isfinite(rel_p[k, hi:]), axis=1)
             )
@@ -596,7 +615,7 @@ def _joint_start(p: FloatArray, q: FloatArray, lo: int, hi: int, params: HMMPara
     walking back from the span's start while the pose stays within
     ``max(5σ, 3 mm)`` and ``max(5σ, 2°)`` of it (short tracking gaps allowed).
     """
-    c = _on_joint(p[lo:hi], q[lo:hi])
+    c = _on_joint(p[lo:hi], q[lo:hi], _min_joint_motion(params))
     if c is None:
         return None
     tol_p = max(5 * params.sigma_pos, 0.003)
