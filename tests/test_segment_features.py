@@ -149,3 +149,27 @@ def test_hand_aggregation_needs_two_fingers() -> None:
     out = aggregate_hands(labels, {"rh": ["t", "i"]}, min_fingers=2)
     np.testing.assert_array_equal(out[("rh", "box")], [1, 0, 0, 0])
     np.testing.assert_array_equal(out[("rh", "lid")], f[2])
+
+
+def test_long_window_appends_the_same_features_over_a_longer_window(
+    rng: np.random.Generator,
+) -> None:
+    from thirdhand.demonstration import BodyInfo, Demonstration
+    from thirdhand.segment.design import DemoFeatures
+
+    t = np.arange(600) / 120.0
+    pos = {"a": rng.normal(0, 1e-3, (600, 3)), "b": np.cumsum(rng.normal(0, 1e-3, (600, 3)), 0)}
+    quat = {k: np.tile([0.0, 0.0, 0.0, 1.0], (600, 1)) for k in pos}
+    valid = {k: np.ones(600, dtype=bool) for k in pos}
+    demo = Demonstration(t, [BodyInfo("a"), BodyInfo("b")], pos, quat, valid)
+    short = FeatureConfig(latent_rate=20.0, window=5)
+    both = FeatureConfig(latent_rate=20.0, window=5, long_window=10)
+    long_only = FeatureConfig(latent_rate=20.0, window=10)
+    xs, _ = DemoFeatures(demo, short).pair("a", "b")
+    xb, _ = DemoFeatures(demo, both).pair("a", "b")
+    xl, _ = DemoFeatures(demo, long_only).pair("a", "b")
+    assert xb.shape == (xs.shape[0], 9) and len(both.feature_names) == 9
+    np.testing.assert_allclose(xb[:, :5], xs, rtol=1e-12)
+    np.testing.assert_allclose(xb[:, 5:], xl[:, 1:], rtol=1e-12)
+    with pytest.raises(SegmentationError, match="long_window"):
+        FeatureConfig(long_window=-1)

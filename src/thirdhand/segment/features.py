@@ -346,6 +346,59 @@ class BodyStats:
     distance: FloatArray | None = None
 
 
+def _moments_multi(
+    x: FloatArray, valid: BoolArray, axis: LatentAxis, windows: tuple[int, ...]
+) -> list[tuple[FloatArray, FloatArray, FloatArray]]:
+    """:func:`windowed_moments` for several windows, accumulating the steps once."""
+    for w in windows:
+        if w < 1:
+            raise SegmentationError(f"window must be at least 1 latent step, got {w}")
+    xv = np.ascontiguousarray(x, dtype=np.float64)
+    vb = np.ascontiguousarray(valid, dtype=np.bool_)
+    cnt, mean, m2 = _block_stats(xv, vb, axis.frame_step, axis.n_steps)
+    return [_window_merge(cnt, mean, m2, int(w)) for w in windows]
+
+
+def body_stats_multi(
+    pos: FloatArray,
+    quat: FloatArray,
+    valid: BoolArray,
+    axis: LatentAxis,
+    windows: tuple[int, ...],
+) -> list[BodyStats]:
+    """:func:`body_stats` for several windows (latent steps), one per window."""
+    v = np.asarray(valid, dtype=np.bool_)
+    q = _continuous_quat(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
+    mp = _moments_multi(np.asarray(pos, np.float64), v, axis, windows)
+    mr = _moments_multi(q, v, axis, windows)
+    return [BodyStats(var_pos=p[0], var_rot=r[0], count=p[1]) for p, r in zip(mp, mr, strict=True)]
+
+
+def pair_stats_multi(
+    a: tuple[FloatArray, FloatArray, BoolArray],
+    b: tuple[FloatArray, FloatArray, BoolArray],
+    axis: LatentAxis,
+    windows: tuple[int, ...],
+) -> list[BodyStats]:
+    """:func:`pair_stats` for several windows (latent steps): the relative pose once."""
+    v = np.asarray(a[2], dtype=np.bool_) & np.asarray(b[2], dtype=np.bool_)
+    dp, dq = _relative_pose(
+        np.asarray(a[0], np.float64),
+        np.asarray(a[1], np.float64),
+        np.asarray(b[0], np.float64),
+        np.asarray(b[1], np.float64),
+        v,
+    )
+    mp = _moments_multi(dp, v, axis, windows)
+    mr = _moments_multi(dq, v, axis, windows)
+    dist = np.sqrt(np.einsum("ij,ij->i", dp, dp))[:, None]
+    md = _moments_multi(dist, v, axis, windows)
+    return [
+        BodyStats(var_pos=p[0], var_rot=r[0], count=p[1], distance=d[2][:, 0])
+        for p, r, d in zip(mp, mr, md, strict=True)
+    ]
+
+
 def body_stats(
     pos: FloatArray, quat: FloatArray, valid: BoolArray, axis: LatentAxis, window: int
 ) -> BodyStats:
@@ -411,8 +464,10 @@ __all__ = [
     "LatentAxis",
     "SegmentationError",
     "body_stats",
+    "body_stats_multi",
     "latent_axis",
     "pair_stats",
+    "pair_stats_multi",
     "raw_pair_features",
     "windowed_moments",
     "windowed_variance",
