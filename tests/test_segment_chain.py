@@ -164,3 +164,11 @@ def test_scaled_binary_kernel_matches_log_space(rng: np.random.Generator, scale:
     np.testing.assert_allclose(
         binary_marginals(x @ w, trans, offsets), marg[:, 1], rtol=1e-8, atol=1e-10
     )
+
+
+def test_decode_equals_predict_proba_and_predict(rng: np.random.Generator) -> None:
+    crf = PairCRF().set_params_theta(rng.standard_normal(7) * 2.0)
+    x = rng.standard_normal((200, 3))
+    prob, label = crf.decode(x)
+    np.testing.assert_allclose(prob, crf.predict_proba([x])[0], rtol=1e-12, atol=1e-15)
+    np.testing.assert_array_equal(label, crf.predict([x])[0])

@@ -173,3 +173,22 @@ def test_long_window_appends_the_same_features_over_a_longer_window(
     np.testing.assert_allclose(xb[:, 5:], xl[:, 1:], rtol=1e-12)
     with pytest.raises(SegmentationError, match="long_window"):
         FeatureConfig(long_window=-1)
+
+
+@pytest.mark.parametrize("window", [3, 4, 5])
+def test_double_window_shortcut_matches_direct_merge(rng: np.random.Generator, window: int) -> None:
+    from thirdhand.segment.features import (
+        _moments_multi,  # the shortcut for (w, 2w)
+        windowed_moments,
+    )
+
+    t = np.arange(3000) / 120.0
+    x = 1.5 + np.cumsum(rng.normal(0, 1e-4, (3000, 3)), axis=0)
+    valid = rng.random(3000) > 0.3
+    valid[1000:1400] = False  # a long gap: empty windows
+    axis = latent_axis(t, 20.0)
+    short, long = _moments_multi(x, valid, axis, (window, 2 * window))
+    for got, want in zip(long, windowed_moments(x, valid, axis, 2 * window), strict=True):
+        np.testing.assert_allclose(got, want, rtol=1e-9, atol=1e-18)
+    for got, want in zip(short, windowed_moments(x, valid, axis, window), strict=True):
+        np.testing.assert_array_equal(got, want)

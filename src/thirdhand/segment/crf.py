@@ -204,6 +204,28 @@ class PairCRF:
         path, _ = viterbi(_unary(data.x, self.coef_state_), self.coef_transition_, data.offsets)
         return self._split(data, path)  # type: ignore[return-value]
 
+    def decode(self, x: FloatArray) -> tuple[FloatArray, IntArray]:
+        """Marginals and Viterbi labels of one sequence, sharing the state scores.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n_steps, n_features)
+
+        Returns
+        -------
+        probability : ndarray, shape (n_steps,)
+            ``p(y_t = 1 | x)``, as :meth:`predict_proba`.
+        label : ndarray of int, shape (n_steps,)
+            As :meth:`predict`.
+        """
+        data = _Data([x], None)
+        score = np.einsum("ij,j->i", data.x, self.coef_state_)
+        marg = binary_marginals(score, self.coef_transition_, data.offsets)
+        u = np.zeros((score.shape[0], 2))
+        u[:, 1] = score
+        path, _ = viterbi(u, self.coef_transition_, data.offsets)
+        return np.clip(marg, 0.0, 1.0), np.asarray(path, dtype=np.int64)
+
     def nll(self, xs: Sequence[FloatArray], ys: Sequence[IntArray]) -> float:
         """Unpenalised negative log-likelihood of the labels, summed over sequences."""
         data = _Data(xs, ys)

@@ -203,7 +203,13 @@ class DemoFeatures:
         """Design matrix (n_steps, n_features) and evidence mask (n_steps,) of the pair (a, b)."""
         if a == b:
             raise SegmentationError(f"pair ({a!r}, {b!r}) pairs a body with itself")
-        stats = pair_stats_multi(self._track(a), self._track(b), self.axis, self.config.windows)
+        stats = pair_stats_multi(
+            self._track(a),
+            self._track(b),
+            self.axis,
+            self.config.windows,
+            distance=self.config.distance,
+        )
         sab = stats[0]
         raw = np.concatenate(
             [

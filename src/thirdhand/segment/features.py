@@ -214,6 +214,83 @@ def _window_merge(  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _double_window(  # pragma: no cover - compiled
+    cnt: FloatArray,
+    mean: FloatArray,
+    m2: FloatArray,
+    var_s: FloatArray,
+    n_s: FloatArray,
+    mean_s: FloatArray,
+    window: int,
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Centred windows of ``2 window`` steps from those of ``window`` steps.
+
+    Window ``k`` of length ``2w`` (steps ``k − w … k + w − 1``) is the union of
+    the short windows centred at ``k − w + w // 2`` and ``k + w // 2``: one Chan
+    merge per step instead of ``2w``. Near the ends, where a short window is
+    clipped, the steps are merged directly (as :func:`_window_merge`).
+    """
+    k_steps, d = mean.shape
+    var = np.zeros(k_steps)
+    n_out = np.zeros(k_steps)
+    mean_out = np.zeros((k_steps, d))
+    mu = np.zeros(d)
+    w = window
+    for k in range(k_steps):
+        if k - w >= 0 and k + w - 1 < k_steps:
+            a = k - w + w // 2
+            b = k + w // 2
+            na, nb = n_s[a], n_s[b]
+            tot = na + nb
+            n_out[k] = tot
+            if tot == 0.0:
+                continue
+            if na == 0.0 or nb == 0.0:
+                src = a if na > 0.0 else b
+                var[k] = var_s[src]
+                for j in range(d):
+                    mean_out[k, j] = mean_s[src, j]
+                continue
+            dd = 0.0
+            for j in range(d):
+                delta = mean_s[b, j] - mean_s[a, j]
+                dd += delta * delta
+                mean_out[k, j] = mean_s[a, j] + delta * nb / tot
+            m = var_s[a] * na + var_s[b] * nb + dd * na * nb / tot
+            var[k] = max(m / tot, 0.0)
+            continue
+        lo = max(k - w, 0)
+        hi = min(k + w, k_steps)
+        n = 0.0
+        m = 0.0
+        for bb in range(lo, hi):
+            nbb = cnt[bb]
+            if nbb == 0.0:
+                continue
+            if n == 0.0:
+                for j in range(d):
+                    mu[j] = mean[bb, j]
+                m = m2[bb]
+                n = nbb
+                continue
+            tot = n + nbb
+            f = n * nbb / tot
+            dd = 0.0
+            for j in range(d):
+                delta = mean[bb, j] - mu[j]
+                dd += delta * delta
+                mu[j] += delta * nbb / tot
+            m += m2[bb] + dd * f
+            n = tot
+        n_out[k] = n
+        var[k] = max(m / n, 0.0) if n > 0.0 else 0.0
+        if n > 0.0:
+            for j in range(d):
+                mean_out[k, j] = mu[j]
+    return var, n_out, mean_out
+
+
+@numba.njit(cache=True, nogil=True)
 def _continuous_quat(q: FloatArray, valid: BoolArray) -> FloatArray:  # pragma: no cover
     """Sign-continuous copy of a quaternion track (invalid rows skipped)."""
     out = q.copy()
@@ -356,7 +433,15 @@ def _moments_multi(
     xv = np.ascontiguousarray(x, dtype=np.float64)
     vb = np.ascontiguousarray(valid, dtype=np.bool_)
     cnt, mean, m2 = _block_stats(xv, vb, axis.frame_step, axis.n_steps)
-    return [_window_merge(cnt, mean, m2, int(w)) for w in windows]
+    out: list[tuple[FloatArray, FloatArray, FloatArray]] = []
+    for w in windows:
+        half = [o for o, v in zip(windows, out, strict=False) if 2 * o == w]
+        if half:  # a window twice as long as one already done: one merge per step
+            short = out[windows.index(half[0])]
+            out.append(_double_window(cnt, mean, m2, *short, int(half[0])))
+        else:
+            out.append(_window_merge(cnt, mean, m2, int(w)))
+    return out
 
 
 def body_stats_multi(
@@ -379,8 +464,13 @@ def pair_stats_multi(
     b: tuple[FloatArray, FloatArray, BoolArray],
     axis: LatentAxis,
     windows: tuple[int, ...],
+    *,
+    distance: bool = True,
 ) -> list[BodyStats]:
-    """:func:`pair_stats` for several windows (latent steps): the relative pose once."""
+    """:func:`pair_stats` for several windows (latent steps): the relative pose once.
+
+    ``distance=False`` skips the window-mean distance (``BodyStats.distance`` None).
+    """
     v = np.asarray(a[2], dtype=np.bool_) & np.asarray(b[2], dtype=np.bool_)
     dp, dq = _relative_pose(
         np.asarray(a[0], np.float64),
@@ -391,6 +481,10 @@ def pair_stats_multi(
     )
     mp = _moments_multi(dp, v, axis, windows)
     mr = _moments_multi(dq, v, axis, windows)
+    if not distance:
+        return [
+            BodyStats(var_pos=p[0], var_rot=r[0], count=p[1]) for p, r in zip(mp, mr, strict=True)
+        ]
     dist = np.sqrt(np.einsum("ij,ij->i", dp, dp))[:, None]
     md = _moments_multi(dist, v, axis, windows)
     return [

@@ -235,8 +235,7 @@ def segment_demonstration(
         x, ev = feats.pair(a, b)
         kind = pair_kind(demo, a, b)
         crf = crfs.setdefault(kind, model.crf(kind))
-        prob = crf.predict_proba([x])[0].copy()
-        label = crf.predict([x])[0].copy()
+        prob, label = crf.decode(x)
         _blank_long_gaps(prob, label, ev, max_steps)
         truth = (
             labels_from_intervals(pair_intervals(demo.labels, a, b), axis.times)
