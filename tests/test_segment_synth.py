@@ -75,3 +75,32 @@ def test_crf_beats_logistic_regression_table_one_protocol() -> None:
     assert crf["train"]["nll_per_variable"] < 0.5 * lr["train"]["nll_per_variable"]
     assert crf["test"]["nll_per_variable"] < lr["test"]["nll_per_variable"]
     assert crf["train"]["frame_f1"] > lr["train"]["frame_f1"]
+
+
+@pytest.mark.slow
+def test_crf_beats_logistic_regression_per_pair_kind_on_held_out_scenes() -> None:
+    from thirdhand.segment.crf import PairCRF
+    from thirdhand.segment.evaluate import frame_f1
+    from thirdhand.segment.logistic import LogisticSegmenter
+    from thirdhand.segment.training import labelled_sequences
+
+    # As the shipped model: every scene, noisy and noise-free (smaller: one seed each).
+    config = default_model().features
+    scenes = ("chair", "toolbox")
+    train = labelled_sequences(
+        [synth.make_scene(s, seed=0, sensor=synth.SensorModel()) for s in synth.SCENES]
+        + [synth.make_scene(s, seed=100, sensor=None) for s in synth.SCENES],
+        config,
+    )
+    test = labelled_sequences(
+        [synth.make_scene(s, seed=1000, sensor=synth.SensorModel()) for s in scenes], config
+    )
+    for kind in ("finger-object", "part-part"):
+        tr = [i for i, p in enumerate(train.pairs) if p[3] == kind]
+        te = [i for i, p in enumerate(test.pairs) if p[3] == kind]
+        xs, ys = [train.xs[i] for i in tr], [train.ys[i] for i in tr]
+        xt, yt = [test.xs[i] for i in te], [test.ys[i] for i in te]
+        crf = PairCRF(l2=1.0).fit(xs, ys)
+        lr = LogisticSegmenter(l2=1.0).fit(xs, ys)
+        assert crf.nll(xt, yt) < lr.nll(xt, yt), kind
+        assert frame_f1(yt, crf.predict(xt)) > frame_f1(yt, lr.predict(xt)), kind
