@@ -4,12 +4,11 @@ Measured figures (held-out seeds 1000+, shipped model) are in the training
 script's output and the model's ``training["held_out"]``. The issue asks for
 frame F1 >= 0.98 noise-free and >= 0.9 noisy for finger-, hand- and part-part
 pairs. Reached (thresholds below, so a regression fails): noisy finger- and
-hand-object >= 0.9 on these scenes (0.93-0.99); noise-free finger/hand-object
-0.99 on the chair but 0.91 on the toolbox; part-part 0.8-0.9 noisy and only
-about 0.65 noise-free: an assembled chair standing still looks exactly like
-parts lying still on the table, and noise-free still bodies have exactly zero
-variance, where the linear state score alone decides (see the report of the
-segmentation work).
+hand-object >= 0.9 on these scenes (0.92-0.99); noise-free finger/hand-object
+0.99 on the chair but 0.90 on the toolbox; part-part 0.77-0.89 noisy and about
+0.88 noise-free, short of the targets (see the report of the segmentation work:
+an assembled chair standing still looks like parts lying still on the table, and
+the pauses between a drawer's slides are a few tenths of a second).
 """
 
 from __future__ import annotations
@@ -48,8 +47,8 @@ def test_tool_part_phases_on_held_out_noisy_toolbox() -> None:
         ("chair", 1000, True, 0.9, 0.85),
         ("bench", 1001, True, 0.9, 0.85),
         ("toolbox", 1001, True, 0.9, 0.75),
-        ("chair", 1000, False, 0.98, 0.6),
-        ("toolbox", 1001, False, 0.88, 0.6),
+        ("chair", 1000, False, 0.98, 0.85),
+        ("toolbox", 1001, False, 0.88, 0.85),
     ],
 )
 def test_held_out_frame_f1_per_pair_kind(
