@@ -9,10 +9,14 @@ R⁴, both blind to the sign of ``q``).
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
+_TWO_PI = 2.0 * math.pi
 
 
 def weighted_mean(x: FloatArray, w: FloatArray) -> FloatArray:
@@ -22,9 +26,81 @@ def weighted_mean(x: FloatArray, w: FloatArray) -> FloatArray:
 
 def weighted_cov(x: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Weighted mean (k,) and scatter matrix (k, k) of rows ``x (n, k)``."""
-    m = weighted_mean(x, w)
-    d = x - m
-    return m, np.asarray((d * w[:, None]).T @ d / w.sum(), dtype=np.float64)
+    return _moments(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(w))
+
+
+@njit(cache=True)
+def _moments(x: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:  # pragma: no cover
+    n, k = x.shape
+    sw = 0.0
+    m = np.zeros(k)
+    for i in range(n):
+        sw += w[i]
+        for a in range(k):
+            m[a] += w[i] * x[i, a]
+    m /= sw
+    cov = np.zeros((k, k))
+    d = np.empty(k)
+    for i in range(n):
+        if w[i] == 0.0:
+            continue
+        for a in range(k):
+            d[a] = x[i, a] - m[a]
+        for a in range(k):
+            wa = w[i] * d[a]
+            for b in range(a, k):
+                cov[a, b] += wa * d[b]
+    for a in range(k):
+        for b in range(a, k):
+            cov[a, b] /= sw
+            cov[b, a] = cov[a, b]
+    return m, cov
+
+
+@njit(cache=True)
+def col_ptp(x: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Range (max - min) of each column of finite ``x (n, k)``, shape (k,)."""
+    out = np.empty(x.shape[1])
+    for a in range(x.shape[1]):
+        lo = x[0, a]
+        hi = x[0, a]
+        for i in range(1, x.shape[0]):
+            lo = min(lo, x[i, a])
+            hi = max(hi, x[i, a])
+        out[a] = hi - lo
+    return out
+
+
+@njit(cache=True)
+def col_median(x: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Median of each column of ``x (n, k)``, shape (k,)."""
+    out = np.empty(x.shape[1])
+    for a in range(x.shape[1]):
+        out[a] = np.median(x[:, a])
+    return out
+
+
+@njit(cache=True)
+def masked_median(x: FloatArray, w: FloatArray) -> float:  # pragma: no cover - compiled
+    """Median of the entries of ``x (n,)`` whose weight ``w (n,)`` is positive."""
+    return float(np.median(x[w > 0.0]))
+
+
+@njit(cache=True)
+def quat_scatter(q: FloatArray, w: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """``Σ w q qᵀ`` of quaternion rows ``q (n, 4)`` and weights ``w (n,)``, shape (4, 4)."""
+    m = np.zeros((4, 4))
+    for i in range(q.shape[0]):
+        if w[i] == 0.0:
+            continue
+        for a in range(4):
+            wa = w[i] * q[i, a]
+            for b in range(a, 4):
+                m[a, b] += wa * q[i, b]
+    for a in range(4):
+        for b in range(a + 1, 4):
+            m[b, a] = m[a, b]
+    return m
 
 
 def quat_average(q: FloatArray, w: FloatArray) -> FloatArray:
@@ -41,8 +117,7 @@ def quat_average(q: FloatArray, w: FloatArray) -> FloatArray:
     ndarray, shape (4,)
         Unit quaternion with ``w >= 0``.
     """
-    m = (q * w[:, None]).T @ q
-    _, vec = np.linalg.eigh(m)
+    _, vec = np.linalg.eigh(quat_scatter(q, w))
     out = vec[:, -1]
     return np.asarray(out if out[3] >= 0 else -out, dtype=np.float64)
 
@@ -52,6 +127,14 @@ def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+@njit(cache=True)
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Cross product of two 3-vectors, compiled."""
+    return np.array(
+        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    )
 
 
 def quat_mul(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -83,16 +166,28 @@ def quat_conj(q: FloatArray) -> FloatArray:
 
 def quat_log(q: FloatArray) -> FloatArray:
     """Rotation vectors (n, 3), radians, of unit quaternions (n, 4), angle in [0, π]."""
-    v = q[:, :3]
-    s = np.abs(q[:, 3])
-    norm = np.sqrt(np.einsum("ij,ij->i", v, v))
+    return _quat_log_rows(np.ascontiguousarray(q, dtype=np.float64))
+
+
+@njit(cache=True)
+def _log_scale(x: float, y: float, z: float, w: float) -> float:
+    """Factor taking the vector part of a unit quaternion to its rotation vector."""
+    norm = math.sqrt(x * x + y * y + z * z)
     # angle / sin(angle / 2) -> 2 as the angle goes to 0; the sign of w picks the
     # shorter of the two rotations q and -q describe.
-    small = norm < 1e-12
-    scale = 2.0 * np.arctan2(norm, s) / np.where(small, 1.0, norm)
-    scale[small] = 2.0
-    scale *= np.where(q[:, 3] < 0.0, -1.0, 1.0)
-    return np.asarray(v * scale[:, None], dtype=np.float64)
+    scale = 2.0 if norm < 1e-12 else 2.0 * math.atan2(norm, abs(w)) / norm
+    return -scale if w < 0.0 else scale
+
+
+@njit(cache=True)
+def _quat_log_rows(q: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    out = np.empty((q.shape[0], 3))
+    for i in range(q.shape[0]):
+        k = _log_scale(q[i, 0], q[i, 1], q[i, 2], q[i, 3])
+        out[i, 0] = q[i, 0] * k
+        out[i, 1] = q[i, 1] * k
+        out[i, 2] = q[i, 2] * k
+    return out
 
 
 def quat_axis_angle(axis: FloatArray, angle: FloatArray) -> FloatArray:
@@ -139,14 +234,46 @@ def unwrap_masked(theta: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:
     -------
     ndarray, shape (n,)
     """
+    return _unwrap_masked(np.ascontiguousarray(theta, dtype=np.float64), np.ascontiguousarray(mask))
+
+
+@njit(cache=True)
+def _wrap(a: float) -> float:
+    return (a + math.pi) % _TWO_PI - math.pi
+
+
+@njit(cache=True)
+def _unwrap(p: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """``np.unwrap`` of a 1-D array (same arithmetic, sequential cumulative sum)."""
+    out = p.copy()
+    acc = 0.0
+    for i in range(1, p.shape[0]):
+        dd = p[i] - p[i - 1]
+        ddmod = (dd + math.pi) % _TWO_PI - math.pi
+        if ddmod == -math.pi and dd > 0.0:
+            ddmod = math.pi
+        if abs(dd) >= math.pi:
+            acc += ddmod - dd
+        out[i] = p[i] + acc
+    return out
+
+
+@njit(cache=True)
+def _unwrap_masked(theta: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:  # pragma: no cover
+    n = theta.shape[0]
     idx = np.flatnonzero(mask)
-    if idx.size == 0 or idx.size == theta.shape[0]:
-        return np.asarray(np.unwrap(theta), dtype=np.float64)
-    ref_in = np.unwrap(theta[idx])
-    nearest = np.clip(np.searchsorted(idx, np.arange(theta.shape[0]), side="right") - 1, 0, None)
-    ref = ref_in[nearest]
-    out = ref + wrap_angle(theta - ref)
-    out[idx] = ref_in
+    if idx.size == 0 or idx.size == n:
+        return _unwrap(theta)
+    ref_in = _unwrap(theta[idx])
+    out = np.empty(n)
+    k = -1
+    for i in range(n):
+        while k + 1 < idx.size and idx[k + 1] <= i:
+            k += 1
+        ref = ref_in[max(k, 0)]
+        out[i] = ref + _wrap(theta[i] - ref)
+    for j in range(idx.size):
+        out[idx[j]] = ref_in[j]
     return out
 
 
@@ -173,16 +300,27 @@ def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
     q0 : ndarray, shape (4,)
         The orientation at ``theta = 0``, unit quaternion.
     """
-    m = (q * w[:, None]).T @ q
-    _, vec = np.linalg.eigh(m)
+    _, vec = np.linalg.eigh(quat_scatter(q, w))
     u: FloatArray = np.asarray(vec[:, 3], dtype=np.float64)
     v: FloatArray = np.asarray(vec[:, 2], dtype=np.float64)
     axis = quat_mul(v, quat_conj(u))[:3]
     axis = axis / np.linalg.norm(axis)
     v_exact = quat_mul(np.append(axis, 0.0), u)
     # q = cos α u + sin α v_exact = q(a, 2α) ⊗ u; the sign of q only shifts θ by 2π.
-    theta = unwrap_masked(2.0 * np.arctan2(q @ v_exact, q @ u), w > 0)
-    return axis, np.asarray(theta, dtype=np.float64), u
+    theta = _plane_angles(q, u, v_exact, w > 0)
+    return axis, theta, u
+
+
+@njit(cache=True)
+def _plane_angles(
+    q: FloatArray, u: FloatArray, v: FloatArray, mask: NDArray[np.bool_]
+) -> FloatArray:  # pragma: no cover - compiled
+    theta = np.empty(q.shape[0])
+    for i in range(q.shape[0]):
+        cu = q[i, 0] * u[0] + q[i, 1] * u[1] + q[i, 2] * u[2] + q[i, 3] * u[3]
+        cv = q[i, 0] * v[0] + q[i, 1] * v[1] + q[i, 2] * v[2] + q[i, 3] * v[3]
+        theta[i] = 2.0 * math.atan2(cv, cu)
+    return _unwrap_masked(theta, mask)
 
 
 def plane_fit(p: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -226,36 +364,61 @@ def circle_fit_2d(
     radius : float
         ``inf`` when the points are collinear (no finite circle).
     """
-    x, y = xy[:, 0], xy[:, 1]
-    a = np.stack([x, y, np.ones_like(x)], axis=1)
-    b = -(x * x + y * y)
-    aw = a * w[:, None]
-    ata = aw.T @ a
-    atb = aw.T @ b
+    return _circle_fit(np.ascontiguousarray(xy, dtype=np.float64), w, iterations)
+
+
+@njit(cache=True)
+def _circle_fit(
+    xy: FloatArray, w: FloatArray, iterations: int
+) -> tuple[FloatArray, float]:  # pragma: no cover - compiled
+    n = xy.shape[0]
+    ata = np.zeros((3, 3))
+    atb = np.zeros(3)
+    row = np.empty(3)
+    for i in range(n):
+        x = xy[i, 0]
+        y = xy[i, 1]
+        row[0], row[1], row[2] = x, y, 1.0
+        b = -(x * x + y * y)
+        for a in range(3):
+            wa = row[a] * w[i]
+            atb[a] += wa * b
+            for k in range(3):
+                ata[a, k] += wa * row[k]
+    nan2 = np.full(2, np.nan)
     if np.linalg.cond(ata) > 1e14:
-        return np.full(2, np.nan), float("inf")
-    d, e, f = np.linalg.solve(ata, atb)
-    c = np.array([-0.5 * d, -0.5 * e])
-    r2 = c @ c - f
+        return nan2, math.inf
+    sol = np.linalg.solve(ata, atb)
+    c = np.array([-0.5 * sol[0], -0.5 * sol[1]])
+    r2 = c[0] * c[0] + c[1] * c[1] - sol[2]
     if not np.isfinite(r2) or r2 <= 0.0:
-        return np.full(2, np.nan), float("inf")
-    r = float(np.sqrt(r2))
+        return nan2, math.inf
+    r = math.sqrt(r2)
+    jtj = np.zeros((3, 3))
+    jtr = np.zeros(3)
     for _ in range(iterations):
-        diff = xy - c
-        dist = np.linalg.norm(diff, axis=1)
-        dist = np.where(dist > 1e-15, dist, 1e-15)
-        res = dist - r
-        jac = np.empty((xy.shape[0], 3))
-        jac[:, :2] = -diff / dist[:, None]
-        jac[:, 2] = -1.0
-        jw = jac * w[:, None]
-        jtj = jw.T @ jac
+        jtj[:] = 0.0
+        jtr[:] = 0.0
+        for i in range(n):
+            d0 = xy[i, 0] - c[0]
+            d1 = xy[i, 1] - c[1]
+            dist = math.sqrt(d0 * d0 + d1 * d1)
+            if not dist > 1e-15:
+                dist = 1e-15
+            res = dist - r
+            row[0], row[1], row[2] = -d0 / dist, -d1 / dist, -1.0
+            for a in range(3):
+                wa = row[a] * w[i]
+                jtr[a] += wa * res
+                for b in range(3):
+                    jtj[a, b] += wa * row[b]
         if np.linalg.cond(jtj) > 1e14:
             break
-        step = np.linalg.solve(jtj, -(jw.T @ res))
-        c = c + step[:2]
-        r = r + float(step[2])
-        if np.max(np.abs(step)) < 1e-15 * max(1.0, abs(r)):
+        step = np.linalg.solve(jtj, -jtr)
+        c[0] += step[0]
+        c[1] += step[1]
+        r = r + step[2]
+        if max(abs(step[0]), abs(step[1]), abs(step[2])) < 1e-15 * max(1.0, abs(r)):
             break
     return c, abs(r)
 

@@ -11,9 +11,11 @@ returns the residuals and the latent's Jacobian norms that the likelihood of
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from thirdhand.constraints import geometry as g
@@ -21,7 +23,6 @@ from thirdhand.constraints import geometry as g
 FloatArray = NDArray[np.float64]
 
 
-@dataclass
 class Projection:
     """Residuals of a track against a fitted model.
 
@@ -37,20 +38,32 @@ class Projection:
         Squared norms of the position and rotation Jacobians of each latent
         coordinate (``1`` and ``0`` for a translation; ``r²`` and ``1`` for a
         rotation at radius ``r``). The latent coordinates are orthogonal.
+    d2_pos, d2_rot : ndarray, shape (n,)
+        Squared norms of ``e_pos`` and ``e_rot`` (``d2_rot`` None with ``e_rot``);
+        computed when not given.
     """
 
-    e_pos: FloatArray
-    e_rot: FloatArray | None
-    latent: FloatArray
-    g_pos: FloatArray
-    g_rot: FloatArray
-    #: Squared norms of ``e_pos`` and ``e_rot``, shape (n,), filled on construction.
-    d2_pos: FloatArray = field(init=False)
-    d2_rot: FloatArray | None = field(init=False)
+    __slots__ = ("d2_pos", "d2_rot", "e_pos", "e_rot", "g_pos", "g_rot", "latent")
 
-    def __post_init__(self) -> None:
-        self.d2_pos = np.einsum("ij,ij->i", self.e_pos, self.e_pos)
-        self.d2_rot = None if self.e_rot is None else np.einsum("ij,ij->i", self.e_rot, self.e_rot)
+    def __init__(
+        self,
+        e_pos: FloatArray,
+        e_rot: FloatArray | None,
+        latent: FloatArray,
+        g_pos: FloatArray,
+        g_rot: FloatArray,
+        d2_pos: FloatArray | None = None,
+        d2_rot: FloatArray | None = None,
+    ) -> None:
+        self.e_pos = e_pos
+        self.e_rot = e_rot
+        self.latent = latent
+        self.g_pos = g_pos
+        self.g_rot = g_rot
+        self.d2_pos: FloatArray = np.einsum("ij,ij->i", e_pos, e_pos) if d2_pos is None else d2_pos
+        self.d2_rot: FloatArray | None = d2_rot
+        if e_rot is not None and d2_rot is None:
+            self.d2_rot = np.einsum("ij,ij->i", e_rot, e_rot)
 
 
 @dataclass
@@ -67,11 +80,200 @@ class Geometry:
     extra: dict[str, float] = field(default_factory=dict)
 
 
-def _rot_residual(q: FloatArray | None, q_pred: FloatArray | None) -> FloatArray | None:
-    """Rotation vectors of ``q ⊗ q_pred⁻¹`` for a constant ``q_pred (4,)``, shape (n, 3)."""
-    if q is None or q_pred is None:
-        return None
-    return g.quat_log(q @ g.quat_right_matrix(g.quat_conj(q_pred)))
+#: Stand-in for the quaternions of a position-only track in the compiled kernels.
+_NO_QUAT = np.zeros((0, 4))
+
+
+@njit(cache=True)
+def _qmul(
+    ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: float, bw: float
+) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
+    """Hamilton product ``a ⊗ b`` of x y z w quaternions given by components."""
+    return (
+        aw * bx + bw * ax + (ay * bz - az * by),
+        aw * by + bw * ay + (az * bx - ax * bz),
+        aw * bz + bw * az + (ax * by - ay * bx),
+        aw * bw - (ax * bx + ay * by + az * bz),
+    )
+
+
+@njit(cache=True)
+def _put_log(
+    out: FloatArray, d2: FloatArray, i: int, x: float, y: float, z: float, w: float
+) -> None:  # pragma: no cover - compiled
+    """Row ``i`` of ``out`` (rotation vector of ``(x, y, z, w)``) and its squared norm."""
+    k = g._log_scale(x, y, z, w)
+    out[i, 0] = x * k
+    out[i, 1] = y * k
+    out[i, 2] = z * k
+    d2[i] = out[i, 0] * out[i, 0] + out[i, 1] * out[i, 1] + out[i, 2] * out[i, 2]
+
+
+@njit(cache=True)
+def _offset_project(
+    p: FloatArray, q: FloatArray, pos: FloatArray, qp: FloatArray, axis: FloatArray, slide: bool
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:  # pragma: no cover
+    """Residuals against a constant pose (``slide``: free translation along ``axis``).
+
+    Returns ``e_pos (n, 3)``, ``e_rot (n, 3)`` (``(0, 3)`` when ``q`` is empty),
+    ``d2_pos (n,)``, ``d2_rot (n,)`` and the displacement along the axis ``(n, 1)``.
+    """
+    n = p.shape[0]
+    m = q.shape[0]
+    e_pos = np.empty((n, 3))
+    d2p = np.empty(n)
+    lat = np.zeros((n, 1))
+    e_rot = np.empty((m, 3))
+    d2r = np.empty(m)
+    cx, cy, cz, cw = -qp[0], -qp[1], -qp[2], qp[3]
+    for i in range(n):
+        v0 = p[i, 0] - pos[0]
+        v1 = p[i, 1] - pos[1]
+        v2 = p[i, 2] - pos[2]
+        if slide:
+            t = v0 * axis[0] + v1 * axis[1] + v2 * axis[2]
+            lat[i, 0] = t
+            v0 = v0 - t * axis[0]
+            v1 = v1 - t * axis[1]
+            v2 = v2 - t * axis[2]
+        e_pos[i, 0] = v0
+        e_pos[i, 1] = v1
+        e_pos[i, 2] = v2
+        d2p[i] = v0 * v0 + v1 * v1 + v2 * v2
+    for i in range(m):
+        x, y, z, w = _qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
+        _put_log(e_rot, d2r, i, x, y, z, w)
+    return e_pos, e_rot, d2p, d2r, lat
+
+
+@njit(cache=True)
+def _revolute_project(
+    p: FloatArray,
+    q: FloatArray,
+    pos: FloatArray,
+    q0: FloatArray,
+    a: FloatArray,
+    lever: FloatArray,
+    theta_ref: FloatArray,
+    mask: NDArray[np.bool_],
+    ratio: float,
+    planar: bool,
+    pitch: float,
+    h0: float,
+) -> tuple[
+    FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray
+]:  # pragma: no cover - compiled
+    """Residuals against a rotation about ``a`` (see :meth:`Revolute.project`).
+
+    ``q`` empty for a position-only track (angles from the positions, unwrapped
+    over ``mask``); ``pitch`` NaN unless coupled (screw). Returns ``e_pos``,
+    ``e_rot``, ``d2_pos``, ``d2_rot``, ``latent``, ``g_pos``, ``g_rot``.
+    """
+    n = p.shape[0]
+    m = q.shape[0]
+    coupled = not math.isnan(pitch)
+    d = 2 if planar else 1
+    la = lever[0] * a[0] + lever[1] * a[1] + lever[2] * a[2]
+    lev0 = lever[0] - la * a[0]
+    lev1 = lever[1] - la * a[1]
+    lev2 = lever[2] - la * a[2]
+    r = math.sqrt(lev0 * lev0 + lev1 * lev1 + lev2 * lev2)
+    e1 = np.zeros(3)
+    if r > 1e-12:
+        e1[0], e1[1], e1[2] = lev0 / r, lev1 / r, lev2 / r
+    e2 = g._cross(a, e1)
+    # Rodrigues: R(θ) u = cos θ (u - par) + sin θ (a × u) + par.
+    par = np.array([la * a[0], la * a[1], la * a[2]])
+    perp = np.array([lever[0] - par[0], lever[1] - par[1], lever[2] - par[2]])
+    axu = g._cross(a, lever)
+    theta_pos = np.empty(n)
+    height = np.empty(n)
+    for i in range(n):
+        v0 = p[i, 0] - pos[0]
+        v1 = p[i, 1] - pos[1]
+        v2 = p[i, 2] - pos[2]
+        theta_pos[i] = math.atan2(
+            v0 * e2[0] + v1 * e2[1] + v2 * e2[2], v0 * e1[0] + v1 * e1[1] + v2 * e1[2]
+        )
+        height[i] = v0 * a[0] + v1 * a[1] + v2 * a[2]
+    lat = np.empty((n, d))
+    gp = np.empty((n, d))
+    gr = np.empty((n, d))
+    r2 = r * r
+    if m == 0:
+        theta = g._unwrap_masked(theta_pos, mask)
+        gr[:, 0] = 0.0
+    else:
+        rr = ratio * ratio
+        theta = np.empty(n)
+        for i in range(n):
+            on_branch = theta_ref[i] + g._wrap(theta_pos[i] - theta_ref[i])
+            num = rr * theta_ref[i] + r2 * on_branch
+            den = rr + r2
+            if coupled and abs(pitch) > 1e-12:
+                num = num + pitch * (height[i] - h0)
+                den = den + pitch * pitch
+            theta[i] = num / den
+        gr[:, 0] = 1.0
+    e_pos = np.empty((n, 3))
+    d2p = np.empty(n)
+    for i in range(n):
+        c = math.cos(theta[i])
+        s = math.sin(theta[i])
+        shift = 0.0
+        if coupled:
+            shift = h0 + pitch * theta[i]
+        elif planar:
+            shift = height[i] - la
+        dp = 0.0
+        for k in range(3):
+            pred = pos[k] + (c * perp[k] + s * axu[k] + par[k])
+            if coupled or planar:
+                pred = pred + shift * a[k]
+            e = p[i, k] - pred
+            e_pos[i, k] = e
+            dp += e * e
+        d2p[i] = dp
+        lat[i, 0] = theta[i]
+        gp[i, 0] = r2 + pitch * pitch if coupled else r2
+        if planar:
+            lat[i, 1] = height[i]
+            gp[i, 1] = 1.0
+            gr[i, 1] = 0.0
+    e_rot = np.empty((m, 3))
+    d2r = np.empty(m)
+    if m:
+        cx, cy, cz, cw = -q0[0], -q0[1], -q0[2], q0[3]
+        for i in range(n):
+            x0, x1, x2, x3 = _qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
+            y0, y1, y2, y3 = _qmul(x0, x1, x2, x3, -a[0], -a[1], -a[2], 0.0)
+            ch = math.cos(0.5 * theta[i])
+            sh = math.sin(0.5 * theta[i])
+            _put_log(
+                e_rot,
+                d2r,
+                i,
+                ch * x0 + sh * y0,
+                ch * x1 + sh * y1,
+                ch * x2 + sh * y2,
+                ch * x3 + sh * y3,
+            )
+    return e_pos, e_rot, d2p, d2r, lat, gp, gr
+
+
+def _projection(
+    e_pos: FloatArray,
+    e_rot: FloatArray,
+    d2p: FloatArray,
+    d2r: FloatArray,
+    lat: FloatArray,
+    gp: FloatArray,
+    gr: FloatArray,
+    oriented: bool,
+) -> Projection:
+    if oriented:
+        return Projection(e_pos, e_rot, lat, gp, gr, d2p, d2r)
+    return Projection(e_pos, None, lat, gp, gr, d2p, None)
 
 
 class Kernel:
@@ -109,14 +311,23 @@ class Fixed(Kernel):
         self, p: FloatArray, q: FloatArray | None, w: FloatArray, ratio: float
     ) -> Geometry | None:
         uniform = bool(np.all(w == w[0]))
-        pos = np.median(p, axis=0) if uniform else g.weighted_mean(p, w)
+        pos = g.col_median(p) if uniform else g.weighted_mean(p, w)
         return Geometry(pos=pos, quat=None if q is None else g.quat_average(q, w))
 
     def project(
         self, geom: Geometry, p: FloatArray, q: FloatArray | None, ratio: float
     ) -> Projection:
+        oriented = q is not None and geom.quat is not None
+        e_pos, e_rot, d2p, d2r, _ = _offset_project(
+            p,
+            q if oriented else _NO_QUAT,  # type: ignore[arg-type]
+            geom.pos,
+            geom.quat if oriented else geom.pos,  # type: ignore[arg-type]
+            geom.pos,
+            False,
+        )
         empty = np.zeros((p.shape[0], 0))
-        return Projection(p - geom.pos, _rot_residual(q, geom.quat), empty, empty, empty)
+        return _projection(e_pos, e_rot, d2p, d2r, empty, empty, empty, oriented)
 
 
 class Free(Fixed):
@@ -148,10 +359,17 @@ class Prismatic(Kernel):
         self, geom: Geometry, p: FloatArray, q: FloatArray | None, ratio: float
     ) -> Projection:
         assert geom.axis is not None
-        s = (p - geom.pos) @ geom.axis
-        e_pos = p - geom.pos - s[:, None] * geom.axis
+        oriented = q is not None and geom.quat is not None
+        e_pos, e_rot, d2p, d2r, lat = _offset_project(
+            p,
+            q if oriented else _NO_QUAT,  # type: ignore[arg-type]
+            geom.pos,
+            geom.quat if oriented else geom.pos,  # type: ignore[arg-type]
+            geom.axis,
+            True,
+        )
         ones = np.ones((p.shape[0], 1))
-        return Projection(e_pos, _rot_residual(q, geom.quat), s[:, None], ones, 0.0 * ones)
+        return _projection(e_pos, e_rot, d2p, d2r, lat, ones, np.zeros_like(ones), oriented)
 
 
 class Revolute(Kernel):
@@ -194,69 +412,33 @@ class Revolute(Kernel):
         centre = centroid + c2 @ basis
         return Geometry(pos=centre, quat=None, axis=normal, lever=r * e1, basis=basis, mask=w > 0)
 
-    def _angles(self, geom: Geometry, p: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Angle of each position about the axis from the lever, and the radii."""
-        assert geom.axis is not None and geom.lever is not None
-        a = geom.axis
-        lev = geom.lever - (geom.lever @ a) * a
-        r = float(np.linalg.norm(lev))
-        e1 = lev / r if r > 1e-12 else np.zeros(3)
-        e2 = g.cross3(a, e1)
-        v = p - geom.pos
-        return np.arctan2(v @ e2, v @ e1), v @ a, np.full(p.shape[0], r)
-
     def project(
         self, geom: Geometry, p: FloatArray, q: FloatArray | None, ratio: float
     ) -> Projection:
         assert geom.axis is not None and geom.lever is not None
-        a = geom.axis
-        theta_pos, height, radius = self._angles(geom, p)
-        if q is None or geom.theta is None:
-            mask = np.ones(p.shape[0], dtype=bool) if geom.mask is None else geom.mask
-            theta = g.unwrap_masked(theta_pos, mask)
-            rot_w = np.zeros_like(theta)
-        else:
-            # Weighted least squares of the angle estimates: position error r·Δθ
-            # against σ_pos, rotation error Δθ against σ_rot (and, for a screw, the
-            # height error pitch·Δθ against σ_pos).
-            r2 = radius * radius
-            on_branch = geom.theta + g.wrap_angle(theta_pos - geom.theta)
-            num = ratio * ratio * geom.theta + r2 * on_branch
-            den = ratio * ratio + r2
-            if self.coupled:
-                pitch, h0 = geom.extra["pitch"], geom.extra["h0"]
-                if abs(pitch) > 1e-12:
-                    num = num + pitch * (height - h0)
-                    den = den + pitch * pitch
-            theta = num / den
-            rot_w = np.ones_like(theta)
-        pred = geom.pos + g.rotate_about(a, theta, geom.lever)
-        lat = [theta]
-        gp = [radius * radius]
-        gr = [rot_w]
+        # Angles from the rotations (weighted with the positions' r·Δθ against
+        # σ_pos) when oriented, else from the positions alone, unwrapped over the mask.
+        oriented = q is not None and geom.theta is not None and geom.quat is not None
+        n = p.shape[0]
+        mask = np.ones(n, dtype=bool) if geom.mask is None else geom.mask
+        pitch, h0 = math.nan, 0.0
         if self.coupled:
             pitch, h0 = geom.extra["pitch"], geom.extra["h0"]
-            pred = pred + (h0 + pitch * theta)[:, None] * a
-            gp = [radius * radius + pitch * pitch]
-        if self.planar:
-            pred = pred + (height - geom.lever @ a)[:, None] * a
-            lat.append(height)
-            gp.append(np.ones_like(theta))
-            gr.append(np.zeros_like(theta))
-        e_rot = None
-        if q is not None and geom.quat is not None:
-            # q ⊗ (rot(a, θ) ⊗ q0)⁻¹ = (q ⊗ q0⁻¹) ⊗ (cos θ/2, -sin θ/2 a): two matmuls.
-            x = q @ g.quat_right_matrix(g.quat_conj(geom.quat))
-            y = x @ g.quat_right_matrix(np.append(-a, 0.0))
-            half = 0.5 * theta
-            e_rot = g.quat_log(np.cos(half)[:, None] * x + np.sin(half)[:, None] * y)
-        return Projection(
-            p - pred,
-            e_rot,
-            np.stack(lat, axis=1),
-            np.stack(gp, axis=1),
-            np.stack(gr, axis=1),
+        out = _revolute_project(
+            p,
+            q if oriented else _NO_QUAT,  # type: ignore[arg-type]
+            geom.pos,
+            geom.quat if oriented else geom.pos,  # type: ignore[arg-type]
+            geom.axis,
+            geom.lever,
+            geom.theta if oriented else geom.pos,  # type: ignore[arg-type]
+            mask,
+            float(ratio),
+            self.planar,
+            float(pitch),
+            float(h0),
         )
+        return _projection(*out, oriented)
 
 
 class Cylindrical(Revolute):

@@ -30,8 +30,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from thirdhand.constraints.geometry import col_ptp, masked_median
 from thirdhand.constraints.kernels import KERNELS, Geometry, Kernel, Projection
 from thirdhand.constraints.types import ConstraintFitError, NoiseModel
 
@@ -166,16 +168,17 @@ def prepare_track(
             f"least {MIN_SAMPLES} (samples with a NaN position or quaternion are dropped)"
         )
     p = p[ok]
-    if np.ptp(p, axis=0).max() > 1e3:
+    span = float(col_ptp(np.ascontiguousarray(p)).max())
+    if span > 1e3:
         raise ConstraintFitError(
-            f"{where}: positions span {np.ptp(p, axis=0).max():.3g} m; expected metres "
+            f"{where}: positions span {span:.3g} m; expected metres "
             "(a relative track of an assembly spans well under a kilometre)"
         )
-    return p, q
+    return np.ascontiguousarray(p), None if q is None else np.ascontiguousarray(q)
 
 
 def _log_outlier(p: FloatArray, oriented: bool) -> float:
-    side = np.maximum(np.ptp(p, axis=0), 0.1)
+    side = np.maximum(col_ptp(p), 0.1)
     out = -float(np.sum(np.log(side)))
     return out - math.log(_SO3_VOLUME) if oriented else out
 
@@ -187,19 +190,69 @@ def _inlier_loglik(
     inlier: NDArray[np.bool_],
 ) -> FloatArray:
     """Per-sample inlier log-likelihood, latent integrated out (Laplace), shape (n,)."""
-    ll = -1.5 * (_LOG2PI + 2.0 * math.log(sp)) - 0.5 * proj.d2_pos / sp**2
-    if proj.d2_rot is not None:
-        ll += -1.5 * (_LOG2PI + 2.0 * math.log(sr)) - 0.5 * proj.d2_rot / sr**2
-    d = proj.latent.shape[1]
-    if d:
-        inv_sr2 = 1.0 / sr**2 if proj.e_rot is not None else 0.0
-        h = proj.g_pos / sp**2 + proj.g_rot * inv_sr2
-        lat = proj.latent[inlier] if inlier.any() else proj.latent
-        span = np.ptp(lat, axis=0)
-        h_mean = np.mean(h, axis=0)
-        log_v = 0.5 * np.log(span**2 + 2.0 * math.pi / h_mean)
-        ll += np.sum(0.5 * _LOG2PI - 0.5 * np.log(h) - log_v, axis=1)
-    return np.asarray(ll, dtype=np.float64)
+    oriented = proj.d2_rot is not None
+    return _loglik(
+        proj.d2_pos,
+        proj.d2_rot if proj.d2_rot is not None else proj.d2_pos,
+        proj.latent,
+        proj.g_pos,
+        proj.g_rot,
+        inlier,
+        sp,
+        sr,
+        oriented,
+    )
+
+
+@njit(cache=True)
+def _loglik(
+    d2p: FloatArray,
+    d2r: FloatArray,
+    lat: FloatArray,
+    gp: FloatArray,
+    gr: FloatArray,
+    inlier: NDArray[np.bool_],
+    sp: float,
+    sr: float,
+    oriented: bool,
+) -> FloatArray:  # pragma: no cover - compiled
+    n, d = lat.shape
+    ll = np.empty(n)
+    c_pos = -1.5 * (_LOG2PI + 2.0 * math.log(sp))
+    sp2 = sp**2
+    sr2 = sr**2
+    c_rot = -1.5 * (_LOG2PI + 2.0 * math.log(sr)) if oriented else 0.0
+    for i in range(n):
+        ll[i] = c_pos - 0.5 * d2p[i] / sp2
+        if oriented:
+            ll[i] += c_rot - 0.5 * d2r[i] / sr2
+    if d == 0:
+        return ll
+    inv_sr2 = 1.0 / sr2 if oriented else 0.0
+    any_in = False
+    for i in range(n):
+        if inlier[i]:
+            any_in = True
+            break
+    log_v = np.empty(d)
+    for j in range(d):
+        lo = math.inf
+        hi = -math.inf
+        h_sum = 0.0
+        for i in range(n):
+            if inlier[i] or not any_in:
+                lo = min(lo, lat[i, j])
+                hi = max(hi, lat[i, j])
+            h_sum += gp[i, j] / sp2 + gr[i, j] * inv_sr2
+        span = hi - lo
+        log_v[j] = 0.5 * math.log(span**2 + 2.0 * math.pi / (h_sum / n))
+    for i in range(n):
+        acc = 0.0
+        for j in range(d):
+            h = gp[i, j] / sp2 + gr[i, j] * inv_sr2
+            acc += 0.5 * _LOG2PI - 0.5 * math.log(h) - log_v[j]
+        ll[i] += acc
+    return ll
 
 
 def _noise_mle(proj: Projection, resp: FloatArray, sp: float, sr: float) -> tuple[float, float]:
@@ -209,22 +262,92 @@ def _noise_mle(proj: Projection, resp: FloatArray, sp: float, sr: float) -> tupl
     ``(g_pos/σ_pos²) / H`` of a latent coordinate's information comes from the
     position, the rest from the rotation.
     """
-    oriented = proj.e_rot is not None
-    absorbed_pos = np.zeros(resp.shape[0])
-    if proj.latent.shape[1]:
-        hp = proj.g_pos / sp**2
-        hr = proj.g_rot / sr**2 if oriented else np.zeros_like(hp)
-        absorbed_pos = np.sum(hp / (hp + hr), axis=1)
-    total = resp.sum()
-    dof_pos = 3.0 * total - resp @ absorbed_pos
-    sp_new = math.sqrt(resp @ proj.d2_pos / max(dof_pos, 1e-9))
+    oriented = proj.d2_rot is not None
+    return _noise_levels(
+        proj.d2_pos,
+        proj.d2_rot if proj.d2_rot is not None else proj.d2_pos,
+        proj.g_pos,
+        proj.g_rot,
+        resp,
+        sp,
+        sr,
+        oriented,
+    )
+
+
+@njit(cache=True)
+def _noise_levels(
+    d2p: FloatArray,
+    d2r: FloatArray,
+    gp: FloatArray,
+    gr: FloatArray,
+    resp: FloatArray,
+    sp: float,
+    sr: float,
+    oriented: bool,
+) -> tuple[float, float]:  # pragma: no cover - compiled
+    n, d = gp.shape
+    sp2 = sp**2
+    sr2 = sr**2
+    total = 0.0
+    absorbed = 0.0
+    sum_p = 0.0
+    sum_r = 0.0
+    for i in range(n):
+        a = 0.0
+        for j in range(d):
+            hp = gp[i, j] / sp2
+            hr = gr[i, j] / sr2 if oriented else 0.0
+            a += hp / (hp + hr)
+        total += resp[i]
+        absorbed += resp[i] * a
+        sum_p += resp[i] * d2p[i]
+        if oriented:
+            sum_r += resp[i] * d2r[i]
+    sp_new = math.sqrt(sum_p / max(3.0 * total - absorbed, 1e-9))
     sr_new = sr
     if oriented:
-        assert proj.d2_rot is not None
-        absorbed_rot = proj.latent.shape[1] - absorbed_pos
-        dof_rot = 3.0 * total - resp @ absorbed_rot
-        sr_new = math.sqrt(resp @ proj.d2_rot / max(dof_rot, 1e-9))
+        # The rotation's share of the latent: d - absorbed_pos per sample.
+        dof_rot = 3.0 * total - (d * total - absorbed)
+        sr_new = math.sqrt(sum_r / max(dof_rot, 1e-9))
     return sp_new, sr_new
+
+
+@njit(cache=True)
+def _classify(
+    ll_in: FloatArray,
+    inlier: NDArray[np.bool_],
+    w: FloatArray,
+    log_out: float,
+    log_prior: float,
+    max_out: int,
+) -> tuple[NDArray[np.bool_], bool, bool]:  # pragma: no cover - compiled
+    """New inliers: the (at most ``max_out``) samples the outlier density explains better.
+
+    Returns the new inlier mask and whether it equals ``inlier`` and ``w > 0``.
+    """
+    n = ll_in.shape[0]
+    new = np.ones(n, dtype=np.bool_)
+    if max_out:
+        gain = log_prior + log_out - ll_in
+        n_pos = 0
+        for i in range(n):
+            if gain[i] > 0.0:
+                n_pos += 1
+        cut = 0.0
+        if n_pos > max_out:
+            cut = np.partition(-gain, max_out - 1)[max_out - 1]
+        for i in range(n):
+            if gain[i] > 0.0 and (n_pos <= max_out or -gain[i] <= cut):
+                new[i] = False
+    same_in = True
+    same_w = True
+    for i in range(n):
+        if new[i] != inlier[i]:
+            same_in = False
+        if new[i] != (w[i] > 0.0):
+            same_w = False
+    return new, same_in, same_w
 
 
 def _total(
@@ -257,20 +380,37 @@ def _trimmed_start(
     w = np.ones(pos.shape[0])
     g_cur: Geometry | None = geom
     for _ in range(_C_STEPS):
-        d2 = proj.d2_pos
-        d2 = d2 / max(float(np.median(d2)), 1e-300)
-        if proj.d2_rot is not None:
-            r2 = proj.d2_rot
-            d2 = d2 + r2 / max(float(np.median(r2)), 1e-300)
-        if d2.max() < _HEAVY_TAIL * (2.0 if proj.e_rot is not None else 1.0):
+        oriented = proj.d2_rot is not None
+        heavy, w_new = _trim_weights(
+            proj.d2_pos,
+            proj.d2_rot if proj.d2_rot is not None else proj.d2_pos,
+            oriented,
+            n_keep,
+            _HEAVY_TAIL * (2.0 if oriented else 1.0),
+        )
+        if not heavy:
             break
-        cut = np.partition(d2, n_keep - 1)[n_keep - 1]
-        w = (d2 <= cut).astype(np.float64)
+        w = w_new
         g_cur = kernel.fit(pos, quat, w, 1.0)
         if g_cur is None:
             return None, proj, w
         proj = kernel.project(g_cur, pos, quat, 1.0)
     return g_cur, proj, w
+
+
+@njit(cache=True)
+def _trim_weights(
+    d2p: FloatArray, d2r: FloatArray, oriented: bool, n_keep: int, heavy: float
+) -> tuple[bool, FloatArray]:  # pragma: no cover - compiled
+    """Whether the squared residuals (in units of their medians) are heavy-tailed, and
+    the weights keeping the ``n_keep`` smallest of them."""
+    d2 = d2p / max(np.median(d2p), 1e-300)
+    if oriented:
+        d2 = d2 + d2r / max(np.median(d2r), 1e-300)
+    if d2.max() < heavy:
+        return False, np.ones(d2.shape[0])
+    cut = np.partition(d2, n_keep - 1)[n_keep - 1]
+    return True, (d2 <= cut).astype(np.float64)
 
 
 def fit_model(
@@ -334,26 +474,21 @@ def fit_model(
                 if geom is None:
                     return None
             # Robust start: scales from the median residual, immune to outliers.
-            keep = w > 0
             d_latent = proj.latent.shape[1]
-            med = float(np.median(proj.d2_pos[keep]))
+            med = masked_median(proj.d2_pos, w)
             sp = math.sqrt(med / _CHI2_3_MEDIAN * 3.0 / max(3.0 - d_latent, 1.0))
             if proj.e_rot is not None:
                 assert proj.d2_rot is not None
-                sr = math.sqrt(float(np.median(proj.d2_rot[keep])) / _CHI2_3_MEDIAN)
+                sr = math.sqrt(masked_median(proj.d2_rot, w) / _CHI2_3_MEDIAN)
         else:
             sp, sr = _noise_mle(proj, w, sp, sr)
         sp = min(max(sp, lo_p), hi_p)
         sr = min(max(sr, lo_r), hi_r)
         ll_in = _inlier_loglik(proj, sp, sr, inlier)
-        new_inlier = np.ones(n, dtype=bool)
-        if max_out:
-            gain = log_prior + log_out - ll_in
-            worst = np.argpartition(-gain, max_out - 1)[:max_out]
-            new_inlier[worst[gain[worst] > 0.0]] = False
-        converged = it > 0 and np.array_equal(new_inlier, inlier)
+        new_inlier, same_in, same_w = _classify(ll_in, inlier, w, log_out, log_prior, max_out)
+        converged = it > 0 and same_in
         # The geometry depends on the weights only (the noise ratio enters the projection).
-        refit = not np.array_equal(new_inlier, w > 0)
+        refit = not same_w
         inlier = new_inlier
         w = inlier.astype(np.float64)
         if converged:
