@@ -452,38 +452,75 @@ def revolute_centre(
     lever : ndarray, shape (3,)
         ``u``: the child's position relative to ``centre`` at ``θ = 0``.
     """
-    c_t = np.cos(theta)
-    s_t = np.sin(theta)
+    n, rhs, mean = _centre_system(p, axis, np.ascontiguousarray(theta), w, planar)
+    sol = np.linalg.lstsq(n, rhs, rcond=1e-12)[0]
+    return _centre_shift(sol, axis, mean, planar)
+
+
+@njit(cache=True)
+def _centre_system(
+    p: FloatArray, axis: FloatArray, theta: FloatArray, w: FloatArray, planar: bool
+) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """Normal equations of min Σ w |P (c + R_i u - p_i)|², P the projection (6, 6), (6,),
+    and the weighted centroid of ``p`` (3,)."""
+    sw = 0.0
+    sc = 0.0
+    ss = 0.0
+    wps = np.zeros(3)
+    rtp = np.zeros(3)
+    a0, a1, a2 = axis[0], axis[1], axis[2]
+    for i in range(p.shape[0]):
+        wi = w[i]
+        if wi == 0.0:
+            continue
+        c = math.cos(theta[i])
+        s = math.sin(theta[i])
+        sw += wi
+        sc += wi * c
+        ss += wi * s
+        x0 = wi * p[i, 0]
+        x1 = wi * p[i, 1]
+        x2 = wi * p[i, 2]
+        wps[0] += x0
+        wps[1] += x1
+        wps[2] += x2
+        # R_iᵀ p_i = cos p + sin (p × a) + (1 - cos) (p · a) a.
+        pa = (1.0 - c) * (x0 * a0 + x1 * a1 + x2 * a2)
+        rtp[0] += c * x0 + s * (x1 * a2 - x2 * a1) + pa * a0
+        rtp[1] += c * x1 + s * (x2 * a0 - x0 * a2) + pa * a1
+        rtp[2] += c * x2 + s * (x0 * a1 - x1 * a0) + pa * a2
     ax = np.outer(axis, axis)
-    skew = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    skew = np.array([[0.0, -a2, a1], [a2, 0.0, -a0], [-a1, a0, 0.0]])
     eye = np.eye(3)
-    sw = w.sum()
-    sc = w @ c_t
-    ss = w @ s_t
     # Σ w R_i, with R_i = cos I + sin K + (1 - cos) a aᵀ.
     sum_r = sc * eye + ss * skew + (sw - sc) * ax
     proj = eye - ax if planar else eye
-    # Normal equations of min Σ w |P (c + R_i u - p_i)|², P the projection.
     n = np.zeros((6, 6))
     n[:3, :3] = sw * proj
     n[:3, 3:] = proj @ sum_r
     n[3:, :3] = sum_r.T @ proj
     # Σ w R_iᵀ P R_i = P Σ w (R commutes with P); for P = I it is Σ w I.
     n[3:, 3:] = sw * proj
-    wp = p * w[:, None]
     rhs = np.empty(6)
-    rhs[:3] = proj @ wp.sum(axis=0)
-    # Σ w R_iᵀ p_i; as rows, Kᵀ p is p @ K.
-    rtp = c_t @ wp + s_t @ (wp @ skew) + ((1.0 - c_t) @ (wp @ axis)) * axis
+    rhs[:3] = proj @ wps
     rhs[3:] = proj @ rtp
-    sol = np.linalg.lstsq(n, rhs, rcond=1e-12)[0]
-    centre, lever = sol[:3], sol[3:]
-    mean = wp.sum(axis=0) / sw
-    shift = axis @ (mean - centre)
-    centre = centre + shift * axis
-    lever = lever - shift * axis
+    return n, rhs, wps / sw
+
+
+@njit(cache=True)
+def _centre_shift(
+    sol: FloatArray, axis: FloatArray, mean: FloatArray, planar: bool
+) -> tuple[FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """Slide the centre along the axis to the point nearest ``mean``."""
+    centre = sol[:3].copy()
+    lever = sol[3:].copy()
+    shift = axis[0] * (mean[0] - centre[0])
+    shift += axis[1] * (mean[1] - centre[1])
+    shift += axis[2] * (mean[2] - centre[2])
+    centre += shift * axis
+    lever -= shift * axis
     if planar:
-        lever = lever - (lever @ axis) * axis
+        lever -= (lever[0] * axis[0] + lever[1] * axis[1] + lever[2] * axis[2]) * axis
     return centre, lever
 
 

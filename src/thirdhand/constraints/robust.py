@@ -321,10 +321,11 @@ def _classify(
     log_out: float,
     log_prior: float,
     max_out: int,
-) -> tuple[NDArray[np.bool_], bool, bool]:  # pragma: no cover - compiled
+) -> tuple[NDArray[np.bool_], bool, bool, float, int]:  # pragma: no cover - compiled
     """New inliers: the (at most ``max_out``) samples the outlier density explains better.
 
-    Returns the new inlier mask and whether it equals ``inlier`` and ``w > 0``.
+    Returns the new inlier mask, whether it equals ``inlier`` and ``w > 0``, the sum
+    of ``ll_in`` over the new inliers and the number of new outliers.
     """
     n = ll_in.shape[0]
     new = np.ones(n, dtype=np.bool_)
@@ -342,25 +343,44 @@ def _classify(
                 new[i] = False
     same_in = True
     same_w = True
+    ll_sum = 0.0
+    n_out = 0
     for i in range(n):
         if new[i] != inlier[i]:
             same_in = False
         if new[i] != (w[i] > 0.0):
             same_w = False
-    return new, same_in, same_w
+        if new[i]:
+            ll_sum += ll_in[i]
+        else:
+            n_out += 1
+    return new, same_in, same_w, ll_sum, n_out
 
 
-def _total(
-    ll_in: FloatArray, inlier: NDArray[np.bool_], log_out: float, n_model: int, oriented: bool
+def _total_parts(
+    ll_sum: float, n_out: int, n: int, log_out: float, n_model: int, oriented: bool
 ) -> tuple[float, int]:
-    """Total log-likelihood (inliers, and outliers at rate γ = their fraction) and ``k``."""
-    n = ll_in.shape[0]
-    n_out = int(n - inlier.sum())
-    ll = float(ll_in[inlier].sum())
+    """Total log-likelihood (inliers, and outliers at rate γ = their fraction) and ``k``.
+
+    From the inliers' summed log-likelihood ``ll_sum`` and the number of outliers.
+    """
+    ll = ll_sum
     if n_out:
         gamma = n_out / n
         ll += (n - n_out) * math.log1p(-gamma) + n_out * (math.log(gamma) + log_out)
     return ll, n_model + (2 if oriented else 1) + (1 if n_out else 0)
+
+
+@njit(cache=True)
+def _masked_sum(x: FloatArray, mask: NDArray[np.bool_]) -> tuple[float, int]:  # pragma: no cover
+    """Sum and number of the entries of ``x`` where ``mask`` holds."""
+    total = 0.0
+    count = 0
+    for i in range(x.shape[0]):
+        if mask[i]:
+            total += x[i]
+            count += 1
+    return total, count
 
 
 def _trimmed_start(
@@ -454,6 +474,7 @@ def fit_model(
     # a bad model of the track, not a good model of part of it.
     max_out = 0 if free else int(nm.max_outliers * n)
     log_prior = math.log(_OUTLIER_PRIOR) - math.log1p(-_OUTLIER_PRIOR)
+    n_model = kernel.n_params[int(oriented)]
 
     w = np.ones(n)
     inlier = np.ones(n, dtype=bool)
@@ -485,7 +506,9 @@ def fit_model(
         sp = min(max(sp, lo_p), hi_p)
         sr = min(max(sr, lo_r), hi_r)
         ll_in = _inlier_loglik(proj, sp, sr, inlier)
-        new_inlier, same_in, same_w = _classify(ll_in, inlier, w, log_out, log_prior, max_out)
+        new_inlier, same_in, same_w, ll_sum, n_out = _classify(
+            ll_in, inlier, w, log_out, log_prior, max_out
+        )
         converged = it > 0 and same_in
         # The geometry depends on the weights only (the noise ratio enters the projection).
         refit = not same_w
@@ -494,19 +517,20 @@ def fit_model(
         if converged:
             break
         if math.isfinite(stop_above):
-            ll, k = _total(ll_in, inlier, log_out, kernel.n_params[int(oriented)], oriented)
+            ll, k = _total_parts(ll_sum, n_out, n, log_out, n_model, oriented)
             if -2.0 * ll + k * math.log(n) > stop_above:
                 break
     assert geom is not None and proj is not None
     ll_in = _inlier_loglik(proj, sp, sr, inlier)
-    ll, k = _total(ll_in, inlier, log_out, kernel.n_params[int(oriented)], oriented)
+    ll_sum, n_in = _masked_sum(ll_in, inlier)
+    ll, k = _total_parts(ll_sum, n - n_in, n, log_out, n_model, oriented)
     return ModelFit(
         kernel=kernel,
         geom=geom,
         proj=proj,
         sigma_pos=sp,
         sigma_rot=sr if oriented else math.nan,
-        outlier_fraction=float(1.0 - inlier.mean()),
+        outlier_fraction=(n - n_in) / n,
         inlier=inlier,
         weights=w,
         log_likelihood=ll,
