@@ -7,6 +7,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, settings
+
+# Shared, loaded machines: no per-example deadline, no "too slow" health check, and a
+# fixed example sequence so a run is reproducible.
+settings.register_profile(
+    "thirdhand",
+    deadline=None,
+    derandomize=True,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
+settings.load_profile("thirdhand")
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(os.environ.get("THIRDHAND_DATA", ROOT.parent / "shared" / "data"))
