@@ -29,7 +29,7 @@ def weighted_cov(x: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:
     return _moments(np.ascontiguousarray(x, dtype=np.float64), np.ascontiguousarray(w))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _moments(x: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:  # pragma: no cover
     n, k = x.shape
     sw = 0.0
@@ -57,7 +57,7 @@ def _moments(x: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray]:  # 
     return m, cov
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def col_ptp(x: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """Range (max - min) of each column of finite ``x (n, k)``, shape (k,)."""
     out = np.empty(x.shape[1])
@@ -71,7 +71,7 @@ def col_ptp(x: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def col_median(x: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """Median of each column of ``x (n, k)``, shape (k,)."""
     out = np.empty(x.shape[1])
@@ -80,13 +80,13 @@ def col_median(x: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def masked_median(x: FloatArray, w: FloatArray) -> float:  # pragma: no cover - compiled
     """Median of the entries of ``x (n,)`` whose weight ``w (n,)`` is positive."""
     return float(np.median(x[w > 0.0]))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def quat_scatter(q: FloatArray, w: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """``Σ w q qᵀ`` of quaternion rows ``q (n, 4)`` and weights ``w (n,)``, shape (4, 4)."""
     m = np.zeros((4, 4))
@@ -129,12 +129,52 @@ def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """Cross product of two 3-vectors, compiled."""
     return np.array(
         [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
     )
+
+
+@njit(cache=True, error_model="numpy")
+def qmul(
+    ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: float, bw: float
+) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
+    """Hamilton product ``a ⊗ b`` of x y z w quaternions given by components."""
+    return (
+        aw * bx + bw * ax + (ay * bz - az * by),
+        aw * by + bw * ay + (az * bx - ax * bz),
+        aw * bz + bw * az + (ax * by - ay * bx),
+        aw * bw - (ax * bx + ay * by + az * bz),
+    )
+
+
+@njit(cache=True, error_model="numpy")
+def quat_from_frame(m: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Unit quaternion x y z w of a rotation matrix ``m (3, 3)`` (Shepperd's method)."""
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    choice = 3
+    best = tr
+    for i in range(3):
+        if m[i, i] > best:
+            best = m[i, i]
+            choice = i
+    q = np.empty(4)
+    if choice == 3:
+        q[0] = m[2, 1] - m[1, 2]
+        q[1] = m[0, 2] - m[2, 0]
+        q[2] = m[1, 0] - m[0, 1]
+        q[3] = 1.0 + tr
+    else:
+        i = choice
+        j = (i + 1) % 3
+        k = (j + 1) % 3
+        q[i] = 1.0 - tr + 2.0 * m[i, i]
+        q[j] = m[j, i] + m[i, j]
+        q[k] = m[k, i] + m[i, k]
+        q[3] = m[k, j] - m[j, k]
+    return q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
 def quat_mul(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -169,7 +209,7 @@ def quat_log(q: FloatArray) -> FloatArray:
     return _quat_log_rows(np.ascontiguousarray(q, dtype=np.float64))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _log_scale(x: float, y: float, z: float, w: float) -> float:
     """Factor taking the vector part of a unit quaternion to its rotation vector."""
     norm = math.sqrt(x * x + y * y + z * z)
@@ -179,7 +219,7 @@ def _log_scale(x: float, y: float, z: float, w: float) -> float:
     return -scale if w < 0.0 else scale
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _quat_log_rows(q: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     out = np.empty((q.shape[0], 3))
     for i in range(q.shape[0]):
@@ -237,12 +277,12 @@ def unwrap_masked(theta: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:
     return _unwrap_masked(np.ascontiguousarray(theta, dtype=np.float64), np.ascontiguousarray(mask))
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _wrap(a: float) -> float:
     return (a + math.pi) % _TWO_PI - math.pi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _unwrap(p: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     """``np.unwrap`` of a 1-D array (same arithmetic, sequential cumulative sum)."""
     out = p.copy()
@@ -258,7 +298,7 @@ def _unwrap(p: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _unwrap_masked(theta: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:  # pragma: no cover
     n = theta.shape[0]
     idx = np.flatnonzero(mask)
@@ -301,26 +341,28 @@ def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
         The orientation at ``theta = 0``, unit quaternion.
     """
     _, vec = np.linalg.eigh(quat_scatter(q, w))
-    u: FloatArray = np.asarray(vec[:, 3], dtype=np.float64)
-    v: FloatArray = np.asarray(vec[:, 2], dtype=np.float64)
-    axis = quat_mul(v, quat_conj(u))[:3]
-    axis = axis / np.linalg.norm(axis)
-    v_exact = quat_mul(np.append(axis, 0.0), u)
-    # q = cos α u + sin α v_exact = q(a, 2α) ⊗ u; the sign of q only shifts θ by 2π.
-    theta = _plane_angles(q, u, v_exact, w > 0)
+    rows = vec.T.copy()
+    u: FloatArray = rows[3]
+    axis, theta = _plane_angles(q, u, rows[2], w > 0)
     return axis, theta, u
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _plane_angles(
     q: FloatArray, u: FloatArray, v: FloatArray, mask: NDArray[np.bool_]
-) -> FloatArray:  # pragma: no cover - compiled
+) -> tuple[FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """Axis ``v ⊗ u⁻¹`` (3,) and the unwrapped angles (n,) of :func:`rotation_plane_axis`."""
+    x, y, z, _ = qmul(v[0], v[1], v[2], v[3], -u[0], -u[1], -u[2], u[3])
+    norm = math.sqrt(x * x + y * y + z * z)
+    axis = np.array([x / norm, y / norm, z / norm])
+    # q = cos α u + sin α v_exact = q(a, 2α) ⊗ u; the sign of q only shifts θ by 2π.
+    ve = qmul(axis[0], axis[1], axis[2], 0.0, u[0], u[1], u[2], u[3])
     theta = np.empty(q.shape[0])
     for i in range(q.shape[0]):
         cu = q[i, 0] * u[0] + q[i, 1] * u[1] + q[i, 2] * u[2] + q[i, 3] * u[3]
-        cv = q[i, 0] * v[0] + q[i, 1] * v[1] + q[i, 2] * v[2] + q[i, 3] * v[3]
+        cv = q[i, 0] * ve[0] + q[i, 1] * ve[1] + q[i, 2] * ve[2] + q[i, 3] * ve[3]
         theta[i] = 2.0 * math.atan2(cv, cu)
-    return _unwrap_masked(theta, mask)
+    return axis, _unwrap_masked(theta, mask)
 
 
 def plane_fit(p: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -367,7 +409,7 @@ def circle_fit_2d(
     return _circle_fit(np.ascontiguousarray(xy, dtype=np.float64), w, iterations)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _circle_fit(
     xy: FloatArray, w: FloatArray, iterations: int
 ) -> tuple[FloatArray, float]:  # pragma: no cover - compiled
@@ -453,11 +495,11 @@ def revolute_centre(
         ``u``: the child's position relative to ``centre`` at ``θ = 0``.
     """
     n, rhs, mean = _centre_system(p, axis, np.ascontiguousarray(theta), w, planar)
-    sol = np.linalg.lstsq(n, rhs, rcond=1e-12)[0]
+    sol: FloatArray = np.asarray(np.linalg.lstsq(n, rhs, rcond=1e-12)[0], dtype=np.float64)
     return _centre_shift(sol, axis, mean, planar)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _centre_system(
     p: FloatArray, axis: FloatArray, theta: FloatArray, w: FloatArray, planar: bool
 ) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
@@ -507,7 +549,7 @@ def _centre_system(
     return n, rhs, wps / sw
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _centre_shift(
     sol: FloatArray, axis: FloatArray, mean: FloatArray, planar: bool
 ) -> tuple[FloatArray, FloatArray]:  # pragma: no cover - compiled

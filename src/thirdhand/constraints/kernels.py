@@ -84,20 +84,7 @@ class Geometry:
 _NO_QUAT = np.zeros((0, 4))
 
 
-@njit(cache=True)
-def _qmul(
-    ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: float, bw: float
-) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
-    """Hamilton product ``a ⊗ b`` of x y z w quaternions given by components."""
-    return (
-        aw * bx + bw * ax + (ay * bz - az * by),
-        aw * by + bw * ay + (az * bx - ax * bz),
-        aw * bz + bw * az + (ax * by - ay * bx),
-        aw * bw - (ax * bx + ay * by + az * bz),
-    )
-
-
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _put_log(
     out: FloatArray, d2: FloatArray, i: int, x: float, y: float, z: float, w: float
 ) -> None:  # pragma: no cover - compiled
@@ -109,7 +96,7 @@ def _put_log(
     d2[i] = out[i, 0] * out[i, 0] + out[i, 1] * out[i, 1] + out[i, 2] * out[i, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _offset_project(
     p: FloatArray, q: FloatArray, pos: FloatArray, qp: FloatArray, axis: FloatArray, slide: bool
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]:  # pragma: no cover
@@ -141,12 +128,12 @@ def _offset_project(
         e_pos[i, 2] = v2
         d2p[i] = v0 * v0 + v1 * v1 + v2 * v2
     for i in range(m):
-        x, y, z, w = _qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
+        x, y, z, w = g.qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
         _put_log(e_rot, d2r, i, x, y, z, w)
     return e_pos, e_rot, d2p, d2r, lat
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _revolute_project(
     p: FloatArray,
     q: FloatArray,
@@ -245,8 +232,8 @@ def _revolute_project(
     if m:
         cx, cy, cz, cw = -q0[0], -q0[1], -q0[2], q0[3]
         for i in range(n):
-            x0, x1, x2, x3 = _qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
-            y0, y1, y2, y3 = _qmul(x0, x1, x2, x3, -a[0], -a[1], -a[2], 0.0)
+            x0, x1, x2, x3 = g.qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
+            y0, y1, y2, y3 = g.qmul(x0, x1, x2, x3, -a[0], -a[1], -a[2], 0.0)
             ch = math.cos(0.5 * theta[i])
             sh = math.sin(0.5 * theta[i])
             _put_log(

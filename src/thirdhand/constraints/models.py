@@ -45,7 +45,7 @@ def _frame_from_axes(x: FloatArray, y_hint: FloatArray) -> FloatArray:
         y = y - (y @ x) * x
     y = y / np.linalg.norm(y)
     z = g.cross3(x, y)
-    return se3.quat_from_matrix(np.stack([x, y, z], axis=1))
+    return g.quat_from_frame(np.stack([x, y, z], axis=1))
 
 
 def _align_x(q: FloatArray, axis: FloatArray) -> FloatArray:

@@ -109,15 +109,56 @@ class ModelFit:
         Residuals are divided by the noise levels and stacked (position, rotation);
         0 when the residuals vanish (a noise-free track).
         """
-        e = self.proj.e_pos[self.inlier] / self.sigma_pos
-        if self.proj.e_rot is not None:
-            e = np.hstack([e, self.proj.e_rot[self.inlier] / self.sigma_rot])
-        e = e - e.mean(axis=0)
-        den = float(np.sum(e * e))
-        if e.shape[0] < 3 or den < 1e-12 * e.size:
-            return 0.0
-        rho = float(np.sum(e[1:] * e[:-1])) / den
-        return min(max(rho, 0.0), 0.99)
+        e_rot = self.proj.e_rot
+        return _autocorrelation(
+            self.proj.e_pos,
+            self.proj.e_pos if e_rot is None else e_rot,
+            e_rot is not None,
+            self.inlier,
+            self.sigma_pos,
+            self.sigma_rot,
+        )
+
+
+@njit(cache=True, error_model="numpy")
+def _autocorrelation(
+    e_pos: FloatArray,
+    e_rot: FloatArray,
+    oriented: bool,
+    inlier: NDArray[np.bool_],
+    sp: float,
+    sr: float,
+) -> float:  # pragma: no cover - compiled
+    """:meth:`ModelFit.residual_autocorrelation` of the residuals ``(n, 3)``."""
+    idx = np.flatnonzero(inlier)
+    m = idx.size
+    if m < 3:
+        return 0.0
+    k = 6 if oriented else 3
+    e = np.empty((m, k))
+    for r in range(m):
+        i = idx[r]
+        for c in range(3):
+            e[r, c] = e_pos[i, c] / sp
+            if oriented:
+                e[r, 3 + c] = e_rot[i, c] / sr
+    for c in range(k):
+        mean = 0.0
+        for r in range(m):
+            mean += e[r, c]
+        mean /= m
+        for r in range(m):
+            e[r, c] -= mean
+    den = 0.0
+    num = 0.0
+    for r in range(m):
+        for c in range(k):
+            den += e[r, c] * e[r, c]
+            if r:
+                num += e[r, c] * e[r - 1, c]
+    if den < 1e-12 * m * k:
+        return 0.0
+    return min(max(num / den, 0.0), 0.99)
 
 
 def prepare_track(
@@ -177,10 +218,15 @@ def prepare_track(
     return np.ascontiguousarray(p), None if q is None else np.ascontiguousarray(q)
 
 
-def _log_outlier(p: FloatArray, oriented: bool) -> float:
-    side = np.maximum(col_ptp(p), 0.1)
-    out = -float(np.sum(np.log(side)))
-    return out - math.log(_SO3_VOLUME) if oriented else out
+@njit(cache=True, error_model="numpy")
+def _log_outlier(p: FloatArray, oriented: bool) -> float:  # pragma: no cover - compiled
+    """Log-density of a gross outlier: uniform over the track's bounding box (sides at
+    least 10 cm) and, when oriented, over SO(3)."""
+    side = col_ptp(p)
+    out = 0.0
+    for a in range(side.shape[0]):
+        out += math.log(max(side[a], 0.1))
+    return -out - math.log(_SO3_VOLUME) if oriented else -out
 
 
 def _inlier_loglik(
@@ -204,7 +250,7 @@ def _inlier_loglik(
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _loglik(
     d2p: FloatArray,
     d2r: FloatArray,
@@ -275,7 +321,7 @@ def _noise_mle(proj: Projection, resp: FloatArray, sp: float, sr: float) -> tupl
     )
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _noise_levels(
     d2p: FloatArray,
     d2r: FloatArray,
@@ -313,7 +359,7 @@ def _noise_levels(
     return sp_new, sr_new
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _classify(
     ll_in: FloatArray,
     inlier: NDArray[np.bool_],
@@ -371,7 +417,7 @@ def _total_parts(
     return ll, n_model + (2 if oriented else 1) + (1 if n_out else 0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _masked_sum(x: FloatArray, mask: NDArray[np.bool_]) -> tuple[float, int]:  # pragma: no cover
     """Sum and number of the entries of ``x`` where ``mask`` holds."""
     total = 0.0
@@ -418,7 +464,7 @@ def _trimmed_start(
     return g_cur, proj, w
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _trim_weights(
     d2p: FloatArray, d2r: FloatArray, oriented: bool, n_keep: int, heavy: float
 ) -> tuple[bool, FloatArray]:  # pragma: no cover - compiled
