@@ -204,9 +204,20 @@ def _revolute_project(
         gr[:, 0] = 1.0
     e_pos = np.empty((n, 3))
     d2p = np.empty(n)
+    half_c = np.empty(m)
+    half_s = np.empty(m)
     for i in range(n):
-        c = math.cos(theta[i])
-        s = math.sin(theta[i])
+        if m:
+            # Half angles for the rotation residual; the double-angle formulas give θ's.
+            ch = math.cos(0.5 * theta[i])
+            sh = math.sin(0.5 * theta[i])
+            half_c[i] = ch
+            half_s[i] = sh
+            c = ch * ch - sh * sh
+            s = 2.0 * sh * ch
+        else:
+            c = math.cos(theta[i])
+            s = math.sin(theta[i])
         shift = 0.0
         if coupled:
             shift = h0 + pitch * theta[i]
@@ -234,8 +245,8 @@ def _revolute_project(
         for i in range(n):
             x0, x1, x2, x3 = g.qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
             y0, y1, y2, y3 = g.qmul(x0, x1, x2, x3, -a[0], -a[1], -a[2], 0.0)
-            ch = math.cos(0.5 * theta[i])
-            sh = math.sin(0.5 * theta[i])
+            ch = half_c[i]
+            sh = half_s[i]
             _put_log(
                 e_rot,
                 d2r,

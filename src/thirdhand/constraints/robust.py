@@ -190,7 +190,6 @@ def prepare_track(
     p = np.asarray(pos, dtype=np.float64)
     if p.ndim != 2 or p.shape[1] != 3:
         raise ConstraintFitError(f"{where}: expected positions of shape (n, 3), got {p.shape}")
-    ok = np.all(np.isfinite(p), axis=1)
     q = None
     if quat is not None:
         q = np.asarray(quat, dtype=np.float64)
@@ -198,24 +197,56 @@ def prepare_track(
             raise ConstraintFitError(
                 f"{where}: expected quaternions of shape ({p.shape[0]}, 4), got {q.shape}"
             )
-        with np.errstate(invalid="ignore"):
-            norm = np.linalg.norm(q, axis=1)
-        ok &= np.all(np.isfinite(q), axis=1) & (norm > 1e-9)
-        q = q[ok] / norm[ok, None]
-    n_ok = int(ok.sum())
+    n_all = p.shape[0]
+    p, q_unit, n_ok = _clean_track(
+        np.ascontiguousarray(p), np.ascontiguousarray(q) if q is not None else _NO_QUAT
+    )
     if n_ok < MIN_SAMPLES:
         raise ConstraintFitError(
-            f"{where}: {n_ok} valid sample(s) of {p.shape[0]}; a constraint fit needs at "
+            f"{where}: {n_ok} valid sample(s) of {n_all}; a constraint fit needs at "
             f"least {MIN_SAMPLES} (samples with a NaN position or quaternion are dropped)"
         )
-    p = p[ok]
-    span = float(col_ptp(np.ascontiguousarray(p)).max())
+    span = float(col_ptp(p).max())
     if span > 1e3:
         raise ConstraintFitError(
             f"{where}: positions span {span:.3g} m; expected metres "
             "(a relative track of an assembly spans well under a kilometre)"
         )
-    return np.ascontiguousarray(p), None if q is None else np.ascontiguousarray(q)
+    return p, None if q is None else q_unit
+
+
+#: Stand-in for the quaternions of a position-only track in the compiled kernels.
+_NO_QUAT = np.zeros((0, 4))
+
+
+@njit(cache=True, error_model="numpy")
+def _clean_track(
+    p: FloatArray, q: FloatArray
+) -> tuple[FloatArray, FloatArray, int]:  # pragma: no cover - compiled
+    """Rows of ``p (n, 3)`` (and ``q (n, 4)``, unless empty) that are finite, with a
+    quaternion norm above 1e-9; the quaternions normalised; and their number."""
+    n = p.shape[0]
+    oriented = q.shape[0] > 0
+    ok = np.empty(n, dtype=np.bool_)
+    norm = np.ones(n)
+    for i in range(n):
+        good = np.isfinite(p[i, 0]) and np.isfinite(p[i, 1]) and np.isfinite(p[i, 2])
+        if oriented:
+            s = q[i, 0] * q[i, 0] + q[i, 1] * q[i, 1] + q[i, 2] * q[i, 2] + q[i, 3] * q[i, 3]
+            norm[i] = math.sqrt(s)
+            good = good and np.isfinite(norm[i]) and norm[i] > 1e-9
+        ok[i] = good
+    idx = np.flatnonzero(ok)
+    p_out = np.empty((idx.size, 3))
+    q_out = np.empty((idx.size if oriented else 0, 4))
+    for r in range(idx.size):
+        i = idx[r]
+        for c in range(3):
+            p_out[r, c] = p[i, c]
+        if oriented:
+            for c in range(4):
+                q_out[r, c] = q[i, c] / norm[i]
+    return p_out, q_out, idx.size
 
 
 @njit(cache=True, error_model="numpy")
