@@ -5,10 +5,20 @@ position-only where the type is identifiable without orientations), each fitted
 with :func:`thirdhand.constraints.fit_constraint` on one core. Prints fits/s and
 the fraction classified correctly.
 
+BLAS threads slow the small matrix products of a fit badly on a shared machine:
+unless ``OPENBLAS_NUM_THREADS`` (or ``OMP_NUM_THREADS``) is set, the benchmark
+sets it to 1 before numpy loads, and prints the setting. The first fit of a
+fresh checkout compiles the numba kernels (cached on disk afterwards); the
+warm-up fit keeps that out of the measurement.
+
 Usage: ``python benchmarks/constraint_fit.py [--n 1000] [--tracks 20] [--seconds 2]``
 """
 
 from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", "1"))
 
 import argparse
 import math
@@ -38,6 +48,7 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=2.0, help="time budget per type")
     args = parser.parse_args()
 
+    print(f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}, {args.n} samples per track")
     print(f"{'type':12s} {'orient':7s} {'fits/s':>8s} {'ms/fit':>7s} {'correct':>8s}")
     total_fits = 0
     total_time = 0.0

@@ -15,8 +15,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+from thirdhand import se3
 from thirdhand.constraints import fit_constraint
+from thirdhand.constraints import geometry as g
+from thirdhand.constraints.models import prepare_track
 from thirdhand.constraints.synthetic import random_joint_track
 
 NAN = math.nan
@@ -898,3 +902,47 @@ def test_fit_matches_reference(
             assert math.isnan(got[key]), key
         else:
             assert got[key] == pytest.approx(expected[key], rel=RTOL, abs=ATOL), key
+
+
+def test_compiled_unwrap_matches_numpy() -> None:
+    rng = np.random.default_rng(3)
+    theta = np.cumsum(rng.uniform(-4.0, 4.0, 500))
+    theta = (theta + np.pi) % (2.0 * np.pi) - np.pi
+    theta[::50] = np.pi  # the ambiguous boundary of np.unwrap
+    np.testing.assert_array_equal(
+        g.unwrap_masked(theta, np.ones(500, dtype=bool)), np.unwrap(theta)
+    )
+    mask = rng.uniform(size=500) > 0.2
+    got = g.unwrap_masked(theta, mask)
+    np.testing.assert_array_equal(got[mask], np.unwrap(theta[mask]))
+    # Every masked-out sample sits within π of the last inlier before it.
+    ref = np.maximum.accumulate(np.where(mask, np.arange(500), 0))
+    assert np.all(np.abs(got - got[ref]) <= np.pi)
+
+
+def test_compiled_frame_quaternion_matches_scipy() -> None:
+    rng = np.random.default_rng(4)
+    quats = [se3.random_quat(rng) for _ in range(200)]
+    quats += [
+        np.append(np.sin(a / 2) * e, np.cos(a / 2)) for a in (np.pi, 1e-12) for e in np.eye(3)
+    ]
+    for q in quats:
+        m = np.ascontiguousarray(se3.matrix_from_quat(q))
+        np.testing.assert_allclose(g.quat_from_frame(m), se3.quat_from_matrix(m), atol=1e-15)
+
+
+def test_compiled_quat_log_and_prepare_track() -> None:
+    rng = np.random.default_rng(5)
+    q = rng.normal(size=(100, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    np.testing.assert_allclose(g.quat_log(q), Rotation.from_quat(q).as_rotvec(), atol=1e-12)
+    pos = rng.normal(size=(100, 3))
+    pos[3, 1] = np.nan
+    raw = 2.0 * q
+    raw[7] = 0.0
+    raw[9, 2] = np.inf
+    p, qq = prepare_track(pos, raw)
+    keep = np.setdiff1d(np.arange(100), [3, 7, 9])
+    np.testing.assert_array_equal(p, pos[keep])
+    assert qq is not None
+    np.testing.assert_allclose(qq, q[keep], rtol=1e-15, atol=1e-15)

@@ -119,7 +119,7 @@ def quat_average(q: FloatArray, w: FloatArray) -> FloatArray:
     """
     _, vec = np.linalg.eigh(quat_scatter(q, w))
     out = vec[:, -1]
-    return np.asarray(out if out[3] >= 0 else -out, dtype=np.float64)
+    return out.copy() if out[3] >= 0 else -out
 
 
 def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
