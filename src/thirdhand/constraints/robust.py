@@ -332,26 +332,6 @@ def _loglik(
     return ll
 
 
-def _noise_mle(proj: Projection, resp: FloatArray, sp: float, sr: float) -> tuple[float, float]:
-    """Maximum-likelihood noise levels given the responsibilities.
-
-    The latent absorbs part of each residual's degrees of freedom: a fraction
-    ``(g_pos/σ_pos²) / H`` of a latent coordinate's information comes from the
-    position, the rest from the rotation.
-    """
-    oriented = proj.d2_rot is not None
-    return _noise_levels(
-        proj.d2_pos,
-        proj.d2_rot if proj.d2_rot is not None else proj.d2_pos,
-        proj.g_pos,
-        proj.g_rot,
-        resp,
-        sp,
-        sr,
-        oriented,
-    )
-
-
 @njit(cache=True, error_model="numpy")
 def _noise_levels(
     d2p: FloatArray,
@@ -363,6 +343,12 @@ def _noise_levels(
     sr: float,
     oriented: bool,
 ) -> tuple[float, float]:  # pragma: no cover - compiled
+    """Maximum-likelihood noise levels given the responsibilities ``resp (n,)``.
+
+    The latent absorbs part of each residual's degrees of freedom: a fraction
+    ``(g_pos/σ_pos²) / H`` of a latent coordinate's information comes from the
+    position, the rest from the rotation.
+    """
     n, d = gp.shape
     sp2 = sp**2
     sr2 = sr**2
@@ -432,6 +418,48 @@ def _classify(
         else:
             n_out += 1
     return new, same_in, same_w, ll_sum, n_out
+
+
+@njit(cache=True, error_model="numpy")
+def _em_step(
+    d2p: FloatArray,
+    d2r: FloatArray,
+    lat: FloatArray,
+    gp: FloatArray,
+    gr: FloatArray,
+    inlier: NDArray[np.bool_],
+    w: FloatArray,
+    oriented: bool,
+    start: bool,
+    par: FloatArray,
+    max_out: int,
+) -> tuple[
+    float, float, FloatArray, NDArray[np.bool_], bool, bool, float, int
+]:  # pragma: no cover - compiled
+    """One EM step after a geometric fit and projection: noise levels, likelihood, classes.
+
+    ``par`` holds ``σ_pos, σ_rot`` (the current levels), their bounds ``lo_pos,
+    hi_pos, lo_rot, hi_rot``, the outlier log-density and the outlier log prior odds.
+    At the ``start`` the levels come from the median residuals of the samples of
+    positive weight ``w``, else by maximum likelihood (:func:`_noise_levels`); then
+    :func:`_loglik` with the old inliers and :func:`_classify`. Returns ``σ_pos,
+    σ_rot``, the per-sample inlier log-likelihood and what :func:`_classify` returns.
+    """
+    sp, sr = par[0], par[1]
+    if start:
+        # Robust start: scales from the median residual, immune to outliers.
+        d_latent = lat.shape[1]
+        med = masked_median(d2p, w)
+        sp = math.sqrt(med / _CHI2_3_MEDIAN * 3.0 / max(3.0 - d_latent, 1.0))
+        if oriented:
+            sr = math.sqrt(masked_median(d2r, w) / _CHI2_3_MEDIAN)
+    else:
+        sp, sr = _noise_levels(d2p, d2r, gp, gr, w, sp, sr, oriented)
+    sp = min(max(sp, par[2]), par[3])
+    sr = min(max(sr, par[4]), par[5])
+    ll_in = _loglik(d2p, d2r, lat, gp, gr, inlier, sp, sr, oriented)
+    new, same_in, same_w, ll_sum, n_out = _classify(ll_in, inlier, w, par[6], par[7], max_out)
+    return sp, sr, ll_in, new, same_in, same_w, ll_sum, n_out
 
 
 def _total_parts(
@@ -566,25 +594,23 @@ def fit_model(
         if geom is None:
             return None
         proj = kernel.project(geom, pos, quat, sp / sr)
-        if it == 0:
-            if max_out:
-                geom, proj, w = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
-                if geom is None:
-                    return None
-            # Robust start: scales from the median residual, immune to outliers.
-            d_latent = proj.latent.shape[1]
-            med = masked_median(proj.d2_pos, w)
-            sp = math.sqrt(med / _CHI2_3_MEDIAN * 3.0 / max(3.0 - d_latent, 1.0))
-            if proj.e_rot is not None:
-                assert proj.d2_rot is not None
-                sr = math.sqrt(masked_median(proj.d2_rot, w) / _CHI2_3_MEDIAN)
-        else:
-            sp, sr = _noise_mle(proj, w, sp, sr)
-        sp = min(max(sp, lo_p), hi_p)
-        sr = min(max(sr, lo_r), hi_r)
-        ll_in = _inlier_loglik(proj, sp, sr, inlier)
-        new_inlier, same_in, same_w, ll_sum, n_out = _classify(
-            ll_in, inlier, w, log_out, log_prior, max_out
+        if it == 0 and max_out:
+            geom, proj, w = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
+            if geom is None:
+                return None
+        rot = proj.d2_rot is not None
+        sp, sr, ll_in, new_inlier, same_in, same_w, ll_sum, n_out = _em_step(
+            proj.d2_pos,
+            proj.d2_rot if proj.d2_rot is not None else proj.d2_pos,
+            proj.latent,
+            proj.g_pos,
+            proj.g_rot,
+            inlier,
+            w,
+            rot,
+            it == 0,
+            np.array([sp, sr, lo_p, hi_p, lo_r, hi_r, log_out, log_prior]),
+            max_out,
         )
         converged = it > 0 and same_in
         # The geometry depends on the weights only (the noise ratio enters the projection).
