@@ -439,7 +439,8 @@ def _em_step(
     """One EM step after a geometric fit and projection: noise levels, likelihood, classes.
 
     ``par`` holds ``σ_pos, σ_rot`` (the current levels), their bounds ``lo_pos,
-    hi_pos, lo_rot, hi_rot``, the outlier log-density and the outlier log prior odds.
+    hi_pos, lo_rot, hi_rot``, the outlier log-density, the outlier log prior odds,
+    and the median squared position and rotation residuals when known (else NaN).
     At the ``start`` the levels come from the median residuals of the samples of
     positive weight ``w``, else by maximum likelihood (:func:`_noise_levels`); then
     :func:`_loglik` with the old inliers and :func:`_classify`. Returns ``σ_pos,
@@ -449,10 +450,11 @@ def _em_step(
     if start:
         # Robust start: scales from the median residual, immune to outliers.
         d_latent = lat.shape[1]
-        med = masked_median(d2p, w)
+        med = par[8] if not math.isnan(par[8]) else masked_median(d2p, w)
         sp = math.sqrt(med / _CHI2_3_MEDIAN * 3.0 / max(3.0 - d_latent, 1.0))
         if oriented:
-            sr = math.sqrt(masked_median(d2r, w) / _CHI2_3_MEDIAN)
+            med_r = par[9] if not math.isnan(par[9]) else masked_median(d2r, w)
+            sr = math.sqrt(med_r / _CHI2_3_MEDIAN)
     else:
         sp, sr = _noise_levels(d2p, d2r, gp, gr, w, sp, sr, oriented)
     sp = min(max(sp, par[2]), par[3])
@@ -495,18 +497,20 @@ def _trimmed_start(
     geom: Geometry,
     proj: Projection,
     n_keep: int,
-) -> tuple[Geometry | None, Projection, FloatArray]:
+) -> tuple[Geometry | None, Projection, FloatArray, tuple[float, float]]:
     """Concentration steps of a least-trimmed-squares fit, when residuals are heavy-tailed.
 
     A least-squares start is pulled by gross outliers, so far that the EM may not
     tell them apart; refitting on the ``n_keep`` samples of smallest residual
-    (twice) moves the start back to the bulk of the track.
+    (twice) moves the start back to the bulk of the track. Also returns the median
+    squared position and rotation residuals when no sample was trimmed (NaN else).
     """
     w = np.ones(pos.shape[0])
     g_cur: Geometry | None = geom
-    for _ in range(_C_STEPS):
+    medians = (math.nan, math.nan)
+    for step in range(_C_STEPS):
         oriented = proj.d2_rot is not None
-        heavy, w_new = _trim_weights(
+        heavy, w_new, med_p, med_r = _trim_weights(
             proj.d2_pos,
             proj.d2_rot if proj.d2_rot is not None else proj.d2_pos,
             oriented,
@@ -514,28 +518,32 @@ def _trimmed_start(
             _HEAVY_TAIL * (2.0 if oriented else 1.0),
         )
         if not heavy:
+            if step == 0:
+                medians = (med_p, med_r)
             break
         w = w_new
         g_cur = kernel.fit(pos, quat, w, 1.0)
         if g_cur is None:
-            return None, proj, w
+            return None, proj, w, medians
         proj = kernel.project(g_cur, pos, quat, 1.0)
-    return g_cur, proj, w
+    return g_cur, proj, w, medians
 
 
 @njit(cache=True, error_model="numpy")
 def _trim_weights(
     d2p: FloatArray, d2r: FloatArray, oriented: bool, n_keep: int, heavy: float
-) -> tuple[bool, FloatArray]:  # pragma: no cover - compiled
-    """Whether the squared residuals (in units of their medians) are heavy-tailed, and
-    the weights keeping the ``n_keep`` smallest of them."""
-    d2 = d2p / max(np.median(d2p), 1e-300)
+) -> tuple[bool, FloatArray, float, float]:  # pragma: no cover - compiled
+    """Whether the squared residuals (in units of their medians) are heavy-tailed, the
+    weights keeping the ``n_keep`` smallest of them, and the two medians."""
+    med_p = np.median(d2p)
+    med_r = np.median(d2r) if oriented else math.nan
+    d2 = d2p / max(med_p, 1e-300)
     if oriented:
-        d2 = d2 + d2r / max(np.median(d2r), 1e-300)
+        d2 = d2 + d2r / max(med_r, 1e-300)
     if d2.max() < heavy:
-        return False, np.ones(d2.shape[0])
+        return False, np.ones(d2.shape[0]), med_p, med_r
     cut = np.partition(d2, n_keep - 1)[n_keep - 1]
-    return True, (d2 <= cut).astype(np.float64)
+    return True, (d2 <= cut).astype(np.float64), med_p, med_r
 
 
 def fit_model(
@@ -594,8 +602,9 @@ def fit_model(
         if geom is None:
             return None
         proj = kernel.project(geom, pos, quat, sp / sr)
+        medians = (math.nan, math.nan)
         if it == 0 and max_out:
-            geom, proj, w = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
+            geom, proj, w, medians = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
             if geom is None:
                 return None
         rot = proj.d2_rot is not None
@@ -609,7 +618,7 @@ def fit_model(
             w,
             rot,
             it == 0,
-            np.array([sp, sr, lo_p, hi_p, lo_r, hi_r, log_out, log_prior]),
+            np.array([sp, sr, lo_p, hi_p, lo_r, hi_r, log_out, log_prior, *medians]),
             max_out,
         )
         converged = it > 0 and same_in
