@@ -117,9 +117,15 @@ def quat_average(q: FloatArray, w: FloatArray) -> FloatArray:
     ndarray, shape (4,)
         Unit quaternion with ``w >= 0``.
     """
+    return _quat_top(q, w)
+
+
+@njit(cache=True, error_model="numpy")
+def _quat_top(q: FloatArray, w: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Top eigenvector (4,) of ``Σ w q qᵀ``, sign ``w >= 0``."""
     _, vec = np.linalg.eigh(quat_scatter(q, w))
-    out = vec[:, -1]
-    return out.copy() if out[3] >= 0 else -out
+    out = vec[:, 3].copy()
+    return out if out[3] >= 0 else -out
 
 
 def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
@@ -340,10 +346,16 @@ def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
     q0 : ndarray, shape (4,)
         The orientation at ``theta = 0``, unit quaternion.
     """
+    return _rotation_plane(q, w)
+
+
+@njit(cache=True, error_model="numpy")
+def _rotation_plane(
+    q: FloatArray, w: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
     _, vec = np.linalg.eigh(quat_scatter(q, w))
-    rows = vec.T.copy()
-    u: FloatArray = rows[3]
-    axis, theta = _plane_angles(q, u, rows[2], w > 0)
+    u = vec[:, 3].copy()
+    axis, theta = _plane_angles(q, u, vec[:, 2].copy(), w > 0)
     return axis, theta, u
 
 
@@ -382,7 +394,14 @@ def plane_fit(p: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, Flo
     variances : ndarray, shape (3,)
         Weighted variance along each row of ``axes``, decreasing.
     """
-    m, cov = weighted_cov(p, w)
+    return _plane_fit(np.ascontiguousarray(p, dtype=np.float64), w)
+
+
+@njit(cache=True, error_model="numpy")
+def _plane_fit(
+    p: FloatArray, w: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
+    m, cov = _moments(p, w)
     val, vec = np.linalg.eigh(cov)
     return m, vec[:, ::-1].T.copy(), val[::-1].copy()
 
