@@ -513,8 +513,15 @@ def revolute_centre(
     lever : ndarray, shape (3,)
         ``u``: the child's position relative to ``centre`` at ``θ = 0``.
     """
-    n, rhs, mean = _centre_system(p, axis, np.ascontiguousarray(theta), w, planar)
-    sol: FloatArray = np.asarray(np.linalg.lstsq(n, rhs, rcond=1e-12)[0], dtype=np.float64)
+    return _revolute_centre(p, axis, np.ascontiguousarray(theta), w, planar)
+
+
+@njit(cache=True, error_model="numpy")
+def _revolute_centre(
+    p: FloatArray, axis: FloatArray, theta: FloatArray, w: FloatArray, planar: bool
+) -> tuple[FloatArray, FloatArray]:  # pragma: no cover - compiled
+    n, rhs, mean = _centre_system(p, axis, theta, w, planar)
+    sol = np.linalg.lstsq(n, rhs, rcond=1e-12)[0].astype(np.float64)
     return _centre_shift(sol, axis, mean, planar)
 
 
@@ -614,14 +621,29 @@ def refine_axis_with_plane(
     ndarray, shape (3,)
         Unit axis, same sign as ``axis``.
     """
-    _, cov = weighted_cov(p, w)
-    sw = w.sum()
-    t_mean = (w @ theta) / sw
-    info_rot = ratio * ratio * (w @ (theta - t_mean) ** 2) / sw
-    proj = np.eye(3) - np.outer(axis, axis)
-    lhs = proj @ cov @ proj + info_rot * proj + np.outer(axis, axis)
+    return _refine_axis(axis, p, np.ascontiguousarray(theta), w, float(ratio))
+
+
+@njit(cache=True, error_model="numpy")
+def _refine_axis(
+    axis: FloatArray, p: FloatArray, theta: FloatArray, w: FloatArray, ratio: float
+) -> FloatArray:  # pragma: no cover - compiled
+    _, cov = _moments(p, w)
+    sw = 0.0
+    st = 0.0
+    for i in range(w.shape[0]):
+        sw += w[i]
+        st += w[i] * theta[i]
+    t_mean = st / sw
+    var = 0.0
+    for i in range(w.shape[0]):
+        var += w[i] * (theta[i] - t_mean) ** 2
+    info_rot = ratio * ratio * var / sw
+    aa = np.outer(axis, axis)
+    proj = np.eye(3) - aa
+    lhs = proj @ cov @ proj + info_rot * proj + aa
     # Minimum-norm solution: a direction neither the plane nor the rotations
     # determine (a straight track, no rotation) keeps the rotation axis.
     delta = np.linalg.lstsq(lhs, -(proj @ cov @ axis), rcond=1e-9)[0]
     out = axis + proj @ delta
-    return np.asarray(out / np.linalg.norm(out), dtype=np.float64)
+    return out / math.sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2])
