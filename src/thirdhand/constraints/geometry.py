@@ -183,6 +183,50 @@ def quat_from_frame(m: FloatArray) -> FloatArray:  # pragma: no cover - compiled
     return q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
 
 
+@njit(cache=True, error_model="numpy")
+def frame_from_axes(x: FloatArray, y_hint: FloatArray) -> FloatArray:  # pragma: no cover
+    """Quaternion (4,) of a frame whose x axis is unit ``x (3,)`` and whose y axis is
+    nearest ``y_hint (3,)`` (any perpendicular when ``y_hint`` is along ``x``)."""
+    y = y_hint - (y_hint[0] * x[0] + y_hint[1] * x[1] + y_hint[2] * x[2]) * x
+    if math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) < 1e-9:
+        # Any perpendicular: the parent axis least aligned with x.
+        k = int(np.argmin(np.abs(x)))
+        y = -x[k] * x
+        y[k] += 1.0
+    y = y / math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
+    z = _cross(x, y)
+    m = np.empty((3, 3))
+    m[:, 0] = x
+    m[:, 1] = y
+    m[:, 2] = z
+    return quat_from_frame(m)
+
+
+@njit(cache=True, error_model="numpy")
+def _rotate_one(q: FloatArray, v: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Rotate ``v (3,)`` by unit quaternion ``q (4,)``."""
+    u = q[:3].copy()
+    t = 2.0 * _cross(u, v)
+    return v + q[3] * t + _cross(u, t)
+
+
+@njit(cache=True, error_model="numpy")
+def align_x(q: FloatArray, axis: FloatArray) -> FloatArray:  # pragma: no cover - compiled
+    """Turn orientation ``q (4,)`` by the smallest rotation taking its x axis to unit
+    ``axis (3,)``; shape (4,)."""
+    x = _rotate_one(q, np.array([1.0, 0.0, 0.0]))
+    cos = x[0] * axis[0] + x[1] * axis[1] + x[2] * axis[2]
+    turn = np.empty(4)
+    if cos < -1.0 + 1e-12:
+        turn[:3] = _rotate_one(q, np.array([0.0, 1.0, 0.0]))
+        turn[3] = 0.0
+    else:
+        turn[:3] = _cross(x, axis)
+        turn[3] = 1.0 + cos
+    turn /= math.sqrt(turn[0] ** 2 + turn[1] ** 2 + turn[2] ** 2 + turn[3] ** 2)
+    return np.array(qmul(turn[0], turn[1], turn[2], turn[3], q[0], q[1], q[2], q[3]))
+
+
 def quat_mul(a: FloatArray, b: FloatArray) -> FloatArray:
     """Hamilton product ``a ⊗ b`` of x y z w quaternions, broadcasting, shape (..., 4)."""
     av, aw = a[..., :3], a[..., 3:]

@@ -38,25 +38,12 @@ __all__ = [
 
 def _frame_from_axes(x: FloatArray, y_hint: FloatArray) -> FloatArray:
     """Quaternion of a frame whose x axis is ``x`` and whose y axis is nearest ``y_hint``."""
-    y = y_hint - (y_hint @ x) * x
-    if np.linalg.norm(y) < 1e-9:
-        # Any perpendicular: the parent axis least aligned with x.
-        y = np.eye(3)[int(np.argmin(np.abs(x)))]
-        y = y - (y @ x) * x
-    y = y / np.linalg.norm(y)
-    z = g.cross3(x, y)
-    return g.quat_from_frame(np.stack([x, y, z], axis=1))
+    return g.frame_from_axes(np.ascontiguousarray(x), np.ascontiguousarray(y_hint))
 
 
 def _align_x(q: FloatArray, axis: FloatArray) -> FloatArray:
     """Turn orientation ``q`` by the smallest rotation that takes its x axis to ``axis``."""
-    x = se3.quat_rotate(q, np.array([1.0, 0.0, 0.0]))
-    cos = float(x @ axis)
-    if cos < -1.0 + 1e-12:
-        turn = np.append(se3.quat_rotate(q, np.array([0.0, 1.0, 0.0])), 0.0)
-    else:
-        turn = np.append(g.cross3(x, axis), 1.0 + cos)
-    return g.quat_mul(turn / np.linalg.norm(turn), q)
+    return g.align_x(np.ascontiguousarray(q), np.ascontiguousarray(axis))
 
 
 def to_constraint(
