@@ -594,7 +594,7 @@ def fit_model(
     sp, sr = nm.pos_ceiling, nm.rot_ceiling
     geom: Geometry | None = None
     proj: Projection | None = None
-    ll_in = np.zeros(n)
+    ll_sum, n_out, same_in = 0.0, 0, False
     refit = True
     for it in range(_EM_ITERATIONS):
         if refit:
@@ -633,16 +633,19 @@ def fit_model(
             if -2.0 * ll + k * math.log(n) > stop_above:
                 break
     assert geom is not None and proj is not None
-    ll_in = _inlier_loglik(proj, sp, sr, inlier)
-    ll_sum, n_in = _masked_sum(ll_in, inlier)
-    ll, k = _total_parts(ll_sum, n - n_in, n, log_out, n_model, oriented)
+    if not same_in:
+        # The last step scored the samples with the previous inliers' latent ranges.
+        ll_in = _inlier_loglik(proj, sp, sr, inlier)
+        ll_sum, n_in = _masked_sum(ll_in, inlier)
+        n_out = n - n_in
+    ll, k = _total_parts(ll_sum, n_out, n, log_out, n_model, oriented)
     return ModelFit(
         kernel=kernel,
         geom=geom,
         proj=proj,
         sigma_pos=sp,
         sigma_rot=sr if oriented else math.nan,
-        outlier_fraction=(n - n_in) / n,
+        outlier_fraction=n_out / n,
         inlier=inlier,
         weights=w,
         log_likelihood=ll,
