@@ -5,6 +5,10 @@ so that the robust loop of :mod:`thirdhand.constraints.models` can reweight
 samples without changing the maths. Quaternions are x y z w; nothing here needs
 sign continuity (the fits work on ``q qᵀ`` or on a plane through the origin of
 R⁴, both blind to the sign of ``q``).
+
+The per-sample loops (and the small eigen- and least-squares problems they feed)
+are compiled with numba (``cache=True``); each compiled function is called with
+C-contiguous float64 arrays only, so that it has a single cached signature.
 """
 
 from __future__ import annotations
@@ -329,6 +333,7 @@ def unwrap_masked(theta: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:
 
 @njit(cache=True, error_model="numpy")
 def _wrap(a: float) -> float:
+    """Angle ``a`` wrapped to [-π, π), radians (as :func:`wrap_angle`)."""
     return (a + math.pi) % _TWO_PI - math.pi
 
 
@@ -350,6 +355,7 @@ def _unwrap(p: FloatArray) -> FloatArray:  # pragma: no cover - compiled
 
 @njit(cache=True, error_model="numpy")
 def _unwrap_masked(theta: FloatArray, mask: NDArray[np.bool_]) -> FloatArray:  # pragma: no cover
+    """Compiled :func:`unwrap_masked`."""
     n = theta.shape[0]
     idx = np.flatnonzero(mask)
     if idx.size == 0 or idx.size == n:
@@ -397,6 +403,7 @@ def rotation_plane_axis(q: FloatArray, w: FloatArray) -> tuple[FloatArray, Float
 def _rotation_plane(
     q: FloatArray, w: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """Compiled :func:`rotation_plane_axis`: axis (3,), angles (n,), ``q0`` (4,)."""
     _, vec = np.linalg.eigh(quat_scatter(q, w))
     u = vec[:, 3].copy()
     axis, theta = _plane_angles(q, u, vec[:, 2].copy(), w > 0)
@@ -445,6 +452,7 @@ def plane_fit(p: FloatArray, w: FloatArray) -> tuple[FloatArray, FloatArray, Flo
 def _plane_fit(
     p: FloatArray, w: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """Compiled :func:`plane_fit`."""
     m, cov = _moments(p, w)
     val, vec = np.linalg.eigh(cov)
     return m, vec[:, ::-1].T.copy(), val[::-1].copy()
@@ -564,6 +572,7 @@ def revolute_centre(
 def _revolute_centre(
     p: FloatArray, axis: FloatArray, theta: FloatArray, w: FloatArray, planar: bool
 ) -> tuple[FloatArray, FloatArray]:  # pragma: no cover - compiled
+    """Compiled :func:`revolute_centre`: centre (3,) and lever (3,), metres."""
     n, rhs, mean = _centre_system(p, axis, theta, w, planar)
     sol = np.linalg.lstsq(n, rhs, rcond=1e-12)[0].astype(np.float64)
     return _centre_shift(sol, axis, mean, planar)
@@ -672,6 +681,7 @@ def refine_axis_with_plane(
 def _refine_axis(
     axis: FloatArray, p: FloatArray, theta: FloatArray, w: FloatArray, ratio: float
 ) -> FloatArray:  # pragma: no cover - compiled
+    """Compiled :func:`refine_axis_with_plane`: unit axis (3,)."""
     _, cov = _moments(p, w)
     sw = 0.0
     st = 0.0
