@@ -282,6 +282,11 @@ class Kernel:
     #: Number of free parameters for (position-only, oriented) tracks, for the BIC.
     n_params: tuple[int, int] = (0, 0)
 
+    def uses_ratio(self, oriented: bool) -> bool:
+        """Whether :meth:`project` depends on the noise ratio (else a projection of
+        unchanged geometry can be reused)."""
+        return False
+
     def fit(
         self, p: FloatArray, q: FloatArray | None, w: FloatArray, ratio: float
     ) -> Geometry | None:
@@ -385,6 +390,10 @@ class Revolute(Kernel):
     planar = False
     #: Translation along the axis is ``pitch · θ`` (screw).
     coupled = False
+
+    def uses_ratio(self, oriented: bool) -> bool:
+        """The angles weigh the positions against the rotations when oriented."""
+        return oriented
 
     def fit(
         self, p: FloatArray, q: FloatArray | None, w: FloatArray, ratio: float

@@ -596,12 +596,14 @@ def fit_model(
     proj: Projection | None = None
     ll_sum, n_out, same_in = 0.0, 0, False
     refit = True
+    reproject = kernel.uses_ratio(oriented)
     for it in range(_EM_ITERATIONS):
         if refit:
             geom = kernel.fit(pos, quat, w, sp / sr)
         if geom is None:
             return None
-        proj = kernel.project(geom, pos, quat, sp / sr)
+        if refit or reproject or proj is None:
+            proj = kernel.project(geom, pos, quat, sp / sr)
         medians = (math.nan, math.nan)
         if it == 0 and max_out:
             geom, proj, w, medians = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
