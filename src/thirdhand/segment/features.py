@@ -167,6 +167,40 @@ def _block_stats(  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _merge_buckets(  # pragma: no cover - compiled
+    cnt: FloatArray, mean: FloatArray, m2: FloatArray, lo: int, hi: int, mu: FloatArray
+) -> tuple[float, float]:
+    """Chan's pairwise merge of latent buckets ``lo … hi − 1`` (empty buckets skipped).
+
+    Returns the merged sample count and sum of squared deviations; the merged
+    mean is written into ``mu`` (shape (d,)).
+    """
+    d = mean.shape[1]
+    n = 0.0
+    m = 0.0
+    for b in range(lo, hi):
+        nb = cnt[b]
+        if nb == 0.0:
+            continue
+        if n == 0.0:
+            for j in range(d):
+                mu[j] = mean[b, j]
+            m = m2[b]
+            n = nb
+            continue
+        tot = n + nb
+        f = n * nb / tot
+        dd = 0.0
+        for j in range(d):
+            delta = mean[b, j] - mu[j]
+            dd += delta * delta
+            mu[j] += delta * nb / tot
+        m += m2[b] + dd * f
+        n = tot
+    return n, m
+
+
+@numba.njit(cache=True, nogil=True)
 def _window_merge(  # pragma: no cover - compiled
     cnt: FloatArray, mean: FloatArray, m2: FloatArray, window: int
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -182,32 +216,10 @@ def _window_merge(  # pragma: no cover - compiled
     mu = np.zeros(d)
     half = window // 2
     for k in range(k_steps):
-        lo = max(k - half, 0)
-        hi = min(k - half + window, k_steps)
-        n = 0.0
-        m = 0.0
-        for b in range(lo, hi):
-            nb = cnt[b]
-            if nb == 0.0:
-                continue
-            if n == 0.0:
-                for j in range(d):
-                    mu[j] = mean[b, j]
-                m = m2[b]
-                n = nb
-                continue
-            tot = n + nb
-            f = n * nb / tot
-            dd = 0.0
-            for j in range(d):
-                delta = mean[b, j] - mu[j]
-                dd += delta * delta
-                mu[j] += delta * nb / tot
-            m += m2[b] + dd * f
-            n = tot
+        n, m = _merge_buckets(cnt, mean, m2, max(k - half, 0), min(k - half + window, k_steps), mu)
         n_out[k] = n
-        var[k] = max(m / n, 0.0) if n > 0.0 else 0.0
         if n > 0.0:
+            var[k] = max(m / n, 0.0)
             for j in range(d):
                 mean_out[k, j] = mu[j]
     return var, n_out, mean_out
@@ -259,32 +271,10 @@ def _double_window(  # pragma: no cover - compiled
             m = var_s[a] * na + var_s[b] * nb + dd * na * nb / tot
             var[k] = max(m / tot, 0.0)
             continue
-        lo = max(k - w, 0)
-        hi = min(k + w, k_steps)
-        n = 0.0
-        m = 0.0
-        for bb in range(lo, hi):
-            nbb = cnt[bb]
-            if nbb == 0.0:
-                continue
-            if n == 0.0:
-                for j in range(d):
-                    mu[j] = mean[bb, j]
-                m = m2[bb]
-                n = nbb
-                continue
-            tot = n + nbb
-            f = n * nbb / tot
-            dd = 0.0
-            for j in range(d):
-                delta = mean[bb, j] - mu[j]
-                dd += delta * delta
-                mu[j] += delta * nbb / tot
-            m += m2[bb] + dd * f
-            n = tot
+        n, m = _merge_buckets(cnt, mean, m2, max(k - w, 0), min(k + w, k_steps), mu)
         n_out[k] = n
-        var[k] = max(m / n, 0.0) if n > 0.0 else 0.0
         if n > 0.0:
+            var[k] = max(m / n, 0.0)
             for j in range(d):
                 mean_out[k, j] = mu[j]
     return var, n_out, mean_out
