@@ -11,26 +11,23 @@
 The models live in :mod:`thirdhand.task`; this module is their public face.
 """
 
-from thirdhand.task import (
+from thirdhand.task.constraint import (
     CONSTRAINT_TYPES,
-    DOF_NAMES,
-    SCHEMA,
     Constraint,
     ConstraintType,
+    infer_constraint_type,
+)
+from thirdhand.task.geometry import DOF_NAMES, FreeDofs, Pose
+from thirdhand.task.model import (
+    SCHEMA,
     Correction,
-    FreeDofs,
     InputFile,
-    Pose,
     Provenance,
     TaskFile,
     TaskObject,
     TaskStep,
-    dump_task,
-    infer_constraint_type,
-    load_task,
-    parse_task,
-    save_task,
 )
+from thirdhand.task.store import dump_task, load_task, parse_task, save_task
 
 __all__ = [
     "CONSTRAINT_TYPES",
