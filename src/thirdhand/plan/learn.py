@@ -24,6 +24,7 @@ from thirdhand.demonstration import Demonstration
 from thirdhand.plan.assembly import AssemblyPlan, plan_from_demos
 from thirdhand.plan.keyframes import Keyframe, keyframes
 from thirdhand.plan.symbols import Symbol, assign_symbols
+from thirdhand.synth.task import object_geometry
 from thirdhand.taskfile import TaskFile
 
 _KINDS = {"part", "tool", "finger", "hand", "head"}
@@ -67,8 +68,11 @@ class Learned:
     def task(self) -> TaskFile:
         """The task file: objects, one constraint per symbol, the plan, stage blocks."""
         demo = self.demos[0]
+        geometry = object_geometry(demo)
         objects = [
-            {"name": b.name, "kind": b.kind if b.kind in _KINDS else "other"} for b in demo.bodies
+            {"name": b.name, "kind": b.kind if b.kind in _KINDS else "other"}
+            | geometry.get(b.name, {})
+            for b in demo.bodies
         ]
         known = {o["name"] for o in objects}
         for d in self.demos[1:]:

@@ -26,7 +26,7 @@ from pydantic import (
 
 from thirdhand.errors import TaskFileError
 from thirdhand.task.constraint import Constraint, Name
-from thirdhand.task.geometry import Pose, Positive, TaskModel
+from thirdhand.task.geometry import Pose, Positive, TaskModel, Vec3
 
 #: The schema string of this version of the task file.
 SCHEMA = "thirdhand.task/1"
@@ -55,6 +55,9 @@ class TaskObject(TaskModel):
         Mesh units to metres (e.g. 0.001 for a mesh in millimetres).
     mesh_to_body : Pose or None
         The mesh's pose in the body frame (maps scaled mesh coordinates into the body frame).
+    bbox_min, bbox_max : tuple of 3 floats or None
+        The object's bounding box in its body frame, metres: the shape drawn and
+        checked for collisions when no mesh is found.
     """
 
     name: Name
@@ -62,6 +65,19 @@ class TaskObject(TaskModel):
     mesh: str | None = None
     scale: Positive | None = None
     mesh_to_body: Pose | None = None
+    # Left out of the JSON when unset, so files of earlier versions round-trip exactly.
+    bbox_min: Vec3 | None = Field(default=None, exclude_if=lambda v: v is None)
+    bbox_max: Vec3 | None = Field(default=None, exclude_if=lambda v: v is None)
+
+    @model_validator(mode="after")
+    def _check_bbox(self) -> TaskObject:
+        if (self.bbox_min is None) != (self.bbox_max is None):
+            raise ValueError("bbox_min and bbox_max go together; give both or neither")
+        if self.bbox_min is not None and self.bbox_max is not None:
+            for axis, lo, hi in zip("xyz", self.bbox_min, self.bbox_max, strict=True):
+                if lo > hi:
+                    raise ValueError(f"bbox_min.{axis} = {lo} > bbox_max.{axis} = {hi}")
+        return self
 
 
 class TaskStep(TaskModel):
