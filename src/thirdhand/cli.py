@@ -187,9 +187,54 @@ SUBAPPS: dict[str, str] = {
 }
 
 
+#: Top-level commands defined in their stage's module: name -> (module, function, help).
+#: A command whose module is absent from this installation is left out.
+COMMANDS: dict[str, tuple[str, str, str]] = {
+    "review": (
+        "thirdhand.review.cli",
+        "review_command",
+        "Open a task in the review GUI (a local web app): see, animate and correct it.",
+    ),
+    "transfer": (
+        "thirdhand.review.transfer_cli",
+        "transfer_command",
+        "Map a task onto another object set (chair -> bench) as a start for adaptation.",
+    ),
+    "execute": (
+        "thirdhand.execute.cli",
+        "execute_command",
+        "Execute a task's plan on a simulated robot arm with a motion planner.",
+    ),
+    "headpose": (
+        "thirdhand.perception.cli",
+        "headpose_command",
+        "Head pose (yaw, pitch, roll) per frame of a video, relative to a calibration pose.",
+    ),
+    "gestures": (
+        "thirdhand.perception.cli",
+        "gestures_command",
+        "Pointing gestures (hand, target object, interval) in a recording.",
+    ),
+}
+
+
+def _absent(exc: ModuleNotFoundError, module: str) -> bool:
+    """True when ``exc`` says ``module`` itself (or its package) is not installed."""
+    return exc.name is not None and module.startswith(exc.name)
+
+
 def _mount_subapps() -> None:
     import importlib
 
+    for cmd, (module, function, help_text) in COMMANDS.items():
+        try:
+            mod = importlib.import_module(module)
+        except ModuleNotFoundError as exc:
+            if _absent(exc, module):
+                continue
+            raise
+        if hasattr(mod, function):
+            app.command(cmd, help=help_text)(getattr(mod, function))
     for name, module in SUBAPPS.items():
         try:
             sub = importlib.import_module(module)
