@@ -54,6 +54,7 @@ def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]
     task = _run_plan(demo, out, summary, phases)
     if task is not None:
         _run_primitives(demo, task, out, summary)
+        _run_reward(out, summary)
     return summary
 
 
@@ -131,4 +132,50 @@ def _run_primitives(demo: Demonstration, task: Any, out: Path, summary: dict[str
     summary["primitives"] = {"constraints": sorted(block.get("constraints", {}))}
     summary["lines"].append(
         f"primitives: {n} constraint motions (quaternion DMP + ProMP) → {path} stages.primitives"
+    )
+
+
+#: Part sets the learned reward plans for, to show it transfers to other sizes.
+REWARD_TARGETS: dict[str, dict[str, int]] = {
+    "bench": {"seating": 1, "leg": 4},
+    "chair with 3 legs": {"seating": 1, "leg": 3, "back": 1},
+    "chair with 5 legs": {"seating": 1, "leg": 5, "back": 1},
+}
+
+
+def _run_reward(out: Path, summary: dict[str, Any]) -> None:
+    """Relational IRL on the learned plan; plans for other part sets, in ``stages.reward``."""
+    try:
+        from thirdhand.relational.assembly import (
+            learn_assembly,
+            load_trajectory,
+            part_names,
+            plan_assembly,
+        )
+    except ImportError:
+        return
+    from thirdhand.taskfile import load_task, save_task
+
+    path = out / "task.json"
+    model = learn_assembly([load_trajectory(path)], seed=0)
+    plans: dict[str, Any] = {}
+    for label, counts in REWARD_TARGETS.items():
+        plan = plan_assembly(model, part_names(counts))
+        plans[label] = {
+            "complete": plan.complete,
+            "perf": plan.perf,
+            "steps": list(plan.steps),
+        }
+    current = load_task(path)
+    current.stages["reward"] = {
+        "method": "RCSI (relational cascaded supervised IRL) on the learned plan",
+        "reward_tree": str(model.rcsi.reward),
+        "plans": plans,
+    }
+    save_task(current, path)
+    complete = [label for label, p in plans.items() if p["complete"]]
+    summary["reward"] = {"complete": complete, "targets": list(REWARD_TARGETS)}
+    summary["lines"].append(
+        f"reward: relational IRL on the plan; complete plans for {len(complete)}/"
+        f"{len(plans)} new part sets ({', '.join(complete)}) → {path} stages.reward"
     )
