@@ -37,20 +37,29 @@ from __future__ import annotations
 
 from thirdhand.execute.kinematics import IkOptions
 from thirdhand.execute.meshes import load_mesh
+from thirdhand.execute.planner import PLANNERS, PlanningError, PlanResult, plan_motion, shortcut
 from thirdhand.execute.robot import ROBOTS, PoseLike, Robot, RobotError, as_pose, pose_matrix
 from thirdhand.execute.scene import GRIPPER, ROBOT, CollisionScene, SceneError
+from thirdhand.execute.timing import Trajectory, time_parametrize
 
 __all__ = [
     "GRIPPER",
+    "PLANNERS",
     "ROBOT",
     "ROBOTS",
     "CollisionScene",
     "IkOptions",
+    "PlanResult",
+    "PlanningError",
     "PoseLike",
     "Robot",
     "RobotError",
     "SceneError",
+    "Trajectory",
     "as_pose",
     "load_mesh",
+    "plan_motion",
     "pose_matrix",
+    "shortcut",
+    "time_parametrize",
 ]

@@ -120,6 +120,7 @@ class CollisionScene:
         self._touch_links: set[str] = set()
         self._allowed: set[frozenset[str]] = set()
         self._pairs: tuple[IntArray, IntArray] | None = None
+        self._lever: FloatArray | None = None
         g_idx = self._link_joint >= 0
         self._moving = np.flatnonzero(g_idx)
 
@@ -238,7 +239,7 @@ class CollisionScene:
         off = np.eye(4) if offset is None else offset
         body = _Body(name, geometry, t_world @ off, c, h, off)
         self._objects[name] = body
-        self._pairs = None
+        self._invalidate()
 
     def _body(self, name: str) -> _Body:
         if name in self._objects:
@@ -282,17 +283,17 @@ class CollisionScene:
         else:
             del self._objects[name]
         self._allowed = {p for p in self._allowed if name not in p}
-        self._pairs = None
+        self._invalidate()
 
     def allow(self, a: str, b: str) -> None:
         """Ignore collisions of ``a`` with ``b``: object/link names, ``"gripper"``, ``"robot"``."""
         self._allowed.add(frozenset((a, b)))
-        self._pairs = None
+        self._invalidate()
 
     def disallow(self, a: str, b: str) -> None:
         """Undo :meth:`allow` for the pair (no effect if it was not allowed)."""
         self._allowed.discard(frozenset((a, b)))
-        self._pairs = None
+        self._invalidate()
 
     def attach(self, name: str, q: ArrayLike) -> None:
         """Grasp object ``name``: from now on it moves rigidly with the tool frame.
@@ -314,7 +315,7 @@ class CollisionScene:
         body.transform = np.linalg.inv(t_tool) @ body.transform
         self._attached = body
         self._touch_links = set()
-        self._pairs = None
+        self._invalidate()
         tf_obj = _tf(t_tool @ body.transform)
         tj = self.robot.chain.joint_transforms(self.robot.check_q(q)[None])[0]
         for i, link in enumerate(self._links):
@@ -347,9 +348,14 @@ class CollisionScene:
         self._objects[name] = body
         self._attached = None
         self._touch_links = set()
-        self._pairs = None
+        self._invalidate()
 
     # -- pairs ------------------------------------------------------------------------
+
+    def _invalidate(self) -> None:
+        """Forget the cached pair list and lever arms after the world changed."""
+        self._pairs = None
+        self._lever = None
 
     def _is_allowed(self, a: str, b: str, a_is_link: bool) -> bool:
         al = self._allowed
@@ -488,7 +494,7 @@ class CollisionScene:
         return bool(self.valid_mask(self.robot.check_q(q)[None])[0])
 
     def collisions(self, q: ArrayLike) -> list[tuple[str, str]]:
-        """Every colliding pair of body names at ``q`` (dof,), for diagnostics."""
+        """Every colliding pair of body (link or object) names at ``q`` (dof,), for diagnostics."""
         qa = self.robot.check_q(q)[None]
         first, second = self._active_pairs()
         bodies = self._bodies()
@@ -504,7 +510,9 @@ class CollisionScene:
                 self._request_for(bodies[a], bodies[b]),
                 self._result,
             ):
-                out.append((bodies[a].name, bodies[b].name))
+                pair = (bodies[a].name, bodies[b].name)
+                if pair not in out:
+                    out.append(pair)
         return out
 
     def motion_bound(self) -> FloatArray:
@@ -519,6 +527,8 @@ class CollisionScene:
         -------
         ndarray, shape (dof,)
         """
+        if self._lever is not None:
+            return self._lever
         q = self.robot.home[None]
         tj = self.robot.chain.joint_transforms(q)[0]
         bodies = self._bodies()
@@ -538,6 +548,7 @@ class CollisionScene:
             c, h = _world_aabb(t[k], body.center, body.half)
             far = np.linalg.norm(c[None] - tj[:, :3, 3], axis=1) + np.linalg.norm(h)
             radius = np.where(moved, np.maximum(radius, far), radius)
+        self._lever = radius
         return radius
 
     def interpolate(

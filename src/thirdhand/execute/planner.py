@@ -1,0 +1,382 @@
+"""Collision-free joint-space motion planning with OMPL, seeded and always time-bounded.
+
+:func:`plan_motion` first tries the straight joint-space segment; otherwise it
+runs an OMPL planner (RRT-Connect by default) on a ``RealVectorStateSpace``
+bounded by the joint limits. States are checked by
+:meth:`CollisionScene.is_valid` and motions by a motion validator that checks
+the segment densely with :meth:`CollisionScene.check_path` (no point of the
+robot or the grasped part moves more than 1 cm between two checks), so every
+edge OMPL accepts is collision-free at that density. The path is then
+shortcut (random arc-length shortcuts, each checked densely, then redundant
+vertices dropped) with a seeded generator. OMPL's own generator is seeded
+through ``ompl.util.RNG.setSeed``: the same seed gives the same path unless a
+time limit cuts the search.
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from ompl import base as ob
+from ompl import geometric as og
+from ompl import util as ou
+
+from thirdhand.errors import ThirdhandError
+from thirdhand.execute.robot import Robot
+from thirdhand.execute.scene import CollisionScene
+
+FloatArray = NDArray[np.float64]
+
+PLANNERS = {
+    "rrtconnect": og.RRTConnect,
+    "rrt": og.RRT,
+    "rrtstar": og.RRTstar,
+    "informedrrtstar": og.InformedRRTstar,
+    "aorrtc": og.AORRTC,
+}
+"""Planner names accepted by :func:`plan_motion` (the optimising ones use the whole time limit)."""
+
+
+class PlanningError(ThirdhandError):
+    """A planning request was malformed (unknown planner, wrong shapes, bad limits)."""
+
+
+@dataclass
+class PlanResult:
+    """Outcome of one planning query.
+
+    Attributes
+    ----------
+    success : bool
+        A collision-free path was found.
+    path : ndarray, shape (m, dof), or None
+        Waypoints from the start to the reached goal, radians; straight
+        joint-space segments between them are collision-free (dense check).
+    status : str
+        ``"direct"`` (straight segment), ``"planned"``, or why it failed:
+        ``"start invalid: ..."``, ``"goal invalid: ..."``, ``"timeout"``,
+        ``"dense check failed"``.
+    planning_time_s : float
+        Wall time of the whole query (checks, search, shortcutting), seconds.
+    joint_length_rad : float
+        Euclidean joint-space length of the path, radians.
+    tool_length_m : float
+        Length of the tool frame's path in the world, metres.
+    n_checks : int
+        Configurations collision-checked during the query.
+    goal_index : int or None
+        Which goal of the goal set was reached.
+    planner : str
+        Planner name.
+    """
+
+    success: bool
+    path: FloatArray | None
+    status: str
+    planning_time_s: float
+    joint_length_rad: float = float("nan")
+    tool_length_m: float = float("nan")
+    n_checks: int = 0
+    goal_index: int | None = None
+    planner: str = "rrtconnect"
+
+    def __bool__(self) -> bool:
+        return self.success
+
+
+def joint_length(path: ArrayLike) -> float:
+    """Euclidean joint-space length of a waypoint path (m, dof), radians."""
+    p = np.asarray(path, dtype=np.float64)
+    return float(np.sum(np.linalg.norm(np.diff(p, axis=0), axis=1))) if len(p) > 1 else 0.0
+
+
+def tool_length(robot: Robot, path: ArrayLike, *, max_step_rad: float = 0.01) -> float:
+    """Length of the tool frame's path in the world, metres, along straight joint segments.
+
+    Each segment is subdivided so that no joint moves more than ``max_step_rad``.
+    """
+    p = np.asarray(path, dtype=np.float64)
+    if len(p) < 2:
+        return 0.0
+    parts = [p[:1]]
+    for a, b in itertools.pairwise(p):
+        n = max(int(np.ceil(np.max(np.abs(b - a)) / max_step_rad)), 1)
+        parts.append(a + (np.arange(1, n + 1) / n)[:, None] * (b - a))
+    pos, _ = robot.fk_batch(np.vstack(parts))
+    return float(np.sum(np.linalg.norm(np.diff(pos, axis=0), axis=1)))
+
+
+def _to_array(state: ob.State, dof: int) -> FloatArray:
+    return np.array([state[i] for i in range(dof)], dtype=np.float64)
+
+
+class _DenseMotionValidator(ob.MotionValidator):
+    """OMPL motion validator that checks a segment with the scene's dense check."""
+
+    def __init__(
+        self, si: ob.SpaceInformation, scene: CollisionScene, dof: int, step: tuple[float, float]
+    ) -> None:
+        super().__init__(si)
+        self._scene = scene
+        self._dof = dof
+        self._step = step
+
+    def checkMotion(self, s1: ob.State, s2: ob.State) -> bool:
+        seg = np.stack([_to_array(s1, self._dof), _to_array(s2, self._dof)])
+        return self._scene.check_path(seg, max_step_m=self._step[0], max_step_rad=self._step[1])
+
+
+def shortcut(
+    scene: CollisionScene,
+    path: ArrayLike,
+    rng: np.random.Generator,
+    *,
+    iterations: int = 100,
+    deadline: float = float("inf"),
+    max_step_m: float = 0.01,
+    max_step_rad: float = 0.02,
+) -> FloatArray:
+    """Shorten a collision-free waypoint path by random shortcuts, each checked densely.
+
+    Each iteration draws two points along the path (uniform in arc length) and
+    replaces what lies between them by the straight segment if it is
+    collision-free; a final pass drops every vertex whose neighbours connect
+    directly.
+
+    Parameters
+    ----------
+    scene : CollisionScene
+        The world (with the grasped part, if any).
+    path : array_like, shape (m, dof)
+        Collision-free waypoints, radians.
+    rng : numpy.random.Generator
+        Source of the shortcut endpoints.
+    iterations : int
+        Shortcut attempts.
+    deadline : float
+        ``time.perf_counter()`` value after which to stop early.
+    max_step_m, max_step_rad : float
+        Density of the checks (see :meth:`CollisionScene.interpolate`).
+
+    Returns
+    -------
+    ndarray, shape (m', dof)
+        Same endpoints, no longer in joint space.
+    """
+    p = np.array(path, dtype=np.float64)
+
+    def free(seg: FloatArray) -> bool:
+        return scene.check_path(seg, max_step_m=max_step_m, max_step_rad=max_step_rad)
+
+    for _ in range(iterations):
+        if len(p) < 3 or time.perf_counter() > deadline:
+            break
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        a, b = np.sort(rng.uniform(0.0, cum[-1], size=2))
+        ia = min(int(np.searchsorted(cum, a, side="right")) - 1, len(p) - 2)
+        ib = min(int(np.searchsorted(cum, b, side="right")) - 1, len(p) - 2)
+        if ia == ib:
+            continue
+        qa = p[ia] + (a - cum[ia]) / max(seg[ia], 1e-12) * (p[ia + 1] - p[ia])
+        qb = p[ib] + (b - cum[ib]) / max(seg[ib], 1e-12) * (p[ib + 1] - p[ib])
+        if free(np.stack([qa, qb])):
+            p = np.vstack([p[: ia + 1], qa, qb, p[ib + 1 :]])
+    keep = [0]
+    i = 0
+    while i < len(p) - 1:
+        j = len(p) - 1
+        while j > i + 1 and not free(p[[i, j]]):
+            j -= 1
+        keep.append(j)
+        i = j
+    return np.asarray(p[keep], dtype=np.float64)
+
+
+def plan_motion(
+    robot: Robot,
+    scene: CollisionScene,
+    q_start: ArrayLike,
+    goal: ArrayLike,
+    *,
+    planner: str = "rrtconnect",
+    time_limit: float = 5.0,
+    seed: int = 0,
+    simplify: bool = True,
+    max_step_m: float = 0.01,
+    max_step_rad: float = 0.02,
+) -> PlanResult:
+    """Plan a collision-free joint path from ``q_start`` to one goal configuration.
+
+    Parameters
+    ----------
+    robot : Robot
+        The arm (joint limits bound the search).
+    scene : CollisionScene
+        The world, in its current state (grasped part included).
+    q_start : array_like, shape (dof,)
+        Start configuration, radians.
+    goal : array_like, shape (dof,) or (k, dof)
+        Goal configuration or a set of alternatives (e.g. IK solutions of
+        goal poses sampled in a constraint's free DOFs); any one may be reached.
+    planner : str
+        A key of :data:`PLANNERS`.
+    time_limit : float
+        Bound on the OMPL search, seconds; shortcutting gets at most a quarter
+        of it more. Planning never runs unbounded.
+    seed : int
+        Seeds OMPL's generator and the shortcutting.
+    simplify : bool
+        Shortcut the path.
+    max_step_m, max_step_rad : float
+        Density of every motion check (see :meth:`CollisionScene.interpolate`).
+
+    Returns
+    -------
+    PlanResult
+        Falsy with ``path=None`` on failure; ``status`` says why.
+
+    Raises
+    ------
+    PlanningError
+        For an unknown planner, a non-positive time limit or wrong shapes.
+    """
+    t0 = time.perf_counter()
+    if planner not in PLANNERS:
+        raise PlanningError(f"unknown planner {planner!r}: expected one of {sorted(PLANNERS)}")
+    if not time_limit > 0:
+        raise PlanningError(f"time_limit must be positive seconds, got {time_limit}")
+    dof = robot.dof
+    start = robot.check_q(q_start)
+    goals = np.asarray(goal, dtype=np.float64)
+    if goals.ndim == 1:
+        goals = goals[None]
+    if goals.ndim != 2 or goals.shape[1] != dof or goals.shape[0] == 0:
+        raise PlanningError(f"goal: expected shape ({dof},) or (k, {dof}), got {goals.shape}")
+    checks0 = scene.n_checks
+    step = (max_step_m, max_step_rad)
+
+    def free(seg: FloatArray) -> bool:
+        return scene.check_path(seg, max_step_m=max_step_m, max_step_rad=max_step_rad)
+
+    def fail(status: str) -> PlanResult:
+        return PlanResult(
+            False,
+            None,
+            status,
+            time.perf_counter() - t0,
+            n_checks=scene.n_checks - checks0,
+            planner=planner,
+        )
+
+    def done(path: FloatArray, status: str) -> PlanResult:
+        idx = int(np.argmin(np.linalg.norm(goals - path[-1], axis=1)))
+        path[-1] = goals[idx]
+        return PlanResult(
+            True,
+            path,
+            status,
+            time.perf_counter() - t0,
+            joint_length(path),
+            tool_length(robot, path),
+            scene.n_checks - checks0,
+            idx,
+            planner,
+        )
+
+    if not scene.is_valid(start):
+        hits = scene.collisions(start) if robot.within_limits(start) else [("joint", "limits")]
+        return fail(f"start invalid: {_describe(hits)}")
+    ok_goals = scene.valid_mask(goals)
+    if not np.any(ok_goals):
+        g0 = goals[0]
+        hits = scene.collisions(g0) if robot.within_limits(g0) else [("joint", "limits")]
+        return fail(f"goal invalid: {_describe(hits)}")
+    goal_idx = np.flatnonzero(ok_goals)
+    order = goal_idx[np.argsort(np.linalg.norm(goals[goal_idx] - start, axis=1), kind="stable")]
+    for k in order[:3]:
+        if free(np.stack([start, goals[k]])):
+            return done(np.stack([start, goals[k]]), "direct")
+
+    path = _ompl_search(robot, scene, start, goals[goal_idx], planner, t0 + time_limit, seed, step)
+    if path is None:
+        return fail("timeout")
+    if simplify:
+        deadline = time.perf_counter() + 0.25 * time_limit
+        path = shortcut(
+            scene,
+            path,
+            np.random.default_rng(seed),
+            deadline=deadline,
+            max_step_m=max_step_m,
+            max_step_rad=max_step_rad,
+        )
+    if not free(path):
+        return fail("dense check failed")
+    return done(path, "planned")
+
+
+def _describe(hits: list[tuple[str, str]]) -> str:
+    if not hits:
+        return "unknown"
+    shown = ", ".join(f"{a}–{b}" for a, b in hits[:3])
+    return shown + (f" (+{len(hits) - 3} more)" if len(hits) > 3 else "")
+
+
+def _ompl_search(
+    robot: Robot,
+    scene: CollisionScene,
+    start: FloatArray,
+    goals: FloatArray,
+    planner: str,
+    deadline: float,
+    seed: int,
+    step: tuple[float, float],
+) -> FloatArray | None:
+    """Run the OMPL planner until ``deadline``; the raw waypoint path or None."""
+    dof = robot.dof
+    level = ou.getLogLevel()
+    ou.setLogLevel(ou.LOG_NONE)  # setSeed complains once generators exist; it still reseeds
+    ou.RNG.setSeed(int(seed) % (2**31 - 1) + 1)
+    space = ob.RealVectorStateSpace(dof)
+    bounds = ob.RealVectorBounds(dof)
+    for i in range(dof):
+        bounds.setLow(i, float(robot.lower[i]))
+        bounds.setHigh(i, float(robot.upper[i]))
+    space.setBounds(bounds)
+    setup = og.SimpleSetup(space)
+    si = setup.getSpaceInformation()
+
+    def valid(state: ob.State) -> bool:
+        return scene.is_valid(_to_array(state, dof))
+
+    setup.setStateValidityChecker(valid)
+    validator = _DenseMotionValidator(si, scene, dof, step)
+    si.setMotionValidator(validator)
+    s = space.allocState()
+    for i in range(dof):
+        s[i] = float(start[i])
+    setup.setStartState(s)
+    goal_states = ob.GoalStates(si)
+    for g in goals:
+        gs = space.allocState()
+        for i in range(dof):
+            gs[i] = float(g[i])
+        goal_states.addState(gs)
+    setup.setGoal(goal_states)
+    setup.setPlanner(PLANNERS[planner](si))
+    remaining = deadline - time.perf_counter()
+    try:
+        if remaining <= 0:
+            return None
+        status = setup.solve(remaining)
+        if not setup.haveExactSolutionPath() or "Exact" not in str(status):
+            return None
+        sol = setup.getSolutionPath()
+        return np.array([_to_array(sol.getState(i), dof) for i in range(sol.getStateCount())])
+    finally:
+        ou.setLogLevel(level)
