@@ -581,7 +581,7 @@ class CollisionScene:
         parts = [qa[:1]]
         for k in range(qa.shape[0] - 1):
             s = (np.arange(1, counts[k] + 1) / counts[k])[:, None]
-            parts.append(qa[k] + s * (qa[k + 1] - qa[k]))
+            parts.append((1.0 - s) * qa[k] + s * qa[k + 1])
         return np.vstack(parts)
 
     def check_path(
