@@ -26,6 +26,7 @@ from thirdhand.demonstration import (
 from thirdhand.errors import ThirdhandError
 from thirdhand.synth import extra_scenes, scenes
 from thirdhand.synth.engine import Segment, Timeline
+from thirdhand.synth.pointing import add_pointing
 from thirdhand.synth.script import Sim
 from thirdhand.synth.sensor import SensorModel
 
@@ -40,7 +41,7 @@ _SCENES: dict[str, tuple[LayoutFn, Script, dict[str, Any]]] = {
     "lid": (extra_scenes.layout_lid, extra_scenes.script_lid, {}),
 }
 SCENES: tuple[str, ...] = tuple(_SCENES)
-_OPTIONS = ("duration", "cycles", "head")
+_OPTIONS = ("duration", "cycles", "head", "pointing")
 
 
 def make_scene(
@@ -69,6 +70,9 @@ def make_scene(
         Number of assemblies (disassemblies in between); default 1.
     head : bool, optional
         Also track each person's head (bodies ``head``, ``p2_head``).
+    pointing : int, optional
+        Open with that many pointing gestures (one cycle only; ground truth in
+        ``meta["pointing"]``, see :mod:`thirdhand.synth.pointing`).
 
     Returns
     -------
@@ -97,6 +101,10 @@ def make_scene(
         raise ThirdhandError(f"scene {name!r}: duration must be > 0 s, got {duration}")
     if cycles is not None and (int(cycles) != cycles or cycles < 1):
         raise ThirdhandError(f"scene {name!r}: cycles must be a positive integer, got {cycles}")
+    pointing = int(scene_options.get("pointing") or 0)
+    if pointing and (duration is not None or (cycles or 1) > 1 or pointing < 0):
+        raise ThirdhandError(f"scene {name!r}: pointing needs one cycle and a count >= 0")
+    pointed: list[dict[str, Any]] = []
     layout_fn, script, fixed = _SCENES[name]
     scene_rng, sensor_rng = np.random.default_rng(seed).spawn(2)
     layout = layout_fn(scene_rng, n_people=n_people, head=bool(scene_options.get("head")), **fixed)
@@ -108,6 +116,10 @@ def make_scene(
         for screw, part in layout.extra.get("preinserted", []):
             sim.pair(part, screw, 0.0)
         sim.finish(script(sim, layout, scene_rng))
+        if pointing:
+            sim, pointed = add_pointing(
+                sim, layout, np.random.default_rng(seed).spawn(3)[2], pointing
+            )
         sims.append(sim)
         total += sim.end if len(sims) == 1 else 2 * sim.end
         if duration is not None and total >= float(duration):
@@ -148,6 +160,8 @@ def make_scene(
         "table_z_m": scenes.TABLE_Z,
         "geometry": layout.meta,
     }
+    if pointed:
+        meta["pointing"] = pointed
     return Demonstration(t, infos, pos, quat, valid, labels=_clip(labels, float(t[-1])), meta=meta)
 
 
