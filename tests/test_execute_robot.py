@@ -47,7 +47,7 @@ def test_fk_matches_pinocchio_frame_placement(name: str) -> None:
         ref = robot.data.oMf[fid]
         np.testing.assert_allclose(p, ref.translation, atol=1e-12)
         np.testing.assert_allclose(se3.matrix_from_quat(qu), ref.rotation, atol=1e-12)
-        p1, q1 = robot.fk(q)
+        p1, _ = robot.fk(q)
         np.testing.assert_allclose(p1, p, atol=1e-15)
 
 

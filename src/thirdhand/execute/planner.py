@@ -5,8 +5,9 @@ runs an OMPL planner (RRT-Connect by default) on a ``RealVectorStateSpace``
 bounded by the joint limits. States are checked by
 :meth:`CollisionScene.is_valid` and motions by a motion validator that checks
 the segment densely with :meth:`CollisionScene.check_path` (no point of the
-robot or the grasped part moves more than 1 cm between two checks), so every
-edge OMPL accepts is collision-free at that density. The path is then
+robot or the grasped part moves more than 1 cm between two checks, and each
+check keeps half that distance of clearance), so every edge OMPL accepts is
+collision-free along the whole continuous motion, not only at the samples. The path is then
 shortcut (random arc-length shortcuts, each checked densely, then redundant
 vertices dropped) with a seeded generator. OMPL's own generator is seeded
 through ``ompl.util.RNG.setSeed``: the same seed gives the same path unless a
@@ -143,9 +144,9 @@ def shortcut(
     """Shorten a collision-free waypoint path by random shortcuts, each checked densely.
 
     Each iteration draws two points along the path (uniform in arc length) and
-    replaces what lies between them by the straight segment if it is
-    collision-free; a final pass drops every vertex whose neighbours connect
-    directly.
+    replaces what lies between them by the straight segment if it (and the
+    remaining pieces of the two segments it cuts) is collision-free; a final
+    pass drops every vertex whose neighbours connect directly.
 
     Parameters
     ----------
@@ -184,7 +185,9 @@ def shortcut(
             continue
         qa = p[ia] + (a - cum[ia]) / max(seg[ia], 1e-12) * (p[ia + 1] - p[ia])
         qb = p[ib] + (b - cum[ib]) / max(seg[ib], 1e-12) * (p[ib + 1] - p[ib])
-        if free(np.stack([qa, qb])):
+        # The pieces kept of the two cut segments are re-checked too: their
+        # interpolated configurations differ from the ones checked before.
+        if free(np.stack([p[ia], qa, qb, p[ib + 1]])):
             p = np.vstack([p[: ia + 1], qa, qb, p[ib + 1 :]])
     keep = [0]
     i = 0

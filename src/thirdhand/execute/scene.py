@@ -95,9 +95,7 @@ class CollisionScene:
         self.tolerance = float(tolerance)
         self.n_checks = 0
         self.n_narrow = 0
-        self._request = coal.CollisionRequest()
-        self._request.security_margin = -self.tolerance
-        self._request_mesh = coal.CollisionRequest()
+        self._requests: dict[float, coal.CollisionRequest] = {}
         self._result = coal.CollisionResult()
         gm = robot.geometry
         self._links: list[_Body] = []
@@ -327,7 +325,7 @@ class CollisionScene:
                 _tf(t_link),
                 body.geometry,
                 tf_obj,
-                self._request_for(link, body),
+                self._request(self._margin(link, body)),
                 self._result,
             ):
                 self._touch_links.add(link.name)
@@ -401,11 +399,41 @@ class CollisionScene:
         self._pairs = (np.array(first, dtype=np.intp), np.array(second, dtype=np.intp))
         return self._pairs
 
-    def _request_for(self, a: _Body, b: _Body) -> coal.CollisionRequest:
+    def _margin(self, a: _Body, b: _Body) -> float:
+        """Contact margin of a pair: ``-tolerance``, or 0 with a mesh (coal's limitation)."""
         mesh = isinstance(a.geometry, coal.BVHModelBase) or isinstance(
             b.geometry, coal.BVHModelBase
         )
-        return self._request_mesh if mesh else self._request
+        return 0.0 if mesh else -self.tolerance
+
+    def _request(self, margin: float) -> coal.CollisionRequest:
+        req = self._requests.get(margin)
+        if req is None:
+            req = coal.CollisionRequest()
+            req.security_margin = margin
+            self._requests[margin] = req
+        return req
+
+    def _pair_margins(self, clearance: float = 0.0) -> FloatArray:
+        """Security margin of every active pair, metres, shape (P,).
+
+        Without clearance, the contact margin. With it, pairs with one moving body
+        need ``clearance`` and pairs of two moving bodies twice that.
+        """
+        first, second = self._active_pairs()
+        bodies = self._bodies()
+        base = np.array(
+            [self._margin(bodies[a], bodies[b]) for a, b in zip(first, second, strict=True)]
+        )
+        if clearance <= 0.0:
+            return base
+        n_links = len(self._links)
+        moving = np.zeros(len(bodies), dtype=bool)
+        moving[:n_links] = self._link_joint >= 0
+        if self._attached is not None:
+            moving[-1] = True
+        n_moving = moving[first].astype(int) + moving[second].astype(int)
+        return np.where(n_moving > 0, clearance * n_moving, base)
 
     def _bodies(self) -> list[_Body]:
         bodies = self._links + list(self._objects.values())
@@ -451,6 +479,10 @@ class CollisionScene:
         ndarray of bool, shape (n,)
         """
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        return self._check(qa, self._pair_margins(), stop_at_first)
+
+    def _check(self, qa: FloatArray, margins: FloatArray, stop_at_first: bool) -> BoolArray:
+        """:meth:`valid_mask` with a security margin per active pair."""
         n = qa.shape[0]
         ok = np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9), axis=1)
         first, second = self._active_pairs()
@@ -459,9 +491,9 @@ class CollisionScene:
         halves = np.array([b.half for b in bodies])
         t = self._transforms(qa)
         c, h = _world_aabb(t, centers[None], halves[None])
-        overlap = np.all(
-            np.abs(c[:, first] - c[:, second]) <= h[:, first] + h[:, second] + 1e-9, axis=2
-        )
+        reach = h[:, first] + h[:, second] + np.maximum(margins, 0.0)[None, :, None] + 1e-9
+        overlap = np.all(np.abs(c[:, first] - c[:, second]) <= reach, axis=2)
+        requests = [self._request(float(m)) for m in margins]
         for i in range(n):
             if not ok[i]:
                 self.n_checks += 1
@@ -479,7 +511,7 @@ class CollisionScene:
                     _tf(t[i, a]),
                     bodies[b].geometry,
                     _tf(t[i, b]),
-                    self._request_for(bodies[a], bodies[b]),
+                    requests[p],
                     self._result,
                 ):
                     ok[i] = False
@@ -495,25 +527,40 @@ class CollisionScene:
 
     def collisions(self, q: ArrayLike) -> list[tuple[str, str]]:
         """Every colliding pair of body (link or object) names at ``q`` (dof,), for diagnostics."""
-        qa = self.robot.check_q(q)[None]
         first, second = self._active_pairs()
         bodies = self._bodies()
-        t = self._transforms(qa)[0]
-        out = []
-        for a, b in zip(first.tolist(), second.tolist(), strict=True):
-            self._result.clear()
-            if coal.collide(
-                bodies[a].geometry,
-                _tf(t[a]),
-                bodies[b].geometry,
-                _tf(t[b]),
-                self._request_for(bodies[a], bodies[b]),
-                self._result,
-            ):
-                pair = (bodies[a].name, bodies[b].name)
-                if pair not in out:
-                    out.append(pair)
+        hits = self._pair_hits(self.robot.check_q(q), self._pair_margins())
+        out: list[tuple[str, str]] = []
+        for p in np.flatnonzero(hits):
+            pair = (bodies[first[p]].name, bodies[second[p]].name)
+            if pair not in out:
+                out.append(pair)
         return out
+
+    def _pair_hits(self, q: FloatArray, margins: FloatArray) -> NDArray[np.bool_]:
+        """Which active pairs collide at ``q`` (dof,) under ``margins`` (P,)."""
+        first, second = self._active_pairs()
+        bodies = self._bodies()
+        t = self._transforms(q[None])[0]
+        c, h = _world_aabb(
+            t, np.array([b.center for b in bodies]), np.array([b.half for b in bodies])
+        )
+        reach = h[first] + h[second] + np.maximum(margins, 0.0)[:, None] + 1e-9
+        hits = np.zeros(len(first), dtype=bool)
+        for p in np.flatnonzero(np.all(np.abs(c[first] - c[second]) <= reach, axis=1)):
+            a, b = int(first[p]), int(second[p])
+            self._result.clear()
+            hits[p] = bool(
+                coal.collide(
+                    bodies[a].geometry,
+                    _tf(t[a]),
+                    bodies[b].geometry,
+                    _tf(t[b]),
+                    self._request(float(margins[p])),
+                    self._result,
+                )
+            )
+        return hits
 
     def motion_bound(self) -> FloatArray:
         """Per-joint lever arm, metres: no robot or grasped point moves more than ``Σ |Δq_j| r_j``.
@@ -590,12 +637,22 @@ class CollisionScene:
         *,
         max_step_m: float = 0.01,
         max_step_rad: float = 0.02,
+        clearance: bool = True,
         chunk: int = 64,
     ) -> bool:
         """True if a piecewise-linear joint path is collision-free, checked densely.
 
-        Every segment is interpolated by :meth:`interpolate` and each configuration
-        checked; the check stops at the first collision.
+        Every segment is interpolated by :meth:`interpolate` (no point moves more
+        than ``max_step_m`` between checks) and each configuration checked, stopping
+        at the first collision.
+
+        With ``clearance`` (the default) the check is conservative for the
+        continuous motion: between two checks no point is farther than
+        ``max_step_m / 2`` from where it was checked, so each checked configuration
+        must keep that distance to the world (twice it between two moving bodies).
+        Pairs that are closer than that at the first or the last waypoint — a
+        grasped part leaving the table, a hand at its grasp — are checked at
+        their contact tolerance instead.
 
         Parameters
         ----------
@@ -603,12 +660,23 @@ class CollisionScene:
             Waypoints, radians.
         max_step_m, max_step_rad : float
             Density of the check (see :meth:`interpolate`).
+        clearance : bool
+            Require the clearance above; without it only the checked
+            configurations are guaranteed collision-free.
         chunk : int
             Configurations checked per batch.
         """
-        dense = self.interpolate(qs, max_step_m=max_step_m, max_step_rad=max_step_rad)
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        margins = self._pair_margins()
+        if clearance and len(qa) > 1:
+            wide = self._pair_margins(max_step_m / 2.0)
+            if not np.all(self._check(qa[[0, -1]], margins, False)):
+                return False
+            near = self._pair_hits(qa[0], wide) | self._pair_hits(qa[-1], wide)
+            margins = np.where(near, margins, wide)
+        dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
         for k in range(0, dense.shape[0], chunk):
-            if not np.all(self.valid_mask(dense[k : k + chunk], stop_at_first=True)):
+            if not np.all(self._check(dense[k : k + chunk], margins, True)):
                 return False
         return True
 
@@ -645,8 +713,6 @@ class CollisionScene:
         for a, b in zip(first.tolist(), second.tolist(), strict=True):
             gm.addCollisionPair(pin.CollisionPair(min(a, b), max(a, b)))
         gd = pin.GeometryData(gm)
-        bodies = self._bodies()
-        for k, (a, b) in enumerate(zip(first.tolist(), second.tolist(), strict=True)):
-            req = self._request_for(bodies[a], bodies[b])
-            gd.collisionRequests[k].security_margin = req.security_margin
+        for k, margin in enumerate(self._pair_margins().tolist()):
+            gd.collisionRequests[k].security_margin = margin
         return gm, gd
