@@ -1,0 +1,56 @@
+"""Review and correction of a learned task: the model layer under the review GUI.
+
+Everything here is plain functions and small classes on the task model
+(:class:`thirdhand.taskfile.TaskFile`), tested without a browser; the viser GUI
+(``thirdhand.review.app``) is a thin layer of handles and callbacks over them.
+
+- :mod:`~thirdhand.review.edits`: the corrections, ``apply_edit(task, edit) -> task``.
+- :mod:`~thirdhand.review.history`: undo and redo.
+- :mod:`~thirdhand.review.effort`: GUI operations per object, changed parameters.
+- :mod:`~thirdhand.review.session`: a task file under review, saved safely.
+- :mod:`~thirdhand.review.clarify`: questions ordered by the system's uncertainty.
+- :mod:`~thirdhand.review.dofs`: world poses, DOF animations and classes.
+- :mod:`~thirdhand.review.transfer`: a task mapped onto another object set.
+- :mod:`~thirdhand.review.scripted_user`: the minimal corrections to a reference task.
+"""
+
+from thirdhand.review.dofs import classify_dof, dof_animation, world_poses
+from thirdhand.review.edits import (
+    Confirm,
+    Edit,
+    EditError,
+    MoveStep,
+    SetDofRange,
+    SetParent,
+    SetPose,
+    SetPoseValue,
+    apply_correction,
+    apply_edit,
+    parse_number,
+)
+from thirdhand.review.effort import OPERATIONS, EffortLog, changed_parameters
+from thirdhand.review.history import History
+from thirdhand.review.session import ConflictError, ReviewSession
+
+__all__ = [
+    "OPERATIONS",
+    "Confirm",
+    "ConflictError",
+    "Edit",
+    "EditError",
+    "EffortLog",
+    "History",
+    "MoveStep",
+    "ReviewSession",
+    "SetDofRange",
+    "SetParent",
+    "SetPose",
+    "SetPoseValue",
+    "apply_correction",
+    "apply_edit",
+    "changed_parameters",
+    "classify_dof",
+    "dof_animation",
+    "parse_number",
+    "world_poses",
+]

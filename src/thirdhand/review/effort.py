@@ -1,0 +1,171 @@
+"""The person's effort: GUI operations per object and changed parameters.
+
+The 3rdHand IROS 2015 user study logged, per object, the operations people made in
+the correction GUI (``click``, ``movex``/``y``/``z``, ``rotx``/``y``/``z``,
+``parent``, ``reordering``, ``kfviews``); :class:`EffortLog` counts the same ones
+(plus ``range`` and ``confirm``) and :func:`changed_parameters` the parameters
+that differ between two tasks, in the report's unit (see ``docs/review.md``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from thirdhand.errors import ThirdhandError
+from thirdhand.review.edits import (
+    Confirm,
+    Edit,
+    MoveStep,
+    SetDofRange,
+    SetParent,
+    SetPose,
+    SetPoseValue,
+    pose_values,
+)
+from thirdhand.task.geometry import DOF_NAMES
+from thirdhand.task.model import TaskFile
+
+#: GUI operations counted per object (those of the IROS'15 study, then ``range``, ``confirm``).
+OPERATIONS: tuple[str, ...] = (
+    "click",
+    "movex",
+    "movey",
+    "movez",
+    "rotx",
+    "roty",
+    "rotz",
+    "parent",
+    "reordering",
+    "kfviews",
+    "range",
+    "confirm",
+)
+#: Object name under which plan-wide operations (reordering, keyframe views) are counted.
+ACTIONS = "actions"
+
+_VALUE_OPERATION = {
+    "x": "movex",
+    "y": "movey",
+    "z": "movez",
+    "roll": "rotx",
+    "pitch": "roty",
+    "yaw": "rotz",
+}
+
+
+def operation_of(edit: Edit) -> str:
+    """The GUI operation an edit stands for (``SetPose`` counts as ``movex``)."""
+    if isinstance(edit, SetPoseValue):
+        return _VALUE_OPERATION.get(edit.name, "movex")
+    if isinstance(edit, SetPose):
+        return "movex"
+    if isinstance(edit, SetDofRange):
+        return "range"
+    if isinstance(edit, SetParent):
+        return "parent"
+    if isinstance(edit, MoveStep):
+        return "reordering"
+    if isinstance(edit, Confirm):
+        return "confirm"
+    raise ThirdhandError(f"unknown edit {edit!r}")
+
+
+class EffortLog:
+    """Counts of GUI operations per object.
+
+    Parameters
+    ----------
+    counts : mapping, optional
+        Counts to start from (``{object: {operation: n}}``, e.g. read back from a
+        task file's ``stages["review"]["effort"]``).
+    """
+
+    def __init__(self, counts: Mapping[str, Mapping[str, int]] | None = None) -> None:
+        self._counts: dict[str, dict[str, int]] = {}
+        for obj, ops in (counts or {}).items():
+            for op, n in ops.items():
+                if op in OPERATIONS and isinstance(n, int) and n > 0:
+                    self._counts.setdefault(str(obj), {})[op] = n
+
+    def record(self, operation: str, obj: str) -> None:
+        """Count one ``operation`` on object ``obj`` (``"actions"`` for plan-wide ones).
+
+        Raises
+        ------
+        ThirdhandError
+            For an operation not in :data:`OPERATIONS`.
+        """
+        if operation not in OPERATIONS:
+            raise ThirdhandError(
+                f"unknown effort operation {operation!r}; expected one of {', '.join(OPERATIONS)}"
+            )
+        ops = self._counts.setdefault(obj, {})
+        ops[operation] = ops.get(operation, 0) + 1
+
+    def counts(self) -> dict[str, dict[str, int]]:
+        """``{object: {operation: count}}``, a copy."""
+        return {obj: dict(ops) for obj, ops in self._counts.items()}
+
+    def total(self) -> int:
+        """All operations counted."""
+        return sum(sum(ops.values()) for ops in self._counts.values())
+
+    def to_stage(self, changed: list[str] | None = None) -> dict[str, Any]:
+        """The block stored as ``task.stages["review"]["effort"]``.
+
+        Parameters
+        ----------
+        changed : list of str, optional
+            Changed parameters (:func:`changed_parameters`) to store with the counts.
+        """
+        out: dict[str, Any] = {"operations": self.counts(), "total_operations": self.total()}
+        if changed is not None:
+            out["changed_parameters"] = list(changed)
+            out["n_changed_parameters"] = len(changed)
+        return out
+
+
+def _angle_diff(a: float, b: float) -> float:
+    return abs(math.remainder(a - b, 2.0 * math.pi))
+
+
+def changed_parameters(
+    before: TaskFile, after: TaskFile, *, tol_pos: float = 1e-9, tol_rot: float = 1e-9
+) -> list[str]:
+    """The parameters that differ between two versions of a task.
+
+    Constraints are matched by id. Per constraint: ``<id>.parent``, ``<id>.x|y|z``
+    (beyond ``tol_pos`` metres), ``<id>.roll|pitch|yaw`` (beyond ``tol_rot``
+    radians, extrinsic xyz), ``<id>.range.<dof>`` (any change of a DOF range);
+    then ``plan.order`` if the sequence of (child, constraint) steps changed.
+
+    Returns
+    -------
+    list of str
+    """
+    out: list[str] = []
+    old = {c.id: c for c in before.constraints}
+    for c in after.constraints:
+        o = old.get(c.id)
+        if o is None:
+            out.append(f"{c.id}.added")
+            continue
+        if o.parent != c.parent:
+            out.append(f"{c.id}.parent")
+        pv_old, pv_new = pose_values(o), pose_values(c)
+        for name in ("x", "y", "z"):
+            if abs(pv_old[name] - pv_new[name]) > tol_pos:
+                out.append(f"{c.id}.{name}")
+        for name in ("roll", "pitch", "yaw"):
+            if _angle_diff(pv_old[name], pv_new[name]) > tol_rot:
+                out.append(f"{c.id}.{name}")
+        for dof in DOF_NAMES:
+            if getattr(o.free_dofs, dof) != getattr(c.free_dofs, dof):
+                out.append(f"{c.id}.range.{dof}")
+    if [(s.child, s.constraint) for s in before.plan] != [
+        (s.child, s.constraint) for s in after.plan
+    ]:
+        out.append("plan.order")
+    return out
