@@ -1,0 +1,162 @@
+"""Motion planning per query, and collision checks per second against pinocchio's own loop.
+
+Planning: seeded pick/place-like queries for a Panda mounted on the table
+(top at z = 0.75 m): four chair legs lying on both sides of a 40 cm high
+screen and a seat next to the robot (the real 3rdHand meshes, or boxes of the
+same size when the data folder is absent); each query goes from 12 cm above
+one leg to 12 cm above the next one, across the screen, tool pointing down with
+a random turn of the hand. Prints the median planning time, the success rate
+and the median number of collision checks per query.
+
+Collision checks: the same random configurations of that world checked by
+``CollisionScene.valid_mask`` (batched bounding boxes in numpy, coal's narrow
+phase on the overlapping pairs) and by ``pinocchio.computeCollisions`` over a
+``GeometryModel`` holding exactly the same bodies and pairs
+(``CollisionScene.to_pinocchio``), stopping at the first collision, in one run;
+prints both rates, their ratio, and that the verdicts agree.
+
+Usage: ``python benchmarks/planning.py [--queries 20] [--configs 2000] [--time-limit 5]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from thirdhand import se3
+from thirdhand.execute import CollisionScene, Robot, plan_motion
+
+MESHES = Path(os.environ.get("THIRDHAND_DATA", Path(__file__).parents[2] / "shared" / "data"))
+MESHES = MESHES / "3rdhand" / "meshes"
+TABLE_Z = 0.75
+DOWN = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def build_world(robot: Robot, seed: int) -> tuple[CollisionScene, list[np.ndarray]]:
+    """A table with four legs lying down and a seat; returns the scene and the part positions."""
+    rng = np.random.default_rng(seed)
+    scene = CollisionScene(robot)
+    scene.add_table(height=TABLE_Z)
+    leg, seat = MESHES / "chair_leg.stl", MESHES / "chair_seating.stl"
+    have = leg.is_file() and seat.is_file()
+    seat_pos = np.array([0.25, 0.0, TABLE_Z])
+    scene.add_box("screen", ([0.6, 0.0, TABLE_Z + 0.2], se3.quat_identity()), (0.3, 0.04, 0.4))
+    if have:
+        scene.add_object("seat", (seat_pos, se3.quat_identity()), mesh_path=seat)
+    else:
+        scene.add_object(
+            "seat", (seat_pos, se3.quat_identity()), size=(0.3, 0.3, 0.02), box_center=(0, 0, 0.01)
+        )
+    parts = []
+    lying = se3.quat_multiply(
+        [0, 0, np.sin(0.0), 1.0], [0, np.sin(np.pi / 4), 0, np.cos(np.pi / 4)]
+    )
+    for k in range(4):
+        side = -1 if k % 2 == 0 else 1
+        pos = np.array([rng.uniform(0.4, 0.7), side * rng.uniform(0.25, 0.5), TABLE_Z + 0.04])
+        yaw = rng.uniform(-np.pi, np.pi)
+        quat = se3.quat_multiply([0, 0, np.sin(yaw / 2), np.cos(yaw / 2)], lying)
+        if have:
+            scene.add_object(f"leg{k}", (pos, quat), mesh_path=leg)
+        else:
+            scene.add_object(
+                f"leg{k}", (pos, quat), size=(0.08, 0.08, 0.28), box_center=(0, 0, 0.14)
+            )
+        parts.append(pos)
+    return scene, parts
+
+
+def queries(
+    robot: Robot, scene: CollisionScene, spots: list[np.ndarray], rng: np.random.Generator
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Valid configurations 12 cm above each spot; pairs of consecutive ones."""
+    above = []
+    for target in spots:
+        yaw = rng.uniform(-np.pi / 2, np.pi / 2)
+        quat = se3.quat_multiply([0, 0, np.sin(yaw / 2), np.cos(yaw / 2)], DOWN)
+        above.append(
+            robot.ik((target + np.array([0.0, 0.0, 0.12]), quat), seed=rng, accept=scene.is_valid)
+        )
+    return [(a, b) for a, b in itertools.pairwise(above) if a is not None and b is not None]
+
+
+def bench_planning(robot: Robot, n_queries: int, time_limit: float) -> None:
+    times, checks, ok, statuses = [], [], 0, {}
+    seed = 0
+    done = 0
+    while done < n_queries:
+        scene, spots = build_world(robot, seed)
+        for qa, qb in queries(robot, scene, spots, np.random.default_rng(seed)):
+            if done >= n_queries:
+                break
+            res = plan_motion(robot, scene, qa, qb, seed=seed, time_limit=time_limit)
+            times.append(res.planning_time_s)
+            checks.append(res.n_checks)
+            ok += res.success
+            statuses[res.status.split(":")[0]] = statuses.get(res.status.split(":")[0], 0) + 1
+            done += 1
+        seed += 1
+    t = np.array(times)
+    print(
+        f"planning: {done} queries, Panda, table + screen + 4 legs + seat, RRT-Connect, "
+        f"{time_limit} s limit"
+    )
+    print(f"  success {ok}/{done}   outcomes {statuses}")
+    print(
+        f"  planning time median {np.median(t) * 1e3:.0f} ms   "
+        f"p90 {np.percentile(t, 90) * 1e3:.0f} ms   max {t.max() * 1e3:.0f} ms"
+    )
+    print(f"  collision checks per query median {int(np.median(checks))}")
+
+
+def bench_checks(robot: Robot, n_configs: int) -> None:
+    scene, _ = build_world(robot, 0)
+    qs = robot.random_q(np.random.default_rng(1), n_configs)
+    gm, gd = scene.to_pinocchio()
+    ours_best = peer_best = np.inf
+    single_best = np.inf
+    for _ in range(3):
+        t0 = time.perf_counter()
+        ours = scene.valid_mask(qs)
+        ours_best = min(ours_best, time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        for q in qs[: n_configs // 4]:
+            scene.is_valid(q)
+        single_best = min(single_best, (time.perf_counter() - t0) / (n_configs // 4))
+        t0 = time.perf_counter()
+        peer = np.array(
+            [not pin.computeCollisions(robot.model, robot.data, gm, gd, q, True) for q in qs]
+        )
+        peer_best = min(peer_best, time.perf_counter() - t0)
+    n_pairs = len(gm.collisionPairs)
+    print(
+        f"collision checks: {n_configs} random configurations, {n_pairs} active pairs, "
+        f"{ours.mean():.0%} valid, verdicts agree on {np.mean(ours == peer):.1%}"
+    )
+    r_ours, r_peer = n_configs / ours_best, n_configs / peer_best
+    print(f"  thirdhand valid_mask (batched)      {r_ours:10.0f} checks/s")
+    print(f"  thirdhand is_valid (one at a time)  {1.0 / single_best:10.0f} checks/s")
+    print(f"  pinocchio computeCollisions loop    {r_peer:10.0f} checks/s")
+    print(f"  ratio thirdhand batched / pinocchio {r_ours / r_peer:.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--queries", type=int, default=20)
+    parser.add_argument("--configs", type=int, default=2000)
+    parser.add_argument("--time-limit", type=float, default=5.0)
+    args = parser.parse_args()
+    robot = Robot.load("panda", base_pose=([0.0, 0.0, TABLE_Z], [0.0, 0.0, 0.0, 1.0]))
+    print(f"meshes: {'real STL' if (MESHES / 'chair_leg.stl').is_file() else 'boxes (no data)'}")
+    bench_checks(robot, args.configs)
+    bench_planning(robot, args.queries, args.time_limit)
+
+
+if __name__ == "__main__":
+    main()
