@@ -22,7 +22,7 @@ the world frame, metres and radians)::
     scene.attach(name, q);  scene.detach(name, q);  scene.attached -> str | None
     scene.allow(a, b);  scene.disallow(a, b)      # names, or the groups "gripper" / "robot"
     scene.is_valid(q) -> bool;  scene.valid_mask(qs) -> (n,) bool;  scene.collisions(q)
-    scene.check_path(qs, *, max_step_m=0.01, max_step_rad=0.02) -> bool
+    scene.check_path(qs, *, max_step_m=0.01, max_step_rad=0.02, clearance=True) -> bool
     scene.interpolate(qs, ...) -> dense qs;  scene.n_checks;  scene.reset_counter()
 
     plan_motion(robot, scene, q_start, q_goal | goal_set (k, dof), *, planner="rrtconnect",
