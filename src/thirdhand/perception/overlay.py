@@ -57,7 +57,7 @@ def eye_crops(frame: UInt8Array, boxes: NDArray[np.int64]) -> list[UInt8Array]:
     out = []
     for x0, y0, x1, y1 in boxes:
         xa, ya, xb, yb = max(int(x0), 0), max(int(y0), 0), min(int(x1), w), min(int(y1), h)
-        out.append(frame[ya:max(yb, ya), xa:max(xb, xa)].copy())
+        out.append(frame[ya : max(yb, ya), xa : max(xb, xa)].copy())
     return out
 
 
