@@ -1,0 +1,269 @@
+"""Grasps of a part: from the demonstration and from its shape, ranked.
+
+A grasp is the pose of the robot's tool frame in the part's body frame,
+``T_part_tool`` (4, 4): the tool's ``z`` is the approach direction (out of the
+hand, into the part), its ``y`` the direction the fingers close along, its
+origin the point between the fingertips. Picking the part lying at
+``T_world_part`` puts the tool at ``T_world_part · T_part_tool``, placing it at
+its goal puts it at ``T_world_goal · T_part_tool``; the same grasp serves both.
+
+Shape-based candidates come from the part's bounding box (or mesh vertices):
+
+- a rod (one extent ≥ 1.8 × the others): side grasps across the axis at five
+  points along it and twelve directions around it, and end grasps along the
+  axis at either end;
+- a plate (one extent < 0.35 × the next): grasps on either face at nine points,
+  the hand along the face normal (the report's simplification that finger–part
+  contacts are ignored makes these valid), and edge grasps pinching its thickness;
+- anything else: one grasp at the centre of each face.
+
+Demonstrated grasps (:func:`demo_grasps`) are where a person's fingers held the
+part just before the constraint appeared: the fingertips' centroid in the part
+frame, the fingers closing from the thumb to the others, the hand approaching
+towards the nearest point of the part's core (its axis for a rod).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.execute.goals import invert
+
+FloatArray = NDArray[np.float64]
+
+#: How far inside a face the tool frame sits for a face or end grasp, metres.
+GRASP_DEPTH_M = 0.015
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """One grasp candidate.
+
+    Attributes
+    ----------
+    pose : ndarray, shape (4, 4)
+        ``T_part_tool``, metres, part's body frame.
+    source : str
+        ``"demo"`` or ``"shape"``.
+    label : str
+        What kind of grasp (``"side"``, ``"end"``, ``"face"``, ``"edge"``, ``"demo:rh"``...).
+    """
+
+    pose: FloatArray
+    source: str
+    label: str
+
+
+def tool_frame(origin: ArrayLike, approach: ArrayLike, closing: ArrayLike) -> FloatArray:
+    """``T_part_tool`` (4, 4) from a point and two directions (part frame).
+
+    ``approach`` becomes the tool's z; ``closing`` is orthogonalised against it
+    and becomes y; x completes a right-handed frame.
+    """
+    z = np.asarray(approach, dtype=np.float64)
+    z = z / np.linalg.norm(z)
+    y = np.asarray(closing, dtype=np.float64)
+    y = y - (y @ z) * z
+    y = y / np.linalg.norm(y)
+    t = np.eye(4)
+    t[:3, 0] = np.cross(y, z)
+    t[:3, 1] = y
+    t[:3, 2] = z
+    t[:3, 3] = np.asarray(origin, dtype=np.float64)
+    return t
+
+
+def _rolls(t: FloatArray, n: int) -> list[FloatArray]:
+    """``t`` turned about its own z by ``2π k / n``, k = 0..n-1."""
+    out = []
+    for k in range(n):
+        a = 2.0 * np.pi * k / n
+        r = np.eye(4)
+        r[:2, :2] = [[np.cos(a), -np.sin(a)], [np.sin(a), np.cos(a)]]
+        out.append(t @ r)
+    return out
+
+
+def shape_grasps(bbox_min: ArrayLike, bbox_max: ArrayLike, *, n_around: int = 12) -> list[Grasp]:
+    """Grasp candidates from a part's bounding box (body frame, metres).
+
+    Parameters
+    ----------
+    bbox_min, bbox_max : array_like, shape (3,)
+    n_around : int
+        Directions around a rod's axis.
+
+    Returns
+    -------
+    list of Grasp
+        Unranked (see :func:`rank_grasps`).
+    """
+    lo = np.asarray(bbox_min, dtype=np.float64)
+    hi = np.asarray(bbox_max, dtype=np.float64)
+    ext = hi - lo
+    centre = (lo + hi) / 2.0
+    order = np.argsort(-ext, kind="stable")
+    e = np.eye(3)
+    out: list[Grasp] = []
+    if ext[order[0]] >= 1.8 * ext[order[1]]:
+        a, b, c = (int(i) for i in order)
+        for f in (0.85, 0.7, 0.5, 0.3, 0.15):
+            p = centre.copy()
+            p[a] = lo[a] + f * ext[a]
+            for k in range(n_around):
+                phi = 2.0 * np.pi * k / n_around
+                d = -(np.cos(phi) * e[b] + np.sin(phi) * e[c])
+                t = tool_frame(p, d, np.cross(e[a], d))
+                out += [Grasp(r, "shape", "side") for r in _rolls(t, 2)]
+        for sign, end in ((1.0, hi[a]), (-1.0, lo[a])):
+            p = centre.copy()
+            p[a] = end - sign * GRASP_DEPTH_M
+            t = tool_frame(p, -sign * e[a], e[b])
+            out += [Grasp(r, "shape", "end") for r in _rolls(t, 4)]
+        return out
+    if ext[order[2]] < 0.35 * ext[order[1]]:
+        n_ax, u, v = int(order[2]), int(order[0]), int(order[1])
+        for sign in (1.0, -1.0):
+            for fu in (-0.3, 0.0, 0.3):
+                for fv in (-0.3, 0.0, 0.3):
+                    p = centre + fu * ext[u] * e[u] + fv * ext[v] * e[v]
+                    p[n_ax] = (hi if sign > 0 else lo)[n_ax] - sign * GRASP_DEPTH_M
+                    t = tool_frame(p, -sign * e[n_ax], e[u])
+                    out += [Grasp(r, "shape", "face") for r in _rolls(t, 4)]
+        for axis in (u, v):
+            for sign in (1.0, -1.0):
+                p = centre.copy()
+                p[axis] = (hi if sign > 0 else lo)[axis] - sign * 2 * GRASP_DEPTH_M
+                t = tool_frame(p, -sign * e[axis], e[n_ax])
+                out += [Grasp(r, "shape", "edge") for r in _rolls(t, 2)]
+        return out
+    for axis in range(3):
+        for sign in (1.0, -1.0):
+            p = centre.copy()
+            p[axis] = (hi if sign > 0 else lo)[axis] - sign * GRASP_DEPTH_M
+            t = tool_frame(p, -sign * e[axis], e[(axis + 1) % 3])
+            out += [Grasp(r, "shape", "face") for r in _rolls(t, 4)]
+    return out
+
+
+def rank_grasps(grasps: Sequence[Grasp], avoid: ArrayLike | None = None) -> list[Grasp]:
+    """Order grasps: demonstrated ones first, then the farthest from ``avoid``.
+
+    Parameters
+    ----------
+    grasps : sequence of Grasp
+    avoid : array_like, shape (3,), optional
+        A point of the part frame to keep the hand away from (where the part meets
+        its parent at the goal), metres.
+    """
+    if avoid is None:
+        return sorted(grasps, key=lambda g: g.source != "demo")
+    p = np.asarray(avoid, dtype=np.float64)
+    return sorted(
+        grasps,
+        key=lambda g: (g.source != "demo", -round(float(np.linalg.norm(g.pose[:3, 3] - p)), 3)),
+    )
+
+
+def demo_grasps(
+    demo: Demonstration,
+    part: str,
+    before: float,
+    *,
+    window: float = 3.0,
+    max_distance: float = 0.03,
+    bbox: tuple[ArrayLike, ArrayLike] | None = None,
+) -> list[Grasp]:
+    """Where each hand held ``part`` in the ``window`` seconds before time ``before``.
+
+    For every hand (fingers sharing ``BodyInfo.hand_body``), the last frame of the
+    window whose fingertip centroid lies within ``max_distance`` of the part's
+    bounding box (of its origin without one) gives one grasp.
+
+    Parameters
+    ----------
+    demo : Demonstration
+        With finger bodies (``kind == "finger"``) and the part's track.
+    part : str
+    before : float
+        Seconds, demonstration time (the constraint's appearance).
+    window : float
+        Seconds searched before ``before``.
+    max_distance : float
+        Metres between the fingertip centroid and the part's box.
+    bbox : (array_like (3,), array_like (3,)), optional
+        The part's bounding box, body frame, metres.
+
+    Returns
+    -------
+    list of Grasp
+        Possibly empty (no fingers, or none near the part).
+    """
+    if part not in demo:
+        return []
+    fingers = [b for b in demo.bodies if b.kind == "finger"]
+    hands: dict[str, list[str]] = {}
+    for b in fingers:
+        key = b.hand_body or b.hand or b.name
+        hands.setdefault(key, []).append(b.name)
+    mask = (demo.t >= before - window) & (demo.t <= before)
+    frames = np.flatnonzero(mask & demo.valid(part))
+    out: list[Grasp] = []
+    if frames.size == 0:
+        return out
+    p_part = demo.pos(part)[frames]
+    q_part = demo.quat(part)[frames]
+    from thirdhand import se3
+
+    t_wp = se3.pose_to_matrix(p_part, q_part)
+    t_pw = invert(t_wp)
+    for hand, names in sorted(hands.items()):
+        pts = np.stack([demo.pos(n)[frames] for n in names], axis=1)  # (k, f, 3)
+        ok = np.all(np.isfinite(pts), axis=(1, 2))
+        local = np.einsum("kij,kfj->kfi", t_pw[:, :3, :3], pts) + t_pw[:, None, :3, 3]
+        cen = local.mean(axis=1)
+        near = ok & (_box_distance(cen, bbox) < max_distance)
+        idx = np.flatnonzero(near)
+        if idx.size == 0:
+            continue
+        k = int(idx[-1])
+        thumb = [i for i, n in enumerate(names) if "thumb" in n]
+        others = [i for i in range(len(names)) if i not in thumb]
+        if not thumb or not others:
+            continue
+        closing = local[k, others].mean(axis=0) - local[k, thumb].mean(axis=0)
+        approach = _core_point(cen[k], bbox) - cen[k]
+        approach = approach - (approach @ closing) / (closing @ closing) * closing
+        if np.linalg.norm(closing) < 1e-6 or np.linalg.norm(approach) < 1e-6:
+            continue
+        out.append(Grasp(tool_frame(cen[k], approach, closing), "demo", f"demo:{hand}"))
+    return out
+
+
+def _core_point(p: FloatArray, bbox: tuple[ArrayLike, ArrayLike] | None) -> FloatArray:
+    """The point of a box's core nearest ``p`` (3,): its axis for a rod, mid-plane for a plate.
+
+    The core is the box shrunk by its smallest half extent on every side.
+    """
+    if bbox is None:
+        return np.zeros(3)
+    lo = np.asarray(bbox[0], dtype=np.float64)
+    hi = np.asarray(bbox[1], dtype=np.float64)
+    half = (hi - lo) / 2.0
+    c = (hi + lo) / 2.0
+    keep = half - half.min()
+    return np.asarray(np.clip(p, c - keep, c + keep), dtype=np.float64)
+
+
+def _box_distance(p: FloatArray, bbox: tuple[ArrayLike, ArrayLike] | None) -> FloatArray:
+    """Distance of points ``p`` (k, 3) from a box (from the origin without one), metres."""
+    if bbox is None:
+        return np.asarray(np.linalg.norm(p, axis=1), dtype=np.float64)
+    lo = np.asarray(bbox[0], dtype=np.float64)
+    hi = np.asarray(bbox[1], dtype=np.float64)
+    return np.asarray(np.linalg.norm(p - np.clip(p, lo, hi), axis=1), dtype=np.float64)

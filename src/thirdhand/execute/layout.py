@@ -1,0 +1,435 @@
+"""The work cell: robot, table, where the assembly is built, and seeded start layouts.
+
+World frame: ``z`` up, the table top at ``z = 0.75`` m as in the synthetic
+scenes. The robot stands at the world origin facing ``+x`` (Panda: its base on
+the table top; Baxter: its pedestal behind the table edge). The assembly is
+built at ``assembly_xy`` in front of the robot, on the table.
+
+The assembly pose of the base part (the root of the constraint tree, e.g. the
+seat) is chosen from the geometry (:func:`assembly_base_pose`): of the six ways
+of turning one of the base's axes up, the one whose finished assembly is the
+lowest (the smallest vertical extent), ties broken by the lowest fixture; then
+of the four turns about the vertical, the one that keeps the finished assembly
+nearest the robot. The base rests on a fixture block when something attached
+to it reaches below its own underside. For the synthetic chair this stands the
+seat on its edge with its legs pointing sideways and the back sideways the other
+way (with the legs up, the back would point into the table); for the bench it
+lays the seat flat with its legs pointing up.
+
+Start layouts (:func:`start_layout`): every other part lies on the table within
+the robot's reach, a rod (one long axis) on its side spun at random about its
+axis, any other part with the face up that is up at its goal, turned about the
+vertical at random; none overlaps another, the assembly's footprint or the
+robot's base.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.errors import ThirdhandError
+from thirdhand.execute.goals import goal_pose
+from thirdhand.task.constraint import Constraint
+from thirdhand.task.meshes import object_triangles
+from thirdhand.task.model import TaskFile, TaskObject
+
+FloatArray = NDArray[np.float64]
+
+TABLE_Z = 0.75
+#: Robot base poses per robot name: translation (m), world frame, facing +x.
+ROBOT_BASES: dict[str, tuple[float, float, float]] = {
+    "panda": (0.0, 0.0, TABLE_Z),
+    # Baxter's torso ("base" frame) stands 0.93 m above the floor, behind the table;
+    # its right arm's shoulder is 0.28 m to its right: centre that arm on the cell.
+    "baxter": (-0.25, 0.22, 0.93),
+}
+#: Table extent per robot (x min, x max, y min, y max), metres, world frame.
+TABLE_EXTENT: dict[str, tuple[float, float, float, float]] = {
+    "panda": (-0.30, 1.00, -0.90, 0.90),
+    "baxter": (0.05, 1.05, -0.90, 0.90),
+}
+
+
+class LayoutError(ThirdhandError):
+    """A task's parts cannot be laid out (no geometry, no room on the table)."""
+
+
+@dataclass
+class Workcell:
+    """Where everything is: robot base, table, fixture and the base part's assembly pose.
+
+    Attributes
+    ----------
+    robot : str
+        ``"panda"`` or ``"baxter"``.
+    robot_base : ndarray, shape (4, 4)
+        Robot root pose, world frame.
+    table_z : float
+        Height of the table top, metres.
+    table_extent : tuple of 4 floats
+        x min, x max, y min, y max of the table top, metres.
+    base : str
+        The base part (root of the constraints).
+    base_pose : ndarray, shape (4, 4)
+        The base part's assembly pose, world frame.
+    fixtures : list of (str, ndarray (4, 4), ndarray (3,))
+        Boxes holding the base: name, centre pose (world), full sides (m).
+    """
+
+    robot: str
+    robot_base: FloatArray
+    table_z: float
+    table_extent: tuple[float, float, float, float]
+    base: str
+    base_pose: FloatArray
+    fixtures: list[tuple[str, FloatArray, FloatArray]] = field(default_factory=list)
+
+    @property
+    def table_center(self) -> tuple[float, float]:
+        """World x, y of the table top's centre, metres."""
+        x0, x1, y0, y1 = self.table_extent
+        return ((x0 + x1) / 2.0, (y0 + y1) / 2.0)
+
+    @property
+    def table_size(self) -> tuple[float, float]:
+        """Extent of the table top along world x and y, metres."""
+        x0, x1, y0, y1 = self.table_extent
+        return (x1 - x0, y1 - y0)
+
+
+def base_part(task: TaskFile) -> str:
+    """The root of the constraint tree: a parent that is nobody's child.
+
+    Raises
+    ------
+    LayoutError
+        If there are no constraints or several roots.
+    """
+    parents = {c.parent for c in task.constraints}
+    children = {c.child for c in task.constraints}
+    roots = sorted(parents - children)
+    if len(roots) != 1:
+        raise LayoutError(
+            f"task: expected one base part (a parent that is no part's child), got {roots}"
+        )
+    return roots[0]
+
+
+def part_vertices(
+    obj: TaskObject,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> FloatArray:
+    """Vertices of the part's mesh (or bounding box), body frame, metres, shape (n, 3).
+
+    Raises
+    ------
+    LayoutError
+        If the object has neither a mesh nor a bounding box.
+    """
+    tri = object_triangles(obj, task_path, search)
+    if tri is None:
+        raise LayoutError(f"object {obj.name!r}: no mesh and no bounding box to lay it out")
+    return np.unique(np.asarray(tri, dtype=np.float64).reshape(-1, 3), axis=0)
+
+
+def _transform(t: FloatArray, v: FloatArray) -> FloatArray:
+    return np.asarray(v @ t[:3, :3].T + t[:3, 3], dtype=np.float64)
+
+
+def assembled_vertices(
+    task: TaskFile,
+    base: str,
+    vertices: dict[str, FloatArray],
+) -> dict[str, FloatArray]:
+    """Every part's vertices in the base frame when every constraint holds (nominal poses)."""
+    poses = {base: np.eye(4)}
+    pending = list(task.constraints)
+    while pending:
+        progressed = False
+        for c in list(pending):
+            if c.parent in poses:
+                poses[c.child] = goal_pose(poses[c.parent], c)
+                pending.remove(c)
+                progressed = True
+        if not progressed:
+            break
+    return {n: _transform(poses[n], v) for n, v in vertices.items() if n in poses}
+
+
+def _rotation_up(axis: int, sign: float, yaw: float) -> FloatArray:
+    """Rotation (3, 3) turning the base's axis ``axis`` (sign) to world +z, then yawing."""
+    up = np.zeros(3)
+    up[axis] = sign
+    other = np.zeros(3)
+    other[(axis + 1) % 3] = 1.0
+    # columns: where base x, y, z go; build rows of R^T = world axes in base coordinates
+    z_b = up
+    x_b = other
+    y_b = np.cross(z_b, x_b)
+    r_world_base = np.stack([x_b, y_b, z_b])  # maps base coords to a z-up frame
+    c, s = np.cos(yaw), np.sin(yaw)
+    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return np.asarray(rz @ r_world_base, dtype=np.float64)
+
+
+def assembly_base_pose(
+    task: TaskFile,
+    *,
+    base: str | None = None,
+    assembly_xy: tuple[float, float] = (0.5, 0.0),
+    table_z: float = TABLE_Z,
+    robot_xy: tuple[float, float] = (0.0, 0.0),
+    clearance: float = 0.03,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> tuple[FloatArray, list[tuple[str, FloatArray, FloatArray]]]:
+    """The base part's assembly pose and the fixture holding it (see the module notes).
+
+    Parameters
+    ----------
+    task : TaskFile
+    base : str, optional
+        The base part (default :func:`base_part`).
+    assembly_xy : tuple of 2 floats
+        World x, y of the base's bounding-box centre, metres.
+    table_z : float
+        Table height, metres.
+    robot_xy : tuple of 2 floats
+        World x, y of the robot; the turn about the vertical keeps the assembly near it.
+    clearance : float
+        Gap between the table and the lowest attached part when a fixture is needed, metres.
+    task_path, search
+        Where to find meshes (:func:`thirdhand.task.meshes.resolve_mesh`).
+
+    Returns
+    -------
+    base_pose : ndarray, shape (4, 4)
+        ``T_world_base``.
+    fixtures : list of (name, pose (4, 4), size (3,))
+        Empty when the base rests on the table.
+    """
+    base = base_part(task) if base is None else base
+    objs = {o.name: o for o in task.objects}
+    verts = {
+        n: part_vertices(objs[n], task_path, search)
+        for n in {base} | {c.child for c in task.constraints}
+    }
+    placed = assembled_vertices(task, base, verts)
+    every = np.vstack(list(placed.values()))
+    best: tuple[tuple[float, float, float], FloatArray, float] | None = None
+    for axis, sign in ((1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0), (0, 1.0), (0, -1.0)):
+        for yaw in (0.0, np.pi / 2, np.pi, 3 * np.pi / 2):
+            rot = _rotation_up(axis, sign, yaw)
+            world = every @ rot.T
+            base_w = placed[base] @ rot.T
+            height = float(world[:, 2].max() - world[:, 2].min())
+            fixture = max(float(base_w[:, 2].min() - world[:, 2].min()), 0.0)
+            if fixture > 0.0:
+                fixture += clearance
+            centre = (base_w.min(axis=0) + base_w.max(axis=0)) / 2.0
+            xy = world[:, :2] - centre[:2] + np.asarray(assembly_xy) - np.asarray(robot_xy)
+            reach = float(np.linalg.norm(xy, axis=1).max())
+            key = (round(height, 3), round(fixture, 3), round(reach, 3))
+            if best is None or key < best[0]:
+                t = np.eye(4)
+                t[:3, :3] = rot
+                t[:2, 3] = np.asarray(assembly_xy) - centre[:2]
+                t[2, 3] = table_z + fixture - float(base_w[:, 2].min())
+                best = (key, t, fixture)
+    assert best is not None
+    _, pose, fixture = best
+    fixtures: list[tuple[str, FloatArray, FloatArray]] = []
+    if fixture > 0.0:
+        base_w = _transform(pose, placed[base])
+        lo, hi = base_w.min(axis=0), base_w.max(axis=0)
+        size = np.array([hi[0] - lo[0], hi[1] - lo[1], fixture])
+        centre = np.eye(4)
+        centre[:3, 3] = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, table_z + fixture / 2.0]
+        fixtures.append(("fixture", centre, size))
+    return pose, fixtures
+
+
+def make_workcell(
+    task: TaskFile,
+    robot: str = "panda",
+    *,
+    assembly_xy: tuple[float, float] = (0.5, 0.0),
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> Workcell:
+    """The work cell of a task for a robot: base pose, table, assembly pose, fixture.
+
+    Raises
+    ------
+    LayoutError
+        For an unknown robot or a task without a single base part.
+    """
+    if robot not in ROBOT_BASES:
+        raise LayoutError(f"unknown robot {robot!r}: expected one of {sorted(ROBOT_BASES)}")
+    rb = np.eye(4)
+    rb[:3, 3] = ROBOT_BASES[robot]
+    base = base_part(task)
+    pose, fixtures = assembly_base_pose(
+        task,
+        base=base,
+        assembly_xy=assembly_xy,
+        robot_xy=(0.0, 0.0),
+        task_path=task_path,
+        search=search,
+    )
+    return Workcell(robot, rb, TABLE_Z, TABLE_EXTENT[robot], base, pose, fixtures)
+
+
+def _is_rod(v: FloatArray) -> int | None:
+    """Index of the long axis of a rod-shaped vertex cloud, or None."""
+    ext = np.sort(v.max(axis=0) - v.min(axis=0))[::-1]
+    if ext[0] >= 1.8 * ext[1]:
+        return int(np.argmax(v.max(axis=0) - v.min(axis=0)))
+    return None
+
+
+def rest_rotation(v: FloatArray, goal_rotation: FloatArray, rng: np.random.Generator) -> FloatArray:
+    """A random resting orientation (3, 3) on the table for a part with body vertices ``v``.
+
+    A rod lies on its side spun about its axis; any other part keeps up the body
+    axis nearest to up at its goal (``goal_rotation``, world), turned at random
+    about the vertical.
+    """
+    long_axis = _is_rod(v)
+    yaw = rng.uniform(-np.pi, np.pi)
+    c, s = np.cos(yaw), np.sin(yaw)
+    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    if long_axis is not None:
+        spin = rng.uniform(-np.pi, np.pi)
+        axis = np.zeros(3)
+        axis[long_axis] = 1.0
+        from scipy.spatial.transform import Rotation
+
+        r_spin = Rotation.from_rotvec(spin * axis).as_matrix()
+        # the long axis onto world x, then spin about it, then yaw
+        b = np.zeros((3, 3))
+        b[0, long_axis] = 1.0
+        b[1, (long_axis + 1) % 3] = 1.0
+        b[2, (long_axis + 2) % 3] = 1.0
+        return np.asarray(rz @ b @ r_spin, dtype=np.float64)
+    up_in_body = goal_rotation[2]  # world z in body coordinates (row 2 of R_world_body)
+    k = int(np.argmax(np.abs(up_in_body)))
+    sign = float(np.sign(up_in_body[k]))
+    return np.asarray(rz @ _rotation_up(k, sign, 0.0), dtype=np.float64)
+
+
+def _footprint(v_world: FloatArray, margin: float) -> FloatArray:
+    lo = v_world[:, :2].min(axis=0) - margin
+    hi = v_world[:, :2].max(axis=0) + margin
+    return np.array([lo[0], hi[0], lo[1], hi[1]])
+
+
+def _overlap(a: FloatArray, b: FloatArray) -> bool:
+    return bool(a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3])
+
+
+def start_layout(
+    task: TaskFile,
+    cell: Workcell,
+    seed: int | np.random.Generator = 0,
+    *,
+    reach: tuple[float, float] = (0.3, 0.7),
+    margin: float = 0.06,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+    max_tries: int = 2000,
+) -> dict[str, FloatArray]:
+    """A seeded start layout: every part's world pose, the base at its assembly pose.
+
+    Parameters
+    ----------
+    task : TaskFile
+    cell : Workcell
+    seed : int or numpy.random.Generator
+    reach : tuple of 2 floats
+        Distance band from the robot's vertical axis where parts may lie, metres.
+    margin : float
+        Free space kept around each part's footprint (room for the fingers), metres.
+    task_path, search
+        Where to find meshes.
+    max_tries : int
+        Rejection-sampling budget per part.
+
+    Returns
+    -------
+    dict of str to ndarray (4, 4)
+        ``T_world_part`` of the base and of every child of a constraint.
+
+    Raises
+    ------
+    LayoutError
+        If a part finds no free spot in ``max_tries`` draws.
+    """
+    rng = np.random.default_rng(seed)
+    objs = {o.name: o for o in task.objects}
+    verts = {
+        n: part_vertices(objs[n], task_path, search)
+        for n in {cell.base} | {c.child for c in task.constraints}
+    }
+    placed = assembled_vertices(task, cell.base, verts)
+    goal_rot = {
+        n: (cell.base_pose[:3, :3] @ _pose_in_base(task, cell.base, n)[:3, :3]) for n in placed
+    }
+    taken = [_footprint(_transform(cell.base_pose, v), margin / 2) for v in placed.values()]
+    taken += [_footprint(_transform(t, _box_vertices(s)), margin / 2) for _, t, s in cell.fixtures]
+    rx, ry = cell.robot_base[0, 3], cell.robot_base[1, 3]
+    taken.append(np.array([rx - 0.16, rx + 0.16, ry - 0.16, ry + 0.16]))
+    x0, x1, y0, y1 = cell.table_extent
+    poses = {cell.base: cell.base_pose.copy()}
+    order = [c.child for c in task.constraints if c.child in verts]
+    # the largest parts first: they need the most room
+    area = {n: float(np.prod(np.sort(np.ptp(verts[n], axis=0))[1:])) for n in order}
+    for name in sorted(dict.fromkeys(order), key=lambda n: -area[n]):
+        v = verts[name]
+        for _ in range(max_tries):
+            rot = rest_rotation(v, goal_rot.get(name, np.eye(3)), rng)
+            vw = v @ rot.T
+            r = rng.uniform(*reach)
+            ang = rng.uniform(-np.pi * 0.85, np.pi * 0.85)
+            centre = (vw.min(axis=0) + vw.max(axis=0)) / 2.0
+            t = np.eye(4)
+            t[:3, :3] = rot
+            t[0, 3] = rx + r * np.cos(ang) - centre[0]
+            t[1, 3] = ry + r * np.sin(ang) - centre[1]
+            t[2, 3] = cell.table_z - vw[:, 2].min()
+            fp = _footprint(_transform(t, v), margin / 2)
+            inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
+            if inside and not any(_overlap(fp, o) for o in taken):
+                taken.append(fp)
+                poses[name] = t
+                break
+        else:
+            raise LayoutError(f"part {name!r}: no free spot on the table in {max_tries} draws")
+    return poses
+
+
+def _box_vertices(size: FloatArray) -> FloatArray:
+    h = np.asarray(size, dtype=np.float64) / 2.0
+    return np.array(
+        [[sx * h[0], sy * h[1], sz * h[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    )
+
+
+def _pose_in_base(task: TaskFile, base: str, name: str) -> FloatArray:
+    """``T_base_part`` with every constraint at its nominal pose."""
+    by_child: dict[str, Constraint] = {c.child: c for c in task.constraints}
+    t = np.eye(4)
+    cur = name
+    chain = []
+    while cur != base and cur in by_child:
+        chain.append(by_child[cur])
+        cur = by_child[cur].parent
+    for c in reversed(chain):
+        t = goal_pose(t, c)
+    return t
