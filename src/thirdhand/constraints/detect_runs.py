@@ -1,0 +1,215 @@
+"""Constrained runs of a pair: merging, their mean pose, further poses, evidence."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from thirdhand import se3
+from thirdhand.constraints.detect_dofs import _on_joint
+from thirdhand.constraints.detect_steps import _motion, _runs
+from thirdhand.constraints.detect_types import BoolArray, DetectOptions, FloatArray
+from thirdhand.constraints.hmm import HMMParams, fit_hmm
+
+
+def _merge_same_pose(
+    runs: list[tuple[int, int]],
+    p: FloatArray,
+    q: FloatArray,
+    held: BoolArray,
+    fallback: FloatArray,
+    tol: tuple[float, float],
+    min_motion: tuple[float, float],
+) -> list[tuple[int, int, bool]]:
+    """Join consecutive runs of one pair that are the same constraint.
+
+    Two runs at the same pose (within ``tol``, metres and radians) are one
+    constraint when the interruption is brief (at most a quarter of the shorter
+    run: a real part nudged while it is tightened) or, between them, the part
+    did not go anywhere: most steps lack
+    evidence (a camera lost the tag) or the median deviation stays within ``tol``
+    (jitter out of the constrained state); or when the child moved along a joint
+    in between (a drawer opened and closed: the third element is then True).
+    A part taken off and put back in the same slot is two constraints.
+    """
+    out: list[tuple[int, int, bool]] = []
+    ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
+    for lo, hi in runs:
+        if out:
+            a, b, joint = out[-1]
+            p0, q0 = _run_pose(p[a:b], q[a:b], fallback, held[a:b])
+            p1, q1 = _run_pose(p[lo:hi], q[lo:hi], fallback, held[lo:hi])
+            if np.linalg.norm(p1 - p0) <= tol[0] and float(se3.quat_angle(q0, q1)) <= tol[1]:
+                gap = np.arange(b, lo)
+                seen = gap[ok[gap]]
+                brief = gap.size <= 0.25 * min(b - a, hi - lo)
+                if (
+                    brief
+                    or seen.size < 0.5 * gap.size
+                    or (
+                        np.median(np.linalg.norm(p[seen] - p0, axis=1)) <= tol[0]
+                        and np.median(se3.quat_angle(q[seen], q0)) <= tol[1]
+                    )
+                ):
+                    out[-1] = (a, hi, joint)
+                    continue
+                if b - a >= 3 and _on_joint(p[a:hi], q[a:hi], min_motion) is not None:
+                    out[-1] = (a, hi, True)
+                    continue
+        out.append((lo, hi, False))
+    return out
+
+
+def _held(phases: Any, body: str, t0: float, t1: float) -> bool:
+    """Whether a hand of the segmentation holds ``body`` at some time in ``[t0, t1]``."""
+    for h in getattr(phases, "hands", []):
+        if h.object != body:
+            continue
+        for s, e in h.intervals:
+            if s <= t1 and e >= t0:
+                return True
+    return False
+
+
+def _further_poses(
+    posterior: FloatArray,
+    rel_p: FloatArray,
+    rel_q: FloatArray,
+    pairs: list[tuple[str, str]],
+    world: dict[str, tuple[FloatArray, FloatArray]],
+    params: HMMParams,
+    opt: DetectOptions,
+    step: float,
+) -> list[tuple[int, FloatArray, FloatArray]]:
+    """Constraint poses of a pair other than its last one (assembled, taken apart, redone).
+
+    The first EM pass starts each pair's constraint pose at the end of the
+    recording. Up to ``max_poses - 1`` more passes look, among the steps no pose
+    explains yet, for the longest stretch over which the pair's relative pose
+    stays still (steps within 4 σ √2 of each other) for ``min_duration`` while
+    one of the parts moves in the world (co-motion: the stricter evidence; two
+    parts resting side by side do not qualify); EM then learns that pose on the
+    unexplained steps, with the shared parameters kept.
+
+    Returns
+    -------
+    list of (pair index, posterior (n_steps,), pose position (3,))
+    """
+    out: list[tuple[int, FloatArray, FloatArray]] = []
+    explained = posterior > 0.5
+    step_p = 4.0 * math.sqrt(2.0) * params.sigma_pos
+    step_r = 4.0 * math.sqrt(2.0) * params.sigma_rot
+    min_steps = max(2, round(max(opt.min_duration, 1.0) / step))
+    for _ in range(opt.max_poses - 1):
+        ks, ps, qs, tps, tqs = [], [], [], [], []
+        for k, (a, b) in enumerate(pairs):
+            p = np.where(explained[k][:, None], np.nan, rel_p[k])
+            q = np.where(explained[k][:, None], np.nan, rel_q[k])
+            dp = np.linalg.norm(np.diff(p, axis=0), axis=1)
+            dr = se3.quat_angle(q[1:], q[:-1])
+            still = np.concatenate([[False], (dp < step_p) & (dr < step_r)])
+            best = None
+            for lo, hi in _runs(still):
+                if hi - lo < min_steps or (best is not None and hi - lo <= best[1] - best[0]):
+                    continue
+                moved = any(
+                    m[0] > opt.co_motion[0] or m[1] > opt.co_motion[1]
+                    for m in (_motion(*world[n], lo, hi) for n in (a, b))
+                )
+                if moved:
+                    best = (lo, hi)
+            if best is not None:
+                tp, tq = _run_pose(p[best[0] : best[1]], q[best[0] : best[1]], np.zeros(3))
+                ks.append(k)
+                ps.append(p)
+                qs.append(q)
+                tps.append(tp)
+                tqs.append(tq)
+        if not ks:
+            break
+        # One EM over every pair with a further pose (the chain runs on all at once).
+        post, _, tp2, _ = fit_hmm(
+            np.stack(ps),
+            np.stack(qs),
+            np.stack(tps),
+            np.stack(tqs),
+            params=dataclasses.replace(params),
+            n_iter=opt.n_iter,
+            update_shared=False,
+        )
+        for j, k in enumerate(ks):
+            pk = np.where(explained[k], 0.0, post[j])
+            if np.any(pk > 0.5):
+                explained[k] |= pk > 0.5
+                out.append((k, pk, tp2[j]))
+    return out
+
+
+@dataclass
+class _Run:
+    """A candidate constraint: a pair's constrained span."""
+
+    start: float
+    k: int
+    lo: int
+    hi: int
+    conf: float
+    joint: bool
+    held: BoolArray
+
+
+def _supported(
+    k: int,
+    lo: int,
+    hi: int,
+    a: str,
+    b: str,
+    pairs: list[tuple[str, str]],
+    world: dict[str, tuple[FloatArray, FloatArray]],
+    rel_p: FloatArray,
+    rel_q: FloatArray,
+    times: FloatArray,
+    phases: Any,
+    opt: DetectOptions,
+) -> bool:
+    """Whether a constrained run has co-motion or approach evidence (module notes)."""
+    for body in (a, b):
+        dp, dr = _motion(*world[body], lo, hi)
+        if dp > opt.co_motion[0] or dr > opt.co_motion[1]:
+            return True
+    step = float(times[1] - times[0]) if times.size > 1 else 0.1
+    w = max(1, round(opt.approach_window / step))
+    before = max(0, lo - w)
+    if before == lo:
+        return False
+    dp, dr = _motion(rel_p[k], rel_q[k], before, lo + 1)
+    if not (dp > opt.approach_motion[0] or dr > opt.approach_motion[1]):
+        return False
+    pa = rel_p[k, lo:hi]
+    dist = np.nanmedian(np.linalg.norm(pa, axis=1)) if np.any(np.isfinite(pa)) else np.inf
+    if dist < opt.contact_distance:
+        return True
+    # Farther apart: only when the segmentation saw a hand bring one of them there.
+    if phases is not None and getattr(phases, "hands", None):
+        t0, t1 = times[before], times[min(hi, lo + w) - 1]
+        return _held(phases, a, t0, t1) or _held(phases, b, t0, t1)
+    return False
+
+
+def _run_pose(
+    p: FloatArray, q: FloatArray, fallback: FloatArray, mask: BoolArray | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """Mean pose of the valid (and ``mask``-ed) steps of a run (chordal quaternion mean)."""
+    ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
+    if mask is not None and np.any(ok & mask):
+        ok &= mask
+    if not np.any(ok):
+        return fallback.copy(), np.array([0.0, 0.0, 0.0, 1.0])
+    qq = q[ok]
+    qq = qq * np.sign(np.sum(qq * qq[0], axis=1))[:, None]
+    m = qq.sum(axis=0)
+    return p[ok].mean(axis=0), m / np.linalg.norm(m)
