@@ -266,7 +266,7 @@ def test_failed_write_leaves_old_bag_and_no_debris(
         yield from ()
         raise RuntimeError("simulated failure half-way")
 
-    monkeypatch.setattr(rosbag, "_messages", broken)
+    monkeypatch.setattr(rosbag.writer, "_messages", broken)
     for name in ("a.bag", "folder"):
         with pytest.raises(RuntimeError, match="simulated failure"):
             rosbag.write(demo.select(["seat"]), tmp_path / name, overwrite=True)

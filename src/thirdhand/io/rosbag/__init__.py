@@ -67,9 +67,6 @@ and :mod:`~thirdhand.io.rosbag.assemble` the demonstration.
 from thirdhand.io.rosbag.constants import DEFAULT_MERGE_TOLERANCE, FORMAT_VERSION, META_TOPIC
 from thirdhand.io.rosbag.reader import read, sniff
 
-# ``_messages`` is re-exported because :func:`write` looks it up here, so that it can be
-# replaced on this module (the failed-write test makes it raise half-way).
-from thirdhand.io.rosbag.writer import _messages as _messages
 from thirdhand.io.rosbag.writer import write
 
 __all__ = ["DEFAULT_MERGE_TOLERANCE", "FORMAT_VERSION", "META_TOPIC", "read", "sniff", "write"]

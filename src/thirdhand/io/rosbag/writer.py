@@ -232,10 +232,8 @@ def write(
         "labels": labels_to_dict(demo.labels),
         "meta": demo.meta,
     }
-    from thirdhand.io import rosbag  # the package's ``_messages``: see its ``__init__``
-
     store = _typestore(ver)
-    messages = rosbag._messages(
+    messages = _messages(
         demo, store, stamps, topic_of=topic_of, frame_of=ros, root_frame=root_frame
     )
     try:
