@@ -66,7 +66,6 @@ and :mod:`~thirdhand.io.rosbag.assemble` the demonstration.
 
 from thirdhand.io.rosbag.constants import DEFAULT_MERGE_TOLERANCE, FORMAT_VERSION, META_TOPIC
 from thirdhand.io.rosbag.reader import read, sniff
-
 from thirdhand.io.rosbag.writer import write
 
 __all__ = ["DEFAULT_MERGE_TOLERANCE", "FORMAT_VERSION", "META_TOPIC", "read", "sniff", "write"]
