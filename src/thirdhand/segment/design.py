@@ -22,6 +22,14 @@ strokes of half a second and the pauses between them; a part held in a hand
 moves with it by only a few millimetres at 0.3–3 Hz, which a 0.25 s window
 barely sees above 1 mm of sensor noise and a 0.5–1 s window does.
 
+Optionally (``extra_windows``) the four core features over further centred
+windows (latent steps), appended after the long-window ones.
+
+Optionally (``contact=True``) a last column ``log(eps_contact + g)``, ``g`` the
+gap between the two bodies' bounding boxes (:mod:`thirdhand.segment.contact`;
+a body without a box is a point, so without geometry ``g`` is the distance
+between the origins).
+
 Steps without evidence (fewer valid samples in the window than
 ``min_valid_fraction`` of its nominal frame count) get an all-zero row: a zero
 state potential for both labels.
@@ -36,6 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
+from thirdhand.segment.contact import body_box, box_gap
 from thirdhand.segment.features import (
     RAW_FEATURE_NAMES,
     BodyStats,
@@ -82,6 +91,15 @@ class FeatureConfig:
         centred window (latent steps) and appended: the short window resolves
         brief strokes, the long one the small, slow co-motion of a part held in
         a hand (0: off, the report's four features only).
+    extra_windows : tuple of int
+        Further centred windows (latent steps) over which the four core features
+        are computed and appended (empty: none).
+    contact : bool
+        Append ``log(eps_contact + g)``, ``g`` the bounding-box gap of the pair,
+        metres (:mod:`thirdhand.segment.contact`; the origin distance without
+        geometry).
+    eps_contact : float
+        ``ε`` of the contact feature, metres.
     """
 
     latent_rate: float = 10.0
@@ -93,8 +111,16 @@ class FeatureConfig:
     distance: bool = False
     eps_dist: float = 0.02
     long_window: int = 0
+    extra_windows: tuple[int, ...] = ()
+    contact: bool = False
+    eps_contact: float = 0.005
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "extra_windows", tuple(int(w) for w in self.extra_windows))
+        if any(w < 1 for w in self.extra_windows):
+            raise SegmentationError(
+                f"extra windows must be >= 1 latent step, got {list(self.extra_windows)}"
+            )
         if self.transform not in ("log", "linear"):
             raise SegmentationError(f"transform must be 'log' or 'linear', got {self.transform!r}")
         if self.window < 1 or not self.latent_rate > 0:
@@ -110,13 +136,16 @@ class FeatureConfig:
         """Names of the design columns."""
         wrap = "log_eps_{}" if self.transform == "log" else "{}"
         extra = ["log_eps_distance"] if self.distance else []
+        extra += ["log_eps_contact"] if self.contact else []
         long = [wrap.format(f"long_{n}") for n in RAW_FEATURE_NAMES] if self.long_window else []
+        long += [wrap.format(f"w{w}_{n}") for w in self.extra_windows for n in RAW_FEATURE_NAMES]
         return ["bias", *(wrap.format(n) for n in RAW_FEATURE_NAMES), *long, *extra]
 
     @property
     def windows(self) -> tuple[int, ...]:
-        """The window lengths used, latent steps: ``(window,)`` or ``(window, long_window)``."""
-        return (self.window, self.long_window) if self.long_window else (self.window,)
+        """The window lengths used, latent steps: ``window``, ``long_window``, ``extra_windows``."""
+        long = (self.long_window,) if self.long_window else ()
+        return (self.window, *long, *self.extra_windows)
 
     def to_dict(self) -> dict[str, object]:
         """JSON-able form."""
@@ -128,18 +157,21 @@ def design_matrix(
     evidence: BoolArray,
     config: FeatureConfig,
     distance: FloatArray | None = None,
+    contact: FloatArray | None = None,
 ) -> FloatArray:
     """Design rows from raw features.
 
     Parameters
     ----------
-    raw : ndarray, shape (n_steps, 4) or (n_steps, 8)
+    raw : ndarray, shape (n_steps, 4 × len(config.windows))
         Columns ``ν_π`` (m²), ``ν_ρ``, ``ζ_π`` (m²), ``ζ_ρ``; then the same over
-        the long window when ``config.long_window``.
+        each further window of ``config.windows``.
     evidence : ndarray of bool, shape (n_steps,)
     config : FeatureConfig
     distance : ndarray, shape (n_steps,), metres, optional
         Window mean distance between the bodies; required when ``config.distance``.
+    contact : ndarray, shape (n_steps,), metres, optional
+        Bounding-box gap of the bodies; required when ``config.contact``.
 
     Returns
     -------
@@ -156,6 +188,11 @@ def design_matrix(
         if distance is None:
             raise SegmentationError("this feature configuration needs the pair distance")
         cols.append(np.log(config.eps_dist + np.maximum(distance, 0.0))[:, None])
+    if config.contact:
+        if contact is None:
+            raise SegmentationError("this feature configuration needs the contact distance")
+        gap = np.nan_to_num(np.maximum(contact, 0.0), nan=0.0)
+        cols.append(np.log(config.eps_contact + gap)[:, None])
     x = np.concatenate(cols, axis=1)
     x[~np.asarray(evidence, dtype=bool)] = 0.0
     return x
@@ -222,7 +259,12 @@ class DemoFeatures:
             axis=1,
         )
         evidence = (sab.count >= self.config.min_valid_fraction * self.nominal) & (sab.count >= 2)
-        return design_matrix(raw, evidence, self.config, sab.distance), evidence
+        gap = None
+        if self.config.contact:
+            assert sab.mean_pos is not None and sab.mean_quat is not None
+            meta = self.demo.meta
+            gap = box_gap(sab.mean_pos, sab.mean_quat, body_box(meta, a), body_box(meta, b))
+        return design_matrix(raw, evidence, self.config, sab.distance, gap), evidence
 
 
 def pair_design(
@@ -233,7 +275,7 @@ def pair_design(
     Returns
     -------
     axis : LatentAxis
-    xs : list of ndarray, each of shape (n_steps, 5)
+    xs : list of ndarray, each of shape (n_steps, len(config.feature_names))
     evidence : list of ndarray of bool, each of shape (n_steps,)
     """
     feats = DemoFeatures(demo, config)

@@ -405,12 +405,19 @@ class BodyStats:
         Valid samples per window.
     distance : ndarray, shape (n_steps,), metres, or None
         For a pair: window mean of the distance between the two origins.
+    mean_pos : ndarray, shape (n_steps, 3), metres, or None
+        For a pair: window mean of B's position in A's frame (zero where no sample).
+    mean_quat : ndarray, shape (n_steps, 4), x y z w, or None
+        For a pair: window mean of B's sign-continuous quaternion in A's frame,
+        not normalised (zero where no sample).
     """
 
     var_pos: FloatArray
     var_rot: FloatArray
     count: FloatArray
     distance: FloatArray | None = None
+    mean_pos: FloatArray | None = None
+    mean_quat: FloatArray | None = None
 
 
 def _moments_multi(
@@ -473,12 +480,20 @@ def pair_stats_multi(
     mr = _moments_multi(dq, v, axis, windows)
     if not distance:
         return [
-            BodyStats(var_pos=p[0], var_rot=r[0], count=p[1]) for p, r in zip(mp, mr, strict=True)
+            BodyStats(var_pos=p[0], var_rot=r[0], count=p[1], mean_pos=p[2], mean_quat=r[2])
+            for p, r in zip(mp, mr, strict=True)
         ]
     dist = np.sqrt(np.einsum("ij,ij->i", dp, dp))[:, None]
     md = _moments_multi(dist, v, axis, windows)
     return [
-        BodyStats(var_pos=p[0], var_rot=r[0], count=p[1], distance=d[2][:, 0])
+        BodyStats(
+            var_pos=p[0],
+            var_rot=r[0],
+            count=p[1],
+            distance=d[2][:, 0],
+            mean_pos=p[2],
+            mean_quat=r[2],
+        )
         for p, r, d in zip(mp, mr, md, strict=True)
     ]
 
