@@ -65,6 +65,10 @@ def synth(
         bool, typer.Option("--noise-free", help="No sensor noise, gaps or sign flips.")
     ] = False,
     rate: Annotated[float | None, typer.Option(help="Capture rate, Hz.")] = None,
+    head: Annotated[bool, typer.Option(help="Track the person's head too.")] = False,
+    pointing: Annotated[
+        int, typer.Option(help="Open with N pointing gestures (targets in the metadata).", min=0)
+    ] = 0,
     force: Annotated[bool, typer.Option(help="Replace an existing output (kept as .bak).")] = False,
 ) -> None:
     """Generate a synthetic assembly demonstration with ground-truth labels."""
@@ -76,7 +80,10 @@ def synth(
     sensor = None
     if not noise_free:
         sensor = SensorModel() if rate is None else SensorModel(rate=rate)
-    demo = make_scene(scene, seed=seed, sensor=sensor)
+    options: dict[str, Any] = {"head": True} if head else {}
+    if pointing:
+        options["pointing"] = pointing
+    demo = make_scene(scene, seed=seed, sensor=sensor, **options)
     _check_output(output, force)
     io.save(demo, output)
     out.print(f"wrote {output}: {demo}")
@@ -214,6 +221,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "thirdhand.perception.cli",
         "gestures_command",
         "Pointing gestures (hand, target object, interval) in a recording.",
+    ),
+    "attention": (
+        "thirdhand.perception.cli",
+        "attention_command",
+        "Which object a tracked head attends to, as intervals.",
     ),
 }
 
