@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import pytest
@@ -128,3 +129,43 @@ def test_changed_parameters(chair: TaskFile) -> None:
     assert got[0] == "c5.parent" and set(got[1:]) <= {
         f"c5.{n}" for n in ("x", "y", "z", "roll", "pitch", "yaw")
     }
+
+
+def test_clarification_queue_order(chair: TaskFile) -> None:
+    from thirdhand.review.clarify import clarification_queue, dof_ambiguity
+    from thirdhand.review.edits import Confirm, apply_edit
+
+    t = chair.model_copy(deep=True)
+    t.constraints[2].confidence = 0.1  # c2: the least confident constraint
+    # c3's ry: 6 degrees, right at the noise boundary (5 degrees)
+    t.constraints[1].free_dofs = t.constraints[1].free_dofs.model_copy(
+        update={"ry": (-math.radians(3.0), math.radians(3.0))}
+    )
+    q = clarification_queue(t)
+    assert (q[0].constraint, q[0].dof) == ("c2", None)
+    assert q[0].score == pytest.approx(0.9)
+    assert (q[1].constraint, q[1].dof) == ("c3", "ry")
+    assert "noise" not in q[1].text or "locked" in q[1].text
+    rank = {(x.constraint, x.dof): k for k, x in enumerate(q)}
+    # Near the boundary before clearly locked (c3 rz) and clearly full (c3 rx).
+    assert rank[("c3", "ry")] < rank[("c3", "rz")]
+    assert rank[("c3", "ry")] < rank[("c3", "rx")]
+    assert dof_ambiguity(0.0, 0.0, "rx") == 0.0
+    assert dof_ambiguity(-math.pi, math.pi, "rx") == 0.0
+    # A nearly full turn is doubtful too; a half turn much less.
+    assert dof_ambiguity(-3.0, 3.0, "rx") > 0.9 > dof_ambiguity(-0.6, 0.6, "rx")
+    # Translations: 5 mm is the boundary.
+    assert dof_ambiguity(0.0, 0.005, "tz") == pytest.approx(1.0)
+    assert dof_ambiguity(0.0, 0.2, "tz") < 0.01
+    scores = [x.score for x in q]
+    assert q[1].score == pytest.approx(
+        0.5 * dof_ambiguity(-math.radians(3.0), math.radians(3.0), "ry")
+    )
+    assert scores == sorted(scores, reverse=True)
+    assert len(q) == 7 * len(t.constraints)
+    # Confirmed questions leave the queue.
+    t2 = apply_edit(apply_edit(t, Confirm("c2")), Confirm("c3", "ry"))
+    q2 = clarification_queue(t2)
+    assert ("c2", None) not in {(x.constraint, x.dof) for x in q2}
+    assert ("c3", "ry") not in {(x.constraint, x.dof) for x in q2}
+    assert len(q2) == len(q) - 2

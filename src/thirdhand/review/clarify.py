@@ -6,11 +6,14 @@ alike (a rotation range of a few degrees: sensor noise or a loose joint?) or a
 nearly full turn (a limited hinge or a full joint?). A locked DOF, a range far
 from every boundary and an exact full turn are clear and come last.
 
-Scores are in [0, 1]: ``1 - confidence`` for a constraint; for a DOF,
-``exp(-(ln(w / b))² / (2 σ²))`` with ``w`` the range width, ``b`` the nearest
+A score reads as the chance that what the task says is wrong: ``1 - confidence``
+for a constraint; for a DOF, ``0.5 · a`` with the ambiguity
+``a = exp(-(ln(w / b))² / (2 σ²))``, ``w`` the range width, ``b`` the nearest
 boundary (:data:`~thirdhand.review.dofs.NOISE_TRANSLATION`,
-:data:`~thirdhand.review.dofs.NOISE_ROTATION`, a full turn) and ``σ = ln 2``
-(a width twice or half the boundary scores 0.61, four times 0.14).
+:data:`~thirdhand.review.dofs.NOISE_ROTATION`, a full turn) and ``σ = ln 2``: a
+range right on a boundary is a coin flip (0.5), one twice or half the boundary
+scores 0.31, four times 0.07. A constraint less than 50 % confident is asked
+before any DOF.
 """
 
 from __future__ import annotations
@@ -118,7 +121,10 @@ def clarification_queue(task: TaskFile) -> list[Question]:
             lo, hi = getattr(c.free_dofs, dof)
             out.append(
                 Question(
-                    c.id, dof, dof_ambiguity(lo, hi, dof), _dof_text(c.child, c.parent, dof, lo, hi)
+                    c.id,
+                    dof,
+                    0.5 * dof_ambiguity(lo, hi, dof),
+                    _dof_text(c.child, c.parent, dof, lo, hi),
                 )
             )
     order = {id(q): k for k, q in enumerate(out)}

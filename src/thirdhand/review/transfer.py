@@ -32,6 +32,7 @@ its box is the source box scaled to the mesh's extents about the body origin.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import re
@@ -195,6 +196,16 @@ def _scene_file(path: Path) -> TargetSet:
     return _mesh_set(str(path), entries)
 
 
+@functools.lru_cache(maxsize=8)
+def _scene_target(name: str) -> TargetSet:
+    """The objects of a synthetic scene's ground truth (made once per process)."""
+    from thirdhand.synth import make_scene
+    from thirdhand.synth.task import truth_task
+
+    truth = truth_task(make_scene(name, seed=0, sensor=None))
+    return TargetSet(name=name, objects=list(truth.objects))
+
+
 def load_target(to: str | os.PathLike[str]) -> TargetSet:
     """The target object set named by ``--to`` (see the module notes).
 
@@ -207,11 +218,7 @@ def load_target(to: str | os.PathLike[str]) -> TargetSet:
 
     text = os.fspath(to)
     if text in SCENES and not Path(text).exists():
-        from thirdhand.synth import make_scene
-        from thirdhand.synth.task import truth_task
-
-        truth = truth_task(make_scene(text, seed=0, sensor=None))
-        return TargetSet(name=text, objects=list(truth.objects))
+        return _scene_target(text)
     p = Path(text)
     if p.is_file() and p.suffix == ".json":
         return _scene_file(p)
