@@ -169,3 +169,21 @@ def test_clarification_queue_order(chair: TaskFile) -> None:
     assert ("c2", None) not in {(x.constraint, x.dof) for x in q2}
     assert ("c3", "ry") not in {(x.constraint, x.dof) for x in q2}
     assert len(q2) == len(q) - 2
+
+
+def test_study_effort_reference_values(shared_data: Path) -> None:
+    from thirdhand.io.iros15 import read_user_study
+    from thirdhand.review.effort import study_effort
+
+    got = study_effort(read_user_study(shared_data / "3rdhand" / "iros15_user_study.yaml"))
+    assert set(got) == {
+        ("blue_chair", "A"),
+        ("blue_chair", "B"),
+        ("green_bench", "C"),
+        ("green_bench", "D"),
+        ("test", "test"),
+    }
+    assert got[("blue_chair", "B")]["attempts"] == 15
+    assert got[("blue_chair", "B")]["parameters"] == pytest.approx(16.33, abs=0.01)
+    assert got[("green_bench", "D")]["parameters"] == pytest.approx(12.0)
+    assert got[("blue_chair", "A")]["parameters"] == pytest.approx(30.4, abs=0.01)

@@ -169,3 +169,51 @@ def changed_parameters(
     ]:
         out.append("plan.order")
     return out
+
+
+#: The study's operations that change a parameter in the report's unit (parent + pose).
+PARAMETER_OPERATIONS: tuple[str, ...] = (
+    "movex",
+    "movey",
+    "movez",
+    "rotx",
+    "roty",
+    "rotz",
+    "parent",
+)
+
+
+def study_effort(study: Any) -> dict[tuple[str, str], dict[str, float]]:
+    """Mean effort of the first attempt per subject, per scene and condition of the IROS'15 study.
+
+    Parameters
+    ----------
+    study : thirdhand.io.iros15.UserStudy
+
+    Returns
+    -------
+    dict of (scene, condition) to dict
+        ``attempts``; ``parameters``: mean count of (object, operation) pairs
+        touched among :data:`PARAMETER_OPERATIONS` (the report's unit: at most 7
+        per constrained object); ``operations``: mean number of those operations;
+        ``per_object``: mean operations per object listed in the effort log.
+    """
+    rows: dict[tuple[str, str], list[tuple[int, int, float]]] = {}
+    for _subject, scene, session, attempt in study.attempts():
+        if attempt.index != 0:
+            continue
+        objs = {o: ops for o, ops in attempt.effort.items() if o != ACTIONS}
+        if not objs:
+            continue
+        touched = sum(1 for ops in objs.values() for k in PARAMETER_OPERATIONS if ops.get(k, 0))
+        n_ops = sum(ops.get(k, 0) for ops in objs.values() for k in PARAMETER_OPERATIONS)
+        rows.setdefault((scene, session.name), []).append((touched, n_ops, n_ops / len(objs)))
+    return {
+        key: {
+            "attempts": float(len(v)),
+            "parameters": sum(r[0] for r in v) / len(v),
+            "operations": sum(r[1] for r in v) / len(v),
+            "per_object": sum(r[2] for r in v) / len(v),
+        }
+        for key, v in rows.items()
+    }

@@ -249,3 +249,66 @@ def residuals(task: TaskFile, truth: TaskFile) -> dict[str, dict[str, float | bo
             "classes": all(_class(c, d) == _class(ref, d) for d in DOF_NAMES),
         }
     return out
+
+
+def effort_table(
+    seeds: tuple[int, ...] = (0, 1, 2), noise: tuple[float, ...] = (1.0, 6.0)
+) -> list[str]:
+    """Markdown rows: corrections of the learned chair, and of its transfer to the bench.
+
+    For each sensor noise (position noise in mm, rotation noise ``noise / 2`` degrees)
+    and seed: learn the chair from one synthetic demonstration
+    (:func:`thirdhand.plan.learn.learn`), count the scripted user's corrections
+    against the chair's ground truth, then transfer the learned task onto the
+    bench and count against the bench's ground truth.
+
+    Run with ``python -m thirdhand.review.scripted_user``.
+    """
+    from thirdhand.plan.learn import learn
+    from thirdhand.review.transfer import transfer
+    from thirdhand.synth import make_scene
+    from thirdhand.synth.sensor import SensorModel
+    from thirdhand.synth.task import truth_task
+
+    bench = truth_task(make_scene("bench", seed=0, sensor=None))
+    rows = [
+        "| sensor noise | seed | chair: corrected / total | chair: ranges, missing | "
+        "bench (transfer): corrected / total | bench: ranges |",
+        "|---|---|---|---|---|---|",
+    ]
+    for mm in noise:
+        sensor = SensorModel(pos_noise=mm * 1e-3, rot_noise=math.radians(mm / 2))
+        for seed in seeds:
+            demo = make_scene("chair", seed=seed, sensor=sensor)
+            learned = learn([demo]).task()
+            chair = scripted_corrections(learned, truth_task(demo))
+            moved = scripted_corrections(transfer(learned, "bench").task, bench)
+            miss = f", missing {'+'.join(chair.missing)}" if chair.missing else ""
+            rows.append(
+                f"| {mm:g} mm, {mm / 2:g}° | {seed} | {chair.n_corrected} / {chair.n_parameters} "
+                f"| {len(chair.ranges)}{miss} | {moved.n_corrected} / {moved.n_parameters} "
+                f"| {len(moved.ranges)} |"
+            )
+    return rows
+
+
+if __name__ == "__main__":
+    from pathlib import Path
+
+    for row in effort_table():
+        print(row)
+    study_path = (
+        Path(__file__).resolve().parents[3].parent / "shared/data/3rdhand/iros15_user_study.yaml"
+    )
+    if study_path.is_file():
+        from thirdhand.io.iros15 import read_user_study
+        from thirdhand.review.effort import study_effort
+
+        print("\n| IROS'15 scene, condition | attempts | parameters touched | operations |", end="")
+        print(" per object |")
+        print("|---|---|---|---|---|")
+        for (scene, cond), v in study_effort(read_user_study(study_path)).items():
+            print(
+                f"| {scene} {cond} | {v['attempts']:.0f} | {v['parameters']:.2f} "
+                f"| {v['operations']:.1f} | {v['per_object']:.1f} |"
+            )
