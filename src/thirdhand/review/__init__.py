@@ -14,6 +14,7 @@ Everything here is plain functions and small classes on the task model
 - :mod:`~thirdhand.review.scripted_user`: the minimal corrections to a reference task.
 """
 
+from thirdhand.review.clarify import Question, clarification_queue
 from thirdhand.review.dofs import classify_dof, dof_animation, world_poses
 from thirdhand.review.edits import (
     Confirm,
@@ -30,7 +31,9 @@ from thirdhand.review.edits import (
 )
 from thirdhand.review.effort import OPERATIONS, EffortLog, changed_parameters
 from thirdhand.review.history import History
+from thirdhand.review.scripted_user import ScriptedResult, scripted_corrections
 from thirdhand.review.session import ConflictError, ReviewSession
+from thirdhand.review.transfer import TransferError, TransferResult, transfer, transfer_task
 
 __all__ = [
     "OPERATIONS",
@@ -41,16 +44,24 @@ __all__ = [
     "EffortLog",
     "History",
     "MoveStep",
+    "Question",
     "ReviewSession",
+    "ScriptedResult",
     "SetDofRange",
     "SetParent",
     "SetPose",
     "SetPoseValue",
+    "TransferError",
+    "TransferResult",
     "apply_correction",
     "apply_edit",
     "changed_parameters",
+    "clarification_queue",
     "classify_dof",
     "dof_animation",
     "parse_number",
+    "scripted_corrections",
+    "transfer",
+    "transfer_task",
     "world_poses",
 ]
