@@ -41,7 +41,6 @@ from thirdhand.execute.goals import (
     POS_TOL_M,
     ROT_TOL_RAD,
     constraint_holds,
-    goal_pose,
     invert,
     sample_goals,
 )
@@ -260,23 +259,29 @@ class SimWorld:
 def insertion_axis(task: TaskFile, constraint: Constraint) -> FloatArray:
     """Unit vector (3,), child frame: the direction the child backs out of its parent.
 
-    The child's body axis (±x, ±y, ±z) best aligned with the vector from the
-    parent's box centre to the child's box centre at the goal.
+    Of the child's body axes (±x, ±y, ±z), the one along which the shortest move
+    separates the child's bounding box from the parent's (the parent's box taken
+    at the goal and bounded in the child frame) — a leg backs out of its slot
+    along its own axis, the chair's back out of its groove along its length.
     """
     objs = {o.name: o for o in task.objects}
 
-    def centre(name: str) -> FloatArray:
+    def box(name: str) -> tuple[FloatArray, FloatArray]:
         o = objs[name]
         if o.bbox_min is None or o.bbox_max is None:
-            return np.zeros(3)
-        return (np.asarray(o.bbox_min) + np.asarray(o.bbox_max)) / 2.0
+            return np.zeros(3), np.zeros(3)
+        return np.asarray(o.bbox_min, dtype=np.float64), np.asarray(o.bbox_max, dtype=np.float64)
 
-    t_pc = constraint.pose.matrix()
-    parent_in_child = invert(t_pc)[:3, :3] @ centre(constraint.parent) + invert(t_pc)[:3, 3]
-    d = centre(constraint.child) - parent_in_child
-    k = int(np.argmax(np.abs(d)))
+    c_lo, c_hi = box(constraint.child)
+    p_lo, p_hi = box(constraint.parent)
+    corners = np.array([[(p_hi if (i >> k) & 1 else p_lo)[k] for k in range(3)] for i in range(8)])
+    t_cp = invert(constraint.pose.matrix())
+    pc = corners @ t_cp[:3, :3].T + t_cp[:3, 3]
+    lo, hi = pc.min(axis=0), pc.max(axis=0)
+    moves = np.concatenate([hi - c_lo, c_hi - lo])  # +x +y +z, then -x -y -z
+    k = int(np.argmin(moves))
     axis = np.zeros(3)
-    axis[k] = 1.0 if d[k] >= 0 else -1.0
+    axis[k % 3] = 1.0 if k < 3 else -1.0
     return axis
 
 
@@ -308,10 +313,9 @@ def _candidate_grasps(
 ) -> list[grasp_mod.Grasp]:
     """Grasps worth trying on the part where it lies, best first.
 
-    Grasps approaching from below the horizontal are dropped (the fingers would
-    go through the table); the rest are ranked demonstrated first, then by how
-    steeply they come from above plus how far they hold from where the part
-    meets its parent.
+    Grasps approaching from below are dropped (the hand would go through the
+    table); the rest are ranked demonstrated first, then by how steeply they
+    come from above plus how far they hold from where the part meets its parent.
     """
     obj = next(o for o in task.objects if o.name == constraint.child)
     cands = list(hints.get(constraint.child, ()))
@@ -322,7 +326,7 @@ def _candidate_grasps(
     scored = []
     for g in cands:
         down = -float((rot @ g.pose[:3, 2])[2])
-        if down < 0.2:
+        if down < -0.1:
             continue
         far = float(np.linalg.norm(g.pose[:3, 3] - avoid))
         scored.append((g.source != "demo", -(down + 2.0 * far), len(scored), g))

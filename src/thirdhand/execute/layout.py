@@ -185,7 +185,7 @@ def assembly_base_pose(
     assembly_xy: tuple[float, float] = (0.5, 0.0),
     table_z: float = TABLE_Z,
     robot_xy: tuple[float, float] = (0.0, 0.0),
-    clearance: float = 0.03,
+    clearance: float = 0.08,
     task_path: str | os.PathLike[str] | None = None,
     search: Sequence[str | os.PathLike[str]] = (),
 ) -> tuple[FloatArray, list[tuple[str, FloatArray, FloatArray]]]:
@@ -248,9 +248,20 @@ def assembly_base_pose(
     if fixture > 0.0:
         base_w = _transform(pose, placed[base])
         lo, hi = base_w.min(axis=0), base_w.max(axis=0)
-        size = np.array([hi[0] - lo[0], hi[1] - lo[1], fixture])
+        mid = (lo + hi) / 2.0
+        half = (hi - lo) / 2.0
+        # narrow the block along the base's long side until no part reaching
+        # below the base stands in it
+        a = int(np.argmax(half[:2]))
+        b = 1 - a
+        low = np.vstack([_transform(pose, v) for n, v in placed.items() if n != base])
+        low = low[low[:, 2] < lo[2] - 1e-9]
+        inside = np.abs(low[:, b] - mid[b]) < half[b]
+        if inside.any():
+            half[a] = min(half[a], float(np.abs(low[inside, a] - mid[a]).min()) - 0.01)
+        size = np.array([2 * half[0], 2 * half[1], fixture])
         centre = np.eye(4)
-        centre[:3, 3] = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0, table_z + fixture / 2.0]
+        centre[:3, 3] = [mid[0], mid[1], table_z + fixture / 2.0]
         fixtures.append(("fixture", centre, size))
     return pose, fixtures
 

@@ -56,7 +56,7 @@ def follow_tool_path(
     out = np.empty((poses.shape[0], robot.dof))
     for i, t in enumerate(poses):
         sol, ok = robot.ik_batch(t[None], q[None])
-        if not ok[0] or np.max(np.abs(sol[0] - q)) > max_jump and i > 0:
+        if not ok[0] or (np.max(np.abs(sol[0] - q)) > max_jump and i > 0):
             return None
         q = sol[0]
         out[i] = q

@@ -1,0 +1,101 @@
+"""``thirdhand execute TASK.json``: run a task's plan on the simulated arm.
+
+Prints, per step, the planning time, the executed path's length and whether it
+succeeded; ``--record OUT`` writes a replay (``OUT.parquet``, viewable with
+``thirdhand review TASK --demo OUT.parquet``) and the joint trajectory
+(``OUT.json``). Exits 1 when a step fails.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from thirdhand.errors import ThirdhandError
+
+
+def execute_command(
+    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/1 JSON).")],
+    robot: Annotated[str, typer.Option(help="Simulated robot: panda or baxter.")] = "panda",
+    online: Annotated[
+        bool, typer.Option("--online", help="Re-plan from the observed scene before each step.")
+    ] = False,
+    record: Annotated[
+        Path | None,
+        typer.Option(help="Write the replay (OUT.parquet) and the trajectory (OUT.json)."),
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the start layout and the planner.")] = 0,
+    meshes: Annotated[
+        list[Path] | None, typer.Option(help="Folder searched for part meshes (repeatable).")
+    ] = None,
+    demo: Annotated[
+        Path | None, typer.Option(help="A demonstration of the task: grasps from its fingers.")
+    ] = None,
+    person: Annotated[
+        list[str] | None,
+        typer.Option(help="Online: a simulated person does this constraint's step (repeatable)."),
+    ] = None,
+    free_dofs: Annotated[
+        bool, typer.Option(help="Sample goals inside the free DOFs when a goal fails.")
+    ] = True,
+    step_time: Annotated[float, typer.Option(help="Time limit per step, seconds.")] = 60.0,
+    plan_time: Annotated[float, typer.Option(help="Time limit per planning query, seconds.")] = 5.0,
+) -> None:
+    """Execute a task's plan on a simulated robot arm with a motion planner."""
+    from thirdhand import io
+    from thirdhand.execute.executor import ExecutionOptions, Executor, person_does
+    from thirdhand.execute.layout import make_workcell, start_layout
+    from thirdhand.execute.record import write_run
+    from thirdhand.execute.robot import Robot
+    from thirdhand.task.store import load_task
+
+    console = Console()
+    t = load_task(task)
+    search = [str(m) for m in meshes or []]
+    cell = make_workcell(t, robot, task_path=task, search=search)
+    arm = Robot.load(robot, base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0])))
+    start = start_layout(t, cell, seed, task_path=task, search=search)
+    opts = ExecutionOptions(
+        sample_free_dofs=free_dofs, step_time_limit=step_time, plan_time_limit=plan_time
+    )
+    d = io.load(demo) if demo is not None else None
+    ex = Executor(arm, t, cell, start, opts, task_path=task, search=search, demo=d)
+    ids = {c.id for c in t.constraints}
+    for cid in person or []:
+        if cid not in ids:
+            raise ThirdhandError(f"--person {cid}: no constraint with that id in {task}")
+    if online:
+        events = {1 + k: [person_does(t, cid, seed + k)] for k, cid in enumerate(person or [])}
+        result = ex.run_online(seed=seed, events=events)
+    else:
+        if person:
+            raise ThirdhandError("--person needs --online (offline planning shares no task)")
+        result = ex.run_offline(seed=seed)
+    table = Table(title=f"{task.name} on {robot} ({'online' if online else 'offline'})")
+    for col in ("step", "action", "planning s", "path rad", "tool m", "collisions", "status"):
+        table.add_column(col)
+    for r in result.steps:
+        table.add_row(
+            str(r.index),
+            f"{r.child} → {r.parent} ({r.constraint})",
+            f"{r.planning_time_s:.2f}",
+            f"{r.joint_length_rad:.2f}",
+            f"{r.tool_length_m:.2f}",
+            str(r.n_collisions),
+            ("[green]" if r.success else "[red]") + r.status,
+        )
+    console.print(table)
+    for e in result.events:
+        console.print(f"event: {e}")
+    if record is not None:
+        replay, traj = write_run(arm, result, record, task_name=task.stem)
+        console.print(f"wrote {replay} and {traj}")
+    verdict = "every step succeeded" if result.success else "some steps failed"
+    console.print(f"{verdict}; {result.n_collisions} configurations in collision (dense check)")
+    if not result.success:
+        raise typer.Exit(1)
