@@ -3,12 +3,13 @@
 Measured figures (held-out seeds 1000+, shipped model) are in the training
 script's output and the model's ``training["held_out"]``. The issue asks for
 frame F1 >= 0.98 noise-free and >= 0.9 noisy for finger-, hand- and part-part
-pairs. Reached (thresholds below, so a regression fails): noisy finger- and
-hand-object >= 0.9 on these scenes (0.92-0.99); noise-free finger/hand-object
-0.99 on the chair but 0.90 on the toolbox; part-part 0.77-0.89 noisy and about
-0.88 noise-free, short of the targets (see the report of the segmentation work:
-an assembled chair standing still looks like parts lying still on the table, and
-the pauses between a drawer's slides are a few tenths of a second).
+pairs. Reached (thresholds below, so a regression fails): finger- and
+hand-object 0.99 on the chair and bench, noisy and noise-free, 0.97 on the
+toolbox, 0.90-0.92 on the drawer and lid; part-part 0.79-0.94, short of the
+targets. Why, with an error breakdown and a label audit: docs/segmentation_results.md
+(parts at rest are labelled by connectivity history, the pauses between screwing
+strokes are labelled not interacting, lid and drawer pauses last a few tenths of
+a second).
 """
 
 from __future__ import annotations
@@ -44,11 +45,12 @@ def test_tool_part_phases_on_held_out_noisy_toolbox() -> None:
 @pytest.mark.parametrize(
     ("scene", "seed", "noisy", "finger", "part"),
     [
-        ("chair", 1000, True, 0.9, 0.85),
-        ("bench", 1001, True, 0.9, 0.85),
-        ("toolbox", 1001, True, 0.9, 0.75),
+        ("chair", 1000, True, 0.97, 0.85),
+        ("bench", 1001, True, 0.97, 0.85),
+        ("toolbox", 1001, True, 0.95, 0.75),
+        ("drawer", 1000, True, 0.88, 0.85),
         ("chair", 1000, False, 0.98, 0.85),
-        ("toolbox", 1001, False, 0.88, 0.85),
+        ("toolbox", 1001, False, 0.95, 0.83),
     ],
 )
 def test_held_out_frame_f1_per_pair_kind(
@@ -64,16 +66,17 @@ def test_held_out_frame_f1_per_pair_kind(
 @pytest.mark.slow
 def test_crf_beats_logistic_regression_table_one_protocol() -> None:
     demos = [synth.make_scene("chair", seed=s, sensor=synth.SensorModel()) for s in range(2)]
-    tab = table_one(demos)
-    # The chain's NLL is lower than logistic regression's: several times on the
-    # training hand, and still lower on the other hand (measured 0.028 vs 0.173
-    # and 0.042 vs 0.057 per variable). Frame F1 on the held-out hand is NOT
-    # higher (0.87 vs 0.91 measured): the issue's "CRF beats logistic on F1" is
-    # not reached with this protocol, see the report of the segmentation work.
+    tab = table_one(demos, default_model().features)
+    # With the shipped features the chain beats logistic regression on both
+    # hands, in NLL (measured 0.0098 vs 0.139 per variable on the training hand,
+    # 0.026 vs 0.065 on the test hand) and in frame F1 (0.992 vs 0.919, 0.970 vs
+    # 0.861). With the report's four features at 10 Hz its test-hand F1 is lower
+    # (0.82 vs 0.90): see docs/segmentation_results.md.
     crf, lr = tab["crf"], tab["logistic"]
     assert crf["train"]["nll_per_variable"] < 0.5 * lr["train"]["nll_per_variable"]
-    assert crf["test"]["nll_per_variable"] < lr["test"]["nll_per_variable"]
+    assert crf["test"]["nll_per_variable"] < 0.6 * lr["test"]["nll_per_variable"]
     assert crf["train"]["frame_f1"] > lr["train"]["frame_f1"]
+    assert crf["test"]["frame_f1"] > lr["test"]["frame_f1"] + 0.05
 
 
 @pytest.mark.slow

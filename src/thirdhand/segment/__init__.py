@@ -8,9 +8,12 @@ Viterbi. Hands interact with an object when enough of their fingers do.
 
 Entry point: :func:`segment_demonstration`, with the model shipped in
 ``thirdhand/data/segment_default.json`` by default. The shipped model runs at 20
-latent steps per second with the report's four features over a 0.25 s and a
-0.5 s window plus the pair's mean distance (see :mod:`thirdhand.segment.design`
-and ``scripts/train_default_segmenter.py``).
+latent steps per second with the report's four features over a 0.25 s, a 0.5 s
+and a 0.1 s window, the pair's mean distance and its bounding-box contact
+distance (see :mod:`thirdhand.segment.design`, :mod:`thirdhand.segment.contact`,
+``scripts/train_default_segmenter.py`` and ``docs/segmentation_results.md``).
+:mod:`thirdhand.segment.diagnose` breaks errors down (boundary shifts, missed
+and extra intervals) and audits labels against the kinematics.
 """
 
 from thirdhand.segment.crf import PairCRF

@@ -102,6 +102,10 @@ def box_gap(
     -------
     ndarray, shape (n,), metres
     """
+    if box_a is None and box_b is None:
+        p0 = np.asarray(pos_ba, dtype=np.float64)
+        d0: FloatArray = np.sqrt(np.einsum("ij,ij->i", p0, p0))
+        return d0
     q = np.asarray(quat_ba, dtype=np.float64)
     norm = np.linalg.norm(q, axis=1, keepdims=True)
     with np.errstate(invalid="ignore", divide="ignore"):

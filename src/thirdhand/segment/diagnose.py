@@ -28,6 +28,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand import se3
+from thirdhand.demonstration import Demonstration
+from thirdhand.segment.features import LatentAxis
 from thirdhand.segment.intervals import runs
 from thirdhand.segment.pipeline import SegmentationResult
 
@@ -219,11 +222,63 @@ def breakdown_by_kind(result: SegmentationResult, k: int = 1) -> dict[str, Error
     return out
 
 
+#: Kinematic classes of :func:`kinematic_classes`, by code.
+KINEMATIC_CLASSES: tuple[str, ...] = ("non-rigid", "rigid, moving", "rigid, still")
+
+
+def kinematic_classes(
+    demo: Demonstration, a: str, b: str, axis: LatentAxis, *, tol: float = 1e-7
+) -> IntArray:
+    """What the bodies do during each latent step of a noise-free recording.
+
+    A label audit: the report defines interaction as moving together under a
+    (temporarily) rigid transformation, so on exact data a step is
+
+    - 0 ``"non-rigid"``: B's pose in A's frame changes between two frames of the
+      step by more than ``tol`` (metres, or quaternion components);
+    - 1 ``"rigid, moving"``: it does not, and A or B moves in the world (by more
+      than ``tol`` m between two frames): interacting by the definition;
+    - 2 ``"rigid, still"``: neither moves: the definition cannot tell, and
+      neither can any feature of the two trajectories over that step alone.
+
+    Parameters
+    ----------
+    demo : Demonstration
+        Noise-free, fully tracked (invalid frames are not checked).
+    a, b : str
+    axis : LatentAxis
+    tol : float
+
+    Returns
+    -------
+    ndarray of int, shape (axis.n_steps,)
+    """
+    ta, tb = demo.track(a), demo.track(b)
+    rp, rq = se3.relative_pose(ta.pos, ta.quat, tb.pos, tb.quat)
+    rq = se3.quat_make_continuous(rq)
+    rel = np.maximum(
+        np.linalg.norm(np.diff(rp, axis=0), axis=1), np.linalg.norm(np.diff(rq, axis=0), axis=1)
+    )
+    world = np.maximum(
+        np.linalg.norm(np.diff(ta.pos, axis=0), axis=1),
+        np.linalg.norm(np.diff(tb.pos, axis=0), axis=1),
+    )
+    steps = axis.frame_step[1:]
+    rel_moves = np.zeros(axis.n_steps, dtype=bool)
+    world_moves = np.zeros(axis.n_steps, dtype=bool)
+    np.logical_or.at(rel_moves, steps, rel > tol)
+    np.logical_or.at(world_moves, steps, world > tol)
+    out = np.where(rel_moves, 0, np.where(world_moves, 1, 2))
+    return out.astype(np.int64)
+
+
 __all__ = [
     "ERROR_CLASSES",
+    "KINEMATIC_CLASSES",
     "ErrorBreakdown",
     "boundary_collar",
     "breakdown_by_kind",
     "breakdown_many",
     "error_breakdown",
+    "kinematic_classes",
 ]
