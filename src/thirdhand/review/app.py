@@ -1,0 +1,714 @@
+"""The review GUI: a local viser web app to see, animate and correct a task file.
+
+::
+
+    app = ReviewApp("chair.task.json", demos=[demo], port=8080)
+    url = app.start()          # serves http://127.0.0.1:8080 in a background thread
+    ...
+    app.stop()
+
+The app is a thin layer over the model layer: every correction is an edit of
+:mod:`thirdhand.review.edits` applied through a
+:class:`~thirdhand.review.session.ReviewSession` (undo/redo, effort log, save
+with conflict check). The methods of :class:`ReviewApp` (:meth:`select`,
+:meth:`apply`, :meth:`set_values`, :meth:`move_step`, :meth:`save`...) are
+what the widgets call; tests call them too. The widgets themselves are built
+in :mod:`thirdhand.review.panels`.
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import viser
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.errors import ThirdhandError
+from thirdhand.review import dofs as dofs_mod
+from thirdhand.review.edits import Edit, SetPose, SetPoseValue, pose_values
+from thirdhand.review.effort import ACTIONS
+from thirdhand.review.playback import HandContacts, Timeline, hand_contacts, playback_colours
+from thirdhand.review.scene3d import FINGER_RGB, DofGlyphView, PartsView, selection_colours, xyzw
+from thirdhand.review.session import ConflictError, ReviewSession
+from thirdhand.se3 import pose_compose, pose_invert
+from thirdhand.task.constraint import Constraint
+from thirdhand.task.geometry import DOF_NAMES
+from thirdhand.taskfile import save_task
+
+FloatArray = np.ndarray
+
+#: Effort operation of a typed pose value.
+VALUE_OPERATION = {
+    "x": "movex",
+    "y": "movey",
+    "z": "movez",
+    "roll": "rotx",
+    "pitch": "roty",
+    "yaw": "rotz",
+}
+#: Seconds per DOF of the clarification animation, and its frame rate (Hz).
+ANIMATION_SECONDS = 1.2
+ANIMATION_RATE = 20.0
+#: Playback frame rate, Hz.
+PLAYBACK_RATE = 20.0
+
+
+class ReviewApp:
+    """The review web app over one task file.
+
+    Parameters
+    ----------
+    task_path : path-like
+        The task file (``thirdhand.task/1``); saved in place, the previous version kept.
+    demos : sequence of Demonstration or path-like
+        Recordings to play back on the timeline.
+    host : str
+        Address to bind (default local only).
+    port : int
+        Port; 0 picks a free one. A busy port is replaced by the next free one.
+    meshes : sequence of path-like
+        Folders searched for part meshes (then ``THIRDHAND_MESH_PATH``).
+    segment : bool
+        Find hand contacts with the segmentation stage when a recording has no labels.
+    light_rendering : bool
+        No environment map and no shadows: for software WebGL (headless browsers,
+        remote desktops), where they make every frame slow.
+
+    Attributes
+    ----------
+    session : ReviewSession
+    selected : str or None
+        The selected object.
+    step : int or None
+        The keyframe shown (index into the plan), None for the assembled task.
+    time : float
+        Playback time, seconds.
+    playing : bool
+    message : str
+        The last message shown to the user (errors start with ``"Error: "``).
+    """
+
+    def __init__(
+        self,
+        task_path: str | os.PathLike[str],
+        demos: Sequence[Demonstration | str | os.PathLike[str]] = (),
+        host: str = "127.0.0.1",
+        port: int = 8080,
+        *,
+        meshes: Sequence[str | os.PathLike[str]] = (),
+        segment: bool = True,
+        light_rendering: bool = False,
+    ) -> None:
+        self.task_path = Path(task_path)
+        self.host, self.requested_port = host, port
+        self.meshes = [Path(m) for m in meshes]
+        self.light_rendering = light_rendering
+        self.session = ReviewSession.open(self.task_path)
+        self.demos = [_load_demo(d) for d in demos]
+        self.timelines = [Timeline(d) for d in self.demos]
+        self.contacts: list[HandContacts] = [hand_contacts(d, segment=segment) for d in self.demos]
+        self.lock = threading.RLock()
+        self.selected: str | None = None
+        self.step: int | None = None
+        self.demo_index = 0
+        self.time = self.timelines[0].start if self.timelines else 0.0
+        self.mode = "task"
+        self.playing = False
+        self.message = f"Loaded {self.task_path.name}"
+        self.questions: list[Any] = []
+        self.question_index = 0
+        self.animating: str | None = None
+        self.gizmo_edits = False
+        self.conflict: Path | None = None
+        self.quit_requested = threading.Event()
+        self.server: viser.ViserServer | None = None
+        self.parts: PartsView | None = None
+        self.glyphs: DofGlyphView | None = None
+        self.gizmo: viser.TransformControlsHandle | None = None
+        self.panels: Any = None
+        self._fingers: dict[str, viser.IcosphereHandle] = {}
+        self._worker: threading.Thread | None = None
+        self._stop_worker = threading.Event()
+
+    # ------------------------------------------------------------------ lifecycle
+    @property
+    def task(self) -> Any:
+        """The current task (the session history's current version)."""
+        return self.session.task
+
+    @property
+    def port(self) -> int:
+        """The port served (after :meth:`start`)."""
+        return self.server.get_port() if self.server is not None else self.requested_port
+
+    @property
+    def url(self) -> str:
+        """Address of the web app."""
+        return f"http://{self.host}:{self.port}/"
+
+    def start(self) -> str:
+        """Start the server (background threads), build the scene and panels; return the URL."""
+        from thirdhand.review.panels import Panels
+
+        self.server = viser.ViserServer(host=self.host, port=self.requested_port, verbose=False)
+        self.server.scene.set_up_direction("+z")
+        if self.light_rendering:
+            self.server.scene.configure_environment_map(None)
+            self.server.scene.configure_default_lights(True, cast_shadow=False)
+        self.parts = PartsView(self.server.scene, self.task, self.task_path, self.meshes)
+        self.parts.on_click(self._clicked)
+        self.glyphs = DofGlyphView(self.server.scene)
+        self.panels = Panels(self)
+        self.server.on_client_connect(self._client_connected)
+        with self.lock:
+            self.refresh()
+        return self.url
+
+    def stop(self) -> None:
+        """Stop animations, playback and the server."""
+        self._halt_worker()
+        if self.server is not None:
+            self.server.stop()
+            self.server = None
+
+    def _client_connected(self, client: viser.ClientHandle) -> None:
+        position, look_at = self.camera_pose()
+        client.camera.position = position
+        client.camera.look_at = look_at
+
+    def camera_pose(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+        """Initial camera position and target, world frame, metres.
+
+        In front of the assembly: opposite the highest part (a chair's back)
+        when it stands off the centre, else from the (+x, -y) diagonal.
+        """
+        parts = self.parts
+        pts = {n: parts.world_centroid(n) for n in parts.names} if parts is not None else {}
+        centre = np.mean(list(pts.values()), axis=0) if pts else np.zeros(3)
+        away = np.array([1.0, -1.0, 0.0])
+        if pts:
+            top = max(pts.values(), key=lambda p: p[2])
+            off = (top - centre) * np.array([1.0, 1.0, 0.0])
+            if np.linalg.norm(off) > 0.02:
+                away = -off
+        away /= np.linalg.norm(away)
+        extent = max(self.parts.extent.values(), default=0.3) if self.parts else 0.3
+        eye = centre + 2.2 * max(extent, 0.2) * (away + np.array([0.35, 0.0, 0.6]))
+        return _vec3(eye), _vec3(centre)
+
+    # ------------------------------------------------------------------ derived state
+    def constraint_of(self, child: str | None) -> Constraint | None:
+        """The constraint whose child is ``child`` (None if none)."""
+        if child is None:
+            return None
+        return next((c for c in self.task.constraints if c.child == child), None)
+
+    @property
+    def constraint(self) -> Constraint | None:
+        """The selected object's constraint."""
+        return self.constraint_of(self.selected)
+
+    @property
+    def parent(self) -> str | None:
+        """The selected object's parent."""
+        c = self.constraint
+        return None if c is None else c.parent
+
+    def colours(self) -> dict[str, tuple[int, int, int]]:
+        """Every drawn object's colour as the scene shows it now."""
+        return dict(self.parts.colours) if self.parts is not None else {}
+
+    def world_poses(self) -> dict[str, Any]:
+        """Every object's world pose at the keyframe shown (:func:`dofs.world_poses`)."""
+        if not self.task.plan:
+            return {}
+        return dofs_mod.world_poses(self.task, self.step)
+
+    # ------------------------------------------------------------------ messages
+    def notify(self, text: str, *, error: bool = False) -> None:
+        """Show ``text`` in the status line and as a notification in every browser."""
+        self.message = f"Error: {text}" if error else text
+        if self.panels is not None:
+            self.panels.show_message(self.message, error=error)
+        if self.server is not None:
+            for client in self.server.get_clients().values():
+                client.add_notification(
+                    "Refused" if error else "Review",
+                    text,
+                    color="red" if error else "blue",
+                    auto_close_seconds=None if error else 4.0,
+                )
+
+    def attempt(self, fn: Any, *args: Any, **kwargs: Any) -> None:
+        """Run an action for a widget: a refused one shows its message and changes nothing."""
+        try:
+            with self.lock:
+                fn(*args, **kwargs)
+        except ThirdhandError as exc:
+            self.notify(str(exc), error=True)
+
+    # ------------------------------------------------------------------ actions
+    def select(self, name: str | None, *, operation: str | None = "click") -> None:
+        """Select an object: it turns orange, its parent blue; its values fill the editors."""
+        with self.lock:
+            self._halt_worker()
+            if name is not None and self.parts is not None and name not in self.parts.frames:
+                raise ThirdhandError(f"unknown object {name!r}")
+            self.selected = name
+            if name is not None and operation is not None:
+                self.session.effort.record(operation, name)
+            self.mode = "task"
+            self.refresh()
+
+    def _clicked(self, name: str) -> None:
+        self.attempt(self.select, name)
+
+    def apply(self, edit: Edit, *, operation: str | None = None) -> None:
+        """Apply one edit through the session (undoable, logged); refresh the views.
+
+        Raises
+        ------
+        ThirdhandError
+            The edit was refused (nothing changed).
+        """
+        with self.lock:
+            self._halt_worker()
+            self.session.apply(edit, operation=operation)
+            self.refresh()
+
+    def set_values(self, texts: dict[str, str]) -> None:
+        """Typed pose values of the selected constraint: ``{"x": "12 cm", "yaw": "90 deg"}``.
+
+        A bare number is read in the unit shown (cm, deg). Every value is parsed
+        before any is applied, so one bad value changes nothing.
+        """
+        from thirdhand.review.edits import parse_number
+
+        with self.lock:
+            c = self.constraint
+            if c is None:
+                raise ThirdhandError("select an object with a constraint first")
+            values = {}
+            for name, text in texts.items():
+                unit = "m" if name in ("x", "y", "z") else "rad"
+                shown = "cm" if unit == "m" else "deg"
+                t = text.strip()
+                if t and not any(ch.isalpha() for ch in t):
+                    t = f"{t} {shown}"
+                values[name] = parse_number(t, unit=unit)
+            for name, value in values.items():
+                self.apply(SetPoseValue(c.id, name, value), operation=VALUE_OPERATION[name])
+
+    def nudge(self, name: str, delta: float) -> None:
+        """Rough adjustment: add ``delta`` (m or rad) to a pose value of the selected constraint."""
+        with self.lock:
+            c = self.constraint
+            if c is None:
+                raise ThirdhandError("select an object with a constraint first")
+            current = pose_values(c)[name]
+            self.apply(SetPoseValue(c.id, name, current + delta), operation=VALUE_OPERATION[name])
+
+    def undo(self) -> None:
+        """Undo the last edit."""
+        with self.lock:
+            if not self.session.history.can_undo:
+                raise ThirdhandError("nothing to undo")
+            self.session.undo()
+            self.refresh()
+
+    def redo(self) -> None:
+        """Redo the last undone edit."""
+        with self.lock:
+            if not self.session.history.can_redo:
+                raise ThirdhandError("nothing to redo")
+            self.session.redo()
+            self.refresh()
+
+    def move_step(self, index: int, delta: int) -> None:
+        """Move plan step ``index`` up (``delta`` -1) or down (+1); the shown step follows it."""
+        from thirdhand.review.edits import MoveStep
+
+        with self.lock:
+            new = index + delta
+            self.apply(MoveStep(index, new), operation="reordering")
+            if self.step == index:
+                self.step = new
+            self.refresh()
+
+    def show_step(self, index: int | None) -> None:
+        """Show the keyframe of plan step ``index`` (None: the assembled task)."""
+        with self.lock:
+            self._halt_worker()
+            if index is not None and not 0 <= index < len(self.task.plan):
+                raise ThirdhandError(f"no plan step {index}; the plan has {len(self.task.plan)}")
+            self.step = index
+            self.mode = "task"
+            if index is not None:
+                self.session.effort.record("kfviews", ACTIONS)
+            self.refresh()
+
+    def save(self) -> Path | None:
+        """Save the task (atomic, previous version kept); on a conflict keep the edits aside."""
+        with self.lock:
+            try:
+                path = self.session.save()
+            except ConflictError:
+                side = self.task_path.with_name(self.task_path.stem + ".unsaved.json")
+                task = self.task.model_copy(deep=True)
+                effort = self.session.effort.to_stage(self.session.changed_parameters())
+                task.stages.setdefault("review", {})["effort"] = effort
+                save_task(task, side)
+                self.conflict = side
+                self.notify(
+                    f"{self.task_path.name} changed on disk since it was loaded: not saved. "
+                    f"Your edits are kept here and in {side.name}",
+                    error=True,
+                )
+                if self.panels is not None:
+                    self.panels.ask_overwrite(side)
+                return None
+            self.notify(f"Saved {path.name}")
+            self.refresh()
+            return path
+
+    def overwrite(self) -> Path:
+        """Save over a file that changed on disk (its other version is kept as ``.bak``)."""
+        with self.lock:
+            path = self.session.save(force=True)
+            self.conflict = None
+            self.notify(
+                f"Saved {path.name} over the changed file (the other version is {path.name}.bak)"
+            )
+            self.refresh()
+            return path
+
+    def reload(self, *, force: bool = False) -> bool:
+        """Reload the file from disk; with unsaved changes only when ``force`` (else False)."""
+        with self.lock:
+            if self.session.dirty and not force:
+                return False
+            self._halt_worker()
+            self.session = ReviewSession.open(self.task_path)
+            if self.step is not None and self.step >= len(self.task.plan):
+                self.step = None
+            self.notify(f"Reloaded {self.task_path.name}")
+            self.refresh()
+            return True
+
+    def request_quit(self, *, force: bool = False) -> bool:
+        """Ask to quit; refused (False) with unsaved changes unless ``force``."""
+        if self.session.dirty and not force:
+            return False
+        self.quit_requested.set()
+        return True
+
+    # ------------------------------------------------------------------ clarification
+    def start_clarification(self) -> Any:
+        """Build the question queue (least confident first) and ask the first question."""
+        from thirdhand.review.clarify import clarification_queue
+
+        with self.lock:
+            self.questions = clarification_queue(self.task)
+            self.question_index = 0
+            return self._ask()
+
+    @property
+    def question(self) -> Any:
+        """The question being asked, None when the round is over."""
+        if 0 <= self.question_index < len(self.questions):
+            return self.questions[self.question_index]
+        return None
+
+    def _ask(self) -> Any:
+        q = self.question
+        if q is None:
+            self.notify("Clarification done: every question answered")
+            self.refresh()
+            return None
+        c = self.task.constraint_by_id(q.constraint)
+        self.selected = c.child
+        self.refresh()
+        self.animate_dofs(c.id, [q.dof] if q.dof is not None else list(DOF_NAMES))
+        return q
+
+    def answer(self, yes: bool) -> Any:
+        """Answer the current question: yes confirms it; no leaves it for a correction."""
+        from thirdhand.review.edits import Confirm
+
+        with self.lock:
+            q = self.question
+            if q is None:
+                raise ThirdhandError("no question to answer; start the clarification round")
+            if yes:
+                self.apply(Confirm(q.constraint, q.dof), operation="confirm")
+            else:
+                self.notify(f"Correct {q.constraint} in the Correct panel, then go on")
+            self.question_index += 1
+            return self._ask()
+
+    # ------------------------------------------------------------------ animation & playback
+    def animate_dofs(
+        self, constraint_id: str | None = None, dofs: Iterable[str] = DOF_NAMES
+    ) -> None:
+        """Animate a constraint's DOFs one after another (default: the selected one, all six)."""
+        with self.lock:
+            c = (
+                self.constraint
+                if constraint_id is None
+                else self.task.constraint_by_id(constraint_id)
+            )
+            if c is None:
+                raise ThirdhandError("select an object with a constraint first")
+            order = list(dofs)
+            self._start_worker(lambda stop: self._animation(c, order, stop))
+
+    def _animation(self, c: Constraint, order: list[str], stop: threading.Event) -> None:
+        poses = self.world_poses()
+        parent = poses.get(c.parent)
+        if parent is None or self.parts is None:
+            return
+        n = max(2, int(ANIMATION_SECONDS * ANIMATION_RATE))
+        for dof in order:
+            self.animating = dof
+            if self.panels is not None:
+                self.panels.show_animation(c, dof)
+            for k in range(n):
+                if stop.is_set():
+                    return
+                local = dofs_mod.dof_animation(c, dof, k / n)
+                p, q = pose_compose(parent.pos, parent.quat, local.pos, local.quat)
+                self.parts.set_pose(c.child, p, q)
+                stop.wait(1.0 / ANIMATION_RATE)
+        self.animating = None
+        if self.panels is not None:
+            self.panels.show_animation(c, None)
+        with self.lock:
+            self._place_parts()
+
+    def set_time(self, time_s: float) -> None:
+        """Show the demonstration at ``time_s`` seconds (parts coloured by the holding hand)."""
+        with self.lock:
+            if not self.timelines:
+                raise ThirdhandError("no demonstration loaded (pass --demo)")
+            tl = self.timelines[self.demo_index]
+            self.time = float(min(max(time_s, tl.start), tl.end))
+            self.mode = "playback"
+            self._place_playback()
+
+    def play(self, playing: bool = True, *, speed: float = 1.0) -> None:
+        """Start (or pause) playback from the current time."""
+        with self.lock:
+            if not playing:
+                self._halt_worker()
+                return
+            if not self.timelines:
+                raise ThirdhandError("no demonstration loaded (pass --demo)")
+            self.mode = "playback"
+            self._start_worker(lambda stop: self._playback(stop, speed))
+            self.playing = True
+            if self.panels is not None:
+                self.panels.show_playing(True)
+
+    def _playback(self, stop: threading.Event, speed: float) -> None:
+        tl = self.timelines[self.demo_index]
+        last = time.perf_counter()
+        while not stop.wait(1.0 / PLAYBACK_RATE):
+            now = time.perf_counter()
+            with self.lock:
+                if stop.is_set():
+                    return
+                t = self.time + speed * (now - last)
+                last = now
+                if t >= tl.end:
+                    t = tl.start
+                self.time = t
+                self._place_playback()
+                if self.panels is not None:
+                    self.panels.show_time(t)
+
+    def show_task(self) -> None:
+        """Leave playback: parts back at their constraint poses."""
+        with self.lock:
+            self._halt_worker()
+            self.mode = "task"
+            self.refresh()
+
+    def _start_worker(self, target: Any) -> None:
+        self._halt_worker()
+        self._stop_worker = stop = threading.Event()
+        self._worker = threading.Thread(target=target, args=(stop,), daemon=True)
+        self._worker.start()
+
+    def _halt_worker(self) -> None:
+        worker, self._worker = self._worker, None
+        self._stop_worker.set()
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(timeout=2.0)
+        self.animating = None
+        if self.playing:
+            self.playing = False
+            if self.panels is not None:
+                self.panels.show_playing(False)
+
+    # ------------------------------------------------------------------ scene
+    def refresh(self) -> None:
+        """Redraw the scene and the panels from the current state."""
+        if self.selected is not None and self.parts is not None:
+            if self.selected not in self.parts.frames:
+                self.selected = None
+        if self.mode == "playback" and self.timelines:
+            self._place_playback()
+        else:
+            self._hide_fingers()
+            self._place_parts()
+        if self.panels is not None:
+            self.panels.refresh()
+
+    def _place_parts(self) -> None:
+        if self.parts is None or self.glyphs is None:
+            return
+        poses = self.world_poses()
+        self.parts.set_poses({n: (p.pos, p.quat) for n, p in poses.items()})
+        self.parts.set_colours(selection_colours(self.parts.names, self.selected, self.parent))
+        c = self.constraint
+        child = poses.get(c.child) if c is not None else None
+        if c is None or child is None:
+            self.glyphs.clear()
+            self._remove_gizmo()
+            return
+        ap, aq = pose_compose(child.pos, child.quat, c.frame.pos, c.frame.quat)
+        ranges = c.free_dof_array()
+        classes = [
+            dofs_mod.classify_dof(lo, hi, d) for d, (lo, hi) in zip(DOF_NAMES, ranges, strict=True)
+        ]
+        size = self.parts.extent.get(c.child, 0.1)
+        self.glyphs.show(ap, aq, ranges, classes, size=size)
+        self._place_gizmo(c, classes, size)
+
+    def _place_playback(self) -> None:
+        if self.parts is None or self.server is None:
+            return
+        tl = self.timelines[self.demo_index]
+        poses = tl.poses_at(self.time)
+        self.parts.set_poses({n: pq for n, pq in poses.items() if n in self.parts.frames})
+        self.parts.set_colours(
+            playback_colours(self.contacts[self.demo_index], self.parts.names, self.time)
+        )
+        if self.glyphs is not None:
+            self.glyphs.clear()
+        self._remove_gizmo()
+        fingers = [n for n in tl.names if n not in self.parts.frames and n in poses]
+        for n in fingers:
+            h = self._fingers.get(n)
+            if h is None:
+                h = self.server.scene.add_icosphere(f"/fingers/{n}", radius=0.008, color=FINGER_RGB)
+                self._fingers[n] = h
+            h.visible = True
+            h.position = _vec3(poses[n][0])
+
+    def _hide_fingers(self) -> None:
+        for h in self._fingers.values():
+            h.visible = False
+
+    # ------------------------------------------------------------------ gizmo
+    def _remove_gizmo(self) -> None:
+        if self.gizmo is not None:
+            self.gizmo.remove()
+            self.gizmo = None
+
+    def _place_gizmo(self, c: Constraint, classes: Sequence[str], size: float) -> None:
+        """A transform gizmo at the constraint frame, limited to the free DOFs unless editing."""
+        if self.server is None:
+            return
+        self._remove_gizmo()
+        ranges = c.free_dof_array()
+        free = [cls != "locked" for cls in classes]
+        kwargs: dict[str, Any] = {}
+        if self.gizmo_edits:
+            axes, no_t, no_r = (True, True, True), False, False
+        else:
+            axes = (free[0] or free[3], free[1] or free[4], free[2] or free[5])
+            no_t, no_r = not any(free[:3]), not any(free[3:])
+            if no_t and no_r:
+                return
+            # Limits relative to the rest pose: the free ranges, zero for a locked DOF.
+            kwargs["translation_limits"] = tuple((float(lo), float(hi)) for lo, hi in ranges[:3])
+            kwargs["rotation_limits"] = tuple((float(lo), float(hi)) for lo, hi in ranges[3:])
+        self.gizmo = self.server.scene.add_transform_controls(
+            "/dofs/gizmo",
+            scale=max(0.08, 0.5 * size),
+            active_axes=axes,
+            disable_axes=no_t,
+            disable_sliders=no_t or sum(free[:3]) < 2,
+            disable_rotations=no_r,
+            depth_test=False,
+            **kwargs,
+        )
+        self.gizmo.on_update(self._gizmo_moved)
+
+    def _gizmo_moved(self, event: Any) -> None:
+        gizmo = event.target
+        with self.lock:
+            c = self.constraint
+            poses = self.world_poses()
+            if c is None or self.parts is None or c.child not in poses or c.parent not in poses:
+                return
+            child, parent = poses[c.child], poses[c.parent]
+            gp, gq = np.asarray(gizmo.position, float), np.asarray(xyzw(gizmo.wxyz))
+            # child' = child ∘ F ∘ G ∘ F⁻¹ (G: the gizmo's motion in the constraint frame F)
+            fp, fq = np.asarray(c.frame.pos), np.asarray(c.frame.quat)
+            ip, iq = pose_invert(fp, fq)
+            p, q = pose_compose(
+                *pose_compose(*pose_compose(child.pos, child.quat, fp, fq), gp, gq), ip, iq
+            )
+            self.parts.set_pose(c.child, p, q)
+            if event.phase != "end" or not self.gizmo_edits:
+                return
+            lp, lq = pose_compose(*pose_invert(parent.pos, parent.quat), p, q)
+        op = _dominant_operation(gp, gq)
+        self.attempt(
+            self.apply,
+            SetPose(c.id, _vec3(lp), _quat4(lq)),
+            operation=op,
+        )
+
+    def set_gizmo_edits(self, edits: bool) -> None:
+        """False: the gizmo explores the free DOFs; True: it corrects the pose on release."""
+        with self.lock:
+            self.gizmo_edits = edits
+            self.refresh()
+
+
+def _dominant_operation(gp: FloatArray, gq: FloatArray) -> str:
+    """Effort name of a gizmo motion: its largest translation (m) or rotation (rad, x 0.1 m)."""
+    from scipy.spatial.transform import Rotation
+
+    rotvec = Rotation.from_quat(gq).as_rotvec()
+    scores = np.concatenate([np.abs(gp), 0.1 * np.abs(rotvec)])
+    i = int(np.argmax(scores))
+    return ("movex", "movey", "movez", "rotx", "roty", "rotz")[i]
+
+
+def _vec3(v: FloatArray) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _quat4(v: FloatArray) -> tuple[float, float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]), float(v[3]))
+
+
+def _load_demo(d: Demonstration | str | os.PathLike[str]) -> Demonstration:
+    if isinstance(d, Demonstration):
+        return d
+    from thirdhand import io
+
+    return io.load(Path(d))
+
+
+__all__ = ["ReviewApp"]

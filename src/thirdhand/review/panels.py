@@ -1,0 +1,412 @@
+"""The review GUI's control panel: viser widgets wired to :class:`~thirdhand.review.app.ReviewApp`.
+
+Every callback calls one app action and nothing else; a refused action shows
+its one-line message (status line + notification) and changes nothing. A
+widget updated by the server (a new selection fills the editors) fires its own
+callback with no client: those events are ignored, so only a person's input
+becomes an edit.
+"""
+
+from __future__ import annotations
+
+import html
+import math
+from typing import TYPE_CHECKING, Any
+
+import viser
+
+from thirdhand.review import dofs as dofs_mod
+from thirdhand.review.edits import pose_values
+from thirdhand.review.scene3d import PARENT_RGB, SELECTED_RGB, hex_colour
+from thirdhand.task.constraint import Constraint
+from thirdhand.task.geometry import DOF_NAMES
+
+if TYPE_CHECKING:
+    from thirdhand.review.app import ReviewApp
+
+NONE = "(none)"
+VALUE_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
+#: Rough-adjustment steps: cm for x y z, degrees for roll pitch yaw.
+NUDGE_STEPS = ("-5", "-1", "+1", "+5")
+
+
+def fmt_value(name: str, value: float) -> str:
+    """A pose value as shown and typed: metres as cm, radians as degrees."""
+    if name in ("x", "y", "z", "tx", "ty", "tz"):
+        return f"{100.0 * value:.2f} cm"
+    return f"{math.degrees(value):.1f} deg"
+
+
+def _user(event: Any) -> bool:
+    """True for an event a person caused (the server's own updates carry no client)."""
+    return getattr(event, "client", None) is not None
+
+
+def step_label(i: int, step: Any) -> str:
+    """``"2. leg3 on seating (c3)"``: a plan step as listed."""
+    cid = f" ({step.constraint})" if step.constraint else ""
+    return f"{i + 1}. {step.child} on {step.parent}{cid}"
+
+
+class Panels:
+    """Build the control panel of ``app`` (its server must be running)."""
+
+    def __init__(self, app: ReviewApp) -> None:
+        assert app.server is not None
+        self.app = app
+        gui = app.server.gui
+        self._shown: dict[str, str] = {}
+        self.status = gui.add_html("")
+        self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
+        self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
+        self.save = gui.add_button("Save", icon=viser.Icon.DEVICE_FLOPPY)
+        self.reload = gui.add_button("Reload")
+        self.quit = gui.add_button("Quit")
+        self.undo.on_click(lambda e: app.attempt(app.undo))
+        self.redo.on_click(lambda e: app.attempt(app.redo))
+        self.save.on_click(lambda e: app.attempt(app.save))
+        self.reload.on_click(lambda e: self._confirm_discard("reload"))
+        self.quit.on_click(lambda e: self._confirm_discard("quit"))
+
+        names = list(app.parts.names) if app.parts is not None else []
+        with gui.add_folder("Object"):
+            self.object = gui.add_dropdown("Object", [NONE, *names], initial_value=NONE)
+            self.selection = gui.add_html("")
+            self.info = gui.add_html("")
+            self.animate = gui.add_button("Animate DOFs")
+        self.object.on_update(self._object_chosen)
+        self.animate.on_click(lambda e: app.attempt(app.animate_dofs))
+
+        with gui.add_folder("Correct"):
+            # Plain inputs, not a form: the client sends a value and a form's "dirty"
+            # notice through one throttled slot, where the value can be dropped.
+            gui.add_markdown("**Pose in the parent frame** (type e.g. `12 cm`, `90 deg`)")
+            self.values = {n: gui.add_text(n, "") for n in VALUE_NAMES}
+            self.apply_values = gui.add_button("Apply values")
+            self.nudge_what = gui.add_dropdown("Nudge", list(VALUE_NAMES), initial_value="x")
+            self.nudge = gui.add_button_group("cm / deg", NUDGE_STEPS)
+            self.dof = gui.add_dropdown("DOF", list(DOF_NAMES), initial_value="rz")
+            self.dof_lo = gui.add_text("min", "")
+            self.dof_hi = gui.add_text("max", "")
+            self.set_range = gui.add_button("Set range")
+            self.new_parent = gui.add_dropdown("New parent", [NONE, *names], initial_value=NONE)
+            self.set_parent = gui.add_button("Change parent")
+            self.gizmo_edits = gui.add_checkbox("Gizmo edits pose", False)
+        self.apply_values.on_click(lambda e: app.attempt(self._submit_values))
+        self.nudge.on_click(self._nudged)
+        self.dof.on_update(lambda e: self._fill_range())
+        self.set_range.on_click(lambda e: app.attempt(self._submit_range))
+        self.set_parent.on_click(lambda e: app.attempt(self._submit_parent))
+        self.gizmo_edits.on_update(
+            lambda e: app.attempt(app.set_gizmo_edits, self.gizmo_edits.value) if _user(e) else None
+        )
+
+        with gui.add_folder("Keyframes"):
+            self.plan = gui.add_html("")
+            self.step = gui.add_dropdown("Step", ["-"], initial_value="-")
+            self.up = gui.add_button("Up")
+            self.down = gui.add_button("Down")
+            self.show_kf = gui.add_button("Show keyframe")
+            self.show_all = gui.add_button("Show assembled")
+        self.up.on_click(lambda e: app.attempt(lambda: app.move_step(self._step_index(), -1)))
+        self.down.on_click(lambda e: app.attempt(lambda: app.move_step(self._step_index(), 1)))
+        self.show_kf.on_click(lambda e: app.attempt(lambda: app.show_step(self._step_index())))
+        self.show_all.on_click(lambda e: app.attempt(app.show_step, None))
+
+        with gui.add_folder("Clarify"):
+            self.start_q = gui.add_button("Start clarification")
+            self.question = gui.add_html("")
+            self.yes = gui.add_button("Yes, right", visible=False, color="green")
+            self.no = gui.add_button("No, wrong", visible=False, color="red")
+        self.start_q.on_click(lambda e: app.attempt(app.start_clarification))
+        self.yes.on_click(lambda e: app.attempt(app.answer, True))
+        self.no.on_click(lambda e: app.attempt(app.answer, False))
+
+        self.time = None
+        if app.timelines:
+            tl = app.timelines[app.demo_index]
+            with gui.add_folder("Playback"):
+                self.time = gui.add_slider(
+                    "Time (s)", min=tl.start, max=tl.end, step=0.05, initial_value=tl.start
+                )
+                self.play = gui.add_button("Play")
+                self.speed = gui.add_number("Speed", 1.0, min=0.1, max=10.0, step=0.1)
+                self.back = gui.add_button("Show task")
+                self.legend = gui.add_html(_legend(app.contacts[app.demo_index].source))
+            slider = self.time
+            slider.on_update(
+                lambda e: app.attempt(app.set_time, slider.value) if _user(e) else None
+            )
+            self.play.on_click(
+                lambda e: app.attempt(app.play, not app.playing, speed=float(self.speed.value))
+            )
+            self.back.on_click(lambda e: app.attempt(app.show_task))
+
+        with gui.add_folder("Effort", expand_by_default=False):
+            self.effort = gui.add_html("")
+
+        gui.set_panel_label("thirdhand review")
+
+    # ---------------------------------------------------------------- callbacks
+    def _object_chosen(self, event: Any) -> None:
+        if not _user(event):
+            return
+        value = self.object.value
+        self.app.attempt(self.app.select, None if value == NONE else value)
+
+    def _submit_values(self) -> None:
+        changed = {n: h.value for n, h in self.values.items() if h.value != self._shown.get(n)}
+        if not changed:
+            self.app.notify("no value changed")
+            return
+        self.app.set_values(changed)
+
+    def _nudged(self, event: Any) -> None:
+        name = self.nudge_what.value
+        step = float(self.nudge.value)
+        delta = step / 100.0 if name in ("x", "y", "z") else math.radians(step)
+        self.app.attempt(self.app.nudge, name, delta)
+
+    def _submit_range(self) -> None:
+        from thirdhand.errors import ThirdhandError
+        from thirdhand.review.edits import SetDofRange, parse_number
+
+        c = self.app.constraint
+        if c is None:
+            raise ThirdhandError("select an object with a constraint first")
+        dof = self.dof.value
+        unit, shown = ("m", "cm") if dof.startswith("t") else ("rad", "deg")
+        lo, hi = (_with_unit(h.value, shown) for h in (self.dof_lo, self.dof_hi))
+        edit = SetDofRange(c.id, dof, parse_number(lo, unit=unit), parse_number(hi, unit=unit))
+        self.app.apply(edit, operation="range")
+
+    def _submit_parent(self) -> None:
+        from thirdhand.errors import ThirdhandError
+        from thirdhand.review.edits import SetParent
+
+        child, parent = self.app.selected, self.new_parent.value
+        if child is None or parent == NONE:
+            raise ThirdhandError("select an object and its new parent first")
+        self.app.apply(SetParent(child, parent), operation="parent")
+
+    def _step_index(self) -> int:
+        from thirdhand.errors import ThirdhandError
+
+        value = self.step.value
+        try:
+            return int(value.split(".", 1)[0]) - 1
+        except ValueError:
+            raise ThirdhandError("the plan has no step to choose") from None
+
+    def _confirm_discard(self, what: str) -> None:
+        app = self.app
+        if not app.session.dirty:
+            self._do(what)
+            return
+        assert app.server is not None
+        with app.server.gui.add_modal("Unsaved changes") as modal:
+            app.server.gui.add_markdown(
+                f"The task has unsaved changes. {what.capitalize()} and lose them?"
+            )
+            go = app.server.gui.add_button(f"Discard and {what}", color="red")
+            cancel = app.server.gui.add_button("Cancel")
+
+        def discard(_: Any) -> None:
+            modal.close()
+            self._do(what, force=True)
+
+        go.on_click(discard)
+        cancel.on_click(lambda _: modal.close())
+
+    def ask_overwrite(self, side: Any) -> None:
+        """After a refused save: offer to overwrite the file changed on disk."""
+        app = self.app
+        assert app.server is not None
+        with app.server.gui.add_modal("File changed on disk") as modal:
+            app.server.gui.add_markdown(
+                f"**{html.escape(app.task_path.name)}** changed on disk since it was loaded. "
+                f"Your edits are kept in this session and in **{html.escape(side.name)}**."
+            )
+            overwrite = app.server.gui.add_button("Overwrite (keep theirs as .bak)", color="red")
+            keep = app.server.gui.add_button("Keep both")
+
+        def go(_: Any) -> None:
+            modal.close()
+            app.attempt(app.overwrite)
+
+        overwrite.on_click(go)
+        keep.on_click(lambda _: modal.close())
+
+    def _do(self, what: str, *, force: bool = False) -> None:
+        if what == "reload":
+            self.app.attempt(self.app.reload, force=True)
+        else:
+            self.app.request_quit(force=True)
+            self.app.notify("Quit: the server stops; close this tab")
+
+    # ---------------------------------------------------------------- views
+    def show_message(self, text: str, *, error: bool) -> None:
+        """The status line's message."""
+        self._message = (text, error)
+        self._render_status()
+
+    def _render_status(self) -> None:
+        app = self.app
+        text, error = getattr(self, "_message", (app.message, False))
+        dirty = app.session.dirty
+        colour = "#c92a2a" if error else "#495057"
+        flag = (
+            '<span id="th-dirty" style="color:#e8590c">● unsaved changes</span>'
+            if dirty
+            else '<span id="th-clean" style="color:#2b8a3e">saved</span>'
+        )
+        self.status.content = (
+            f'<div style="padding:0 0.75em;font-size:0.85em"><b>{html.escape(app.task_path.name)}'
+            f'</b> {flag}<br><span id="th-message" style="color:{colour}">'
+            f"{html.escape(text)}</span></div>"
+        )
+
+    def show_animation(self, c: Constraint, dof: str | None) -> None:
+        """Name the DOF being animated (None: animation over)."""
+        self._render_selection(animating=dof)
+
+    def show_playing(self, playing: bool) -> None:
+        """The play button's label."""
+        if self.time is not None:
+            self.play.label = "Pause" if playing else "Play"
+
+    def show_time(self, t: float) -> None:
+        """Move the time slider (no callback: the event has no client)."""
+        if self.time is not None:
+            _assign(self.time, round(t, 2))
+
+    def _render_selection(self, animating: str | None = None) -> None:
+        app = self.app
+        sel, par = app.selected, app.parent
+        parts = []
+        if sel is not None:
+            parts.append(
+                f'<span id="th-selected" style="color:{hex_colour(SELECTED_RGB)};'
+                f'font-weight:bold">{html.escape(sel)}</span>'
+            )
+            if par is not None:
+                parts.append(
+                    f' on <span id="th-parent" style="color:{hex_colour(PARENT_RGB)};'
+                    f'font-weight:bold">{html.escape(par)}</span>'
+                )
+            else:
+                parts.append(" (no parent)")
+        else:
+            parts.append("nothing selected")
+        if animating is not None:
+            parts.append(f'<br><span id="th-animating">animating {animating}</span>')
+        self.selection.content = f'<div style="padding:0 0.75em">{"".join(parts)}</div>'
+
+    def refresh(self) -> None:
+        """Fill every widget from the app's state."""
+        app = self.app
+        self._render_status()
+        self._render_selection(app.animating)
+        self.undo.disabled = not app.session.history.can_undo
+        self.redo.disabled = not app.session.history.can_redo
+        _assign(self.object, app.selected if app.selected is not None else NONE)
+        c = app.constraint
+        self.info.content = _constraint_html(c)
+        vals = pose_values(c) if c is not None else {}
+        for n, h in self.values.items():
+            text = fmt_value(n, vals[n]) if n in vals else ""
+            self._shown[n] = text
+            _assign(h, text)
+            h.disabled = c is None
+        self._fill_range()
+        _assign(self.new_parent, app.parent if app.parent is not None else NONE)
+        labels = [step_label(i, s) for i, s in enumerate(app.task.plan)] or ["-"]
+        self.step.options = labels
+        current = app.step if app.step is not None else _index_of(self.step.value, labels)
+        _assign(self.step, labels[min(max(current, 0), len(labels) - 1)])
+        self.plan.content = _plan_html(app.task.plan, app.step)
+        q = app.question
+        self.question.content = (
+            f'<div id="th-question" style="padding:0 0.75em">{html.escape(q.text)}</div>'
+            if q is not None
+            else ""
+        )
+        self.yes.visible = self.no.visible = q is not None
+        self.effort.content = _effort_html(app.session.effort)
+
+    def _fill_range(self) -> None:
+        c = self.app.constraint
+        dof = self.dof.value
+        if c is None:
+            _assign(self.dof_lo, "")
+            _assign(self.dof_hi, "")
+            return
+        lo, hi = getattr(c.free_dofs, dof)
+        _assign(self.dof_lo, fmt_value(dof, lo))
+        _assign(self.dof_hi, fmt_value(dof, hi))
+
+
+def _assign(handle: Any, value: Any) -> None:
+    """Set a widget's value from the server (viser's typing marks ``value`` read-only)."""
+    handle.value = value
+
+
+def _with_unit(text: str, unit: str) -> str:
+    t = text.strip()
+    return f"{t} {unit}" if t and not any(ch.isalpha() for ch in t) else t
+
+
+def _index_of(value: str, labels: list[str]) -> int:
+    try:
+        return int(value.split(".", 1)[0]) - 1
+    except ValueError:
+        return 0 if labels else -1
+
+
+def _legend(source: str) -> str:
+    from thirdhand.review.playback import HAND_RGB
+
+    items = " ".join(
+        f'<span style="color:{hex_colour(rgb)}">■ {side}</span>' for side, rgb in HAND_RGB.items()
+    )
+    return f'<div style="padding:0 0.75em;font-size:0.85em">{items}<br>contacts: {source}</div>'
+
+
+def _constraint_html(c: Constraint | None) -> str:
+    if c is None:
+        return '<div style="padding:0 0.75em;font-size:0.85em">no constraint</div>'
+    rows = []
+    for name, (lo, hi) in zip(DOF_NAMES, c.free_dofs.ranges(), strict=True):
+        cls = dofs_mod.classify_dof(lo, hi, name)
+        rng = "" if cls == "locked" else f" [{fmt_value(name, lo)}, {fmt_value(name, hi)}]"
+        rows.append(f"<tr><td>{name}</td><td>{cls}{rng}</td></tr>")
+    v = pose_values(c)
+    pose = ", ".join(fmt_value(n, v[n]) for n in VALUE_NAMES)
+    return (
+        f'<div id="th-constraint" style="padding:0 0.75em;font-size:0.85em">'
+        f"<b>{html.escape(c.id)}</b>: {c.type}, confidence {c.confidence:.2f}, {c.source}<br>"
+        f"pose: {pose}<table>{''.join(rows)}</table></div>"
+    )
+
+
+def _plan_html(plan: list[Any], shown: int | None) -> str:
+    items = []
+    for i, s in enumerate(plan):
+        label = html.escape(step_label(i, s))
+        items.append(f"<li><b>{label}</b></li>" if i == shown else f"<li>{label}</li>")
+    return (
+        f'<ol id="th-plan" style="font-size:0.85em;margin:0;padding-left:2em">{"".join(items)}</ol>'
+    )
+
+
+def _effort_html(effort: Any) -> str:
+    counts = effort.counts()
+    rows = []
+    for obj in sorted(counts):
+        ops = ", ".join(f"{op} {n}" for op, n in sorted(counts[obj].items()))
+        rows.append(f"<tr><td>{html.escape(obj)}</td><td>{ops}</td></tr>")
+    total = effort.total()
+    return (
+        f'<div id="th-effort" style="padding:0 0.75em;font-size:0.85em">{total} operations'
+        f"<table>{''.join(rows)}</table></div>"
+    )

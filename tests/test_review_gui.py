@@ -1,0 +1,444 @@
+"""The review GUI end to end in real headless Chromium (Playwright), and its pure helpers.
+
+The browser tests start a :class:`~thirdhand.review.app.ReviewApp` on a free
+port in this process, open it in Debian's ``/usr/bin/chromium`` (software
+WebGL through SwiftShader), act through the widgets, and check both the app's
+state and what the page shows. Screenshots go to ``test-artifacts/review/``.
+They skip, saying so, when ``/usr/bin/chromium`` is absent.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from thirdhand.review.playback import (
+    HAND_RGB,
+    IDLE_RGB,
+    HandContacts,
+    Timeline,
+    contacts_from_labels,
+    playback_colours,
+)
+from thirdhand.review.scene3d import (
+    PARENT_RGB,
+    SELECTED_RGB,
+    dof_glyphs,
+    mesh_arrays,
+    selection_colours,
+    wxyz,
+    xyzw,
+)
+from thirdhand.synth import make_scene
+from thirdhand.synth.task import truth_task
+from thirdhand.task.meshes import box_triangles
+from thirdhand.taskfile import load_task, save_task
+
+ROOT = Path(__file__).resolve().parents[1]
+ARTIFACTS = ROOT / "test-artifacts" / "review"
+CHROMIUM = Path("/usr/bin/chromium")
+MESHES = ROOT.parent / "shared" / "data" / "3rdhand" / "meshes"
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+]
+TIMEOUT_MS = 20_000
+
+
+# ---------------------------------------------------------------------------- pure helpers
+
+
+def test_mesh_arrays_merge_shared_corners() -> None:
+    tri = box_triangles((0, 0, 0), (1, 2, 3))
+    vertices, faces = mesh_arrays(tri)
+    assert vertices.shape == (8, 3)
+    assert faces.shape == (12, 3)
+    np.testing.assert_array_equal(vertices[faces], tri)
+
+
+def test_quaternion_order_round_trip() -> None:
+    q = (0.1, -0.2, 0.3, 0.9)
+    assert wxyz(q) == (0.9, 0.1, -0.2, 0.3)
+    assert xyzw(wxyz(q)) == q
+
+
+def test_selection_colours() -> None:
+    c = selection_colours(["a", "b", "c"], "b", "a")
+    assert c["b"] == SELECTED_RGB and c["a"] == PARENT_RGB
+    assert c["c"] not in (SELECTED_RGB, PARENT_RGB)
+    assert set(selection_colours(["a"], None, None).values()) - {SELECTED_RGB, PARENT_RGB}
+
+
+def test_dof_glyphs_shapes_by_class() -> None:
+    ranges = np.array([[-0.1, 0.2], [0, 0], [0, 0], [-math.pi, math.pi], [-0.01, 0.01], [0, 1.0]])
+    classes = ["limited", "locked", "locked", "full", "noise", "limited"]
+    glyphs = {g.dof: g for g in dof_glyphs(ranges, classes, size=0.2)}
+    assert set(glyphs) == {"tx", "rx", "ry", "rz"}
+    # The translation is one thick line along x over its range.
+    np.testing.assert_allclose(glyphs["tx"].segments, [[[-0.1, 0, 0], [0.2, 0, 0]]])
+    # The full joint is a closed circle about x (in the y-z plane), thicker than a range.
+    full = glyphs["rx"].segments
+    assert np.allclose(full[:, :, 0], 0.0)
+    circle = full[:72]
+    np.testing.assert_allclose(np.linalg.norm(circle, axis=2), 0.6 * 0.2)
+    np.testing.assert_allclose(circle[0, 0], circle[-1, 1], atol=1e-12)
+    assert glyphs["rx"].thickness > glyphs["rz"].thickness > glyphs["ry"].thickness
+    # The limited rotation's arc spans exactly its range about z.
+    arc = glyphs["rz"].segments
+    angles = np.arctan2(arc[:, :, 1], arc[:, :, 0])
+    main = angles[:-4]
+    assert main.min() == pytest.approx(0.0, abs=1e-9) and main.max() == pytest.approx(1.0)
+    # Noise is drawn as dashes over a visible minimum span.
+    assert glyphs["ry"].kind == "noise" and len(glyphs["ry"].segments) == 4
+
+
+def test_timeline_holds_last_valid_pose() -> None:
+    demo = make_scene("chair", seed=0)
+    tl = Timeline(demo)
+    k = demo.n_frames // 2
+    poses = tl.poses_at(float(demo.t[k]))
+    track = demo.track("leg2")
+    valid = np.flatnonzero(track.valid[: k + 1])
+    np.testing.assert_array_equal(poses["leg2"][0], track.pos[valid[-1]])
+    assert tl.frame_at(-1.0) == 0 and tl.frame_at(1e9) == demo.n_frames - 1
+
+
+def test_hand_contacts_from_labels() -> None:
+    demo = make_scene("chair", seed=0)
+    contacts = contacts_from_labels(demo)
+    assert contacts is not None and contacts.source == "labels"
+    iv = next(
+        i for i in demo.labels.interactions if i.a == "rh_index" and i.b == "leg2"
+    )  # a right-hand contact with leg2
+    mid = 0.5 * (iv.start + iv.end)
+    assert contacts.at(mid)["leg2"] in ("right", "both")
+    colours = playback_colours(contacts, ["leg2", "back"], mid)
+    assert colours["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
+    both = HandContacts({("x", "left"): [(0, 1)], ("x", "right"): [(0.5, 2)]})
+    assert both.at(0.7) == {"x": "both"} and both.at(1.5) == {"x": "right"}
+    assert playback_colours(both, ["x"], 3.0) == {"x": IDLE_RGB}
+
+
+# ---------------------------------------------------------------------------- browser fixtures
+
+
+@pytest.fixture(scope="module")
+def chair() -> Any:
+    """The synthetic chair demonstration (seed 0)."""
+    return make_scene("chair", seed=0)
+
+
+@pytest.fixture(scope="module")
+def chromium_browser() -> Iterator[Any]:
+    """Headless Debian Chromium (never a downloaded one)."""
+    if not CHROMIUM.exists():
+        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium package for browser tests")
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as pw:
+        b = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+        yield b
+        b.close()
+
+
+class Review:
+    """A running app, its task file and a page showing it."""
+
+    def __init__(self, app: Any, page: Any, path: Path) -> None:
+        self.app, self.page, self.path = app, page, path
+
+    def shot(self, name: str) -> None:
+        ARTIFACTS.mkdir(parents=True, exist_ok=True)
+        self.page.screenshot(path=str(ARTIFACTS / f"{name}.png"))
+
+    def button(self, name: str) -> Any:
+        return self.page.get_by_role("button", name=name, exact=True)
+
+    def text_input(self, label: str) -> Any:
+        return self.page.locator(
+            f"xpath=//label[normalize-space(.)='{label}']"
+            "/ancestor::div[contains(@class,'mantine-Flex-root')][1]//input"
+        )
+
+    def type_value(self, label: str, text: str) -> None:
+        """Type into a pose field and wait until the server has the text.
+
+        The viser client sends input updates through one throttled slot (50 ms):
+        a click right after typing could overtake the text, so wait for it.
+        """
+        self.text_input(label).fill(text)
+        handle = self.app.panels.values[label]
+        self.wait_for(lambda: handle.value == text, f"the server to get {text!r}")
+
+    def choose(self, label: str, option: str) -> None:
+        self.page.get_by_label(label, exact=True).click()
+        self.page.get_by_role("option", name=option, exact=True).click()
+
+    def wait_for(self, condition: Callable[[], bool], what: str, timeout: float = 10.0) -> None:
+        end = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() > end:
+                self.shot(f"timeout-{what.replace(' ', '-')}")
+                raise AssertionError(f"timed out waiting for {what}")
+            time.sleep(0.05)
+        with self.app.lock:  # the action that made it true has finished refreshing
+            pass
+
+    def colour_of(self, element_id: str) -> str:
+        return str(
+            self.page.evaluate(f"getComputedStyle(document.getElementById('{element_id}')).color")
+        )
+
+
+@pytest.fixture
+def review(tmp_path: Path, chair: Any, chromium_browser: Any) -> Iterator[Review]:
+    """The ground-truth chair task in the app, opened in a fresh page."""
+    from thirdhand.review.app import ReviewApp
+
+    path = tmp_path / "chair.task.json"
+    save_task(truth_task(chair), path)
+    meshes = [MESHES] if MESHES.is_dir() else []
+    app = ReviewApp(path, demos=[chair], port=0, meshes=meshes, light_rendering=True)
+    url = app.start()
+    page = chromium_browser.new_page(viewport={"width": 1280, "height": 900})
+    try:
+        page.goto(url)
+        page.get_by_role("button", name="Save", exact=True).wait_for(timeout=TIMEOUT_MS)
+        yield Review(app, page, path)
+    finally:
+        page.close()
+        app.stop()
+
+
+def rgb_css(rgb: tuple[int, int, int]) -> str:
+    return "rgb({}, {}, {})".format(*rgb)
+
+
+# ---------------------------------------------------------------------------- browser tests
+
+
+@pytest.mark.slow
+def test_select_part_colours_it_and_its_parent(review: Review) -> None:
+    app = review.app
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    assert app.parent == "seating"
+    colours = app.colours()
+    assert colours["leg2"] == SELECTED_RGB and colours["seating"] == PARENT_RGB
+    assert all(colours[n] not in (SELECTED_RGB, PARENT_RGB) for n in ("leg1", "leg3", "back"))
+    sel, par = review.page.locator("#th-selected"), review.page.locator("#th-parent")
+    sel.wait_for(timeout=TIMEOUT_MS)
+    assert sel.inner_text() == "leg2" and par.inner_text() == "seating"
+    assert review.colour_of("th-selected") == rgb_css(SELECTED_RGB)
+    assert review.colour_of("th-parent") == rgb_css(PARENT_RGB)
+    assert app.session.effort.counts()["leg2"]["click"] == 1
+    # The free rotation of the leg (a full joint about its axis) is drawn.
+    assert [g.dof for g in app.glyphs.glyphs] == ["rx"] and app.glyphs.glyphs[0].kind == "full"
+    time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
+    review.shot("select-leg2")
+    # The seating has no parent: only it is orange, and the GUI says so.
+    review.choose("Object", "seating")
+    review.wait_for(lambda: app.selected == "seating", "selection of seating")
+    assert app.parent is None and app.colours()["seating"] == SELECTED_RGB
+    assert PARENT_RGB not in app.colours().values()
+    review.page.get_by_text("(no parent)").wait_for(timeout=TIMEOUT_MS)
+
+
+@pytest.mark.slow
+def test_canvas_click_selects_the_part_under_the_pointer(review: Review) -> None:
+    app = review.app
+    review.wait_for(lambda: bool(app.server.get_clients()), "a client")
+    client = next(iter(app.server.get_clients().values()))
+    review.wait_for(lambda: client.camera.update_timestamp > 0, "the camera state")
+    time.sleep(1.5)  # the camera settles at the pose set on connection
+    name = "leg3"
+    x, y = project(client.camera, app.parts.world_centroid(name), review.page.viewport_size)
+    review.page.mouse.click(x, y)
+    review.wait_for(lambda: app.selected is not None, "a click on the canvas")
+    review.shot("canvas-click")
+    assert app.selected == name
+    assert app.colours()[name] == SELECTED_RGB
+
+
+def project(camera: Any, point: np.ndarray, viewport: dict[str, int]) -> tuple[float, float]:
+    """Pixel of a world point through a viser camera (OpenCV camera frame, vertical fov)."""
+    from thirdhand.se3 import matrix_from_quat
+
+    rot = matrix_from_quat(np.asarray(xyzw(camera.wxyz)))
+    p = rot.T @ (np.asarray(point) - np.asarray(camera.position))
+    w, h = viewport["width"], viewport["height"]
+    f = 0.5 * h / math.tan(0.5 * camera.fov)
+    return w / 2 + f * p[0] / p[2], h / 2 + f * p[1] / p[2]
+
+
+@pytest.mark.slow
+def test_typed_value_is_saved_in_the_file(review: Review) -> None:
+    app = review.app
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    cid = app.constraint.id
+    review.type_value("x", "12 cm")
+    review.button("Apply values").click()
+    review.wait_for(lambda: app.task.constraint_by_id(cid).pos[0] == pytest.approx(0.12), "edit")
+    review.page.locator("#th-dirty").wait_for(timeout=TIMEOUT_MS)
+    review.button("Save").click()
+    review.wait_for(lambda: not app.session.dirty, "save")
+    saved = load_task(review.path)
+    assert saved.constraint_by_id(cid).pos[0] == pytest.approx(0.12)
+    assert saved.constraint_by_id(cid).source == "corrected"
+    assert any(c.field.startswith("constraints") for c in saved.provenance.corrections)
+    effort = saved.stages["review"]["effort"]
+    assert effort["operations"]["leg2"]["movex"] == 1
+    assert review.path.with_name(review.path.name + ".bak").exists()
+    review.page.locator("#th-clean").wait_for(timeout=TIMEOUT_MS)
+    review.shot("typed-value-saved")
+    # Undo brings the old value back (and the file is now behind the session).
+    review.button("Undo").click()
+    review.wait_for(lambda: app.task.constraint_by_id(cid).pos[0] != pytest.approx(0.12), "undo")
+    assert app.session.dirty
+    review.button("Redo").click()
+    review.wait_for(lambda: app.task.constraint_by_id(cid).pos[0] == pytest.approx(0.12), "redo")
+
+
+@pytest.mark.slow
+def test_reordered_keyframe_is_saved(review: Review) -> None:
+    app = review.app
+    before = [s.child for s in app.task.plan]
+    second = review.page.get_by_label("Step", exact=True)
+    second.click()
+    review.page.get_by_role("option").nth(1).click()
+    review.button("Up").click()
+    expected = [before[1], before[0], *before[2:]]
+    review.wait_for(lambda: [s.child for s in app.task.plan] == expected, "reordering")
+    review.page.locator("#th-plan li").first.filter(has_text=before[1]).wait_for()
+    review.button("Show keyframe").click()
+    review.wait_for(lambda: app.step == 0, "keyframe view")
+    review.button("Save").click()
+    review.wait_for(lambda: not app.session.dirty, "save")
+    saved = json.loads(review.path.read_text())
+    assert [s["child"] for s in saved["plan"]] == expected
+    ops = saved["stages"]["review"]["effort"]["operations"]
+    assert sum(o.get("reordering", 0) for o in ops.values()) == 1
+    assert sum(o.get("kfviews", 0) for o in ops.values()) == 1
+    review.shot("keyframe-reordered")
+
+
+@pytest.mark.slow
+def test_timeline_plays_and_colours_parts_by_hand(review: Review) -> None:
+    app = review.app
+    tl = app.timelines[0]
+    start = tl.start
+    review.button("Play").click()
+    review.wait_for(lambda: app.playing, "playback")
+    review.wait_for(lambda: app.time > start + 0.5, "time advancing")
+    review.button("Pause").click()
+    review.wait_for(lambda: not app.playing, "pause")
+    assert app.time > start + 0.5
+    slider_label = review.page.get_by_text("Time (s)", exact=True)
+    slider_label.wait_for(timeout=TIMEOUT_MS)
+    # A time when the right hand holds leg2: the part moves there and turns right-hand red.
+    iv = next(i for i in app.demos[0].labels.interactions if i.a == "rh_index" and i.b == "leg2")
+    app.set_time(0.5 * (iv.start + iv.end))
+    assert app.colours()["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
+    # ... and once it is screwed in, it sits elsewhere than at the start.
+    app.set_time(tl.start)
+    before = np.array(app.parts.frames["leg2"].position, copy=True)
+    app.set_time(app.task.constraint_by_id(app.constraint_of("leg2").id).time + 1.0)
+    after = np.array(app.parts.frames["leg2"].position, copy=True)
+    assert np.linalg.norm(after - before) > 0.05
+    review.shot("playback")
+    review.button("Show task").click()
+    review.wait_for(lambda: app.mode == "task", "back to the task view")
+
+
+@pytest.mark.slow
+def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
+    app, page = review.app, review.page
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    cid = app.constraint.id
+    x0 = app.task.constraint_by_id(cid).pos[0]
+    # An invalid number: refused, the message shown, nothing changed.
+    review.type_value("x", "12 parsecs")
+    review.button("Apply values").click()
+    review.wait_for(lambda: app.message.startswith("Error"), "the refusal")
+    page.locator("#th-message", has_text="parsecs").wait_for(timeout=TIMEOUT_MS)
+    assert app.task.constraint_by_id(cid).pos[0] == x0 and not app.session.dirty
+    # A parent change is fine (leg1 hangs from leg2), the reverse would close a cycle.
+    review.choose("Object", "leg1")
+    review.wait_for(lambda: app.selected == "leg1", "selection of leg1")
+    review.choose("New parent", "leg2")
+    review.button("Change parent").click()
+    review.wait_for(lambda: app.constraint_of("leg1").parent == "leg2", "the parent change")
+    review.wait_for(lambda: app.colours()["leg2"] == PARENT_RGB, "the new parent's colour")
+    page.locator("#th-parent", has_text="leg2").wait_for(timeout=TIMEOUT_MS)
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    review.choose("New parent", "leg1")
+    review.button("Change parent").click()
+    page.locator("#th-message", has_text="cycle").wait_for(timeout=TIMEOUT_MS)
+    assert app.constraint_of("leg2").parent == "seating"
+    assert app.constraint_of("leg1").parent == "leg2"  # the earlier edit is kept
+    review.shot("refused-cycle")
+    # A concurrent edit: the file changed on disk since it was loaded.
+    review.type_value("y", "3 cm")
+    review.button("Apply values").click()
+    review.wait_for(lambda: app.constraint.pos[1] == pytest.approx(0.03), "the edit")
+    theirs = load_task(review.path)
+    theirs.stages["other"] = {"by": "someone else"}
+    save_task(theirs, review.path)
+    on_disk = review.path.read_bytes()
+    review.button("Save").click()
+    page.get_by_text("File changed on disk").wait_for(timeout=TIMEOUT_MS)
+    page.locator("#th-message", has_text="changed on disk").wait_for(timeout=TIMEOUT_MS)
+    review.shot("refused-conflict")
+    assert review.path.read_bytes() == on_disk  # their version untouched
+    side = review.path.with_name(review.path.stem + ".unsaved.json")
+    assert load_task(side).constraint_by_id(cid).pos[1] == pytest.approx(0.03)  # ours kept
+    assert app.task.constraint_by_id(cid).pos[1] == pytest.approx(0.03) and app.session.dirty
+    review.button("Keep both").click()
+    # Reload with unsaved changes asks first; cancelling keeps them.
+    review.button("Reload").click()
+    page.get_by_text("Unsaved changes").wait_for(timeout=TIMEOUT_MS)
+    review.shot("unsaved-guard")
+    review.button("Cancel").click()
+    assert app.session.dirty and app.task.constraint_by_id(cid).pos[1] == pytest.approx(0.03)
+
+
+@pytest.mark.slow
+def test_dof_animation_and_clarification_round(review: Review) -> None:
+    app, page = review.app, review.page
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    rest = np.array(app.parts.frames["leg2"].wxyz, copy=True)
+    review.button("Animate DOFs").click()
+    page.locator("#th-animating").wait_for(timeout=TIMEOUT_MS)
+    review.wait_for(
+        lambda: not np.allclose(np.asarray(app.parts.frames["leg2"].wxyz), rest), "animation"
+    )
+    review.shot("animate-dofs")
+    pytest.importorskip("thirdhand.review.clarify")
+    review.button("Start clarification").click()
+    page.locator("#th-question").wait_for(timeout=TIMEOUT_MS)
+    first = app.question
+    assert first is not None
+    review.button("Yes, right").click()
+    review.wait_for(lambda: app.question is not first, "the next question")
+    c = app.task.constraint_by_id(first.constraint)
+    assert c.confidence == 1.0
+    assert sum(o.get("confirm", 0) for o in app.session.effort.counts().values()) == 1
