@@ -160,3 +160,25 @@ def test_contact_column_falls_back_to_the_origin_distance_without_geometry() -> 
     # With geometry the box and its lid touch: the gap is far below the origin distance.
     xg, _ = DemoFeatures(demo, cfg).pair("box", "lid")
     assert np.median(np.exp(xg[ev, -1]) - cfg.eps_contact) < 0.5 * np.median(origin[ev])
+
+
+def test_kinematic_audit_finds_held_objects_rigid_and_moving() -> None:
+    synth = pytest.importorskip("thirdhand.synth")
+    from thirdhand.segment.diagnose import kinematic_classes
+    from thirdhand.segment.features import latent_axis
+    from thirdhand.segment.intervals import labels_from_intervals, pair_intervals
+
+    demo = synth.make_scene("lid", seed=5, sensor=None)
+    axis = latent_axis(demo.t, 20.0)
+    held = 0
+    for a in ("lh_thumb", "rh_thumb"):
+        for b in ("box", "lid"):
+            y = labels_from_intervals(pair_intervals(demo.labels, a, b), axis.times)
+            inner = (y == 1) & (np.roll(y, 1) == 1) & (np.roll(y, -1) == 1)
+            cls = kinematic_classes(demo, a, b, axis)
+            # A finger's pose in an object it holds is exactly constant.
+            assert np.all(cls[inner] != 0), (a, b)
+            held += int(np.sum(inner & (cls == 1)))
+            # Away from any interaction the finger moves relative to the object somewhere.
+            assert np.any(cls[y == 0] == 0), (a, b)
+    assert held > 0
