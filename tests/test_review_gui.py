@@ -206,23 +206,34 @@ class Review:
 
 
 @pytest.fixture
-def review(tmp_path: Path, chair: Any, chromium_browser: Any) -> Iterator[Review]:
-    """The ground-truth chair task in the app, opened in a fresh page."""
+def open_review(tmp_path: Path, chair: Any, chromium_browser: Any) -> Iterator[Any]:
+    """Open a task (saved to a temporary file) in the app and a fresh page."""
     from thirdhand.review.app import ReviewApp
 
-    path = tmp_path / "chair.task.json"
-    save_task(truth_task(chair), path)
-    meshes = [MESHES] if MESHES.is_dir() else []
-    app = ReviewApp(path, demos=[chair], port=0, meshes=meshes, light_rendering=True)
-    url = app.start()
-    page = chromium_browser.new_page(viewport={"width": 1280, "height": 900})
-    try:
+    opened: list[Review] = []
+
+    def open_(task: Any, name: str = "chair.task.json") -> Review:
+        path = tmp_path / name
+        save_task(task, path)
+        meshes = [MESHES] if MESHES.is_dir() else []
+        app = ReviewApp(path, demos=[chair], port=0, meshes=meshes, light_rendering=True)
+        url = app.start()
+        page = chromium_browser.new_page(viewport={"width": 1280, "height": 900})
+        opened.append(Review(app, page, path))
         page.goto(url)
         page.get_by_role("button", name="Save", exact=True).wait_for(timeout=TIMEOUT_MS)
-        yield Review(app, page, path)
-    finally:
-        page.close()
-        app.stop()
+        return opened[-1]
+
+    yield open_
+    for r in opened:
+        r.page.close()
+        r.app.stop()
+
+
+@pytest.fixture
+def review(open_review: Any, chair: Any) -> Review:
+    """The ground-truth chair task in the app."""
+    return open_review(truth_task(chair))
 
 
 def rgb_css(rgb: tuple[int, int, int]) -> str:
@@ -355,13 +366,14 @@ def test_timeline_plays_and_colours_parts_by_hand(review: Review) -> None:
     iv = next(i for i in app.demos[0].labels.interactions if i.a == "rh_index" and i.b == "leg2")
     app.set_time(0.5 * (iv.start + iv.end))
     assert app.colours()["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
+    time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
+    review.shot("playback")
     # ... and once it is screwed in, it sits elsewhere than at the start.
     app.set_time(tl.start)
     before = np.array(app.parts.frames["leg2"].position, copy=True)
     app.set_time(app.task.constraint_by_id(app.constraint_of("leg2").id).time + 1.0)
     after = np.array(app.parts.frames["leg2"].position, copy=True)
     assert np.linalg.norm(after - before) > 0.05
-    review.shot("playback")
     review.button("Show task").click()
     review.wait_for(lambda: app.mode == "task", "back to the task view")
 
@@ -442,3 +454,74 @@ def test_dof_animation_and_clarification_round(review: Review) -> None:
     c = app.task.constraint_by_id(first.constraint)
     assert c.confidence == 1.0
     assert sum(o.get("confirm", 0) for o in app.session.effort.counts().values()) == 1
+
+
+@pytest.mark.slow
+def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, chair: Any) -> None:
+    from thirdhand.plan.learn import learn
+    from thirdhand.review.clarify import clarification_queue
+
+    task = learn([chair]).task()
+    review = open_review(task, "learned.task.json")
+    app, page = review.app, review.page
+    queue = clarification_queue(app.task)
+    review.button("Start clarification").click()
+    page.locator("#th-question").wait_for(timeout=TIMEOUT_MS)
+    review.wait_for(lambda: app.question is not None, "the first question")
+    assert [q.constraint for q in app.questions] == [q.constraint for q in queue]
+    first = app.task.constraint_by_id(queue[0].constraint)
+    assert page.locator("#th-question").inner_text() == queue[0].text
+    # The question's object is selected (orange, its parent blue) and animated.
+    assert app.selected == first.child and app.colours()[first.child] == SELECTED_RGB
+    assert app.colours()[first.parent] == PARENT_RGB
+    review.shot("learned-clarification")
+    review.button("No, wrong").click()
+    review.wait_for(lambda: app.question_index == 1, "the second question")
+    assert not app.session.dirty  # "no" changes nothing; the person corrects next
+    # A leg is revolute about its x axis: the gizmo turns about x only, within the range.
+    leg = next(c for c in app.task.constraints if c.type == "revolute")
+    review.choose("Object", leg.child)
+    review.wait_for(lambda: app.selected == leg.child, "selection of the leg")
+    gizmo = app.gizmo
+    free = [i for i, (lo, hi) in enumerate(leg.free_dofs.ranges()) if lo != hi]
+    assert free == [3]
+    assert tuple(gizmo.active_axes) == (True, False, False)
+    assert gizmo.disable_axes and gizmo.disable_sliders and not gizmo.disable_rotations
+    assert gizmo.rotation_limits[0] == pytest.approx(leg.free_dofs.rx)
+    # Ticking "Gizmo edits pose" frees every axis for a correction.
+    page.get_by_label("Gizmo edits pose", exact=True).check()
+    review.wait_for(lambda: app.gizmo_edits, "the gizmo mode")
+    assert tuple(app.gizmo.active_axes) == (True, True, True) and not app.gizmo.disable_axes
+
+
+def test_cli_serves_the_page_and_refuses_a_bad_file(tmp_path: Path, chair: Any) -> None:
+    import os
+    import signal
+    import subprocess
+    import sys
+    import urllib.request
+
+    from thirdhand.cli import main
+
+    path = tmp_path / "chair.task.json"
+    save_task(truth_task(chair), path)
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
+    cmd = [sys.executable, "-m", "thirdhand", "review", str(path), "--port", "0", "--light"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stdout is not None
+        line = ""
+        for line in proc.stdout:
+            if line.startswith("thirdhand review:"):
+                break
+        url = line.rsplit(" at ", 1)[1].split()[0]
+        assert url.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(url, timeout=10) as response:
+            assert b"<html" in response.read().lower()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=20)
+    assert proc.returncode == 0
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"schema": "other/1"}')
+    assert main(["review", str(bad)]) == 1

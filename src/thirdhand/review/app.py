@@ -199,7 +199,7 @@ class ReviewApp:
                 away = -off
         away /= np.linalg.norm(away)
         extent = max(self.parts.extent.values(), default=0.3) if self.parts else 0.3
-        eye = centre + 2.2 * max(extent, 0.2) * (away + np.array([0.35, 0.0, 0.6]))
+        eye = centre + 1.4 * max(extent, 0.2) * (away + np.array([0.35, 0.0, 0.6]))
         return _vec3(eye), _vec3(centre)
 
     # ------------------------------------------------------------------ derived state
@@ -500,6 +500,8 @@ class ReviewApp:
             self.time = float(min(max(time_s, tl.start), tl.end))
             self.mode = "playback"
             self._place_playback()
+            if self.panels is not None:
+                self.panels.show_time(self.time)
 
     def play(self, playing: bool = True, *, speed: float = 1.0) -> None:
         """Start (or pause) playback from the current time."""

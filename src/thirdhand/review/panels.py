@@ -395,7 +395,8 @@ def _plan_html(plan: list[Any], shown: int | None) -> str:
         label = html.escape(step_label(i, s))
         items.append(f"<li><b>{label}</b></li>" if i == shown else f"<li>{label}</li>")
     return (
-        f'<ol id="th-plan" style="font-size:0.85em;margin:0;padding-left:2em">{"".join(items)}</ol>'
+        f'<ul id="th-plan" style="font-size:0.85em;margin:0;padding-left:1em;list-style:none">'
+        f"{''.join(items)}</ul>"
     )
 
 

@@ -1,0 +1,59 @@
+"""``thirdhand review TASK.json [--demo REC...] [--port N] [--meshes DIR]``: the review GUI.
+
+Mounted as a top-level command by :mod:`thirdhand.cli` (``COMMANDS``).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from typing import Annotated
+
+import typer
+
+
+def review_command(
+    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/1) to review.")],
+    demo: Annotated[
+        list[Path] | None,
+        typer.Option("--demo", help="A recording to play back on the timeline (repeatable)."),
+    ] = None,
+    port: Annotated[int, typer.Option(help="Port (the next free one if busy).")] = 8080,
+    host: Annotated[
+        str, typer.Option(help="Address to bind; 0.0.0.0 serves the whole network.")
+    ] = "127.0.0.1",
+    meshes: Annotated[
+        list[Path] | None,
+        typer.Option("--meshes", help="A folder of part meshes (repeatable)."),
+    ] = None,
+    light: Annotated[
+        bool,
+        typer.Option("--light", help="No environment map or shadows (software WebGL)."),
+    ] = False,
+) -> None:
+    """Open a task in the review GUI (a local web app): see, animate and correct it.
+
+    Serves until Ctrl-C or the GUI's Quit button (which asks first when there
+    are unsaved changes).
+    """
+    from thirdhand.review.app import ReviewApp
+
+    app = ReviewApp(
+        task,
+        demos=list(demo or []),
+        host=host,
+        port=port,
+        meshes=list(meshes or []),
+        light_rendering=light,
+    )
+    url = app.start()
+    sys.stdout.write(f"thirdhand review: {task} at {url} (Ctrl-C to stop)\n")
+    sys.stdout.flush()
+    try:
+        while not app.quit_requested.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        if app.session.dirty:
+            sys.stderr.write("thirdhand review: stopped with unsaved changes\n")
+    finally:
+        app.stop()
