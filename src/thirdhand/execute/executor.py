@@ -704,16 +704,18 @@ class Executor:
 
     def _go_home(
         self, world: SimWorld, q: FloatArray, seed: int, trajectory: list[dict[str, Any]]
-    ) -> None:
+    ) -> FloatArray:
+        """Plan and execute a motion back to the home configuration; the final ``q``."""
         if np.allclose(q, self.robot.home):
-            return
+            return q
         res = plan_motion(
             self.robot, world.scene, q, self.robot.home, planner=self.options.planner,
             time_limit=self.options.plan_time_limit, seed=seed,
         )  # fmt: skip
         if res.success and res.path is not None:
             rep = StepReport(-1, "", "", "", True, "home")
-            self._execute(world, StepPlan(rep, [Segment("home", res.path)]), q, trajectory)
+            return self._execute(world, StepPlan(rep, [Segment("home", res.path)]), q, trajectory)
+        return q
 
     def run_offline(self, seed: int = 0) -> ExecutionResult:
         """Plan every step first (in a model of the world), then execute the plan."""
@@ -792,6 +794,8 @@ class Executor:
             q = self._execute(world, plan, q, trajectory)
             plan.report.status = "done"
             n_done += 1
+            # leave the shared workspace to the person before looking again
+            q = self._go_home(world, q, seed, trajectory)
         self._go_home(world, q, seed, trajectory)
         order = {c.id: k for k, (_, _, c) in enumerate(steps)}
         reports.sort(key=lambda r: order.get(r.constraint, -1))
