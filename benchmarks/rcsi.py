@@ -20,7 +20,12 @@ from thirdhand.relational.csi import fit_rcsi
 from thirdhand.relational.data import expert_pairs, random_pairs
 from thirdhand.relational.domains.blocks import blocks_mdp, blocks_reward
 from thirdhand.relational.evaluate import perf_of_reward
-from thirdhand.relational.experiments import run_experiment
+from thirdhand.relational.experiments import (
+    BALANCE,
+    REWARD_DISTINCT_FROM_ARGS,
+    REWARD_LOOKAHEAD,
+    run_experiment,
+)
 
 
 def one_run(seed: int, *, shaping: bool) -> tuple[float, float]:
@@ -31,7 +36,15 @@ def one_run(seed: int, *, shaping: bool) -> tuple[float, float]:
     rng = np.random.default_rng(seed)
     e = expert_pairs(mdp, r, 15, rng)
     d = random_pairs(mdp, 300, rng)
-    model = fit_rcsi([(mdp, e)], [(mdp, d)], shaping=shaping, seed=seed)
+    model = fit_rcsi(
+        [(mdp, e)],
+        [(mdp, d)],
+        shaping=shaping,
+        seed=seed,
+        balance=BALANCE,
+        reward_lookahead=REWARD_LOOKAHEAD,
+        reward_distinct_from_args=REWARD_DISTINCT_FROM_ARGS,
+    )
     perf = perf_of_reward(mdp, model.reward_of(mdp), r, 0.9, mdp.sample_states(1000, rng))
     return time.perf_counter() - start, perf
 

@@ -195,3 +195,33 @@ def test_tilde_regression_and_errors() -> None:
         fit_tree([(mdp, pairs)], target[:-1])
     with pytest.raises(RelationalError, match="-1 or \\+1"):
         fit_tree([(mdp, pairs)], target, classification=True)
+
+
+def test_tilde_lookahead_reaches_tower_test() -> None:
+    # Stack reward on 3 coloured blocks: 1 in the one-tower states. "Not a
+    # single tower" is "two distinct blocks stand on the same object (the
+    # floor)": on(X0,X1), on(X2,X1), a conjunction of two binary atoms that
+    # one-atom (or atom + unary) refinements cannot reach in one node.
+    mdp = blocks_mdp(3)
+    pairs = np.arange(mdp.n_pairs)
+    target = blocks_reward(mdp, "stack")
+    assert 0 < target.sum() < target.size
+    for lookahead in (0, 1):
+        weak = fit_tree([(mdp, pairs)], target, max_depth=1, lookahead=lookahead)
+        assert not np.allclose(weak.predict(mdp), target)
+    # Object identity among the test's variables only: with identity to the
+    # action's arguments too, X1 could not be the floor in move(X, floor).
+    kw = {"max_depth": 1, "lookahead": 2, "distinct_from_args": False}
+    tree = fit_tree([(mdp, pairs)], target, **kw)
+    np.testing.assert_allclose(tree.predict(mdp), target)
+    assert [str(a) for a in tree.root.test or ()] == ["on(X0,X1)", "on(X2,X1)"]
+    # Structural, not colour: exact on 4 and 5 blocks too.
+    for n in (4, 5):
+        other = blocks_mdp(n)
+        np.testing.assert_allclose(tree.predict(other), blocks_reward(other, "stack"))
+    # The F-test stop keeps a significant split and refuses a useless one.
+    stopped = fit_tree([(mdp, pairs)], target, significance=0.05, **kw)
+    np.testing.assert_allclose(stopped.predict(mdp), target)
+    noise = np.random.default_rng(0).normal(size=pairs.size)
+    flat = fit_tree([(mdp, pairs)], noise, max_depth=2, significance=1e-6)
+    assert flat.depth() == 0

@@ -83,6 +83,8 @@ def fit_boosted(
     max_depth: int = 4,
     max_vars: int = 3,
     step: float = 1.0,
+    min_leaf: int = 1,
+    lookahead: int = 1,
 ) -> BoostedQ:
     """Fit the boosted large-margin score function ``q_C`` on expert (s, a) pairs.
 
@@ -96,6 +98,8 @@ def fit_boosted(
         Of each classification tree.
     step : float
         Step size ξ_t = step / sqrt(t + 1).
+    min_leaf, lookahead : int
+        Of each classification tree (see :func:`.tilde.fit_tree`).
 
     Raises
     ------
@@ -123,6 +127,8 @@ def fit_boosted(
             max_depth=max_depth,
             max_vars=max_vars,
             classification=True,
+            min_leaf=min_leaf,
+            lookahead=lookahead,
         )
         if tree.root.test is None:
             break

@@ -1,7 +1,7 @@
 """``thirdhand irl``: relational inverse reinforcement learning (RCSI, BLMRIL).
 
-``thirdhand irl experiment {datasize,noise,transfer,dynamics,chair} [--runs N] [--jobs J]``
-reproduces a table of Munzer et al. (IJCAI 2015), ours beside the paper's, and
+``thirdhand irl experiment {datasize,noise,transfer,dynamics,chair} [--runs N] [--jobs J]
+[--checkpoint FILE]`` reproduces a table of Munzer et al. (IJCAI 2015), ours beside the paper's, and
 writes it as JSON. ``thirdhand irl learn TASK.json...`` learns a relational
 reward from the plans of task files (or of synthetic chairs with ``--synth``) and
 plans a bench and chairs with other numbers of legs with it.
@@ -50,6 +50,13 @@ def experiment(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Output JSON (default irl_<name>.json).")
     ] = None,
+    checkpoint: Annotated[
+        Path | None,
+        typer.Option(help="JSON-lines file: each trial appended when done; a rerun resumes."),
+    ] = None,
+    tabulate: Annotated[
+        bool, typer.Option(help="Only tabulate the trials in --checkpoint, run nothing.")
+    ] = False,
 ) -> None:
     """Run one of the paper's experiments and print its table beside the paper's."""
     if name not in EXPERIMENTS:
@@ -58,7 +65,11 @@ def experiment(
         )
     path = json_out if json_out is not None else Path(f"irl_{name}.json")
     start = time.perf_counter()
-    result = run_experiment(name, runs=runs, jobs=jobs, out=path)
+    if tabulate and checkpoint is None:
+        raise RelationalError("irl experiment: --tabulate needs --checkpoint")
+    result = run_experiment(
+        name, runs=runs, jobs=jobs, out=path, checkpoint=checkpoint, tabulate_only=tabulate
+    )
     out.print(format_table(result))
     out.print(f"{time.perf_counter() - start:.1f} s; written {path}")
 

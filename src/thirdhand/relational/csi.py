@@ -72,6 +72,10 @@ def fit_rcsi(
     balance: bool = True,
     seed: int = 0,
     q: BoostedQ | None = None,
+    reward_lookahead: int = 1,
+    reward_min_leaf: int = 1,
+    reward_significance: float | None = None,
+    reward_distinct_from_args: bool = True,
 ) -> RCSIModel:
     """RCSI: the boosted classifier, then the regression of its implied rewards.
 
@@ -95,6 +99,15 @@ def fit_rcsi(
         Of CMA-ES.
     q : BoostedQ, optional
         An already fitted score function (step 1 is then skipped).
+    reward_lookahead : int
+        Lookahead of the reward tree's refinements (see :func:`.tilde.candidates`).
+    reward_min_leaf : int
+        Fewest transitions in a leaf of the reward tree.
+    reward_significance : float, optional
+        F-test level at which the reward tree stops splitting (None: never).
+    reward_distinct_from_args : bool
+        Object identity between the reward tree's variables and the action's
+        arguments (see :func:`.tilde.extend`).
     """
     if q is None:
         q = fit_boosted(expert, n_trees=n_trees, max_depth=max_depth, max_vars=max_vars)
@@ -119,5 +132,15 @@ def fit_rcsi(
         phi_n = np.concatenate([state_features(m, m.pair_next[p]) for m, p in data])
         w = fit_shaping(phi, phi_n, targets, gamma, weights=weights, seed=seed)
         targets = targets + (phi - gamma * phi_n) @ w
-    tree = fit_tree(data, targets, weights=weights, max_depth=reward_depth, max_vars=max_vars)
+    tree = fit_tree(
+        data,
+        targets,
+        weights=weights,
+        max_depth=reward_depth,
+        max_vars=max_vars,
+        lookahead=reward_lookahead,
+        min_leaf=reward_min_leaf,
+        significance=reward_significance,
+        distinct_from_args=reward_distinct_from_args,
+    )
     return RCSIModel(q, tree, w)

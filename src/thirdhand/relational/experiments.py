@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -30,6 +30,12 @@ from thirdhand.relational.mdp import GroundMDP
 
 GAMMA = 0.9
 METHODS = ("BLMRIL", "RCSI", "RCSI+shaping")
+# Reward tree settings of the tables (see docs/relational_results.md): a node may
+# add two atoms (TILDE lookahead), object identity among the test's variables
+# only, D_E and D_NE unweighted as in the paper.
+REWARD_LOOKAHEAD = 2
+REWARD_DISTINCT_FROM_ARGS = False
+BALANCE = False
 
 
 def get_mdp(key: str) -> GroundMDP:
@@ -64,6 +70,9 @@ class Trial:
     seed: int = 0
     methods: tuple[str, ...] = METHODS
     n_eval: int = 1000
+    reward_lookahead: int = REWARD_LOOKAHEAD
+    reward_distinct_from_args: bool = REWARD_DISTINCT_FROM_ARGS
+    balance: bool = BALANCE
 
 
 def run_trial(trial: Trial) -> dict[str, dict[str, float]]:
@@ -90,6 +99,9 @@ def run_trial(trial: Trial) -> dict[str, dict[str, float]]:
                 shaping=m.endswith("shaping"),
                 seed=trial.seed,
                 q=q,
+                balance=trial.balance,
+                reward_lookahead=trial.reward_lookahead,
+                reward_distinct_from_args=trial.reward_distinct_from_args,
             )
     out: dict[str, dict[str, float]] = {m: {} for m in trial.methods}
     for key in trial.evaluate:
@@ -106,10 +118,35 @@ def run_trial(trial: Trial) -> dict[str, dict[str, float]]:
 
 def run_trials(trials: Sequence[Trial], *, jobs: int = 1) -> list[dict[str, dict[str, float]]]:
     """Run trials, in ``jobs`` processes when more than one."""
+    return list(iter_trials(trials, jobs=jobs))
+
+
+def iter_trials(trials: Sequence[Trial], *, jobs: int = 1) -> Iterator[dict[str, dict[str, float]]]:
+    """Results of ``trials`` in order, as each is done (``jobs`` processes when more than one)."""
     if jobs <= 1:
-        return [run_trial(t) for t in trials]
+        yield from (run_trial(t) for t in trials)
+        return
     with ProcessPoolExecutor(max_workers=jobs) as pool:
-        return list(pool.map(run_trial, trials, chunksize=max(1, len(trials) // (4 * jobs))))
+        yield from pool.map(run_trial, trials)
+
+
+def load_checkpoint(path: str | os.PathLike[str] | None, name: str) -> dict[tuple[str, int], Any]:
+    """Trial results already in the checkpoint file ``path`` for experiment ``name``.
+
+    The file holds one JSON object per line: ``{"experiment", "label", "seed",
+    "result"}``; a truncated last line (a run stopped mid-write) is ignored.
+    """
+    done: dict[tuple[str, int], Any] = {}
+    if path is None or not Path(path).exists():
+        return done
+    for line in Path(path).read_text().splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if rec.get("experiment") == name:
+            done[(rec["label"], int(rec["seed"]))] = rec["result"]
+    return done
 
 
 @dataclass
@@ -136,31 +173,59 @@ def _grid(
     columns: Sequence[tuple[str, str, str]],
     runs: int,
     jobs: int,
+    checkpoint: str | os.PathLike[str] | None = None,
+    *,
+    tabulate_only: bool = False,
 ) -> dict[str, Any]:
-    """Run ``runs`` seeds of each row's trial; columns are (title, method, eval domain)."""
-    trials = [
-        t
-        for _, t0, _ in rows
-        for t in (Trial(**{**asdict(t0), "seed": 1000 * k + 17}) for k in range(runs))
+    """Run ``runs`` seeds of each row's trial; columns are (title, method, eval domain).
+
+    Trials run seed by seed (every row's k-th seed before any row's (k+1)-th), so
+    a stopped run leaves comparable rows. With ``checkpoint``, each trial's result
+    is appended to that file as it is done and trials found there are not run
+    again; ``tabulate_only`` tabulates what the checkpoint holds (at most
+    ``runs`` seeds per row) without running anything.
+    """
+    done = load_checkpoint(checkpoint, name)
+    seeds = [1000 * k + 17 for k in range(runs)]
+    todo = [
+        (label, Trial(**{**asdict(t0), "seed": seed}))
+        for seed in seeds
+        for label, t0, _ in rows
+        if (label, seed) not in done
     ]
-    results = run_trials(trials, jobs=jobs)
+    if not tabulate_only and todo:
+        if checkpoint is not None and Path(checkpoint).exists():
+            text = Path(checkpoint).read_bytes()
+            if text and not text.endswith(b"\n"):  # a truncated last record
+                with open(checkpoint, "a") as fh:
+                    fh.write("\n")
+        results = iter_trials([t for _, t in todo], jobs=jobs)
+        for (label, t), res in zip(todo, results, strict=True):
+            done[(label, t.seed)] = res
+            if checkpoint is not None:
+                rec = {"experiment": name, "label": label, "seed": t.seed, "result": res}
+                with open(checkpoint, "a") as fh:
+                    fh.write(json.dumps(rec) + "\n")
     out_rows = []
-    for i, (label, _, paper) in enumerate(rows):
-        res = results[i * runs : (i + 1) * runs]
+    n_max = 0
+    for label, _, paper in rows:
+        per_seed = [done[(label, seed)] for seed in seeds if (label, seed) in done]
+        n_max = max(n_max, len(per_seed))
         row = Row(label, paper=dict(paper))
         for title, method, key in columns:
-            if method in res[0] and key in res[0][method]:
-                row.values[title] = summarise([r[method][key] for r in res])
+            vals = [r[method][key] for r in per_seed if method in r and key in r[method]]
+            if vals:
+                row.values[title] = summarise(vals)
         out_rows.append(row)
     return {
         "experiment": name,
-        "runs": runs,
+        "runs": n_max,
         "columns": [c[0] for c in columns],
         "rows": [asdict(r) for r in out_rows],
     }
 
 
-def datasize(runs: int, jobs: int) -> dict[str, Any]:
+def datasize(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
     """perf against the numbers of expert episodes and random transitions (5 blocks)."""
     rows = []
     for reward in ("stack", "unstack"):
@@ -174,13 +239,13 @@ def datasize(runs: int, jobs: int) -> dict[str, Any]:
                 )
             )
     cols = [(m, m, "blocks5") for m in METHODS]
-    return _grid("datasize", rows, cols, runs, jobs)
+    return _grid("datasize", rows, cols, runs, jobs, **grid)
 
 
 PAPER_NOISE = {"stack": (0.97, 0.93, 0.86, 0.71), "unstack": (0.98, 0.94, 0.84, 0.49)}
 
 
-def noise(runs: int, jobs: int) -> dict[str, Any]:
+def noise(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
     """perf when the expert acts randomly a fraction of the time (5 blocks, 15 + 300)."""
     rows = []
     for reward, paper in PAPER_NOISE.items():
@@ -192,10 +257,10 @@ def noise(runs: int, jobs: int) -> dict[str, Any]:
                     {"RCSI": p},
                 )
             )
-    return _grid("noise", rows, [(m, m, "blocks5") for m in METHODS], runs, jobs)
+    return _grid("noise", rows, [(m, m, "blocks5") for m in METHODS], runs, jobs, **grid)
 
 
-def transfer(runs: int, jobs: int) -> dict[str, Any]:
+def transfer(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
     """perf of rewards learned on 4, 5, 6 or 4+5 blocks, evaluated on 4, 5 and 6 blocks."""
     rows = []
     paper = {
@@ -222,10 +287,10 @@ def transfer(runs: int, jobs: int) -> dict[str, Any]:
         for m in ("RCSI", "RCSI+shaping")
         for k in ("blocks4", "blocks5", "blocks6")
     ]
-    return _grid("transfer", rows, cols, runs, jobs)
+    return _grid("transfer", rows, cols, runs, jobs, **grid)
 
 
-def dynamics(runs: int, jobs: int) -> dict[str, Any]:
+def dynamics(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
     """perf when block b1 is made unmovable at evaluation (trained with every block movable)."""
     rows = []
     for reward in ("stack", "unstack"):
@@ -236,10 +301,10 @@ def dynamics(runs: int, jobs: int) -> dict[str, Any]:
         for m in METHODS
         for k, key in (("movable", "blocks5"), ("b1 fixed", "blocks5-fixed"))
     ]
-    return _grid("dynamics", rows, cols, runs, jobs)
+    return _grid("dynamics", rows, cols, runs, jobs, **grid)
 
 
-def chair(runs: int, jobs: int) -> dict[str, Any]:
+def chair(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
     """The chair world, reward *build*, reward tree depth 6, 15 expert + 1000 random episodes.
 
     With 16 objects, conjunctions keep at most two free variables (16² bindings per pair).
@@ -251,7 +316,7 @@ def chair(runs: int, jobs: int) -> dict[str, Any]:
             {"RCSI": 0.97},
         )
     ]
-    return _grid("chair", rows, [(m, m, "chair4") for m in METHODS], runs, jobs)
+    return _grid("chair", rows, [(m, m, "chair4") for m in METHODS], runs, jobs, **grid)
 
 
 def _large_trial(args: tuple[str, int, int, int]) -> dict[str, float]:
@@ -264,7 +329,15 @@ def _large_trial(args: tuple[str, int, int, int]) -> dict[str, float]:
     mdp = get_mdp("blocks5")
     r = true_reward(mdp, reward)
     expert = [(mdp, expert_pairs(mdp, r, 15, rng, gamma=GAMMA))]
-    model = fit_rcsi(expert, [(mdp, random_pairs(mdp, 300, rng))], gamma=GAMMA, seed=seed)
+    model = fit_rcsi(
+        expert,
+        [(mdp, random_pairs(mdp, 300, rng))],
+        gamma=GAMMA,
+        seed=seed,
+        balance=BALANCE,
+        reward_lookahead=REWARD_LOOKAHEAD,
+        reward_distinct_from_args=REWARD_DISTINCT_FROM_ARGS,
+    )
     perf5 = perf_of_reward(mdp, model.reward_of(mdp), r, GAMMA, mdp.sample_states(1000, rng))
     dom = blocks_domain(n_blocks)
     ratios = []
@@ -279,14 +352,20 @@ def _large_trial(args: tuple[str, int, int, int]) -> dict[str, float]:
 
 
 def large(
-    runs: int, jobs: int, *, sizes: Sequence[int] = (10, 15), n_states: int = 10
+    runs: int,
+    jobs: int,
+    *,
+    sizes: Sequence[int] = (10, 15),
+    n_states: int = 10,
+    **grid: Any,
 ) -> dict[str, Any]:
     """Beyond the paper: rewards learned on 5 blocks, evaluated on 10 and 15 blocks by search.
 
     Grounded enumeration is impossible there (58 786 states for 10 blocks'
     configurations times orderings, ~10^9 for 15); perf is measured on
     ``n_states`` states drawn from P_state per run, with depth-1 lookahead on
-    the learned reward, values from the rollouts.
+    the learned reward, values from the rollouts. ``grid`` (checkpoint options)
+    is accepted and ignored.
     """
     rows = []
     cols: list[str] = []
@@ -307,7 +386,7 @@ def large(
     return {"experiment": "large", "runs": runs, "columns": cols, "rows": rows}
 
 
-EXPERIMENTS: dict[str, Callable[[int, int], dict[str, Any]]] = {
+EXPERIMENTS: dict[str, Callable[..., dict[str, Any]]] = {
     "datasize": datasize,
     "noise": noise,
     "transfer": transfer,
@@ -357,14 +436,25 @@ def format_markdown(result: dict[str, Any]) -> str:
 
 
 def run_experiment(
-    name: str, *, runs: int = 100, jobs: int = 1, out: str | os.PathLike[str] | None = None
+    name: str,
+    *,
+    runs: int = 100,
+    jobs: int = 1,
+    out: str | os.PathLike[str] | None = None,
+    checkpoint: str | os.PathLike[str] | None = None,
+    tabulate_only: bool = False,
 ) -> dict[str, Any]:
-    """Run one experiment, write its JSON to ``out`` when given, return the result."""
+    """Run one experiment, write its JSON to ``out`` when given, return the result.
+
+    ``checkpoint``: a JSON-lines file where each trial's result is appended as it
+    is done, and from which a stopped run resumes; ``tabulate_only``: only
+    tabulate the trials the checkpoint holds.
+    """
     if name not in EXPERIMENTS:
         raise RelationalError(
             f"unknown experiment {name!r}, expected one of {', '.join(EXPERIMENTS)}"
         )
-    result = EXPERIMENTS[name](runs, jobs)
+    result = EXPERIMENTS[name](runs, jobs, checkpoint=checkpoint, tabulate_only=tabulate_only)
     if out is not None:
         Path(out).write_text(json.dumps(result, indent=1))
     return result

@@ -26,6 +26,7 @@ from itertools import product
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy import stats
 
 from thirdhand.relational.logic import Atom, RelationalError
 from thirdhand.relational.mdp import GroundMDP
@@ -110,7 +111,9 @@ def _new_vars(atom: Atom, vars_: Sequence[str]) -> list[str]:
     return out
 
 
-def extend(batch: Batch, vars_: Sequence[str], atom: Atom) -> tuple[Bindings, list[str]]:
+def extend(
+    batch: Batch, vars_: Sequence[str], atom: Atom, *, distinct_from_args: bool = True
+) -> tuple[Bindings, list[str]]:
     """Bindings after adding ``atom`` to the conjunction, and the new variable list.
 
     Parameters
@@ -121,6 +124,11 @@ def extend(batch: Batch, vars_: Sequence[str], atom: Atom) -> tuple[Bindings, li
         Free variables, in axis order.
     atom : Atom
         Arguments are ``A<j>`` (action argument j), existing or new ``X<k>`` variables.
+    distinct_from_args : bool
+        Object identity also between the new variables and the action's
+        arguments (else only among the ``X`` variables, so that a test of the
+        state alone, such as ``on(X0,X1), on(X2,X1)``, means the same for every
+        action).
 
     Returns
     -------
@@ -168,8 +176,9 @@ def extend(batch: Batch, vars_: Sequence[str], atom: Atom) -> tuple[Bindings, li
                 sh2 = [1] * (k + 1)
                 sh2[all_vars.index(other) + 1] = n_obj
                 out &= mine != np.arange(n_obj).reshape(sh2)
-        for j in range(batch.args.shape[1]):
-            out &= mine != batch.args[:, j].reshape(shape)
+        if distinct_from_args:
+            for j in range(batch.args.shape[1]):
+                out &= mine != batch.args[:, j].reshape(shape)
     return out, all_vars
 
 
@@ -186,12 +195,19 @@ def candidates(
     n_action_args: int,
     vars_: Sequence[str],
     max_vars: int,
+    *,
+    lookahead: int = 1,
 ) -> list[tuple[Atom, ...]]:
     """Refinements of a conjunction with free variables ``vars_``.
 
     One atom with arguments among the action's, the existing variables and up to
-    ``max_vars - len(vars_)`` new ones; for an atom introducing variables, also its
-    conjunction with each unary atom on each new variable (one step of lookahead).
+    ``max_vars - len(vars_)`` new ones. For an atom introducing variables, also
+    its conjunction with a second atom on a new variable (TILDE's lookahead):
+    ``lookahead=1`` a unary atom on each new variable, ``lookahead=2`` any atom
+    that uses a new variable (its other arguments: the action's, the bound
+    variables, the atom's new variables or, within ``max_vars``, one more new
+    variable), so that a chain such as ``on(X0,X1), on(X1,X2)`` or a test
+    ``on(A1,X0), on(X0,X1)`` takes one node. ``lookahead=0``: single atoms only.
     """
     out: list[tuple[Atom, ...]] = [(Atom("@action", (a,)),) for a in actions]
     act = [f"A{j}" for j in range(n_action_args)]
@@ -213,8 +229,23 @@ def candidates(
             names = {"new1": f"X{k0}", "new2": f"X{k0 + 1}"}
             atom = Atom(pred, tuple(names.get(a, a) for a in args))
             out.append((atom,))
-            for nv in ("new1", "new2")[:n_new]:
-                out.extend((atom, Atom(u, (names[nv],))) for u in unary if u != pred)
+            if n_new == 0 or lookahead <= 0:
+                continue
+            fresh = [names[nv] for nv in ("new1", "new2")[:n_new]]
+            if lookahead == 1:
+                out.extend((atom, Atom(u, (v,))) for v in fresh for u in unary if u != pred)
+                continue
+            bound = [*vars_, *fresh]
+            extra = [f"X{k0 + n_new}"] if k0 + n_new < max_vars else []
+            seen = {atom}
+            for pred2, arity2 in sorted(predicates.items()):
+                for args2 in product([*act, *bound, *extra], repeat=arity2):
+                    if not set(args2) & set(fresh) or len(set(args2)) != arity2:
+                        continue
+                    second = Atom(pred2, args2)
+                    if second not in seen:
+                        seen.add(second)
+                        out.append((atom, second))
     return out
 
 
@@ -223,6 +254,7 @@ class RelationalTree:
     """A fitted relational tree; :meth:`predict` evaluates it on pairs of any grounded MDP."""
 
     root: Node
+    distinct_from_args: bool = True
 
     def predict(
         self, mdp: GroundMDP, pairs: NDArray[np.int64] | None = None
@@ -241,7 +273,9 @@ class RelationalTree:
             return np.full(batch.pairs.size, node.value)
         b, v = batch.bindings, list(vars_)
         for atom in node.test:
-            b, v = extend(batch.with_bindings(b), v, atom)
+            b, v = extend(
+                batch.with_bindings(b), v, atom, distinct_from_args=self.distinct_from_args
+            )
         ok = satisfied(b)
         out = np.empty(batch.pairs.size)
         if ok.any():
@@ -296,6 +330,16 @@ def _split_sse(
     return out
 
 
+def _significant(sse_before: float, sse_after: float, n: int, alpha: float) -> bool:
+    """F-test of a binary split: does it explain significantly more than the mean?"""
+    if n <= 2 or sse_before <= 0:
+        return False
+    if sse_after <= 1e-12 * sse_before:
+        return True
+    f = (sse_before - sse_after) / (sse_after / (n - 2))
+    return bool(stats.f.sf(f, 1, n - 2) < alpha)
+
+
 def fit_tree(
     examples: Sequence[tuple[GroundMDP, NDArray[np.int64]]],
     y: NDArray[np.float64],
@@ -305,6 +349,9 @@ def fit_tree(
     max_vars: int = 3,
     min_leaf: int = 1,
     classification: bool = False,
+    lookahead: int = 1,
+    significance: float | None = None,
+    distinct_from_args: bool = True,
 ) -> RelationalTree:
     """Top-down induction of a relational regression (or classification) tree.
 
@@ -323,6 +370,16 @@ def fit_tree(
         Fewest examples in a leaf.
     classification : bool
         Check that the labels are ±1 (the split criterion, Gini, is then variance).
+    lookahead : int
+        Second atom a node may add with an atom introducing variables
+        (see :func:`candidates`).
+    significance : float, optional
+        TILDE's stopping criterion for regression trees: keep the best split
+        only when an F-test of its variance reduction is significant at this
+        level (F(1, n − 2) on the node's n examples); None: any reduction.
+    distinct_from_args : bool
+        Object identity between the tests' variables and the action's arguments
+        (see :func:`extend`).
 
     Raises
     ------
@@ -346,6 +403,7 @@ def fit_tree(
         actions += [a.name for a in mdp.domain.actions if a.name not in actions]
         n_args = max(n_args, max(len(a.params) for a in mdp.domain.actions))
     batches = [Batch.start(m, p) for m, p in examples]
+    oi = distinct_from_args
 
     def leaf(yy: NDArray[np.float64], ww: NDArray[np.float64]) -> Node:
         return Node(None, float((ww * yy).sum() / ww.sum()) if ww.sum() > 0 else 0.0, n=yy.size)
@@ -373,20 +431,20 @@ def fit_tree(
             [b.bindings for b in bs],
             vars_,
         )
-        for cand in candidates(predicates, actions, n_args, vars_, max_vars):
+        for cand in candidates(predicates, actions, n_args, vars_, max_vars, lookahead=lookahead):
             if cand[:-1] != prefix[0]:
                 pb, pv = [b.bindings for b in bs], list(vars_)
                 for atom in cand[:-1]:
                     nb = []
                     for bt, b in zip(bs, pb, strict=True):
-                        b2, v2 = extend(bt.with_bindings(b), pv, atom)
+                        b2, v2 = extend(bt.with_bindings(b), pv, atom, distinct_from_args=oi)
                         nb.append(b2)
                     pb, pv = nb, v2
                 prefix = (cand[:-1], pb, pv)
             new_b: list[Bindings] = []
             v: list[str] = list(prefix[2])
             for bt, b in zip(bs, prefix[1], strict=True):
-                b2, v = extend(bt.with_bindings(b), prefix[2], cand[-1])
+                b2, v = extend(bt.with_bindings(b), prefix[2], cand[-1], distinct_from_args=oi)
                 new_b.append(b2)
             m = np.concatenate([satisfied(b) for b in new_b])
             k = int(m.sum())
@@ -396,6 +454,8 @@ def fit_tree(
             if score < base - 1e-9 and (best is None or score < best[0] - 1e-9):
                 best = (score, cand, new_b, v, m)
         if best is None:
+            return node
+        if significance is not None and not _significant(base, best[0], yy.size, significance):
             return node
         _, cand, new_b, v, m = best
         yes_bs, no_bs, lo = [], [], 0
@@ -409,4 +469,4 @@ def fit_tree(
         node.no = grow(no_bs, list(vars_), yy[~m], ww[~m], depth + 1)
         return node
 
-    return RelationalTree(grow(batches, [], y, w, 0))
+    return RelationalTree(grow(batches, [], y, w, 0), distinct_from_args=oi)
