@@ -1,4 +1,4 @@
-"""Free-DOF experiment: success placing a hard-to-reach leg with vs without sampling inside the free DOFs.
+"""Free-DOF experiment: placing a hard-to-reach leg with vs without goals sampled in the free DOFs.
 
 Usage: ``python scripts/execute_experiments.py [--scene bench|chair] [--runs 50] [--meshes DIR]``.
 Prints one row per run and the summary table (see docs/execution.md).

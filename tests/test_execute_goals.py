@@ -92,7 +92,7 @@ def test_samples_stay_inside_the_ranges_and_are_seeded() -> None:
     assert np.all(a[:, [0, 1, 2, 4, 5]] == 0.0)
     assert np.all(np.abs(a[:, 3]) <= np.pi)
     np.testing.assert_array_equal(a[0], np.zeros(6))  # the demonstrated pose first
-    goals, dofs = sample_goals(np.eye(4), c, 10, 4)
+    goals, _ = sample_goals(np.eye(4), c, 10, 4)
     assert all(constraint_holds(g, c) for g in goals)
 
 

@@ -109,7 +109,8 @@ class Segment:
     Attributes
     ----------
     name : str
-        ``"approach"``, ``"grasp"``, ``"lift"``, ``"transport"``, ``"insert"``, ``"retreat"``, ``"home"``.
+        ``"approach"``, ``"grasp"``, ``"lift"``, ``"transport"``, ``"insert"``,
+        ``"retreat"`` or ``"home"``.
     path : ndarray, shape (m, dof)
         Waypoints, radians; straight joint segments between them.
     before, after : list of tuple
@@ -175,7 +176,7 @@ class StepPlan:
     final_pose: FloatArray | None = None
 
 
-def _trans(v: Sequence[float]) -> FloatArray:
+def _trans(v: Sequence[float] | FloatArray) -> FloatArray:
     t = np.eye(4)
     t[:3, 3] = v
     return t
@@ -323,7 +324,7 @@ def _candidate_grasps(
         cands += grasp_mod.shape_grasps(obj.bbox_min, obj.bbox_max)
     avoid = invert(constraint.pose.matrix())[:3, 3]
     rot = part_pose[:3, :3]
-    scored = []
+    scored: list[tuple[bool, float, int, grasp_mod.Grasp]] = []
     for g in cands:
         down = -float((rot @ g.pose[:3, 2])[2])
         if down < -0.1:
@@ -628,7 +629,9 @@ class Executor:
                 if c.time is None:
                     continue
                 obj = next(o for o in task.objects if o.name == c.child)
-                box = None if obj.bbox_min is None else (obj.bbox_min, obj.bbox_max)
+                box = None
+                if obj.bbox_min is not None and obj.bbox_max is not None:
+                    box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
                 self.hints[c.child] = grasp_mod.demo_grasps(demo, c.child, c.time, bbox=box)
         self.primitives = task.stages.get("primitives") if self.options.use_primitives else None
 
@@ -777,7 +780,7 @@ class Executor:
             todo = [
                 (i, c) for i, _, c in steps
                 if not holds[c.id] and c.id not in failed
-                and (c.parent == self.cell.base or holds.get(self._parent_constraint(c.parent), True))
+                and self._parent_ready(c, holds)
             ]  # fmt: skip
             if not todo:
                 if not pending_events:
@@ -801,8 +804,12 @@ class Executor:
         reports.sort(key=lambda r: order.get(r.constraint, -1))
         return self._result(world, reports, trajectory, log)
 
-    def _parent_constraint(self, part: str) -> str | None:
-        return next((c.id for c in self.task.constraints if c.child == part), None)
+    def _parent_ready(self, c: Constraint, holds: Mapping[str, bool]) -> bool:
+        """The parent is the base, or its own constraint holds."""
+        if c.parent == self.cell.base:
+            return True
+        cid = next((p.id for p in self.task.constraints if p.child == c.parent), None)
+        return cid is None or holds[cid]
 
     def _sync_contacts(self, world: SimWorld, holds: Mapping[str, bool]) -> None:
         """A part touches its parent exactly while its constraint holds."""
@@ -846,7 +853,8 @@ def slip(task: TaskFile, constraint_id: str, distance: float = 0.04) -> WorldEve
     axis = insertion_axis(task, c)
 
     def event(world: SimWorld) -> str:
-        world.set_pose(c.child, world.pose(c.child) @ _trans(distance * axis))
+        moved: FloatArray = world.pose(c.child) @ _trans(distance * axis)
+        world.set_pose(c.child, moved)
         world.scene.disallow(c.child, c.parent)
         return f"slip: {c.child} out of {c.parent} by {distance:g} m ({c.id})"
 

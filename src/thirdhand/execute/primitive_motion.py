@@ -64,7 +64,7 @@ def follow_tool_path(
 
 
 def straight_line(t_a: ArrayLike, t_b: ArrayLike, n: int) -> FloatArray:
-    """``n`` poses (n, 4, 4) from ``t_a`` to ``t_b``: positions on the segment, slerped rotations."""
+    """``n`` poses (n, 4, 4) from ``t_a`` to ``t_b``: points on the segment, slerped rotations."""
     a = np.asarray(t_a, dtype=np.float64)
     b = np.asarray(t_b, dtype=np.float64)
     w = np.linspace(0.0, 1.0, n)
