@@ -134,6 +134,50 @@ def test_hand_contacts_from_labels() -> None:
     assert playback_colours(both, ["x"], 3.0) == {"x": IDLE_RGB}
 
 
+def test_segmentation_contacts_agree_with_labels() -> None:
+    from thirdhand.review.playback import contacts_from_segmentation, hand_contacts
+
+    demo = make_scene("chair", seed=0)
+    found = contacts_from_segmentation(demo)
+    truth = contacts_from_labels(demo)
+    assert found.source == "segmentation" and truth is not None
+    assert found.objects == truth.objects
+    times = np.linspace(demo.t[0], demo.t[-1], 1000)
+    agree = np.mean([found.at(t) == truth.at(t) for t in times])
+    assert agree > 0.9
+    assert hand_contacts(demo).source == "labels"
+
+
+def test_gizmo_correction_applies_the_dragged_pose(chair: Any, tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from thirdhand.review.app import ReviewApp
+    from thirdhand.se3 import quat_rotate
+
+    path = tmp_path / "chair.task.json"
+    save_task(truth_task(chair), path)
+    app = ReviewApp(path, port=0, light_rendering=True)
+    app.start()
+    try:
+        app.select("leg2")
+        c = app.constraint
+        assert c is not None and c.frame.is_identity
+        app.set_gizmo_edits(True)
+        assert app.gizmo is not None
+        # Dragged 2 cm along the constraint frame's x axis and released.
+        moved = SimpleNamespace(position=(0.02, 0.0, 0.0), wxyz=(1.0, 0.0, 0.0, 0.0))
+        app._gizmo_moved(SimpleNamespace(target=moved, phase="update"))
+        assert app.task.constraint_by_id(c.id).pos == c.pos  # a drag previews only
+        app._gizmo_moved(SimpleNamespace(target=moved, phase="end"))
+        new = app.task.constraint_by_id(c.id)
+        expected = np.asarray(c.pos) + quat_rotate(c.quat, [0.02, 0.0, 0.0])
+        np.testing.assert_allclose(new.pos, expected, atol=1e-9)
+        np.testing.assert_allclose(np.abs(np.dot(new.quat, c.quat)), 1.0, atol=1e-9)
+        assert app.session.effort.counts()["leg2"]["movex"] == 1
+    finally:
+        app.stop()
+
+
 # ---------------------------------------------------------------------------- browser fixtures
 
 
@@ -182,7 +226,8 @@ class Review:
         a click right after typing could overtake the text, so wait for it.
         """
         self.text_input(label).fill(text)
-        handle = self.app.panels.values[label]
+        panels = self.app.panels
+        handle = {"min": panels.dof_lo, "max": panels.dof_hi}.get(label) or panels.values[label]
         self.wait_for(lambda: handle.value == text, f"the server to get {text!r}")
 
     def choose(self, label: str, option: str) -> None:
@@ -208,6 +253,8 @@ class Review:
 @pytest.fixture
 def open_review(tmp_path: Path, chair: Any, chromium_browser: Any) -> Iterator[Any]:
     """Open a task (saved to a temporary file) in the app and a fresh page."""
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
+
     from thirdhand.review.app import ReviewApp
 
     opened: list[Review] = []
@@ -222,6 +269,12 @@ def open_review(tmp_path: Path, chair: Any, chromium_browser: Any) -> Iterator[A
         opened.append(Review(app, page, path))
         page.goto(url)
         page.get_by_role("button", name="Save", exact=True).wait_for(timeout=TIMEOUT_MS)
+        # The client's own notice about software WebGL would cover the screenshots.
+        notice = page.locator(".mantine-Notification-root", has_text="Software WebGL")
+        try:
+            notice.locator("button").click(timeout=3000)
+        except PlaywrightTimeout:
+            pass
         return opened[-1]
 
     yield open_
@@ -324,6 +377,24 @@ def test_typed_value_is_saved_in_the_file(review: Review) -> None:
     assert app.session.dirty
     review.button("Redo").click()
     review.wait_for(lambda: app.task.constraint_by_id(cid).pos[0] == pytest.approx(0.12), "redo")
+    # Rough adjustment: +1 cm along z.
+    z0 = app.task.constraint_by_id(cid).pos[2]
+    review.choose("Nudge", "z")
+    review.wait_for(lambda: app.panels.nudge_what.value == "z", "the nudge axis")
+    review.button("+1").click()
+    review.wait_for(lambda: app.task.constraint_by_id(cid).pos[2] == pytest.approx(z0 + 0.01), "z")
+    # A DOF range typed in degrees: the leg may only turn a quarter.
+    review.choose("DOF", "rx")
+    review.wait_for(lambda: app.panels.dof.value == "rx", "the DOF")
+    review.type_value("min", "-45")
+    review.type_value("max", "45 deg")
+    review.button("Set range").click()
+    quarter = (-math.pi / 4, math.pi / 4)
+    review.wait_for(
+        lambda: app.task.constraint_by_id(cid).free_dofs.rx == pytest.approx(quarter), "range"
+    )
+    assert [g.kind for g in app.glyphs.glyphs] == ["limited"]
+    review.shot("range-set")
 
 
 @pytest.mark.slow
@@ -437,12 +508,13 @@ def test_dof_animation_and_clarification_round(review: Review) -> None:
     app, page = review.app, review.page
     review.choose("Object", "leg2")
     review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    rest = np.array(app.parts.frames["leg2"].wxyz, copy=True)
+    frame = app.parts.frames["leg2"]
+    rest = np.array(frame.position, copy=True)
     review.button("Animate DOFs").click()
-    page.locator("#th-animating").wait_for(timeout=TIMEOUT_MS)
-    review.wait_for(
-        lambda: not np.allclose(np.asarray(app.parts.frames["leg2"].wxyz), rest), "animation"
-    )
+    # The six DOFs one after another, tx first (locked: a small swing shows its axis).
+    page.locator("#th-animating", has_text="animating tx").wait_for(timeout=TIMEOUT_MS)
+    review.wait_for(lambda: not np.allclose(frame.position, rest), "the animation")
+    page.locator("#th-animating", has_text="animating ty").wait_for(timeout=TIMEOUT_MS)
     review.shot("animate-dofs")
     pytest.importorskip("thirdhand.review.clarify")
     review.button("Start clarification").click()

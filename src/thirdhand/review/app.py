@@ -488,8 +488,24 @@ class ReviewApp:
         self.animating = None
         if self.panels is not None:
             self.panels.show_animation(c, None)
-        with self.lock:
-            self._place_parts()
+        if self._acquire_unless(stop):
+            try:
+                self._place_parts()
+            finally:
+                self.lock.release()
+
+    def _acquire_unless(self, stop: threading.Event) -> bool:
+        """Take the app lock for a worker, unless it is told to stop meanwhile.
+
+        The thread halting a worker holds the lock while it waits for it, so a
+        worker must never block on the lock.
+        """
+        while not stop.is_set():
+            if self.lock.acquire(timeout=0.05):
+                if not stop.is_set():
+                    return True
+                self.lock.release()
+        return False
 
     def set_time(self, time_s: float) -> None:
         """Show the demonstration at ``time_s`` seconds (parts coloured by the holding hand)."""
@@ -522,9 +538,9 @@ class ReviewApp:
         last = time.perf_counter()
         while not stop.wait(1.0 / PLAYBACK_RATE):
             now = time.perf_counter()
-            with self.lock:
-                if stop.is_set():
-                    return
+            if not self._acquire_unless(stop):
+                return
+            try:
                 t = self.time + speed * (now - last)
                 last = now
                 if t >= tl.end:
@@ -533,6 +549,8 @@ class ReviewApp:
                 self._place_playback()
                 if self.panels is not None:
                     self.panels.show_time(t)
+            finally:
+                self.lock.release()
 
     def show_task(self) -> None:
         """Leave playback: parts back at their constraint poses."""
