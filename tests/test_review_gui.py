@@ -337,6 +337,16 @@ def test_canvas_click_selects_the_part_under_the_pointer(review: Review) -> None
     review.shot("canvas-click")
     assert app.selected == name
     assert app.colours()[name] == SELECTED_RGB
+    # Context action: with leg1 selected, a shift-click on leg3 makes it leg1's parent.
+    review.choose("Object", "leg1")
+    review.wait_for(lambda: app.selected == "leg1", "selection of leg1")
+    x, y = project(client.camera, app.parts.world_centroid(name), review.page.viewport_size)
+    review.page.keyboard.down("Shift")
+    review.page.mouse.click(x, y)
+    review.page.keyboard.up("Shift")
+    review.wait_for(lambda: app.constraint_of("leg1").parent == name, "the new parent")
+    assert app.colours()[name] == PARENT_RGB and app.selected == "leg1"
+    assert app.session.effort.counts()["leg1"]["parent"] == 1
 
 
 def project(camera: Any, point: np.ndarray, viewport: dict[str, int]) -> tuple[float, float]:

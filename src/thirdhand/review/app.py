@@ -266,8 +266,29 @@ class ReviewApp:
             self.mode = "task"
             self.refresh()
 
-    def _clicked(self, name: str) -> None:
-        self.attempt(self.select, name)
+    def _clicked(self, name: str, modifier: str | None = None) -> None:
+        """A click in the 3D view: select; shift: make it the selection's parent;
+        ctrl/cmd: animate its DOFs (the report's context-menu actions)."""
+        if modifier == "shift":
+            self.attempt(self._reparent_selected, name)
+        elif modifier == "cmd/ctrl":
+            self.attempt(self._animate_object, name)
+        else:
+            self.attempt(self.select, name)
+
+    def _reparent_selected(self, parent: str) -> None:
+        from thirdhand.review.edits import SetParent
+
+        if self.selected is None:
+            raise ThirdhandError("select the child first, then shift-click its new parent")
+        self.apply(SetParent(self.selected, parent), operation="parent")
+
+    def _animate_object(self, name: str) -> None:
+        c = self.constraint_of(name)
+        if c is None:
+            raise ThirdhandError(f"{name} has no constraint to animate")
+        self.select(name)
+        self.animate_dofs(c.id)
 
     def apply(self, edit: Edit, *, operation: str | None = None) -> None:
         """Apply one edit through the session (undoable, logged); refresh the views.

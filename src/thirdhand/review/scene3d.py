@@ -257,7 +257,7 @@ class PartsView:
         self.extent: dict[str, float] = {}
         self.centroid: dict[str, FloatArray] = {}
         self.colours: dict[str, Rgb] = {}
-        self._click: list[Callable[[str], None]] = []
+        self._click: list[Callable[[str, str | None], None]] = []
         for name in self.names:
             obj = objs.get(name)
             tri = None if obj is None else object_triangles(obj, task_path, search)
@@ -271,20 +271,25 @@ class PartsView:
             mesh = scene.add_mesh_simple(
                 f"{root}/{name}/mesh", vertices, faces, color=DEFAULT_RGB, side="double"
             )
-            mesh.on_click(self._clicked(name))
+            mesh.on_click(self._clicked(name, None))
+            mesh.on_click(modifier="shift")(self._clicked(name, "shift"))
+            mesh.on_click(modifier="cmd/ctrl")(self._clicked(name, "cmd/ctrl"))
             self.frames[name] = frame
             self.meshes[name] = mesh
             self.colours[name] = DEFAULT_RGB
 
-    def _clicked(self, name: str) -> Callable[[object], None]:
+    def _clicked(self, name: str, modifier: str | None) -> Callable[[object], None]:
         def handler(_event: object) -> None:
             for cb in self._click:
-                cb(name)
+                cb(name, modifier)
 
         return handler
 
-    def on_click(self, callback: Callable[[str], None]) -> None:
-        """Call ``callback(name)`` when an object's mesh is clicked in the 3D view."""
+    def on_click(self, callback: Callable[[str, str | None], None]) -> None:
+        """Call ``callback(name, modifier)`` when an object's mesh is clicked in the 3D view.
+
+        ``modifier`` is None for a plain click, ``"shift"`` or ``"cmd/ctrl"`` otherwise.
+        """
         self._click.append(callback)
 
     def set_pose(self, name: str, pos: Vector, quat: Vector) -> None:
