@@ -24,6 +24,7 @@ from thirdhand.relational.experiments import (
     BALANCE,
     REWARD_DISTINCT_FROM_ARGS,
     REWARD_LOOKAHEAD,
+    SHAPING,
     run_experiment,
 )
 
@@ -39,7 +40,7 @@ def one_run(seed: int, *, shaping: bool) -> tuple[float, float]:
     model = fit_rcsi(
         [(mdp, e)],
         [(mdp, d)],
-        shaping=shaping,
+        shaping=SHAPING["RCSI+shaping"] if shaping else False,
         seed=seed,
         balance=BALANCE,
         reward_lookahead=REWARD_LOOKAHEAD,

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from thirdhand.relational.assembly import learn_assembly, load_trajectory, part_names, plan_assembly
 from thirdhand.relational.boosting import fit_boosted
 from thirdhand.relational.cli import app
-from thirdhand.relational.csi import csi_targets, fit_rcsi
+from thirdhand.relational.csi import advantage_targets, csi_targets, fit_rcsi, state_values
 from thirdhand.relational.data import expert_pairs, random_pairs, wait_kind
 from thirdhand.relational.domains.blocks import blocks_mdp, blocks_reward
 from thirdhand.relational.domains.plans import (
@@ -77,6 +77,36 @@ def test_blmril_and_rcsi_unstack() -> None:
     nxt = mdp.pair_next[e[0]]
     best = q.predict(mdp, np.arange(mdp.ptr[nxt], mdp.ptr[nxt + 1])).max()
     assert t[0] == pytest.approx(q.predict(mdp, e[:1])[0] - 0.9 * best)
+
+
+def test_rcsi_stack_with_structural_reward() -> None:
+    # The fix of the stack gap: two-atom refinements in the reward tree and the
+    # shaping f(s) = -max_a q(s,a). Plain RCSI with the old tree (one atom +
+    # unary, weighted D_E) loops on this seed.
+    mdp = blocks_mdp(5)
+    r = blocks_reward(mdp, "stack")
+    rng = np.random.default_rng(5017)
+    e = expert_pairs(mdp, r, 15, rng)
+    d = random_pairs(mdp, 300, rng)
+    states = mdp.sample_states(1000, rng)
+    q = fit_boosted([(mdp, e)], n_trees=40)
+    old = fit_rcsi([(mdp, e)], [(mdp, d)], q=q)
+    assert perf_of_reward(mdp, old.reward_of(mdp), r, 0.9, states) < 0.5
+    kw = {"balance": False, "reward_lookahead": 2, "reward_distinct_from_args": False}
+    new = fit_rcsi([(mdp, e)], [(mdp, d)], q=q, shaping="advantage", **kw)  # type: ignore[arg-type]
+    assert perf_of_reward(mdp, new.reward_of(mdp), r, 0.9, states) > 0.95
+    # Shaped targets = q'(s,a) - γ max q'(s',.) with q' = q - max_a q(s,a): the advantage.
+    pairs = np.arange(mdp.n_pairs)
+    adv = advantage_targets(q, mdp, pairs)
+    full = q.predict(mdp)
+    shaped = full - state_values(q, mdp, mdp.pair_state)
+    best_next = np.maximum.reduceat(shaped, mdp.ptr[:-1])[mdp.pair_next]
+    np.testing.assert_allclose(adv, shaped - 0.9 * best_next, atol=1e-12)
+    assert adv.max() <= 1e-12
+    agree = full[e] >= state_values(q, mdp, mdp.pair_state[e]) - 1e-12
+    assert agree.mean() > 0.9 and np.allclose(adv[e][agree], 0.0)
+    with pytest.raises(RelationalError, match="unknown shaping"):
+        fit_rcsi([(mdp, e)], [(mdp, d)], q=q, shaping="bogus")
 
 
 def test_boosting_separates_expert_actions() -> None:

@@ -59,6 +59,15 @@ def csi_targets(
     return q.predict(mdp, pairs) - gamma * state_values(q, mdp, mdp.pair_next[pairs])
 
 
+def advantage_targets(q: BoostedQ, mdp: GroundMDP, pairs: NDArray[np.int64]) -> NDArray[np.float64]:
+    """The targets after shaping by ``f(s) = −max_a q(s,a)``, shape (n,).
+
+    With ``q'(s,a) = q(s,a) − max_b q(s,b)``, ``max_a' q'(s',a') = 0`` in every
+    state, so ``q'(s,a) − γ max_a' q'(s',a') = q(s,a) − max_b q(s,b)`` ≤ 0.
+    """
+    return q.predict(mdp, pairs) - state_values(q, mdp, mdp.pair_state[pairs])
+
+
 def fit_rcsi(
     expert: Examples,
     random: Examples,
@@ -68,7 +77,7 @@ def fit_rcsi(
     max_depth: int = 4,
     reward_depth: int = 4,
     max_vars: int = 3,
-    shaping: bool = False,
+    shaping: bool | str = False,
     balance: bool = True,
     seed: int = 0,
     q: BoostedQ | None = None,
@@ -90,8 +99,14 @@ def fit_rcsi(
         Boosting rounds and classification tree depth.
     reward_depth : int
         Depth of the reward tree.
-    shaping : bool
-        Shape the targets by CMA-ES (lower entropy).
+    shaping : bool or {"advantage", "cma"}
+        Shape the score function, ``q'(s,a) = q(s,a) + f(s)`` (same classifier
+        policy), before computing the targets. ``"advantage"``: the closed form
+        ``f(s) = −max_a q(s,a)``, whose targets are the advantages
+        ``q(s,a) − max_a' q(s,a')`` (0 on every transition the classifier
+        agrees with, the lowest-entropy targets on ``D_E``); ``"cma"`` (or
+        True): f linear in relational count features, by CMA-ES on the binned
+        entropy of the targets (:mod:`.shaping`).
     balance : bool
         Weigh the regression so that ``D_E`` and ``D_NE`` count as much (the
         expert transitions are few but carry the task).
@@ -125,9 +140,14 @@ def fit_rcsi(
     weights = np.concatenate(
         [np.concatenate(ws) for _, ps, ws in by_mdp.values() if sum(p.size for p in ps)]
     )
-    targets = np.concatenate([csi_targets(q, m, p, gamma) for m, p in data])
+    if shaping not in (False, True, "advantage", "cma"):
+        raise RelationalError(f"RCSI: unknown shaping {shaping!r}, expected advantage or cma")
     w = np.zeros(0)
-    if shaping:
+    if shaping == "advantage":
+        targets = np.concatenate([advantage_targets(q, m, p) for m, p in data])
+    else:
+        targets = np.concatenate([csi_targets(q, m, p, gamma) for m, p in data])
+    if shaping is True or shaping == "cma":
         phi = np.concatenate([state_features(m, m.pair_state[p]) for m, p in data])
         phi_n = np.concatenate([state_features(m, m.pair_next[p]) for m, p in data])
         w = fit_shaping(phi, phi_n, targets, gamma, weights=weights, seed=seed)

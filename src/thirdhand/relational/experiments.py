@@ -30,6 +30,14 @@ from thirdhand.relational.mdp import GroundMDP
 
 GAMMA = 0.9
 METHODS = ("BLMRIL", "RCSI", "RCSI+shaping")
+# Shaping of each RCSI method (fit_rcsi's ``shaping``); "RCSI+cma-shaping" (the
+# CMA-ES shaping of the first version of these tables) may be asked for in
+# ``Trial.methods``.
+SHAPING: dict[str, bool | str] = {
+    "RCSI": False,
+    "RCSI+shaping": "advantage",
+    "RCSI+cma-shaping": "cma",
+}
 # Reward tree settings of the tables (see docs/relational_results.md): a node may
 # add two atoms (TILDE lookahead), object identity among the test's variables
 # only, D_E and D_NE unweighted as in the paper.
@@ -96,7 +104,7 @@ def run_trial(trial: Trial) -> dict[str, dict[str, float]]:
                 gamma=GAMMA,
                 reward_depth=trial.reward_depth,
                 max_vars=trial.max_vars,
-                shaping=m.endswith("shaping"),
+                shaping=SHAPING.get(m, False),
                 seed=trial.seed,
                 q=q,
                 balance=trial.balance,
