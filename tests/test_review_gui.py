@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from thirdhand.errors import ThirdhandError
 from thirdhand.review.playback import (
     HAND_RGB,
     IDLE_RGB,
@@ -174,6 +175,32 @@ def test_gizmo_correction_applies_the_dragged_pose(chair: Any, tmp_path: Path) -
         np.testing.assert_allclose(new.pos, expected, atol=1e-9)
         np.testing.assert_allclose(np.abs(np.dot(new.quat, c.quat)), 1.0, atol=1e-9)
         assert app.session.effort.counts()["leg2"]["movex"] == 1
+    finally:
+        app.stop()
+
+
+def test_second_recording_without_labels_is_segmented(chair: Any, tmp_path: Path) -> None:
+    from thirdhand.demonstration import Labels
+    from thirdhand.review.app import ReviewApp
+
+    path = tmp_path / "chair.task.json"
+    save_task(truth_task(chair), path)
+    part = chair.slice(20.0, 40.0).replace(labels=Labels(), meta={"name": "unlabelled"})
+    app = ReviewApp(path, demos=[chair, part], port=0, light_rendering=True)
+    assert [c.source for c in app.contacts] == ["labels", "segmentation"]
+    app.start()
+    try:
+        app.set_demo(1)
+        assert app.demo_index == 1 and app.time == pytest.approx(part.t[0])
+        assert app.panels.time.max == pytest.approx(part.t[-1])
+        np.testing.assert_allclose(
+            app.parts.frames["leg3"].position, app.timelines[1].poses_at(part.t[0])["leg3"][0]
+        )
+        # Jumping to a keyframe moves the playback clock to its time.
+        app.show_step(2)
+        assert app.time == pytest.approx(app.task.plan[2].time)
+        with pytest.raises(ThirdhandError, match="no recording 5"):
+            app.set_demo(5)
     finally:
         app.stop()
 

@@ -372,6 +372,12 @@ class ReviewApp:
             self.mode = "task"
             if index is not None:
                 self.session.effort.record("kfviews", ACTIONS)
+                t = self.task.plan[index].time
+                if t is not None and self.timelines:  # playback resumes at that moment
+                    tl = self.timelines[self.demo_index]
+                    self.time = float(min(max(t, tl.start), tl.end))
+                    if self.panels is not None:
+                        self.panels.show_time(self.time)
             self.refresh()
 
     def save(self) -> Path | None:
@@ -539,6 +545,17 @@ class ReviewApp:
             self._place_playback()
             if self.panels is not None:
                 self.panels.show_time(self.time)
+
+    def set_demo(self, index: int) -> None:
+        """Play back recording ``index`` (of ``demos``) from its start."""
+        with self.lock:
+            if not 0 <= index < len(self.timelines):
+                raise ThirdhandError(f"no recording {index}; {len(self.timelines)} loaded")
+            self._halt_worker()
+            self.demo_index = index
+            if self.panels is not None:
+                self.panels.show_demo()
+            self.set_time(self.timelines[index].start)
 
     def play(self, playing: bool = True, *, speed: float = 1.0) -> None:
         """Start (or pause) playback from the current time."""

@@ -126,6 +126,12 @@ class Panels:
         if app.timelines:
             tl = app.timelines[app.demo_index]
             with gui.add_folder("Playback"):
+                self.demo = gui.add_dropdown(
+                    "Recording",
+                    demo_labels(app),
+                    initial_value=demo_labels(app)[app.demo_index],
+                    visible=len(app.timelines) > 1,
+                )
                 self.time = gui.add_slider(
                     "Time (s)", min=tl.start, max=tl.end, step=0.05, initial_value=tl.start
                 )
@@ -141,6 +147,13 @@ class Panels:
                 lambda e: app.attempt(app.play, not app.playing, speed=float(self.speed.value))
             )
             self.back.on_click(lambda e: app.attempt(app.show_task))
+            self.demo.on_update(
+                lambda e: (
+                    app.attempt(app.set_demo, demo_labels(app).index(self.demo.value))
+                    if _user(e)
+                    else None
+                )
+            )
 
         with gui.add_folder("Effort", expand_by_default=False):
             self.effort = gui.add_html("")
@@ -275,6 +288,15 @@ class Panels:
         if self.time is not None:
             self.play.label = "Pause" if playing else "Play"
 
+    def show_demo(self) -> None:
+        """The slider's range and the legend of the current recording."""
+        if self.time is None:
+            return
+        app = self.app
+        tl = app.timelines[app.demo_index]
+        self.time.min, self.time.max = tl.start, tl.end
+        self.legend.content = _legend(app.contacts[app.demo_index].source)
+
     def show_time(self, t: float) -> None:
         """Move the time slider (no callback: the event has no client)."""
         if self.time is not None:
@@ -344,6 +366,15 @@ class Panels:
         lo, hi = getattr(c.free_dofs, dof)
         _assign(self.dof_lo, fmt_value(dof, lo))
         _assign(self.dof_hi, fmt_value(dof, hi))
+
+
+def demo_labels(app: ReviewApp) -> list[str]:
+    """One label per recording: ``"1: chair (64.2 s)"``."""
+    out = []
+    for i, tl in enumerate(app.timelines):
+        name = tl.demo.meta.get("name") or tl.demo.meta.get("scene") or "recording"
+        out.append(f"{i + 1}: {name} ({tl.end - tl.start:.1f} s)")
+    return out
 
 
 def _assign(handle: Any, value: Any) -> None:
