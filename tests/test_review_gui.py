@@ -164,12 +164,12 @@ def test_gizmo_correction_applies_the_dragged_pose(chair: Any, tmp_path: Path) -
         c = app.constraint
         assert c is not None and c.frame.is_identity
         app.set_gizmo_edits(True)
-        assert app.gizmo is not None
+        assert app.gizmo.handle is not None
         # Dragged 2 cm along the constraint frame's x axis and released.
         moved = SimpleNamespace(position=(0.02, 0.0, 0.0), wxyz=(1.0, 0.0, 0.0, 0.0))
-        app._gizmo_moved(SimpleNamespace(target=moved, phase="update"))
+        app.gizmo.on_event(SimpleNamespace(target=moved, phase="update"))
         assert app.task.constraint_by_id(c.id).pos == c.pos  # a drag previews only
-        app._gizmo_moved(SimpleNamespace(target=moved, phase="end"))
+        app.gizmo.on_event(SimpleNamespace(target=moved, phase="end"))
         new = app.task.constraint_by_id(c.id)
         expected = np.asarray(c.pos) + quat_rotate(c.quat, [0.02, 0.0, 0.0])
         np.testing.assert_allclose(new.pos, expected, atol=1e-9)
@@ -187,20 +187,21 @@ def test_second_recording_without_labels_is_segmented(chair: Any, tmp_path: Path
     save_task(truth_task(chair), path)
     part = chair.slice(20.0, 40.0).replace(labels=Labels(), meta={"name": "unlabelled"})
     app = ReviewApp(path, demos=[chair, part], port=0, light_rendering=True)
-    assert [c.source for c in app.contacts] == ["labels", "segmentation"]
+    assert [c.source for c in app.motion.contacts] == ["labels", "segmentation"]
     app.start()
     try:
-        app.set_demo(1)
-        assert app.demo_index == 1 and app.time == pytest.approx(part.t[0])
+        app.motion.set_demo(1)
+        assert app.motion.demo_index == 1 and app.motion.time == pytest.approx(part.t[0])
         assert app.panels.time.max == pytest.approx(part.t[-1])
         np.testing.assert_allclose(
-            app.parts.frames["leg3"].position, app.timelines[1].poses_at(part.t[0])["leg3"][0]
+            app.parts.frames["leg3"].position,
+            app.motion.timelines[1].poses_at(part.t[0])["leg3"][0],
         )
         # Jumping to a keyframe moves the playback clock to its time.
         app.show_step(2)
-        assert app.time == pytest.approx(app.task.plan[2].time)
+        assert app.motion.time == pytest.approx(app.task.plan[2].time)
         with pytest.raises(ThirdhandError, match="no recording 5"):
-            app.set_demo(5)
+            app.motion.set_demo(5)
     finally:
         app.stop()
 
@@ -460,26 +461,26 @@ def test_reordered_keyframe_is_saved(review: Review) -> None:
 @pytest.mark.slow
 def test_timeline_plays_and_colours_parts_by_hand(review: Review) -> None:
     app = review.app
-    tl = app.timelines[0]
+    tl = app.motion.timelines[0]
     start = tl.start
     review.button("Play").click()
-    review.wait_for(lambda: app.playing, "playback")
-    review.wait_for(lambda: app.time > start + 0.5, "time advancing")
+    review.wait_for(lambda: app.motion.playing, "playback")
+    review.wait_for(lambda: app.motion.time > start + 0.5, "time advancing")
     review.button("Pause").click()
-    review.wait_for(lambda: not app.playing, "pause")
-    assert app.time > start + 0.5
+    review.wait_for(lambda: not app.motion.playing, "pause")
+    assert app.motion.time > start + 0.5
     slider_label = review.page.get_by_text("Time (s)", exact=True)
     slider_label.wait_for(timeout=TIMEOUT_MS)
     # A time when the right hand holds leg2: the part moves there and turns right-hand red.
     iv = next(i for i in app.demos[0].labels.interactions if i.a == "rh_index" and i.b == "leg2")
-    app.set_time(0.5 * (iv.start + iv.end))
+    app.motion.set_time(0.5 * (iv.start + iv.end))
     assert app.colours()["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
     time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
     review.shot("playback")
     # ... and once it is screwed in, it sits elsewhere than at the start.
-    app.set_time(tl.start)
+    app.motion.set_time(tl.start)
     before = np.array(app.parts.frames["leg2"].position, copy=True)
-    app.set_time(app.task.constraint_by_id(app.constraint_of("leg2").id).time + 1.0)
+    app.motion.set_time(app.task.constraint_by_id(app.constraint_of("leg2").id).time + 1.0)
     after = np.array(app.parts.frames["leg2"].position, copy=True)
     assert np.linalg.norm(after - before) > 0.05
     review.button("Show task").click()
@@ -591,7 +592,7 @@ def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, ch
     leg = next(c for c in app.task.constraints if c.type == "revolute")
     review.choose("Object", leg.child)
     review.wait_for(lambda: app.selected == leg.child, "selection of the leg")
-    gizmo = app.gizmo
+    gizmo = app.gizmo.handle
     free = [i for i, (lo, hi) in enumerate(leg.free_dofs.ranges()) if lo != hi]
     assert free == [3]
     assert tuple(gizmo.active_axes) == (True, False, False)
@@ -599,8 +600,9 @@ def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, ch
     assert gizmo.rotation_limits[0] == pytest.approx(leg.free_dofs.rx)
     # Ticking "Gizmo edits pose" frees every axis for a correction.
     page.get_by_label("Gizmo edits pose", exact=True).check()
-    review.wait_for(lambda: app.gizmo_edits, "the gizmo mode")
-    assert tuple(app.gizmo.active_axes) == (True, True, True) and not app.gizmo.disable_axes
+    review.wait_for(lambda: app.gizmo.edits, "the gizmo mode")
+    assert tuple(app.gizmo.handle.active_axes) == (True, True, True)
+    assert not app.gizmo.handle.disable_axes
 
 
 def test_cli_serves_the_page_and_refuses_a_bad_file(tmp_path: Path, chair: Any) -> None:

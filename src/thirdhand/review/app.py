@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import os
 import threading
-import time
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
@@ -33,8 +32,9 @@ from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
 from thirdhand.review.edits import Edit, SetPose, SetPoseValue, pose_values
 from thirdhand.review.effort import ACTIONS
-from thirdhand.review.playback import HandContacts, Timeline, hand_contacts, playback_colours
-from thirdhand.review.scene3d import FINGER_RGB, DofGlyphView, PartsView, selection_colours, xyzw
+from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
+from thirdhand.review.motion import Motion
+from thirdhand.review.scene3d import DofGlyphView, PartsView, selection_colours
 from thirdhand.review.session import ConflictError, ReviewSession
 from thirdhand.se3 import pose_compose, pose_invert
 from thirdhand.task.constraint import Constraint
@@ -52,11 +52,6 @@ VALUE_OPERATION = {
     "pitch": "roty",
     "yaw": "rotz",
 }
-#: Seconds per DOF of the clarification animation, and its frame rate (Hz).
-ANIMATION_SECONDS = 1.2
-ANIMATION_RATE = 20.0
-#: Playback frame rate, Hz.
-PLAYBACK_RATE = 20.0
 
 
 class ReviewApp:
@@ -111,30 +106,21 @@ class ReviewApp:
         self.light_rendering = light_rendering
         self.session = ReviewSession.open(self.task_path)
         self.demos = [_load_demo(d) for d in demos]
-        self.timelines = [Timeline(d) for d in self.demos]
-        self.contacts: list[HandContacts] = [hand_contacts(d, segment=segment) for d in self.demos]
         self.lock = threading.RLock()
         self.selected: str | None = None
         self.step: int | None = None
-        self.demo_index = 0
-        self.time = self.timelines[0].start if self.timelines else 0.0
         self.mode = "task"
-        self.playing = False
         self.message = f"Loaded {self.task_path.name}"
         self.questions: list[Any] = []
         self.question_index = 0
-        self.animating: str | None = None
-        self.gizmo_edits = False
         self.conflict: Path | None = None
         self.quit_requested = threading.Event()
         self.server: viser.ViserServer | None = None
         self.parts: PartsView | None = None
         self.glyphs: DofGlyphView | None = None
-        self.gizmo: viser.TransformControlsHandle | None = None
+        self.gizmo: DofGizmo | None = None
         self.panels: Any = None
-        self._fingers: dict[str, viser.IcosphereHandle] = {}
-        self._worker: threading.Thread | None = None
-        self._stop_worker = threading.Event()
+        self.motion = Motion(self, self.demos, segment=segment)
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -164,6 +150,7 @@ class ReviewApp:
         self.parts = PartsView(self.server.scene, self.task, self.task_path, self.meshes)
         self.parts.on_click(self._clicked)
         self.glyphs = DofGlyphView(self.server.scene)
+        self.gizmo = DofGizmo(self.server.scene, self.gizmo_moved)
         self.panels = Panels(self)
         self.server.on_client_connect(self._client_connected)
         with self.lock:
@@ -172,7 +159,7 @@ class ReviewApp:
 
     def stop(self) -> None:
         """Stop animations, playback and the server."""
-        self._halt_worker()
+        self.motion.halt()
         if self.server is not None:
             self.server.stop()
             self.server = None
@@ -257,7 +244,7 @@ class ReviewApp:
     def select(self, name: str | None, *, operation: str | None = "click") -> None:
         """Select an object: it turns orange, its parent blue; its values fill the editors."""
         with self.lock:
-            self._halt_worker()
+            self.motion.halt()
             if name is not None and self.parts is not None and name not in self.parts.frames:
                 raise ThirdhandError(f"unknown object {name!r}")
             self.selected = name
@@ -299,7 +286,7 @@ class ReviewApp:
             The edit was refused (nothing changed).
         """
         with self.lock:
-            self._halt_worker()
+            self.motion.halt()
             self.session.apply(edit, operation=operation)
             self.refresh()
 
@@ -365,7 +352,7 @@ class ReviewApp:
     def show_step(self, index: int | None) -> None:
         """Show the keyframe of plan step ``index`` (None: the assembled task)."""
         with self.lock:
-            self._halt_worker()
+            self.motion.halt()
             if index is not None and not 0 <= index < len(self.task.plan):
                 raise ThirdhandError(f"no plan step {index}; the plan has {len(self.task.plan)}")
             self.step = index
@@ -373,11 +360,11 @@ class ReviewApp:
             if index is not None:
                 self.session.effort.record("kfviews", ACTIONS)
                 t = self.task.plan[index].time
-                if t is not None and self.timelines:  # playback resumes at that moment
-                    tl = self.timelines[self.demo_index]
-                    self.time = float(min(max(t, tl.start), tl.end))
+                if t is not None and self.motion.timelines:  # playback resumes then
+                    tl = self.motion.timelines[self.motion.demo_index]
+                    self.motion.time = float(min(max(t, tl.start), tl.end))
                     if self.panels is not None:
-                        self.panels.show_time(self.time)
+                        self.panels.show_time(self.motion.time)
             self.refresh()
 
     def save(self) -> Path | None:
@@ -420,7 +407,7 @@ class ReviewApp:
         with self.lock:
             if self.session.dirty and not force:
                 return False
-            self._halt_worker()
+            self.motion.halt()
             self.session = ReviewSession.open(self.task_path)
             if self.step is not None and self.step >= len(self.task.plan):
                 self.step = None
@@ -492,127 +479,14 @@ class ReviewApp:
             )
             if c is None:
                 raise ThirdhandError("select an object with a constraint first")
-            order = list(dofs)
-            self._start_worker(lambda stop: self._animation(c, order, stop))
-
-    def _animation(self, c: Constraint, order: list[str], stop: threading.Event) -> None:
-        poses = self.world_poses()
-        parent = poses.get(c.parent)
-        if parent is None or self.parts is None:
-            return
-        n = max(2, int(ANIMATION_SECONDS * ANIMATION_RATE))
-        for dof in order:
-            self.animating = dof
-            if self.panels is not None:
-                self.panels.show_animation(c, dof)
-            for k in range(n):
-                if stop.is_set():
-                    return
-                local = dofs_mod.dof_animation(c, dof, k / n)
-                p, q = pose_compose(parent.pos, parent.quat, local.pos, local.quat)
-                self.parts.set_pose(c.child, p, q)
-                stop.wait(1.0 / ANIMATION_RATE)
-        self.animating = None
-        if self.panels is not None:
-            self.panels.show_animation(c, None)
-        if self._acquire_unless(stop):
-            try:
-                self._place_parts()
-            finally:
-                self.lock.release()
-
-    def _acquire_unless(self, stop: threading.Event) -> bool:
-        """Take the app lock for a worker, unless it is told to stop meanwhile.
-
-        The thread halting a worker holds the lock while it waits for it, so a
-        worker must never block on the lock.
-        """
-        while not stop.is_set():
-            if self.lock.acquire(timeout=0.05):
-                if not stop.is_set():
-                    return True
-                self.lock.release()
-        return False
-
-    def set_time(self, time_s: float) -> None:
-        """Show the demonstration at ``time_s`` seconds (parts coloured by the holding hand)."""
-        with self.lock:
-            if not self.timelines:
-                raise ThirdhandError("no demonstration loaded (pass --demo)")
-            tl = self.timelines[self.demo_index]
-            self.time = float(min(max(time_s, tl.start), tl.end))
-            self.mode = "playback"
-            self._place_playback()
-            if self.panels is not None:
-                self.panels.show_time(self.time)
-
-    def set_demo(self, index: int) -> None:
-        """Play back recording ``index`` (of ``demos``) from its start."""
-        with self.lock:
-            if not 0 <= index < len(self.timelines):
-                raise ThirdhandError(f"no recording {index}; {len(self.timelines)} loaded")
-            self._halt_worker()
-            self.demo_index = index
-            if self.panels is not None:
-                self.panels.show_demo()
-            self.set_time(self.timelines[index].start)
-
-    def play(self, playing: bool = True, *, speed: float = 1.0) -> None:
-        """Start (or pause) playback from the current time."""
-        with self.lock:
-            if not playing:
-                self._halt_worker()
-                return
-            if not self.timelines:
-                raise ThirdhandError("no demonstration loaded (pass --demo)")
-            self.mode = "playback"
-            self._start_worker(lambda stop: self._playback(stop, speed))
-            self.playing = True
-            if self.panels is not None:
-                self.panels.show_playing(True)
-
-    def _playback(self, stop: threading.Event, speed: float) -> None:
-        tl = self.timelines[self.demo_index]
-        last = time.perf_counter()
-        while not stop.wait(1.0 / PLAYBACK_RATE):
-            now = time.perf_counter()
-            if not self._acquire_unless(stop):
-                return
-            try:
-                t = self.time + speed * (now - last)
-                last = now
-                if t >= tl.end:
-                    t = tl.start
-                self.time = t
-                self._place_playback()
-                if self.panels is not None:
-                    self.panels.show_time(t)
-            finally:
-                self.lock.release()
+            self.motion.animate(c, list(dofs))
 
     def show_task(self) -> None:
         """Leave playback: parts back at their constraint poses."""
         with self.lock:
-            self._halt_worker()
+            self.motion.halt()
             self.mode = "task"
             self.refresh()
-
-    def _start_worker(self, target: Any) -> None:
-        self._halt_worker()
-        self._stop_worker = stop = threading.Event()
-        self._worker = threading.Thread(target=target, args=(stop,), daemon=True)
-        self._worker.start()
-
-    def _halt_worker(self) -> None:
-        worker, self._worker = self._worker, None
-        self._stop_worker.set()
-        if worker is not None and worker is not threading.current_thread():
-            worker.join(timeout=2.0)
-        self.animating = None
-        if self.playing:
-            self.playing = False
-            if self.panels is not None:
-                self.panels.show_playing(False)
 
     # ------------------------------------------------------------------ scene
     def refresh(self) -> None:
@@ -620,16 +494,20 @@ class ReviewApp:
         if self.selected is not None and self.parts is not None:
             if self.selected not in self.parts.frames:
                 self.selected = None
-        if self.mode == "playback" and self.timelines:
-            self._place_playback()
+        if self.mode == "playback" and self.motion.timelines:
+            self.motion.place()
+            if self.glyphs is not None:
+                self.glyphs.clear()
+            if self.gizmo is not None:
+                self.gizmo.hide()
         else:
-            self._hide_fingers()
+            self.motion.hide_fingers()
             self._place_parts()
         if self.panels is not None:
             self.panels.refresh()
 
     def _place_parts(self) -> None:
-        if self.parts is None or self.glyphs is None:
+        if self.parts is None or self.glyphs is None or self.gizmo is None:
             return
         poses = self.world_poses()
         self.parts.set_poses({n: (p.pos, p.quat) for n, p in poses.items()})
@@ -638,7 +516,7 @@ class ReviewApp:
         child = poses.get(c.child) if c is not None else None
         if c is None or child is None:
             self.glyphs.clear()
-            self._remove_gizmo()
+            self.gizmo.hide()
             return
         ap, aq = pose_compose(child.pos, child.quat, c.frame.pos, c.frame.quat)
         ranges = c.free_dof_array()
@@ -647,110 +525,31 @@ class ReviewApp:
         ]
         size = self.parts.extent.get(c.child, 0.1)
         self.glyphs.show(ap, aq, ranges, classes, size=size)
-        self._place_gizmo(c, classes, size)
-
-    def _place_playback(self) -> None:
-        if self.parts is None or self.server is None:
-            return
-        tl = self.timelines[self.demo_index]
-        poses = tl.poses_at(self.time)
-        self.parts.set_poses({n: pq for n, pq in poses.items() if n in self.parts.frames})
-        self.parts.set_colours(
-            playback_colours(self.contacts[self.demo_index], self.parts.names, self.time)
-        )
-        if self.glyphs is not None:
-            self.glyphs.clear()
-        self._remove_gizmo()
-        fingers = [n for n in tl.names if n not in self.parts.frames and n in poses]
-        for n in fingers:
-            h = self._fingers.get(n)
-            if h is None:
-                h = self.server.scene.add_icosphere(f"/fingers/{n}", radius=0.008, color=FINGER_RGB)
-                self._fingers[n] = h
-            h.visible = True
-            h.position = _vec3(poses[n][0])
-
-    def _hide_fingers(self) -> None:
-        for h in self._fingers.values():
-            h.visible = False
+        self.gizmo.show(c, classes, size)
 
     # ------------------------------------------------------------------ gizmo
-    def _remove_gizmo(self) -> None:
-        if self.gizmo is not None:
-            self.gizmo.remove()
-            self.gizmo = None
-
-    def _place_gizmo(self, c: Constraint, classes: Sequence[str], size: float) -> None:
-        """A transform gizmo at the constraint frame, limited to the free DOFs unless editing."""
-        if self.server is None:
-            return
-        self._remove_gizmo()
-        ranges = c.free_dof_array()
-        free = [cls != "locked" for cls in classes]
-        kwargs: dict[str, Any] = {}
-        if self.gizmo_edits:
-            axes, no_t, no_r = (True, True, True), False, False
-        else:
-            axes = (free[0] or free[3], free[1] or free[4], free[2] or free[5])
-            no_t, no_r = not any(free[:3]), not any(free[3:])
-            if no_t and no_r:
-                return
-            # Limits relative to the rest pose: the free ranges, zero for a locked DOF.
-            kwargs["translation_limits"] = tuple((float(lo), float(hi)) for lo, hi in ranges[:3])
-            kwargs["rotation_limits"] = tuple((float(lo), float(hi)) for lo, hi in ranges[3:])
-        self.gizmo = self.server.scene.add_transform_controls(
-            "/dofs/gizmo",
-            scale=max(0.08, 0.5 * size),
-            active_axes=axes,
-            disable_axes=no_t,
-            disable_sliders=no_t or sum(free[:3]) < 2,
-            disable_rotations=no_r,
-            depth_test=False,
-            **kwargs,
-        )
-        self.gizmo.on_update(self._gizmo_moved)
-
-    def _gizmo_moved(self, event: Any) -> None:
-        gizmo = event.target
+    def gizmo_moved(self, move: GizmoMove) -> None:
+        """A gizmo drag: the child follows; releasing it in editing mode corrects the pose."""
         with self.lock:
             c = self.constraint
             poses = self.world_poses()
             if c is None or self.parts is None or c.child not in poses or c.parent not in poses:
                 return
-            child, parent = poses[c.child], poses[c.parent]
-            gp, gq = np.asarray(gizmo.position, float), np.asarray(xyzw(gizmo.wxyz))
-            # child' = child ∘ F ∘ G ∘ F⁻¹ (G: the gizmo's motion in the constraint frame F)
-            fp, fq = np.asarray(c.frame.pos), np.asarray(c.frame.quat)
-            ip, iq = pose_invert(fp, fq)
-            p, q = pose_compose(
-                *pose_compose(*pose_compose(child.pos, child.quat, fp, fq), gp, gq), ip, iq
-            )
+            p, q = moved_child(poses[c.child], c.frame, move.pos, move.quat)
             self.parts.set_pose(c.child, p, q)
-            if event.phase != "end" or not self.gizmo_edits:
+            if move.phase != "end" or self.gizmo is None or not self.gizmo.edits:
                 return
+            parent = poses[c.parent]
             lp, lq = pose_compose(*pose_invert(parent.pos, parent.quat), p, q)
-        op = _dominant_operation(gp, gq)
-        self.attempt(
-            self.apply,
-            SetPose(c.id, _vec3(lp), _quat4(lq)),
-            operation=op,
-        )
+        edit = SetPose(c.id, _vec3(lp), _quat4(lq))
+        self.attempt(self.apply, edit, operation=dominant_operation(move.pos, move.quat))
 
     def set_gizmo_edits(self, edits: bool) -> None:
         """False: the gizmo explores the free DOFs; True: it corrects the pose on release."""
         with self.lock:
-            self.gizmo_edits = edits
+            if self.gizmo is not None:
+                self.gizmo.edits = edits
             self.refresh()
-
-
-def _dominant_operation(gp: FloatArray, gq: FloatArray) -> str:
-    """Effort name of a gizmo motion: its largest translation (m) or rotation (rad, x 0.1 m)."""
-    from scipy.spatial.transform import Rotation
-
-    rotvec = Rotation.from_quat(gq).as_rotvec()
-    scores = np.concatenate([np.abs(gp), 0.1 * np.abs(rotvec)])
-    i = int(np.argmax(scores))
-    return ("movex", "movey", "movez", "rotx", "roty", "rotz")[i]
 
 
 def _vec3(v: FloatArray) -> tuple[float, float, float]:

@@ -123,14 +123,14 @@ class Panels:
         self.no.on_click(lambda e: app.attempt(app.answer, False))
 
         self.time = None
-        if app.timelines:
-            tl = app.timelines[app.demo_index]
+        if app.motion.timelines:
+            tl = app.motion.timelines[app.motion.demo_index]
             with gui.add_folder("Playback"):
                 self.demo = gui.add_dropdown(
                     "Recording",
                     demo_labels(app),
-                    initial_value=demo_labels(app)[app.demo_index],
-                    visible=len(app.timelines) > 1,
+                    initial_value=demo_labels(app)[app.motion.demo_index],
+                    visible=len(app.motion.timelines) > 1,
                 )
                 self.time = gui.add_slider(
                     "Time (s)", min=tl.start, max=tl.end, step=0.05, initial_value=tl.start
@@ -138,18 +138,22 @@ class Panels:
                 self.play = gui.add_button("Play")
                 self.speed = gui.add_number("Speed", 1.0, min=0.1, max=10.0, step=0.1)
                 self.back = gui.add_button("Show task")
-                self.legend = gui.add_html(_legend(app.contacts[app.demo_index].source))
+                self.legend = gui.add_html(
+                    _legend(app.motion.contacts[app.motion.demo_index].source)
+                )
             slider = self.time
             slider.on_update(
-                lambda e: app.attempt(app.set_time, slider.value) if _user(e) else None
+                lambda e: app.attempt(app.motion.set_time, slider.value) if _user(e) else None
             )
             self.play.on_click(
-                lambda e: app.attempt(app.play, not app.playing, speed=float(self.speed.value))
+                lambda e: app.attempt(
+                    app.motion.play, not app.motion.playing, speed=float(self.speed.value)
+                )
             )
             self.back.on_click(lambda e: app.attempt(app.show_task))
             self.demo.on_update(
                 lambda e: (
-                    app.attempt(app.set_demo, demo_labels(app).index(self.demo.value))
+                    app.attempt(app.motion.set_demo, demo_labels(app).index(self.demo.value))
                     if _user(e)
                     else None
                 )
@@ -293,9 +297,9 @@ class Panels:
         if self.time is None:
             return
         app = self.app
-        tl = app.timelines[app.demo_index]
+        tl = app.motion.timelines[app.motion.demo_index]
         self.time.min, self.time.max = tl.start, tl.end
-        self.legend.content = _legend(app.contacts[app.demo_index].source)
+        self.legend.content = _legend(app.motion.contacts[app.motion.demo_index].source)
 
     def show_time(self, t: float) -> None:
         """Move the time slider (no callback: the event has no client)."""
@@ -328,7 +332,7 @@ class Panels:
         """Fill every widget from the app's state."""
         app = self.app
         self._render_status()
-        self._render_selection(app.animating)
+        self._render_selection(app.motion.animating)
         self.undo.disabled = not app.session.history.can_undo
         self.redo.disabled = not app.session.history.can_redo
         _assign(self.object, app.selected if app.selected is not None else NONE)
@@ -371,7 +375,7 @@ class Panels:
 def demo_labels(app: ReviewApp) -> list[str]:
     """One label per recording: ``"1: chair (64.2 s)"``."""
     out = []
-    for i, tl in enumerate(app.timelines):
+    for i, tl in enumerate(app.motion.timelines):
         name = tl.demo.meta.get("name") or tl.demo.meta.get("scene") or "recording"
         out.append(f"{i + 1}: {name} ({tl.end - tl.start:.1f} s)")
     return out

@@ -1,0 +1,217 @@
+"""What moves by itself in the review GUI: DOF animations and demonstration playback.
+
+One background worker at a time (starting one halts the other). A worker
+never blocks on the app's lock: the thread halting it holds that lock while it
+waits for the worker to end.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING
+
+import viser
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.errors import ThirdhandError
+from thirdhand.review import dofs as dofs_mod
+from thirdhand.review.playback import HandContacts, Timeline, hand_contacts, playback_colours
+from thirdhand.review.scene3d import FINGER_RGB
+from thirdhand.se3 import pose_compose
+from thirdhand.task.constraint import Constraint
+
+if TYPE_CHECKING:
+    from thirdhand.review.app import ReviewApp
+
+#: Seconds per DOF of an animation, and its frame rate (Hz).
+ANIMATION_SECONDS = 1.2
+ANIMATION_RATE = 20.0
+#: Playback frame rate, Hz.
+PLAYBACK_RATE = 20.0
+#: Radius of a finger's sphere in playback, metres.
+FINGER_RADIUS = 0.008
+
+
+class Motion:
+    """Animation and playback of a :class:`~thirdhand.review.app.ReviewApp`.
+
+    Parameters
+    ----------
+    app : ReviewApp
+    demos : sequence of Demonstration
+        Recordings to play back.
+    segment : bool
+        Find hand contacts with the segmentation stage when a recording has no labels.
+
+    Attributes
+    ----------
+    timelines : list of Timeline
+    contacts : list of HandContacts
+    demo_index : int
+        The recording played back.
+    time : float
+        Playback time, seconds.
+    playing : bool
+    animating : str or None
+        The DOF being animated.
+    """
+
+    def __init__(self, app: ReviewApp, demos: Sequence[Demonstration], *, segment: bool) -> None:
+        self.app = app
+        self.timelines = [Timeline(d) for d in demos]
+        self.contacts: list[HandContacts] = [hand_contacts(d, segment=segment) for d in demos]
+        self.demo_index = 0
+        self.time = self.timelines[0].start if self.timelines else 0.0
+        self.playing = False
+        self.animating: str | None = None
+        self._fingers: dict[str, viser.IcosphereHandle] = {}
+        self._worker: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    # ---------------------------------------------------------------- workers
+    def _start(self, target: Callable[[threading.Event], None]) -> None:
+        self.halt()
+        self._stop = stop = threading.Event()
+        self._worker = threading.Thread(target=target, args=(stop,), daemon=True)
+        self._worker.start()
+
+    def halt(self) -> None:
+        """Stop the running animation or playback (if any) and wait for it."""
+        worker, self._worker = self._worker, None
+        self._stop.set()
+        if worker is not None and worker is not threading.current_thread():
+            worker.join(timeout=2.0)
+        self.animating = None
+        if self.playing:
+            self.playing = False
+            if self.app.panels is not None:
+                self.app.panels.show_playing(False)
+
+    def _acquire_unless(self, stop: threading.Event) -> bool:
+        """Take the app lock for a worker, unless it is told to stop meanwhile."""
+        lock = self.app.lock
+        while not stop.is_set():
+            if lock.acquire(timeout=0.05):
+                if not stop.is_set():
+                    return True
+                lock.release()
+        return False
+
+    # ---------------------------------------------------------------- animation
+    def animate(self, c: Constraint, dofs: Sequence[str]) -> None:
+        """Move ``c``'s child along each DOF in turn (:func:`dofs.dof_animation`)."""
+        order = list(dofs)
+        self._start(lambda stop: self._animation(c, order, stop))
+
+    def _animation(self, c: Constraint, order: list[str], stop: threading.Event) -> None:
+        app = self.app
+        parent = app.world_poses().get(c.parent)
+        if parent is None or app.parts is None:
+            return
+        n = max(2, int(ANIMATION_SECONDS * ANIMATION_RATE))
+        for dof in order:
+            self.animating = dof
+            if app.panels is not None:
+                app.panels.show_animation(c, dof)
+            for k in range(n):
+                if stop.is_set():
+                    return
+                local = dofs_mod.dof_animation(c, dof, k / n)
+                p, q = pose_compose(parent.pos, parent.quat, local.pos, local.quat)
+                app.parts.set_pose(c.child, p, q)
+                stop.wait(1.0 / ANIMATION_RATE)
+        self.animating = None
+        if app.panels is not None:
+            app.panels.show_animation(c, None)
+        if self._acquire_unless(stop):
+            try:
+                app.refresh()
+            finally:
+                app.lock.release()
+
+    # ---------------------------------------------------------------- playback
+    def _timeline(self) -> Timeline:
+        if not self.timelines:
+            raise ThirdhandError("no demonstration loaded (pass --demo)")
+        return self.timelines[self.demo_index]
+
+    def set_time(self, time_s: float) -> None:
+        """Show the recording at ``time_s`` seconds (clamped), parts coloured by hand."""
+        with self.app.lock:
+            tl = self._timeline()
+            self.time = float(min(max(time_s, tl.start), tl.end))
+            self.app.mode = "playback"
+            self.place()
+            if self.app.panels is not None:
+                self.app.panels.show_time(self.time)
+
+    def set_demo(self, index: int) -> None:
+        """Play back recording ``index`` from its start."""
+        with self.app.lock:
+            if not 0 <= index < len(self.timelines):
+                raise ThirdhandError(f"no recording {index}; {len(self.timelines)} loaded")
+            self.halt()
+            self.demo_index = index
+            if self.app.panels is not None:
+                self.app.panels.show_demo()
+            self.set_time(self.timelines[index].start)
+
+    def play(self, playing: bool = True, *, speed: float = 1.0) -> None:
+        """Start (or pause) playback from the current time, ``speed`` x real time."""
+        with self.app.lock:
+            if not playing:
+                self.halt()
+                return
+            self._timeline()
+            self.app.mode = "playback"
+            self._start(lambda stop: self._playback(stop, speed))
+            self.playing = True
+            if self.app.panels is not None:
+                self.app.panels.show_playing(True)
+
+    def _playback(self, stop: threading.Event, speed: float) -> None:
+        tl = self.timelines[self.demo_index]
+        last = time.perf_counter()
+        while not stop.wait(1.0 / PLAYBACK_RATE):
+            now = time.perf_counter()
+            if not self._acquire_unless(stop):
+                return
+            try:
+                t = self.time + speed * (now - last)
+                last = now
+                self.time = tl.start if t >= tl.end else t
+                self.place()
+                if self.app.panels is not None:
+                    self.app.panels.show_time(self.time)
+            finally:
+                self.app.lock.release()
+
+    def place(self) -> None:
+        """Put parts and fingers where the recording has them at :attr:`time`."""
+        app = self.app
+        if app.parts is None or app.server is None:
+            return
+        tl = self._timeline()
+        poses = tl.poses_at(self.time)
+        app.parts.set_poses({n: pq for n, pq in poses.items() if n in app.parts.frames})
+        colours = playback_colours(self.contacts[self.demo_index], app.parts.names, self.time)
+        app.parts.set_colours(colours)
+        for n in tl.names:
+            if n in app.parts.frames or n not in poses:
+                continue
+            h = self._fingers.get(n)
+            if h is None:
+                h = app.server.scene.add_icosphere(
+                    f"/fingers/{n}", radius=FINGER_RADIUS, color=FINGER_RGB
+                )
+                self._fingers[n] = h
+            h.visible = True
+            x, y, z = (float(v) for v in poses[n][0])
+            h.position = (x, y, z)
+
+    def hide_fingers(self) -> None:
+        """Hide the fingers (outside playback)."""
+        for h in self._fingers.values():
+            h.visible = False
