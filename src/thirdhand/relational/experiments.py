@@ -328,7 +328,7 @@ def chair(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
 
 
 def _large_trial(args: tuple[str, int, int, int]) -> dict[str, float]:
-    """Train on 5 blocks, evaluate by lookahead search on ``n_blocks`` blocks."""
+    """Train RCSI+shaping on 5 blocks, evaluate by lookahead search on ``n_blocks`` blocks."""
     from thirdhand.relational.domains.blocks import blocks_domain, optimal_steps, random_state
     from thirdhand.relational.search import rollout, rollout_value
 
@@ -342,6 +342,7 @@ def _large_trial(args: tuple[str, int, int, int]) -> dict[str, float]:
         [(mdp, random_pairs(mdp, 300, rng))],
         gamma=GAMMA,
         seed=seed,
+        shaping=SHAPING["RCSI+shaping"],
         balance=BALANCE,
         reward_lookahead=REWARD_LOOKAHEAD,
         reward_distinct_from_args=REWARD_DISTINCT_FROM_ARGS,
@@ -356,7 +357,10 @@ def _large_trial(args: tuple[str, int, int, int]) -> dict[str, float]:
         )
         v = rollout_value(path, waited, lambda x: optimal_steps(x, reward) == 0, GAMMA)
         ratios.append(v * (1 - GAMMA) / GAMMA ** optimal_steps(s, reward))
-    return {"RCSI on 5 (exact)": perf5, f"RCSI on {n_blocks} (search)": float(np.mean(ratios))}
+    return {
+        "RCSI+shaping on 5 (exact)": perf5,
+        f"RCSI+shaping on {n_blocks} (search)": float(np.mean(ratios)),
+    }
 
 
 def large(
