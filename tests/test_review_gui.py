@@ -85,6 +85,17 @@ def test_selection_colours() -> None:
     assert set(selection_colours(["a"], None, None).values()) - {SELECTED_RGB, PARENT_RGB}
 
 
+def test_front_view_faces_away_from_the_back() -> None:
+    from thirdhand.review.scene3d import front_view
+
+    # A seat at the origin, legs below, a back rising on the -x side: look from +x.
+    parts = np.array([[0, 0, 0], [0.1, 0.1, -0.2], [-0.1, -0.1, -0.2], [-0.15, 0, 0.2]])
+    eye, target = front_view(parts, 0.4)
+    np.testing.assert_allclose(target, parts.mean(axis=0))
+    d = np.asarray(eye) - np.asarray(target)
+    assert d[0] > 0 and abs(d[1]) < 1e-9 and d[2] > 0
+
+
 def test_dof_glyphs_shapes_by_class() -> None:
     ranges = np.array([[-0.1, 0.2], [0, 0], [0, 0], [-math.pi, math.pi], [-0.01, 0.01], [0, 1.0]])
     classes = ["limited", "locked", "locked", "full", "noise", "limited"]

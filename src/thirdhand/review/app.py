@@ -34,7 +34,7 @@ from thirdhand.review.edits import Edit, SetPose, SetPoseValue, pose_values
 from thirdhand.review.effort import ACTIONS
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion
-from thirdhand.review.scene3d import DofGlyphView, PartsView, selection_colours
+from thirdhand.review.scene3d import DofGlyphView, PartsView, front_view, selection_colours
 from thirdhand.review.session import ConflictError, ReviewSession
 from thirdhand.se3 import pose_compose, pose_invert
 from thirdhand.task.constraint import Constraint
@@ -170,24 +170,12 @@ class ReviewApp:
         client.camera.look_at = look_at
 
     def camera_pose(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        """Initial camera position and target, world frame, metres.
-
-        In front of the assembly: opposite the highest part (a chair's back)
-        when it stands off the centre, else from the (+x, -y) diagonal.
-        """
+        """Initial camera position and target (:func:`scene3d.front_view`), world frame, m."""
         parts = self.parts
-        pts = {n: parts.world_centroid(n) for n in parts.names} if parts is not None else {}
-        centre = np.mean(list(pts.values()), axis=0) if pts else np.zeros(3)
-        away = np.array([1.0, -1.0, 0.0])
-        if pts:
-            top = max(pts.values(), key=lambda p: p[2])
-            off = (top - centre) * np.array([1.0, 1.0, 0.0])
-            if np.linalg.norm(off) > 0.02:
-                away = -off
-        away /= np.linalg.norm(away)
-        extent = max(self.parts.extent.values(), default=0.3) if self.parts else 0.3
-        eye = centre + 1.4 * max(extent, 0.2) * (away + np.array([0.35, 0.0, 0.6]))
-        return _vec3(eye), _vec3(centre)
+        if parts is None:
+            return (1.0, -1.0, 1.0), (0.0, 0.0, 0.0)
+        centroids = np.array([parts.world_centroid(n) for n in parts.names]).reshape(-1, 3)
+        return front_view(centroids, max(parts.extent.values(), default=0.3))
 
     # ------------------------------------------------------------------ derived state
     def constraint_of(self, child: str | None) -> Constraint | None:

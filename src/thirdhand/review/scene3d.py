@@ -331,6 +331,38 @@ def selection_colours(
     return out
 
 
+def front_view(
+    centroids: FloatArray, extent: float
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """A camera position and target showing an assembly from its front, z up.
+
+    The front is opposite the highest part (a chair's back) when it stands off
+    the centre horizontally, else the (+x, -y) diagonal.
+
+    Parameters
+    ----------
+    centroids : ndarray, shape (n, 3)
+        The parts' centres, metres, world frame.
+    extent : float
+        The largest part's size, metres (sets the distance).
+
+    Returns
+    -------
+    eye, target : tuple of 3 float
+        Metres, world frame.
+    """
+    pts = np.asarray(centroids, dtype=np.float64).reshape(-1, 3)
+    centre = pts.mean(axis=0) if len(pts) else np.zeros(3)
+    away = np.array([1.0, -1.0, 0.0])
+    if len(pts):
+        off = (pts[np.argmax(pts[:, 2])] - centre) * np.array([1.0, 1.0, 0.0])
+        if np.linalg.norm(off) > 0.02:
+            away = -off
+    away /= np.linalg.norm(away)
+    eye = centre + 1.4 * max(extent, 0.2) * (away + np.array([0.0, 0.0, 0.6]))
+    return _vec3(eye), _vec3(centre)
+
+
 class DofGlyphView:
     """The free-DOF glyphs of one constraint, drawn at its constraint frame.
 
