@@ -550,6 +550,15 @@ def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
     review.shot("unsaved-guard")
     review.button("Cancel").click()
     assert app.session.dirty and app.task.constraint_by_id(cid).pos[1] == pytest.approx(0.03)
+    review.button("Quit").click()
+    page.get_by_text("Unsaved changes").wait_for(timeout=TIMEOUT_MS)
+    review.button("Cancel").click()
+    assert not app.quit_requested.is_set()
+    # Discarding on purpose loads their version from disk.
+    review.button("Reload").click()
+    review.button("Discard and reload").click()
+    review.wait_for(lambda: "other" in app.task.stages, "the reload")
+    assert not app.session.dirty and app.task.constraint_by_id(cid).pos[1] != pytest.approx(0.03)
 
 
 @pytest.mark.slow
@@ -647,3 +656,21 @@ def test_cli_serves_the_page_and_refuses_a_bad_file(tmp_path: Path, chair: Any) 
     bad = tmp_path / "bad.json"
     bad.write_text('{"schema": "other/1"}')
     assert main(["review", str(bad)]) == 1
+
+
+@pytest.mark.slow
+def test_chair_task_transferred_to_the_bench(open_review: Any, chair: Any) -> None:
+    from thirdhand.review.transfer import transfer
+
+    bench = transfer(truth_task(chair), "bench").task
+    review = open_review(bench, "bench.task.json")
+    app = review.app
+    parts = [o.name for o in bench.objects if o.kind == "part"]
+    assert app.parts.names == parts and "back" not in parts
+    if MESHES.is_dir():
+        assert bench.objects_by_name()["seating"].mesh == "bench_sitting.stl"
+    review.choose("Object", "leg1")
+    review.wait_for(lambda: app.selected == "leg1", "selection of leg1")
+    assert app.colours()["seating"] == PARENT_RGB
+    time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
+    review.shot("bench-transferred")

@@ -147,6 +147,9 @@ class ReviewApp:
         if self.light_rendering:
             self.server.scene.configure_environment_map(None)
             self.server.scene.configure_default_lights(True, cast_shadow=False)
+            self.server.scene.add_light_hemisphere(
+                "/light", sky_color=(255, 255, 255), ground_color=(120, 120, 130), intensity=1.2
+            )
         self.parts = PartsView(self.server.scene, self.task, self.task_path, self.meshes)
         self.parts.on_click(self._clicked)
         self.glyphs = DofGlyphView(self.server.scene)
