@@ -625,6 +625,7 @@ def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, ch
     assert not app.gizmo.handle.disable_axes
 
 
+@pytest.mark.slow
 def test_cli_serves_the_page_and_refuses_a_bad_file(tmp_path: Path, chair: Any) -> None:
     import os
     import signal

@@ -26,11 +26,22 @@ from typing import Any
 
 import numpy as np
 import viser
+from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
-from thirdhand.review.edits import Edit, SetPose, SetPoseValue, pose_values
+from thirdhand.review.clarify import Question, clarification_queue
+from thirdhand.review.edits import (
+    Confirm,
+    Edit,
+    MoveStep,
+    SetParent,
+    SetPose,
+    SetPoseValue,
+    parse_number,
+    pose_values,
+)
 from thirdhand.review.effort import ACTIONS
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion
@@ -39,9 +50,9 @@ from thirdhand.review.session import ConflictError, ReviewSession
 from thirdhand.se3 import pose_compose, pose_invert
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import DOF_NAMES
-from thirdhand.taskfile import save_task
+from thirdhand.taskfile import TaskFile, save_task
 
-FloatArray = np.ndarray
+FloatArray = NDArray[np.float64]
 
 #: Effort operation of a typed pose value.
 VALUE_OPERATION = {
@@ -82,11 +93,16 @@ class ReviewApp:
         The selected object.
     step : int or None
         The keyframe shown (index into the plan), None for the assembled task.
-    time : float
-        Playback time, seconds.
-    playing : bool
+    mode : {"task", "playback"}
+        What the 3D view shows: the task at its constraint poses, or a recording.
+    motion : Motion
+        Animation and playback (its ``time``, ``playing``, ``animating``...).
+    questions : list of Question
+        The clarification round (least confident first); ``question_index`` the current one.
     message : str
         The last message shown to the user (errors start with ``"Error: "``).
+    conflict : Path or None
+        Where the edits went when a save was refused (the file changed on disk).
     """
 
     def __init__(
@@ -111,7 +127,7 @@ class ReviewApp:
         self.step: int | None = None
         self.mode = "task"
         self.message = f"Loaded {self.task_path.name}"
-        self.questions: list[Any] = []
+        self.questions: list[Question] = []
         self.question_index = 0
         self.conflict: Path | None = None
         self.quit_requested = threading.Event()
@@ -124,7 +140,7 @@ class ReviewApp:
 
     # ------------------------------------------------------------------ lifecycle
     @property
-    def task(self) -> Any:
+    def task(self) -> TaskFile:
         """The current task (the session history's current version)."""
         return self.session.task
 
@@ -255,8 +271,6 @@ class ReviewApp:
             self.attempt(self.select, name)
 
     def _reparent_selected(self, parent: str) -> None:
-        from thirdhand.review.edits import SetParent
-
         if self.selected is None:
             raise ThirdhandError("select the child first, then shift-click its new parent")
         self.apply(SetParent(self.selected, parent), operation="parent")
@@ -287,20 +301,14 @@ class ReviewApp:
         A bare number is read in the unit shown (cm, deg). Every value is parsed
         before any is applied, so one bad value changes nothing.
         """
-        from thirdhand.review.edits import parse_number
-
         with self.lock:
             c = self.constraint
             if c is None:
                 raise ThirdhandError("select an object with a constraint first")
-            values = {}
-            for name, text in texts.items():
-                unit = "m" if name in ("x", "y", "z") else "rad"
-                shown = "cm" if unit == "m" else "deg"
-                t = text.strip()
-                if t and not any(ch.isalpha() for ch in t):
-                    t = f"{t} {shown}"
-                values[name] = parse_number(t, unit=unit)
+            values = {
+                name: parse_number(text, unit="cm" if name in ("x", "y", "z") else "deg")
+                for name, text in texts.items()
+            }
             for name, value in values.items():
                 self.apply(SetPoseValue(c.id, name, value), operation=VALUE_OPERATION[name])
 
@@ -331,8 +339,6 @@ class ReviewApp:
 
     def move_step(self, index: int, delta: int) -> None:
         """Move plan step ``index`` up (``delta`` -1) or down (+1); the shown step follows it."""
-        from thirdhand.review.edits import MoveStep
-
         with self.lock:
             new = index + delta
             self.apply(MoveStep(index, new), operation="reordering")
@@ -414,23 +420,21 @@ class ReviewApp:
         return True
 
     # ------------------------------------------------------------------ clarification
-    def start_clarification(self) -> Any:
+    def start_clarification(self) -> Question | None:
         """Build the question queue (least confident first) and ask the first question."""
-        from thirdhand.review.clarify import clarification_queue
-
         with self.lock:
             self.questions = clarification_queue(self.task)
             self.question_index = 0
             return self._ask()
 
     @property
-    def question(self) -> Any:
+    def question(self) -> Question | None:
         """The question being asked, None when the round is over."""
         if 0 <= self.question_index < len(self.questions):
             return self.questions[self.question_index]
         return None
 
-    def _ask(self) -> Any:
+    def _ask(self) -> Question | None:
         q = self.question
         if q is None:
             self.notify("Clarification done: every question answered")
@@ -442,10 +446,11 @@ class ReviewApp:
         self.animate_dofs(c.id, [q.dof] if q.dof is not None else list(DOF_NAMES))
         return q
 
-    def answer(self, yes: bool) -> Any:
-        """Answer the current question: yes confirms it; no leaves it for a correction."""
-        from thirdhand.review.edits import Confirm
+    def answer(self, yes: bool) -> Question | None:
+        """Answer the current question: yes confirms it; no leaves it for a correction.
 
+        Returns the next question (None when the round is over).
+        """
         with self.lock:
             q = self.question
             if q is None:

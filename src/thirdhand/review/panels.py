@@ -15,8 +15,10 @@ from typing import TYPE_CHECKING, Any
 
 import viser
 
+from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
-from thirdhand.review.edits import pose_values
+from thirdhand.review.edits import SetDofRange, SetParent, parse_number, pose_values
+from thirdhand.review.playback import HAND_RGB
 from thirdhand.review.scene3d import PARENT_RGB, SELECTED_RGB, hex_colour
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import DOF_NAMES
@@ -185,30 +187,21 @@ class Panels:
         self.app.attempt(self.app.nudge, name, delta)
 
     def _submit_range(self) -> None:
-        from thirdhand.errors import ThirdhandError
-        from thirdhand.review.edits import SetDofRange, parse_number
-
         c = self.app.constraint
         if c is None:
             raise ThirdhandError("select an object with a constraint first")
         dof = self.dof.value
-        unit, shown = ("m", "cm") if dof.startswith("t") else ("rad", "deg")
-        lo, hi = (_with_unit(h.value, shown) for h in (self.dof_lo, self.dof_hi))
-        edit = SetDofRange(c.id, dof, parse_number(lo, unit=unit), parse_number(hi, unit=unit))
-        self.app.apply(edit, operation="range")
+        unit = "cm" if dof.startswith("t") else "deg"  # a bare number, as shown
+        lo, hi = (parse_number(h.value, unit=unit) for h in (self.dof_lo, self.dof_hi))
+        self.app.apply(SetDofRange(c.id, dof, lo, hi), operation="range")
 
     def _submit_parent(self) -> None:
-        from thirdhand.errors import ThirdhandError
-        from thirdhand.review.edits import SetParent
-
         child, parent = self.app.selected, self.new_parent.value
         if child is None or parent == NONE:
             raise ThirdhandError("select an object and its new parent first")
         self.app.apply(SetParent(child, parent), operation="parent")
 
     def _step_index(self) -> int:
-        from thirdhand.errors import ThirdhandError
-
         value = self.step.value
         try:
             return int(value.split(".", 1)[0]) - 1
@@ -386,11 +379,6 @@ def _assign(handle: Any, value: Any) -> None:
     handle.value = value
 
 
-def _with_unit(text: str, unit: str) -> str:
-    t = text.strip()
-    return f"{t} {unit}" if t and not any(ch.isalpha() for ch in t) else t
-
-
 def _index_of(value: str, labels: list[str]) -> int:
     try:
         return int(value.split(".", 1)[0]) - 1
@@ -399,8 +387,6 @@ def _index_of(value: str, labels: list[str]) -> int:
 
 
 def _legend(source: str) -> str:
-    from thirdhand.review.playback import HAND_RGB
-
     items = " ".join(
         f'<span style="color:{hex_colour(rgb)}">■ {side}</span>' for side, rgb in HAND_RGB.items()
     )
