@@ -1,0 +1,165 @@
+"""What one plan step becomes: the executor's options, the motions of a step and its report.
+
+A planned step is a list of :class:`Segment` (joint-space waypoint paths, the
+world changes before and after each: contacts allowed, the part attached or
+detached) and a :class:`StepReport` saying what was found or why not.
+Joint values are radians, distances metres, times seconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.execute.goals import POS_TOL_M, ROT_TOL_RAD
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass
+class ExecutionOptions:
+    """Knobs of the executor (distances in metres, times in seconds).
+
+    Attributes
+    ----------
+    sample_free_dofs : bool
+        Try goals sampled inside the constraint's free DOFs when the nominal one fails.
+    n_goal_samples : int
+        Goals tried per step (the nominal one first) when sampling.
+    max_grasps : int
+        Grasp candidates tried per step, best ranked first.
+    plan_time_limit : float
+        Bound of each motion-planning query.
+    step_time_limit : float
+        Bound of the whole search of one step (grasps × goals × planning).
+    approach_m, lift_m, insert_m, retreat_m : float
+        Lengths of the straight moves.
+    planner : str
+        OMPL planner name (see :data:`thirdhand.execute.planner.PLANNERS`).
+    use_primitives : bool
+        Follow the learned approach primitive when the task has one.
+    pos_tol, rot_tol : float
+        Tolerances of constraint detection, metres and radians.
+    """
+
+    sample_free_dofs: bool = True
+    n_goal_samples: int = 16
+    max_grasps: int = 24
+    plan_time_limit: float = 5.0
+    step_time_limit: float = 60.0
+    approach_m: float = 0.08
+    lift_m: float = 0.08
+    insert_m: float = 0.05
+    retreat_m: float = 0.08
+    planner: str = "rrtconnect"
+    use_primitives: bool = True
+    pos_tol: float = POS_TOL_M
+    rot_tol: float = ROT_TOL_RAD
+
+
+@dataclass
+class Segment:
+    """One motion of the arm and what changes in the world before and after it.
+
+    Attributes
+    ----------
+    name : str
+        ``"approach"``, ``"grasp"``, ``"lift"``, ``"transport"``, ``"insert"``,
+        ``"retreat"`` or ``"home"``.
+    path : ndarray, shape (m, dof)
+        Waypoints, radians; straight joint segments between them.
+    before, after : list of tuple
+        World changes: ``("allow" | "disallow", a, b)``, ``("attach" | "detach", part)``.
+    """
+
+    name: str
+    path: FloatArray
+    before: list[tuple[str, ...]] = field(default_factory=list)
+    after: list[tuple[str, ...]] = field(default_factory=list)
+
+
+@dataclass
+class StepReport:
+    """What happened to one plan step.
+
+    Attributes
+    ----------
+    index : int
+        Plan step index.
+    parent, child, constraint : str
+    success : bool
+    status : str
+        ``"done"``, ``"done by person"``, ``"already holds"``, or why it failed.
+    planning_time_s : float
+        Wall time of the step's search and planning.
+    joint_length_rad, tool_length_m : float
+        Length of the executed path (joint space, tool in the world).
+    n_collisions : int
+        Configurations in collision along the executed path, densely checked.
+    n_dense : int
+        Configurations checked.
+    grasp : str or None
+        Label of the grasp used.
+    goal_dofs : list of float or None
+        The goal's displacement inside the free DOFs (tx ty tz rx ry rz).
+    tried : dict
+        Counts of what the search tried (grasps, goals, IK and planning outcomes).
+    """
+
+    index: int
+    parent: str
+    child: str
+    constraint: str
+    success: bool
+    status: str
+    planning_time_s: float = 0.0
+    joint_length_rad: float = 0.0
+    tool_length_m: float = 0.0
+    n_collisions: int = 0
+    n_dense: int = 0
+    grasp: str | None = None
+    goal_dofs: list[float] | None = None
+    tried: dict[str, int] = field(default_factory=dict)
+
+
+@dataclass
+class StepPlan:
+    """The motions of one step, or None-free failure details in the report."""
+
+    report: StepReport
+    segments: list[Segment] = field(default_factory=list)
+    final_pose: FloatArray | None = None
+
+
+@dataclass
+class ExecutionResult:
+    """Outcome of a run.
+
+    Attributes
+    ----------
+    steps : list of StepReport
+        One per attempted step, in execution order (online: also the steps a
+        person did or that already held).
+    success : bool
+        Every constraint of the plan holds at the end.
+    trajectory : list of (Segment, ExecutedSegment-like dict)
+        Executed motions, for :mod:`thirdhand.execute.record`.
+    events : list of str
+        What the simulated people and slips did, in order.
+    final_poses : dict of str to ndarray (4, 4)
+        Every part's world pose at the end.
+    """
+
+    steps: list[StepReport]
+    success: bool
+    trajectory: list[dict[str, Any]]
+    events: list[str]
+    final_poses: dict[str, FloatArray]
+
+    @property
+    def n_collisions(self) -> int:
+        """Configurations in collision along every executed path (dense check)."""
+        return sum(s.n_collisions for s in self.steps)

@@ -1,0 +1,284 @@
+"""The search of one plan step: grasps × goals, every stage bounded by the step's deadline.
+
+For each grasp (best ranked first, :func:`candidate_grasps`): reach it (IK, a
+straight move in along the tool's approach), lift the part, and for each goal
+(the nominal one first, then goals sampled inside the free DOFs) find the place
+configuration, the insertion (the learned primitive or a straight line), the
+retreat and the transport; finally the approach from the start configuration.
+The first combination that works becomes the step's :class:`StepPlan`; when
+none does, the report says what was tried.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand import se3
+from thirdhand.execute import grasps as grasp_mod
+from thirdhand.execute.goals import invert, sample_goals
+from thirdhand.execute.planner import plan_motion
+from thirdhand.execute.primitive_motion import (
+    follow_tool_path,
+    linear_motion,
+    primitive_tool_path,
+)
+from thirdhand.execute.scene import GRIPPER
+from thirdhand.execute.step_plan import ExecutionOptions, Segment, StepPlan, StepReport
+from thirdhand.execute.world import SimWorld, insertion_axis
+from thirdhand.execute.world import trans as _trans
+from thirdhand.task.constraint import Constraint
+from thirdhand.task.model import TaskFile
+
+FloatArray = NDArray[np.float64]
+
+
+def candidate_grasps(
+    task: TaskFile,
+    constraint: Constraint,
+    hints: Mapping[str, Sequence[grasp_mod.Grasp]],
+    part_pose: FloatArray,
+    max_grasps: int,
+) -> list[grasp_mod.Grasp]:
+    """Grasps worth trying on the part where it lies, best first.
+
+    Grasps approaching from below are dropped (the hand would go through the
+    table); the rest are ranked demonstrated first, then by how steeply they
+    come from above plus how far they hold from where the part meets its parent.
+    """
+    obj = next(o for o in task.objects if o.name == constraint.child)
+    cands = list(hints.get(constraint.child, ()))
+    if obj.bbox_min is not None and obj.bbox_max is not None:
+        cands += grasp_mod.shape_grasps(obj.bbox_min, obj.bbox_max)
+    avoid = invert(constraint.pose.matrix())[:3, 3]
+    rot = part_pose[:3, :3]
+    scored: list[tuple[bool, float, int, grasp_mod.Grasp]] = []
+    for g in cands:
+        down = -float((rot @ g.pose[:3, 2])[2])
+        if down < -0.1:
+            continue
+        far = float(np.linalg.norm(g.pose[:3, 3] - avoid))
+        scored.append((g.source != "demo", -(down + 2.0 * far), len(scored), g))
+    scored.sort(key=lambda s: s[:3])
+    return [s[3] for s in scored[:max_grasps]]
+
+
+class StepSearch:
+    """The search of one step: grasps × goals, each stage bounded by the step's deadline.
+
+    The scene is left as found: the child free at its current pose, nothing
+    attached, the same pairs allowed.
+    """
+
+    def __init__(
+        self,
+        world: SimWorld,
+        task: TaskFile,
+        constraint: Constraint,
+        options: ExecutionOptions,
+        *,
+        seed: int,
+        deadline: float,
+        primitive: Any | None,
+        hints: Mapping[str, Sequence[grasp_mod.Grasp]],
+    ) -> None:
+        self.world = world
+        self.scene = world.scene
+        self.robot = world.robot
+        self.task = task
+        self.c = constraint
+        self.opt = options
+        self.seed = seed
+        self.deadline = deadline
+        self.primitive = primitive
+        self.hints = hints
+        self.tried = {"grasps": 0, "grasps_reachable": 0, "goals": 0, "place_reachable": 0,
+                      "plans": 0, "plans_failed": 0}  # fmt: skip
+
+    def left(self) -> float:
+        return self.deadline - time.perf_counter()
+
+    def _ik(self, target: FloatArray, q_seed: FloatArray, salt: int) -> FloatArray | None:
+        return self.robot.ik(
+            se3.matrix_to_pose(target),
+            q_seed,
+            seed=self.seed * 7919 + salt,
+            n_restarts=24,
+            accept=self.scene.is_valid,
+        )
+
+    def _line(self, q_a: FloatArray, t_b: FloatArray) -> FloatArray | None:
+        path = linear_motion(self.robot, q_a, t_b)
+        if path is None or not self.scene.check_path(path):
+            return None
+        return path
+
+    def _plan(self, q_a: FloatArray, q_b: FloatArray) -> FloatArray | None:
+        limit = min(self.opt.plan_time_limit, self.left())
+        if limit <= 0.05:
+            return None
+        self.tried["plans"] += 1
+        res = plan_motion(
+            self.robot,
+            self.scene,
+            q_a,
+            q_b,
+            planner=self.opt.planner,
+            time_limit=limit,
+            seed=self.seed + self.tried["plans"],
+        )
+        if not res.success or res.path is None:
+            self.tried["plans_failed"] += 1
+            return None
+        return res.path
+
+    def _insertion(
+        self, q_place: FloatArray, t_preplace_tool: FloatArray, parent_pose: FloatArray,
+        goal: FloatArray, g: grasp_mod.Grasp,
+    ) -> FloatArray | None:  # fmt: skip
+        """Joint path pre-place → place (part attached): the primitive's, else a straight line."""
+        name, parent = self.c.child, self.c.parent
+        if self.primitive is not None:
+            start = t_preplace_tool @ invert(g.pose)
+            tools = primitive_tool_path(
+                self.primitive, parent_world=parent_pose, child_start=start, child_goal=goal,
+                grasp=g.pose,
+            )  # fmt: skip
+            q0 = self._ik(tools[0], q_place, 77)
+            path = None if q0 is None else follow_tool_path(self.robot, q0, tools)
+            if path is not None and self.scene.is_valid(path[0]):
+                self.scene.allow(name, parent)
+                ok = self.scene.check_path(path)
+                self.scene.disallow(name, parent)
+                if ok:
+                    return path
+        self.scene.allow(name, parent)
+        try:
+            back = self._line(q_place, t_preplace_tool)
+        finally:
+            self.scene.disallow(name, parent)
+        # the pre-place pose itself must be clear of the parent
+        if back is None or not self.scene.is_valid(back[-1]):
+            return None
+        return back[::-1].copy()
+
+    def run(self, q_start: FloatArray, rng: np.random.Generator) -> StepPlan:
+        c, opt, name, scene = self.c, self.opt, self.c.child, self.scene
+        report = StepReport(0, c.parent, c.child, c.id, False, "")
+        part_pose = self.world.pose(name)
+        parent_pose = self.world.pose(c.parent)
+        n_goals = opt.n_goal_samples if opt.sample_free_dofs else 1
+        goals, dofs = sample_goals(parent_pose, c, n_goals, rng)
+        axis = insertion_axis(self.task, c)
+        grasps = candidate_grasps(self.task, c, self.hints, part_pose, opt.max_grasps)
+        for k, g in enumerate(grasps):
+            if self.left() <= 0:
+                report.status = f"step time limit ({opt.step_time_limit:g} s) reached"
+                break
+            self.tried["grasps"] += 1
+            t_grasp = part_pose @ g.pose
+            scene.allow(GRIPPER, name)
+            try:
+                q_grasp = self._ik(t_grasp, q_start, k)
+                back = None if q_grasp is None else self._line(
+                    q_grasp, t_grasp @ _trans([0.0, 0.0, -opt.approach_m])
+                )  # fmt: skip
+            finally:
+                scene.disallow(GRIPPER, name)
+            if q_grasp is None or back is None or not scene.is_valid(back[-1]):
+                continue
+            self.tried["grasps_reachable"] += 1
+            found = self._with_grasp(q_grasp, g, goals, dofs, axis, parent_pose, part_pose)
+            if found is None:
+                continue
+            j, lift, transport, insert, retreat = found
+            approach = self._plan(q_start, back[-1])
+            if approach is None:
+                continue
+            report.success = True
+            report.status = "planned"
+            report.grasp = g.label
+            report.goal_dofs = [float(v) for v in dofs[j]]
+            report.tried = dict(self.tried)
+            segs = [
+                Segment("approach", approach),
+                Segment("grasp", back[::-1].copy(), before=[("allow", GRIPPER, name)],
+                        after=[("attach", name)]),
+                Segment("lift", lift),
+                Segment("transport", transport),
+                Segment("insert", insert, before=[("allow", name, c.parent)],
+                        after=[("detach", name)]),
+                Segment("retreat", retreat, after=[("disallow", GRIPPER, name)]),
+            ]  # fmt: skip
+            return StepPlan(report, segs, goals[j])
+        report.tried = dict(self.tried)
+        if not report.status:
+            t = self.tried
+            report.status = (
+                f"no reachable goal: {t['grasps']} grasps tried ({t['grasps_reachable']} "
+                f"reachable), {t['goals']} goal poses tried ({t['place_reachable']} reachable, "
+                f"free DOFs {'sampled' if opt.sample_free_dofs else 'not sampled'}), "
+                f"{t['plans_failed']} of {t['plans']} planning queries failed"
+            )
+        return StepPlan(report)
+
+    def _with_grasp(
+        self, q_grasp: FloatArray, g: grasp_mod.Grasp, goals: FloatArray, dofs: FloatArray,
+        axis: FloatArray, parent_pose: FloatArray, part_pose: FloatArray,
+    ) -> tuple[int, FloatArray, FloatArray, FloatArray, FloatArray] | None:  # fmt: skip
+        """For one grasp: the first goal with lift, insertion, retreat and transport feasible."""
+        c, opt, name, scene = self.c, self.opt, self.c.child, self.scene
+        t_grasp = self.robot.tool_transforms(q_grasp[None])[0]
+        scene.attach(name, q_grasp)
+        try:
+            lift = self._line(q_grasp, _trans([0.0, 0.0, opt.lift_m]) @ t_grasp)
+            if lift is None:
+                return None
+            q_lift = lift[-1]
+            for j, goal in enumerate(goals):
+                if self.left() <= 0:
+                    return None
+                self.tried["goals"] += 1
+                t_place = goal @ g.pose
+                scene.allow(name, c.parent)
+                q_place = self._ik(t_place, q_lift, 1000 + j)
+                scene.disallow(name, c.parent)
+                if q_place is None:
+                    continue
+                self.tried["place_reachable"] += 1
+                t_pre = goal @ _trans(opt.insert_m * axis) @ g.pose
+                insert = self._insertion(q_place, t_pre, parent_pose, goal, g)
+                if insert is None:
+                    continue
+                retreat = self._retreat(q_grasp, q_place, t_place, goal)
+                if retreat is None:
+                    continue
+                transport = self._plan(q_lift, insert[0])
+                if transport is None:
+                    continue
+                return j, lift, transport, insert, retreat
+            return None
+        finally:
+            scene.detach(name, q_grasp)
+
+    def _retreat(
+        self, q_grasp: FloatArray, q_place: FloatArray, t_place: FloatArray, goal: FloatArray
+    ) -> FloatArray | None:
+        """Straight back from the placed part, checked with the part left at its goal."""
+        name, parent, scene = self.c.child, self.c.parent, self.scene
+        scene.detach(name, q_grasp)
+        part_pose = self.world.pose(name)
+        self.world.set_pose(name, goal)
+        scene.allow(name, parent)
+        scene.allow(GRIPPER, name)
+        try:
+            return self._line(q_place, t_place @ _trans([0.0, 0.0, -self.opt.retreat_m]))
+        finally:
+            scene.disallow(GRIPPER, name)
+            scene.disallow(name, parent)
+            self.world.set_pose(name, part_pose)
+            scene.attach(name, q_grasp)
