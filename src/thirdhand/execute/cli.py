@@ -1,6 +1,8 @@
 """``thirdhand execute TASK.json``: run a task's plan on the simulated arm.
 
-Prints, per step, the planning time, the executed path's length and whether it
+Prints, per step, the grasp (and whether it came from the demonstration or the
+part's shape), how the part was placed (along the learned primitive or straight
+in), the planning time, the executed path's length and whether it
 succeeded; ``--record OUT`` writes a replay (``OUT.parquet``, viewable with
 ``thirdhand review TASK --demo OUT.parquet``) and the joint trajectory
 (``OUT.json``). Exits 1 when a step fails.
@@ -77,12 +79,16 @@ def execute_command(
             raise ThirdhandError("--person needs --online (offline planning shares no task)")
         result = ex.run_offline(seed=seed)
     table = Table(title=f"{task.name} on {robot} ({'online' if online else 'offline'})")
-    for col in ("step", "action", "planning s", "path rad", "tool m", "collisions", "status"):
+    cols = ("step", "action", "grasp", "place", "planning s", "path rad", "tool m", "collisions",
+            "status")  # fmt: skip
+    for col in cols:
         table.add_column(col)
     for r in result.steps:
         table.add_row(
             str(r.index),
             f"{r.child} → {r.parent} ({r.constraint})",
+            f"{r.grasp} ({r.grasp_source})" if r.grasp_source else "",
+            r.place_motion,
             f"{r.planning_time_s:.2f}",
             f"{r.joint_length_rad:.2f}",
             f"{r.tool_length_m:.2f}",

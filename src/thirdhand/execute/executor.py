@@ -187,6 +187,7 @@ class Executor:
                 {
                     "step": rep.index,
                     "segment": seg.name,
+                    "motion": rep.motions.get(seg.name, "planner"),
                     "path": seg.path.copy(),
                     "attached": attached,
                     "t_tool_part": None if attached is None else invert(

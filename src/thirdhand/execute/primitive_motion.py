@@ -1,10 +1,13 @@
 """Motions along a given tool path: straight lines and the learned approach primitive.
 
 The short moves of a pick and place (approach the grasp, lift, insert, retreat)
-follow a straight line of the tool; the approach to an assembly pose may follow
-the primitive learned from the demonstrations (the task file's
+follow a straight line of the tool; the final approach onto an assembly pose
+may follow the primitive learned from the demonstrations (the task file's
 ``stages["primitives"]["constraints"]`` block, a pose DMP of the child in the
-parent's frame, see :mod:`thirdhand.primitives.stage`). Both become joint paths
+parent's frame, see :mod:`thirdhand.primitives.stage`): the DMP is rolled out
+from its demonstrated start to the chosen goal and its last few centimetres
+(:func:`primitive_place_path`) are followed — the way the person pushed the
+part home, e.g. the chair's back slid into its groove. Both become joint paths
 the same way: inverse kinematics at each pose along the path, every solve
 started from the previous solution, so the arm follows the path continuously;
 a jump between consecutive solutions (a branch switch) rejects the path.
@@ -20,10 +23,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
-from thirdhand.execute.goals import invert
+from thirdhand.execute.goals import dof_displacement, invert, vary
 from thirdhand.execute.robot import Robot
 from thirdhand.primitives.serialize import pose_dmp_from_dict
-from thirdhand.primitives.stage import rollout_in_world
+from thirdhand.task.constraint import Constraint
 
 FloatArray = NDArray[np.float64]
 
@@ -116,16 +119,26 @@ def find_primitive(block: Mapping[str, Any] | None, parent: str, child: str) -> 
     return None
 
 
-def primitive_tool_path(
+def primitive_place_path(
     dmp: Any,
     *,
     parent_world: ArrayLike,
-    child_start: ArrayLike,
     child_goal: ArrayLike,
     grasp: ArrayLike,
-    n: int = 40,
-) -> FloatArray:
-    """Tool poses (n, 4, 4) that carry the child along the primitive to its goal.
+    length_m: float = 0.06,
+    step_m: float = 0.005,
+    constraint: Constraint | None = None,
+) -> FloatArray | None:
+    """Tool poses that bring the child to its goal along the end of the learned primitive.
+
+    The primitive (learned in the parent's frame) is rolled out from its
+    demonstrated start to ``child_goal``; the part of the rollout after the
+    child last came within ``length_m`` of the goal (the person's final approach,
+    e.g. a leg pushed into its slot or the back slid into its groove) is kept and
+    resampled about every ``step_m`` of the child's motion, ending exactly on the goal.
+    With ``constraint``, turns inside its free rotational DOFs are dropped from
+    the motion (held at the goal's): a person screws a leg into its slot, the
+    goal already fixes the leg's spin, and the arm's wrist could not turn that far.
 
     Parameters
     ----------
@@ -133,29 +146,46 @@ def primitive_tool_path(
         Learned in the parent's frame.
     parent_world : array_like, shape (4, 4)
         ``T_world_parent``.
-    child_start, child_goal : array_like, shape (4, 4)
-        ``T_world_child`` where the motion starts and where it must end.
+    child_goal : array_like, shape (4, 4)
+        ``T_world_child`` at the goal (any pose inside the free DOFs).
     grasp : array_like, shape (4, 4)
         ``T_child_tool``.
-    n : int
-        Poses kept along the rollout (evenly spaced in time).
+    length_m : float
+        Distance from the goal where the kept motion starts, metres.
+    step_m : float
+        Spacing of the kept poses, metres (rotation counts 5 cm per radian).
+    constraint : Constraint, optional
+        The constraint whose free rotations are held at the goal's.
+
+    Returns
+    -------
+    ndarray, shape (n, 4, 4) or None
+        ``T_world_tool`` along the motion, the last one the goal's; None when
+        the rollout never comes farther than ``length_m`` from the goal.
     """
     tp = np.asarray(parent_world, dtype=np.float64)
-    goal_rel = invert(tp) @ np.asarray(child_goal, dtype=np.float64)
-    sp, sq = se3.matrix_to_pose(np.asarray(child_start, dtype=np.float64))
-    gp, gq = se3.matrix_to_pose(goal_rel)
-    pp, pq = se3.matrix_to_pose(tp)
-    _, pw, qw = rollout_in_world(
-        dmp,
-        parent_pos=pp,
-        parent_quat=pq,
-        start_pos=sp,
-        start_quat=sq,
-        goal_pos=gp,
-        goal_quat=gq,
+    goal_w = np.asarray(child_goal, dtype=np.float64)
+    gp, gq = se3.matrix_to_pose(invert(tp) @ goal_w)
+    _, pos, quat = dmp.rollout(goal_pos=gp, goal_quat=gq, at_rest=True)
+    dist = np.linalg.norm(pos - gp, axis=1)
+    far = np.flatnonzero(dist >= length_m)
+    if far.size == 0:
+        return None
+    tail_p, tail_q = pos[far[-1] :], quat[far[-1] :]
+    if constraint is not None:
+        free_rot = np.ptp(constraint.free_dof_array(), axis=1)[3:] > 0.0
+        if free_rot.any():
+            d = dof_displacement(se3.pose_to_matrix(tail_p, tail_q), constraint)
+            d[:, 3:][:, free_rot] = dof_displacement(invert(tp) @ goal_w, constraint)[3:][free_rot]
+            tail_p, tail_q = se3.matrix_to_pose(vary(constraint, d))
+    # arc length of the child's motion (5 cm per radian of turning) to resample evenly
+    dot = np.abs(np.sum(tail_q[1:] * tail_q[:-1], axis=1))
+    ang = 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
+    arc = np.concatenate(
+        [[0.0], np.cumsum(np.linalg.norm(np.diff(tail_p, axis=0), axis=1) + 0.05 * ang)]
     )
-    idx = np.unique(np.linspace(0, len(pw) - 1, n).round().astype(int))
-    child = se3.pose_to_matrix(pw[idx], qw[idx])
-    # land exactly on the goal (the rollout converges to it asymptotically)
-    child[-1] = np.asarray(child_goal, dtype=np.float64)
+    n = max(int(np.ceil(arc[-1] / step_m)) + 1, 2)
+    idx = np.unique(np.searchsorted(arc, np.linspace(0.0, arc[-1], n)).clip(0, len(arc) - 1))
+    child = tp @ se3.pose_to_matrix(tail_p[idx], tail_q[idx])
+    child[-1] = goal_w  # land exactly on the goal (the rollout converges to it asymptotically)
     return np.asarray(child @ np.asarray(grasp, dtype=np.float64), dtype=np.float64)

@@ -35,7 +35,11 @@ TOOL_BODY = "robot_tool"
 
 
 def sample_run(
-    robot: Robot, result: ExecutionResult, *, rate_hz: float = 50.0
+    robot: Robot,
+    result: ExecutionResult,
+    *,
+    rate_hz: float = 50.0,
+    spans: list[dict[str, Any]] | None = None,
 ) -> tuple[FloatArray, FloatArray, dict[str, FloatArray]]:
     """Time-parametrise every executed segment and sample the world along them.
 
@@ -45,6 +49,10 @@ def sample_run(
     result : ExecutionResult
     rate_hz : float
         Samples per second.
+    spans : list, optional
+        Filled with one dict per executed segment: ``step``, ``segment``,
+        ``motion`` (``"planner"``, ``"straight"`` or ``"primitive"``) and its
+        ``t_start``, ``t_end`` (s) on the returned clock.
 
     Returns
     -------
@@ -75,6 +83,16 @@ def sample_run(
         if len(t) == 0:
             continue
         offset = float(t[-1]) + 1.0 / rate_hz
+        if spans is not None:
+            spans.append(
+                {
+                    "step": seg["step"],
+                    "segment": seg["segment"],
+                    "motion": seg.get("motion", "planner"),
+                    "t_start": round(float(t[0]), 6),
+                    "t_end": round(float(t[-1]), 6),
+                }
+            )
         tool = robot.tool_transforms(q)
         ts.append(t)
         qs.append(q)
@@ -125,8 +143,14 @@ def replay_demonstration(
 def trajectory_document(
     robot: Robot, result: ExecutionResult, *, rate_hz: float = 50.0
 ) -> dict[str, Any]:
-    """The JSON trajectory: robot, joint names, ``t`` (s), ``q`` (rad), step reports, events."""
-    t, q, _ = sample_run(robot, result, rate_hz=rate_hz)
+    """The JSON trajectory: robot, joint names, ``t`` (s), ``q`` (rad), segments, steps, events.
+
+    ``segments`` says which motion each executed segment used (``"planner"``,
+    ``"straight"``, ``"primitive"``) and when it ran; ``steps`` are the step
+    reports (with ``place_motion``, ``motions``, ``grasp_source``).
+    """
+    spans: list[dict[str, Any]] = []
+    t, q, _ = sample_run(robot, result, rate_hz=rate_hz, spans=spans)
     return {
         "schema": "thirdhand.trajectory/1",
         "robot": robot.name,
@@ -136,6 +160,7 @@ def trajectory_document(
         "q": [[round(float(v), 6) for v in row] for row in q],
         "success": result.success,
         "n_collisions": result.n_collisions,
+        "segments": spans,
         "steps": [asdict(s) for s in result.steps],
         "events": list(result.events),
     }

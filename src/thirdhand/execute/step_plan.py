@@ -41,6 +41,8 @@ class ExecutionOptions:
         OMPL planner name (see :data:`thirdhand.execute.planner.PLANNERS`).
     use_primitives : bool
         Follow the learned approach primitive when the task has one.
+    primitive_m : float
+        Length of the primitive's final approach followed by the place motion.
     pos_tol, rot_tol : float
         Tolerances of constraint detection, metres and radians.
     """
@@ -56,6 +58,7 @@ class ExecutionOptions:
     retreat_m: float = 0.08
     planner: str = "rrtconnect"
     use_primitives: bool = True
+    primitive_m: float = 0.06
     pos_tol: float = POS_TOL_M
     rot_tol: float = ROT_TOL_RAD
 
@@ -103,6 +106,17 @@ class StepReport:
         Configurations checked.
     grasp : str or None
         Label of the grasp used.
+    grasp_source : str or None
+        Where the grasp came from: ``"demo"`` (the demonstrator's fingers) or ``"shape"``.
+    place_motion : str
+        How the part was brought onto its goal: ``"primitive"`` (the end of the
+        learned primitive) or ``"straight"`` (in along the insertion axis); empty
+        when the robot did not place it.
+    motions : dict of str to str
+        Per segment (``"approach"``, ``"grasp"``, ``"lift"``, ``"transport"``,
+        ``"insert"``, ``"retreat"``): ``"planner"`` (:func:`~thirdhand.execute.planner.plan_motion`:
+        its direct joint segment when free, else OMPL), ``"straight"`` (a straight
+        line of the tool) or ``"primitive"`` (the learned primitive).
     goal_dofs : list of float or None
         The goal's displacement inside the free DOFs (tx ty tz rx ry rz).
     tried : dict
@@ -121,6 +135,9 @@ class StepReport:
     n_collisions: int = 0
     n_dense: int = 0
     grasp: str | None = None
+    grasp_source: str | None = None
+    place_motion: str = ""
+    motions: dict[str, str] = field(default_factory=dict)
     goal_dofs: list[float] | None = None
     tried: dict[str, int] = field(default_factory=dict)
 

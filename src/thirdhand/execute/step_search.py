@@ -25,7 +25,7 @@ from thirdhand.execute.planner import plan_motion
 from thirdhand.execute.primitive_motion import (
     follow_tool_path,
     linear_motion,
-    primitive_tool_path,
+    primitive_place_path,
 )
 from thirdhand.execute.scene import GRIPPER
 from thirdhand.execute.step_plan import ExecutionOptions, Segment, StepPlan, StepReport
@@ -97,7 +97,7 @@ class StepSearch:
         self.primitive = primitive
         self.hints = hints
         self.tried = {"grasps": 0, "grasps_reachable": 0, "goals": 0, "place_reachable": 0,
-                      "plans": 0, "plans_failed": 0}  # fmt: skip
+                      "plans": 0, "plans_failed": 0, "primitive_rejected": 0}  # fmt: skip
 
     def left(self) -> float:
         return self.deadline - time.perf_counter()
@@ -139,32 +139,38 @@ class StepSearch:
     def _insertion(
         self, q_place: FloatArray, t_preplace_tool: FloatArray, parent_pose: FloatArray,
         goal: FloatArray, g: grasp_mod.Grasp,
-    ) -> FloatArray | None:  # fmt: skip
-        """Joint path pre-place → place (part attached): the primitive's, else a straight line."""
+    ) -> tuple[str, FloatArray] | None:  # fmt: skip
+        """Joint path pre-place → place (part attached) and its kind.
+
+        The end of the learned primitive (``"primitive"``) when it is reachable
+        and collision-free (its first pose clear of the parent, the rest checked
+        densely with the part allowed to touch its parent); otherwise the
+        straight line in from ``t_preplace_tool`` (``"straight"``).
+        """
         name, parent = self.c.child, self.c.parent
         if self.primitive is not None:
-            start = t_preplace_tool @ invert(g.pose)
-            tools = primitive_tool_path(
-                self.primitive, parent_world=parent_pose, child_start=start, child_goal=goal,
-                grasp=g.pose,
+            tools = primitive_place_path(
+                self.primitive, parent_world=parent_pose, child_goal=goal, grasp=g.pose,
+                length_m=self.opt.primitive_m, constraint=self.c,
             )  # fmt: skip
-            q0 = self._ik(tools[0], q_place, 77)
-            path = None if q0 is None else follow_tool_path(self.robot, q0, tools)
-            if path is not None and self.scene.is_valid(path[0]):
+            # followed backwards from the place configuration: no IK restarts needed
+            back = None if tools is None else follow_tool_path(self.robot, q_place, tools[::-1])
+            if back is not None and self.scene.is_valid(back[-1]):
                 self.scene.allow(name, parent)
-                ok = self.scene.check_path(path)
+                ok = self.scene.check_path(back)
                 self.scene.disallow(name, parent)
                 if ok:
-                    return path
+                    return "primitive", back[::-1].copy()
+            self.tried["primitive_rejected"] += 1
         self.scene.allow(name, parent)
         try:
-            back = self._line(q_place, t_preplace_tool)
+            line = self._line(q_place, t_preplace_tool)
         finally:
             self.scene.disallow(name, parent)
         # the pre-place pose itself must be clear of the parent
-        if back is None or not self.scene.is_valid(back[-1]):
+        if line is None or not self.scene.is_valid(line[-1]):
             return None
-        return back[::-1].copy()
+        return "straight", line[::-1].copy()
 
     def run(self, q_start: FloatArray, rng: np.random.Generator) -> StepPlan:
         c, opt, name, scene = self.c, self.opt, self.c.child, self.scene
@@ -195,13 +201,23 @@ class StepSearch:
             found = self._with_grasp(q_grasp, g, goals, dofs, axis, parent_pose, part_pose)
             if found is None:
                 continue
-            j, lift, transport, insert, retreat = found
+            j, lift, transport, insert, retreat, kind = found
             approach = self._plan(q_start, back[-1])
             if approach is None:
                 continue
             report.success = True
             report.status = "planned"
             report.grasp = g.label
+            report.grasp_source = g.source
+            report.place_motion = kind
+            report.motions = {
+                "approach": "planner",
+                "grasp": "straight",
+                "lift": "straight",
+                "transport": "planner",
+                "insert": kind,
+                "retreat": "straight",
+            }
             report.goal_dofs = [float(v) for v in dofs[j]]
             report.tried = dict(self.tried)
             segs = [
@@ -229,7 +245,7 @@ class StepSearch:
     def _with_grasp(
         self, q_grasp: FloatArray, g: grasp_mod.Grasp, goals: FloatArray, dofs: FloatArray,
         axis: FloatArray, parent_pose: FloatArray, part_pose: FloatArray,
-    ) -> tuple[int, FloatArray, FloatArray, FloatArray, FloatArray] | None:  # fmt: skip
+    ) -> tuple[int, FloatArray, FloatArray, FloatArray, FloatArray, str] | None:  # fmt: skip
         """For one grasp: the first goal with lift, insertion, retreat and transport feasible."""
         c, opt, name, scene = self.c, self.opt, self.c.child, self.scene
         t_grasp = self.robot.tool_transforms(q_grasp[None])[0]
@@ -251,16 +267,17 @@ class StepSearch:
                     continue
                 self.tried["place_reachable"] += 1
                 t_pre = goal @ _trans(opt.insert_m * axis) @ g.pose
-                insert = self._insertion(q_place, t_pre, parent_pose, goal, g)
-                if insert is None:
+                found = self._insertion(q_place, t_pre, parent_pose, goal, g)
+                if found is None:
                     continue
+                kind, insert = found
                 retreat = self._retreat(q_grasp, q_place, t_place, goal)
                 if retreat is None:
                     continue
                 transport = self._plan(q_lift, insert[0])
                 if transport is None:
                     continue
-                return j, lift, transport, insert, retreat
+                return j, lift, transport, insert, retreat, kind
             return None
         finally:
             scene.detach(name, q_grasp)
