@@ -42,7 +42,7 @@ from thirdhand.review.edits import (
     parse_number,
     pose_values,
 )
-from thirdhand.review.effort import ACTIONS
+from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion
 from thirdhand.review.scene3d import DofGlyphView, PartsView, front_view, selection_colours
@@ -53,16 +53,6 @@ from thirdhand.task.geometry import DOF_NAMES
 from thirdhand.taskfile import TaskFile, save_task
 
 FloatArray = NDArray[np.float64]
-
-#: Effort operation of a typed pose value.
-VALUE_OPERATION = {
-    "x": "movex",
-    "y": "movey",
-    "z": "movez",
-    "roll": "rotx",
-    "pitch": "roty",
-    "yaw": "rotz",
-}
 
 
 class ReviewApp:

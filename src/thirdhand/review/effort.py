@@ -45,7 +45,8 @@ OPERATIONS: tuple[str, ...] = (
 #: Object name under which plan-wide operations (reordering, keyframe views) are counted.
 ACTIONS = "actions"
 
-_VALUE_OPERATION = {
+#: Effort operation of a typed pose value.
+VALUE_OPERATION = {
     "x": "movex",
     "y": "movey",
     "z": "movez",
@@ -58,7 +59,7 @@ _VALUE_OPERATION = {
 def operation_of(edit: Edit) -> str:
     """The GUI operation an edit stands for (``SetPose`` counts as ``movex``)."""
     if isinstance(edit, SetPoseValue):
-        return _VALUE_OPERATION.get(edit.name, "movex")
+        return VALUE_OPERATION.get(edit.name, "movex")
     if isinstance(edit, SetPose):
         return "movex"
     if isinstance(edit, SetDofRange):
