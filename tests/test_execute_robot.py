@@ -32,7 +32,10 @@ def baxter() -> Robot:
 
 def _scene(robot: Robot) -> CollisionScene:
     scene = CollisionScene(robot)
-    scene.add_table(height=0.75)
+    if robot.name == "baxter":  # in front of its pedestal (standing on the floor)
+        scene.add_table(height=0.75, size=(1.0, 1.6), center=(0.5, 0.0))
+    else:  # Panda mounted on the table
+        scene.add_table(height=0.75)
     return scene
 
 

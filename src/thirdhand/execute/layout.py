@@ -1,9 +1,17 @@
 """The work cell: robot, table, where the assembly is built, and seeded start layouts.
 
 World frame: ``z`` up, the table top at ``z = 0.75`` m as in the synthetic
-scenes. The robot stands at the world origin facing ``+x`` (Panda: its base on
-the table top; Baxter: its pedestal behind the table edge). The assembly is
-built at ``assembly_xy`` in front of the robot, on the table.
+scenes, the robot facing ``+x``. Panda: its base on the table top at the
+origin. Baxter: the model's root is its torso, 0.93 m above the floor where
+its pedestal stands; the torso stands at ``(-0.25, 0.22)``, so the right arm
+(the one used) has its shoulder near ``y = 0``; the table starts 2 cm in front
+of the torso (``x = -0.03``, the pedestal's foot under it), its top 0.18 m
+below the torso and 0.31 m below the shoulder; parts lie 0.25–0.88 m from the
+shoulder (a top-down grasp reaches about 0.8 m, one from the side farther:
+the half-table in the arm's reach is tight for the chair). The assembly is
+built at ``assembly_xy`` in front of the arm, on the table; parts are laid
+out in a band of distances from the arm's first joint (:attr:`Workcell.arm_xy`,
+:attr:`Workcell.reach`).
 
 The assembly pose of the base part (the root of the constraint tree, e.g. the
 seat) is chosen from the geometry (:func:`assembly_base_pose`): of the six ways
@@ -44,14 +52,32 @@ TABLE_Z = 0.75
 #: Robot base poses per robot name: translation (m), world frame, facing +x.
 ROBOT_BASES: dict[str, tuple[float, float, float]] = {
     "panda": (0.0, 0.0, TABLE_Z),
-    # Baxter's torso ("base" frame) stands 0.93 m above the floor, behind the table;
-    # its right arm's shoulder is 0.28 m to its right: centre that arm on the cell.
+    # Baxter's torso ("base" frame) stands 0.93 m above the floor (its pedestal's foot),
+    # behind the table; its right arm's shoulder is 0.26 m to its right: centre that arm.
     "baxter": (-0.25, 0.22, 0.93),
 }
-#: Table extent per robot (x min, x max, y min, y max), metres, world frame.
+#: Table extent per robot (x min, x max, y min, y max), metres, world frame. Baxter's
+#: pedestal column (at the table top's height) and torso end 0.16 m and 0.20 m in front of
+#: the torso frame (x = -0.09, -0.05): the table starts 2 cm beyond; its wide foot (below
+#: 0.3 m) stands under the table.
 TABLE_EXTENT: dict[str, tuple[float, float, float, float]] = {
     "panda": (-0.30, 1.00, -0.90, 0.90),
-    "baxter": (0.05, 1.05, -0.90, 0.90),
+    "baxter": (-0.03, 1.00, -0.90, 0.90),
+}
+#: World x, y of the arm's first joint (Baxter: the right shoulder ``right_s0``), metres.
+ARM_XY: dict[str, tuple[float, float]] = {
+    "panda": (0.0, 0.0),
+    "baxter": (-0.186, -0.039),
+}
+#: Distances from the arm's first joint where parts are laid out, metres.
+REACH: dict[str, tuple[float, float]] = {
+    "panda": (0.3, 0.7),
+    "baxter": (0.25, 0.88),
+}
+#: Default world x, y of the assembly per robot, metres.
+ASSEMBLY_XY: dict[str, tuple[float, float]] = {
+    "panda": (0.5, 0.0),
+    "baxter": (0.42, 0.05),
 }
 
 
@@ -79,6 +105,10 @@ class Workcell:
         The base part's assembly pose, world frame.
     fixtures : list of (str, ndarray (4, 4), ndarray (3,))
         Boxes holding the base: name, centre pose (world), full sides (m).
+    arm_xy : tuple of 2 floats
+        World x, y of the arm's first joint, metres.
+    reach : tuple of 2 floats
+        Band of distances from ``arm_xy`` where start layouts put the parts, metres.
     """
 
     robot: str
@@ -88,6 +118,8 @@ class Workcell:
     base: str
     base_pose: FloatArray
     fixtures: list[tuple[str, FloatArray, FloatArray]] = field(default_factory=list)
+    arm_xy: tuple[float, float] = (0.0, 0.0)
+    reach: tuple[float, float] = (0.3, 0.7)
 
     @property
     def table_center(self) -> tuple[float, float]:
@@ -270,11 +302,13 @@ def make_workcell(
     task: TaskFile,
     robot: str = "panda",
     *,
-    assembly_xy: tuple[float, float] = (0.5, 0.0),
+    assembly_xy: tuple[float, float] | None = None,
     task_path: str | os.PathLike[str] | None = None,
     search: Sequence[str | os.PathLike[str]] = (),
 ) -> Workcell:
     """The work cell of a task for a robot: base pose, table, assembly pose, fixture.
+
+    ``assembly_xy`` defaults to :data:`ASSEMBLY_XY` of the robot.
 
     Raises
     ------
@@ -289,12 +323,14 @@ def make_workcell(
     pose, fixtures = assembly_base_pose(
         task,
         base=base,
-        assembly_xy=assembly_xy,
-        robot_xy=(0.0, 0.0),
+        assembly_xy=ASSEMBLY_XY[robot] if assembly_xy is None else assembly_xy,
+        robot_xy=ARM_XY[robot],
         task_path=task_path,
         search=search,
     )
-    return Workcell(robot, rb, TABLE_Z, TABLE_EXTENT[robot], base, pose, fixtures)
+    return Workcell(
+        robot, rb, TABLE_Z, TABLE_EXTENT[robot], base, pose, fixtures, ARM_XY[robot], REACH[robot]
+    )
 
 
 def _is_rod(v: FloatArray) -> int | None:
@@ -350,11 +386,12 @@ def start_layout(
     cell: Workcell,
     seed: int | np.random.Generator = 0,
     *,
-    reach: tuple[float, float] = (0.3, 0.7),
+    reach: tuple[float, float] | None = None,
     margin: float = 0.06,
     task_path: str | os.PathLike[str] | None = None,
     search: Sequence[str | os.PathLike[str]] = (),
     max_tries: int = 2000,
+    restarts: int = 20,
 ) -> dict[str, FloatArray]:
     """A seeded start layout: every part's world pose, the base at its assembly pose.
 
@@ -363,14 +400,17 @@ def start_layout(
     task : TaskFile
     cell : Workcell
     seed : int or numpy.random.Generator
-    reach : tuple of 2 floats
-        Distance band from the robot's vertical axis where parts may lie, metres.
+    reach : tuple of 2 floats, optional
+        Distance band from the arm's first joint (``cell.arm_xy``) where parts may
+        lie, metres; default ``cell.reach``.
     margin : float
         Free space kept around each part's footprint (room for the fingers), metres.
     task_path, search
         Where to find meshes.
     max_tries : int
         Rejection-sampling budget per part.
+    restarts : int
+        Whole layouts tried (the same generator continued) when a part finds no spot.
 
     Returns
     -------
@@ -380,7 +420,7 @@ def start_layout(
     Raises
     ------
     LayoutError
-        If a part finds no free spot in ``max_tries`` draws.
+        If every layout leaves a part without a free spot in ``max_tries`` draws.
     """
     rng = np.random.default_rng(seed)
     objs = {o.name: o for o in task.objects}
@@ -394,35 +434,45 @@ def start_layout(
     }
     taken = [_footprint(_transform(cell.base_pose, v), margin / 2) for v in placed.values()]
     taken += [_footprint(_transform(t, _box_vertices(s)), margin / 2) for _, t, s in cell.fixtures]
-    rx, ry = cell.robot_base[0, 3], cell.robot_base[1, 3]
-    taken.append(np.array([rx - 0.16, rx + 0.16, ry - 0.16, ry + 0.16]))
+    bx, by = cell.robot_base[0, 3], cell.robot_base[1, 3]
+    taken.append(np.array([bx - 0.16, bx + 0.16, by - 0.16, by + 0.16]))
+    rx, ry = cell.arm_xy
+    reach = cell.reach if reach is None else reach
     x0, x1, y0, y1 = cell.table_extent
-    poses = {cell.base: cell.base_pose.copy()}
     order = [c.child for c in task.constraints if c.child in verts]
     # the largest parts first: they need the most room
     area = {n: float(np.prod(np.sort(np.ptp(verts[n], axis=0))[1:])) for n in order}
-    for name in sorted(dict.fromkeys(order), key=lambda n: -area[n]):
-        v = verts[name]
-        for _ in range(max_tries):
-            rot = rest_rotation(v, goal_rot.get(name, np.eye(3)), rng)
-            vw = v @ rot.T
-            r = rng.uniform(*reach)
-            ang = rng.uniform(-np.pi * 0.85, np.pi * 0.85)
-            centre = (vw.min(axis=0) + vw.max(axis=0)) / 2.0
-            t = np.eye(4)
-            t[:3, :3] = rot
-            t[0, 3] = rx + r * np.cos(ang) - centre[0]
-            t[1, 3] = ry + r * np.sin(ang) - centre[1]
-            t[2, 3] = cell.table_z - vw[:, 2].min()
-            fp = _footprint(_transform(t, v), margin / 2)
-            inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
-            if inside and not any(_overlap(fp, o) for o in taken):
-                taken.append(fp)
-                poses[name] = t
-                break
+    stuck = ""
+    for _ in range(restarts):
+        poses = {cell.base: cell.base_pose.copy()}
+        free = list(taken)
+        for name in sorted(dict.fromkeys(order), key=lambda n: -area[n]):
+            v = verts[name]
+            for _ in range(max_tries):
+                rot = rest_rotation(v, goal_rot.get(name, np.eye(3)), rng)
+                vw = v @ rot.T
+                r = rng.uniform(*reach)
+                ang = rng.uniform(-np.pi * 0.85, np.pi * 0.85)
+                centre = (vw.min(axis=0) + vw.max(axis=0)) / 2.0
+                t = np.eye(4)
+                t[:3, :3] = rot
+                t[0, 3] = rx + r * np.cos(ang) - centre[0]
+                t[1, 3] = ry + r * np.sin(ang) - centre[1]
+                t[2, 3] = cell.table_z - vw[:, 2].min()
+                fp = _footprint(_transform(t, v), margin / 2)
+                inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
+                if inside and not any(_overlap(fp, o) for o in free):
+                    free.append(fp)
+                    poses[name] = t
+                    break
+            else:
+                stuck = name
+                break  # the parts laid so far leave no room: start the layout again
         else:
-            raise LayoutError(f"part {name!r}: no free spot on the table in {max_tries} draws")
-    return poses
+            return poses
+    raise LayoutError(
+        f"part {stuck!r}: no free spot on the table in {max_tries} draws ({restarts} layouts tried)"
+    )
 
 
 def _box_vertices(size: FloatArray) -> FloatArray:

@@ -148,9 +148,11 @@ class CollisionScene:
     ) -> None:
         """Add a table top: a box whose upper face is at ``z = height``.
 
-        The robot's links that no joint can lift or lower (its base, mounted on
-        or beside the table, and a first link turning about the vertical) are
-        allowed to touch it. The box's top is ``tolerance`` below ``height`` so that
+        The robot's links that no joint can lift or lower (its base, and a first
+        link turning about the vertical) are allowed to touch it when the robot is
+        mounted on it (Panda), not when such a link reaches below the table's
+        underside (Baxter's pedestal stands on the floor: the table must clear it,
+        or every configuration is in collision). The box's top is ``tolerance`` below ``height`` so that
         mesh parts resting at ``height`` do not collide with it.
 
         Parameters
@@ -172,9 +174,13 @@ class CollisionScene:
         # first link turning about the vertical) touch it by construction.
         tj = self.robot.chain.joint_transforms(self.robot.home[None])[0]
         vertical = np.abs(tj[:, :3, :3] @ self.robot.chain.axes[:, :, None])[:, 2, 0] > 1 - 1e-9
+        t_home = self._transforms(self.robot.home[None])[0]
         for i, j in enumerate(self._link_joint.tolist()):
             if j < 0 or np.all(vertical[self.robot.chain.ancestors(j)]):
-                self.allow(self._link_names[i], name)
+                link = self._links[i]
+                c, h = _world_aabb(t_home[i], link.center, link.half)
+                if c[2] - h[2] >= height - thickness - 0.01:
+                    self.allow(self._link_names[i], name)
 
     def add_box(self, name: str, pose: PoseLike, size: ArrayLike) -> None:
         """Add a box obstacle of full sides ``size`` (3,), metres, centred at ``pose`` (world)."""
