@@ -43,6 +43,7 @@ from thirdhand.review.edits import (
     pose_values,
 )
 from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
+from thirdhand.review.focus import Focus, find_focus
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion
 from thirdhand.review.scene3d import DofGlyphView, PartsView, front_view, selection_colours
@@ -89,6 +90,9 @@ class ReviewApp:
         Animation and playback (its ``time``, ``playing``, ``animating``...).
     questions : list of Question
         The clarification round (least confident first); ``question_index`` the current one.
+    focus : Focus or None
+        The object the person pointed at or looked at (task's perception events,
+        else the recording's pointing gestures): the round starts with it.
     message : str
         The last message shown to the user (errors start with ``"Error: "``).
     conflict : Path or None
@@ -119,6 +123,7 @@ class ReviewApp:
         self.message = f"Loaded {self.task_path.name}"
         self.questions: list[Question] = []
         self.question_index = 0
+        self.focus: Focus | None = None
         self.conflict: Path | None = None
         self.quit_requested = threading.Event()
         self.server: viser.ViserServer | None = None
@@ -411,9 +416,12 @@ class ReviewApp:
 
     # ------------------------------------------------------------------ clarification
     def start_clarification(self) -> Question | None:
-        """Build the question queue (least confident first) and ask the first question."""
+        """Build the question queue (the object in focus, then least confident first); ask."""
         with self.lock:
-            self.questions = clarification_queue(self.task)
+            demo = self.demos[self.motion.demo_index] if self.demos else None
+            self.focus = find_focus(self.task, demo)
+            focus = self.focus.object if self.focus is not None else None
+            self.questions = clarification_queue(self.task, focus=focus)
             self.question_index = 0
             return self._ask()
 

@@ -14,6 +14,11 @@ boundary (:data:`~thirdhand.review.dofs.NOISE_TRANSLATION`,
 range right on a boundary is a coin flip (0.5), one twice or half the boundary
 scores 0.31, four times 0.07. A constraint less than 50 % confident is asked
 before any DOF.
+
+An object the person singled out (pointed at, looked at:
+:mod:`thirdhand.review.focus`) moves its questions to the front: first its own
+constraint's (the one whose child it is), then those of the constraints whose
+parent it is, each group in the uncertainty order.
 """
 
 from __future__ import annotations
@@ -52,12 +57,15 @@ class Question:
         Uncertainty in [0, 1]; higher is asked first.
     text : str
         The question, for the person.
+    focused : bool
+        Asked early because it is about the object in focus.
     """
 
     constraint: str
     dof: str | None
     score: float
     text: str
+    focused: bool = False
 
 
 def dof_ambiguity(lo: float, hi: float, dof: str) -> float:
@@ -87,7 +95,7 @@ def _dof_text(child: str, parent: str, dof: str, lo: float, hi: float) -> str:
     return f"Can {child} {what} on {parent} by {span}?"
 
 
-def clarification_queue(task: TaskFile) -> list[Question]:
+def clarification_queue(task: TaskFile, *, focus: str | None = None) -> list[Question]:
     """The questions to ask about a task, the least certain first.
 
     One question per constraint (its confidence) and one per DOF of it (its
@@ -95,15 +103,27 @@ def clarification_queue(task: TaskFile) -> list[Question]:
     already (``stages["review"]["confirmed"]``) is left out. Ties keep the task's
     order (constraints, then DOFs in :data:`~thirdhand.taskfile.DOF_NAMES` order).
 
+    Parameters
+    ----------
+    task : TaskFile
+    focus : str, optional
+        An object the person singled out (:func:`thirdhand.review.focus.perception_focus`):
+        the questions about the constraint whose child it is come first, then
+        those about constraints whose parent it is, each marked ``focused``. An
+        object in no constraint changes nothing.
+
     Returns
     -------
     list of Question
-        Sorted by decreasing score.
+        Sorted by focus group, then decreasing score.
     """
     review = task.stages.get("review", {})
     confirmed = review.get("confirmed", {}) if isinstance(review, dict) else {}
     out: list[Question] = []
+    group: dict[str, int] = {}
     for c in task.constraints:
+        group[c.id] = 0 if c.child == focus else 1 if c.parent == focus else 2
+        focused = group[c.id] < 2
         done = set(confirmed.get(c.id, [])) if isinstance(confirmed, dict) else set()
         if "constraint" not in done:
             out.append(
@@ -113,6 +133,7 @@ def clarification_queue(task: TaskFile) -> list[Question]:
                     1.0 - c.confidence,
                     f"Is {c.child} {c.type} on {c.parent} as shown "
                     f"(confidence {c.confidence:.0%})?",
+                    focused,
                 )
             )
         for dof in DOF_NAMES:
@@ -125,8 +146,9 @@ def clarification_queue(task: TaskFile) -> list[Question]:
                     dof,
                     0.5 * dof_ambiguity(lo, hi, dof),
                     _dof_text(c.child, c.parent, dof, lo, hi),
+                    focused,
                 )
             )
     order = {id(q): k for k, q in enumerate(out)}
-    out.sort(key=lambda q: (-q.score, order[id(q)]))
+    out.sort(key=lambda q: (group[q.constraint], -q.score, order[id(q)]))
     return out

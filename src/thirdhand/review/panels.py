@@ -345,11 +345,8 @@ class Panels:
         _assign(self.step, labels[min(max(current, 0), len(labels) - 1)])
         self.plan.content = _plan_html(app.task.plan, app.step)
         q = app.question
-        self.question.content = (
-            f'<div id="th-question" style="padding:0 0.75em">{html.escape(q.text)}</div>'
-            if q is not None
-            else ""
-        )
+        why = app.focus.reason if q is not None and q.focused and app.focus is not None else ""
+        self.question.content = _question_html(q.text if q is not None else None, why)
         self.yes.visible = self.no.visible = q is not None
         self.effort.content = _effort_html(app.session.effort)
 
@@ -408,6 +405,17 @@ def _constraint_html(c: Constraint | None) -> str:
         f"<b>{html.escape(c.id)}</b>: {c.type}, confidence {c.confidence:.2f}, {c.source}<br>"
         f"pose: {pose}<table>{''.join(rows)}</table></div>"
     )
+
+
+def _question_html(text: str | None, why: str) -> str:
+    """The question asked (empty when none), under why it comes first (a focus, or empty)."""
+    if text is None:
+        return ""
+    pad = "padding:0 0.75em"
+    reason = f'<div id="th-focus" style="{pad};color:#1971c2">{html.escape(why)}</div>'
+    return (
+        reason if why else ""
+    ) + f'<div id="th-question" style="{pad}">{html.escape(text)}</div>'
 
 
 def _plan_html(plan: list[Any], shown: int | None) -> str:
