@@ -12,7 +12,7 @@ Two sources, in this order:
    gestures REC --task TASK``).
 2. A loaded recording with tracked thumb, index and middle fingertips: its
    pointing gestures (:func:`thirdhand.perception.pointing.detect_pointing`,
-   some 40 ms for a 80 s chair recording).
+   some 40 ms for an 80 s chair recording).
 
 Without a time, the latest pointing event wins (latest end), else the longest
 attention interval (the later one on a tie). At a time ``t`` (seconds on the
