@@ -104,6 +104,7 @@ def sample_dofs(
     rng: int | np.random.Generator = 0,
     *,
     include_nominal: bool = True,
+    stratified: bool = False,
 ) -> FloatArray:
     """Displacements drawn uniformly inside the constraint's free-DOF ranges.
 
@@ -116,6 +117,11 @@ def sample_dofs(
         Seed or generator.
     include_nominal : bool
         Make the first one the zero displacement (the demonstrated pose).
+    stratified : bool
+        Latin hypercube with one random offset per DOF: each free range is cut
+        into as many equal strata as there are drawn displacements and every
+        stratum gets one, at the same offset inside it, in random order (15
+        drawn spins of a leg lie exactly 24° apart instead of clumping).
 
     Returns
     -------
@@ -124,7 +130,14 @@ def sample_dofs(
     """
     gen = np.random.default_rng(rng)
     ranges = constraint.free_dof_array()
-    out = gen.uniform(ranges[:, 0], ranges[:, 1], size=(n, 6))
+    if stratified:
+        m = n - 1 if include_nominal and n > 0 else n
+        u = np.zeros((n, 6))
+        for k in range(6):
+            u[n - m :, k] = (gen.permutation(m) + gen.uniform()) / max(m, 1)
+        out = ranges[:, 0] + u * (ranges[:, 1] - ranges[:, 0])
+    else:
+        out = gen.uniform(ranges[:, 0], ranges[:, 1], size=(n, 6))
     if include_nominal and n > 0:
         # the demonstrated pose, or the range's middle when 0 lies outside it
         out[0] = np.clip(0.0, ranges[:, 0], ranges[:, 1])
@@ -138,6 +151,7 @@ def sample_goals(
     rng: int | np.random.Generator = 0,
     *,
     include_nominal: bool = True,
+    stratified: bool = False,
 ) -> tuple[FloatArray, FloatArray]:
     """World goal poses of the child sampled inside the free DOFs.
 
@@ -150,6 +164,8 @@ def sample_goals(
     rng : int or numpy.random.Generator
     include_nominal : bool
         The first goal is the constraint's own pose.
+    stratified : bool
+        Latin hypercube sampling (see :func:`sample_dofs`).
 
     Returns
     -------
@@ -158,7 +174,7 @@ def sample_goals(
     dofs : ndarray, shape (n, 6)
         The displacement of each goal (constraint frame).
     """
-    dofs = sample_dofs(constraint, n, rng, include_nominal=include_nominal)
+    dofs = sample_dofs(constraint, n, rng, include_nominal=include_nominal, stratified=stratified)
     return np.asarray(parent_world, dtype=np.float64) @ vary(constraint, dofs), dofs
 
 

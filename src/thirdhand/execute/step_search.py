@@ -12,13 +12,12 @@ none does, the report says what was tried.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from thirdhand import se3
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import invert, sample_goals
 from thirdhand.execute.planner import plan_motion
@@ -27,7 +26,8 @@ from thirdhand.execute.primitive_motion import (
     linear_motion,
     primitive_place_path,
 )
-from thirdhand.execute.scene import GRIPPER
+from thirdhand.execute.robot import Robot
+from thirdhand.execute.scene import GRIPPER, CollisionScene
 from thirdhand.execute.step_plan import ExecutionOptions, Segment, StepPlan, StepReport
 from thirdhand.execute.world import SimWorld, insertion_axis
 from thirdhand.execute.world import trans as _trans
@@ -35,6 +35,65 @@ from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile
 
 FloatArray = NDArray[np.float64]
+
+
+#: IK targets solved together (grasps, goals): 4 × 25 starts cost about one target's time.
+IK_BLOCK = 4
+
+
+def first_valid_ik(
+    robot: Robot,
+    scene: CollisionScene,
+    targets: FloatArray,
+    q_seed: FloatArray,
+    *,
+    seed: int,
+    n_restarts: int = 24,
+) -> list[FloatArray | None]:
+    """For each target, the collision-free IK solution nearest ``q_seed``, all solved at once.
+
+    Every target is solved from ``q_seed`` and ``n_restarts`` random starts in one
+    batched damped-least-squares solve (:meth:`Robot.ik_batch`); the converged
+    solutions are then checked nearest first, one candidate per unresolved target
+    per batched collision check (:meth:`CollisionScene.valid_mask`).
+
+    Parameters
+    ----------
+    robot : Robot
+    scene : CollisionScene
+    targets : ndarray, shape (k, 4, 4)
+        ``T_world_tool`` to reach.
+    q_seed : ndarray, shape (dof,)
+        Preferred start, radians.
+    seed : int
+        Seed of the random starts.
+    n_restarts : int
+        Random starts per target.
+
+    Returns
+    -------
+    list of (ndarray (dof,) or None)
+        One per target; None when no start converges to a valid configuration.
+    """
+    k, dof, m = len(targets), robot.dof, 1 + n_restarts
+    rng = np.random.default_rng(seed)
+    starts = np.empty((k, m, dof))
+    starts[:, 0] = q_seed
+    starts[:, 1:] = robot.random_q(rng, k * n_restarts).reshape(k, n_restarts, dof)
+    q, ok = robot.ik_batch(np.repeat(targets, m, axis=0), starts.reshape(k * m, dof))
+    q, ok = q.reshape(k, m, dof), ok.reshape(k, m)
+    dist = np.where(ok, np.linalg.norm(q - q_seed, axis=2), np.inf)
+    order = np.argsort(dist, axis=1, kind="stable")
+    out: list[FloatArray | None] = [None] * k
+    for r in range(m):
+        rows = [i for i in range(k) if out[i] is None and np.isfinite(dist[i, order[i, r]])]
+        if not rows:
+            break
+        cand = q[rows, order[rows, r]]
+        for i, qi, valid in zip(rows, cand, scene.valid_mask(cand), strict=True):
+            if valid:
+                out[i] = qi.copy()
+    return out
 
 
 def candidate_grasps(
@@ -102,14 +161,26 @@ class StepSearch:
     def left(self) -> float:
         return self.deadline - time.perf_counter()
 
-    def _ik(self, target: FloatArray, q_seed: FloatArray, salt: int) -> FloatArray | None:
-        return self.robot.ik(
-            se3.matrix_to_pose(target),
-            q_seed,
-            seed=self.seed * 7919 + salt,
-            n_restarts=24,
-            accept=self.scene.is_valid,
-        )
+    def _ik_blocks(
+        self, targets: Callable[[int], FloatArray], n: int, q_seed: FloatArray, salt: int
+    ) -> Callable[[int], FloatArray | None]:
+        """Lazy IK of ``n`` targets (``targets(i)`` → (4, 4)), solved :data:`IK_BLOCK` at a time.
+
+        The scene must be in the same state at every call of the returned function.
+        """
+        cache: dict[int, FloatArray | None] = {}
+
+        def get(i: int) -> FloatArray | None:
+            if i not in cache:
+                block = list(range(i, min(i + IK_BLOCK, n)))
+                sols = first_valid_ik(
+                    self.robot, self.scene, np.stack([targets(b) for b in block]), q_seed,
+                    seed=self.seed * 7919 + salt + i,
+                )  # fmt: skip
+                cache.update(zip(block, sols, strict=True))
+            return cache[i]
+
+        return get
 
     def _line(self, q_a: FloatArray, t_b: FloatArray) -> FloatArray | None:
         path = linear_motion(self.robot, q_a, t_b)
@@ -178,9 +249,10 @@ class StepSearch:
         part_pose = self.world.pose(name)
         parent_pose = self.world.pose(c.parent)
         n_goals = opt.n_goal_samples if opt.sample_free_dofs else 1
-        goals, dofs = sample_goals(parent_pose, c, n_goals, rng)
+        goals, dofs = sample_goals(parent_pose, c, n_goals, rng, stratified=True)
         axis = insertion_axis(self.task, c)
         grasps = candidate_grasps(self.task, c, self.hints, part_pose, opt.max_grasps)
+        grasp_ik = self._ik_blocks(lambda i: part_pose @ grasps[i].pose, len(grasps), q_start, 0)
         for k, g in enumerate(grasps):
             if self.left() <= 0:
                 report.status = f"step time limit ({opt.step_time_limit:g} s) reached"
@@ -189,7 +261,7 @@ class StepSearch:
             t_grasp = part_pose @ g.pose
             scene.allow(GRIPPER, name)
             try:
-                q_grasp = self._ik(t_grasp, q_start, k)
+                q_grasp = grasp_ik(k)
                 back = None if q_grasp is None else self._line(
                     q_grasp, t_grasp @ _trans([0.0, 0.0, -opt.approach_m])
                 )  # fmt: skip
@@ -255,13 +327,14 @@ class StepSearch:
             if lift is None:
                 return None
             q_lift = lift[-1]
+            place_ik = self._ik_blocks(lambda i: goals[i] @ g.pose, len(goals), q_lift, 1000)
             for j, goal in enumerate(goals):
                 if self.left() <= 0:
                     return None
                 self.tried["goals"] += 1
                 t_place = goal @ g.pose
                 scene.allow(name, c.parent)
-                q_place = self._ik(t_place, q_lift, 1000 + j)
+                q_place = place_ik(j)
                 scene.disallow(name, c.parent)
                 if q_place is None:
                     continue
