@@ -556,12 +556,12 @@ def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
     review.button("Keep both").click()
     # Reload with unsaved changes asks first; cancelling keeps them.
     review.button("Reload").click()
-    page.get_by_text("Unsaved changes").wait_for(timeout=TIMEOUT_MS)
+    page.get_by_text("Unsaved changes", exact=True).first.wait_for(timeout=TIMEOUT_MS)
     review.shot("unsaved-guard")
     review.button("Cancel").click()
     assert app.session.dirty and app.task.constraint_by_id(cid).pos[1] == pytest.approx(0.03)
     review.button("Quit").click()
-    page.get_by_text("Unsaved changes").wait_for(timeout=TIMEOUT_MS)
+    page.get_by_text("Unsaved changes", exact=True).first.wait_for(timeout=TIMEOUT_MS)
     review.button("Cancel").click()
     assert not app.quit_requested.is_set()
     # Discarding on purpose loads their version from disk.
