@@ -127,7 +127,10 @@ class Executor:
                 box = None
                 if obj.bbox_min is not None and obj.bbox_max is not None:
                     box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
-                self.hints[c.child] = grasp_mod.demo_grasps(demo, c.child, c.time, bbox=box)
+                found = grasp_mod.demo_grasps(demo, c.child, c.time, bbox=box)
+                if box is not None:
+                    found = grasp_mod.rod_turns(found, *box)
+                self.hints[c.child] = found
         self.primitives = task.stages.get("primitives") if self.options.use_primitives else None
 
     def new_world(self, poses: Mapping[str, FloatArray] | None = None) -> SimWorld:

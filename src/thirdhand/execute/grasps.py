@@ -245,6 +245,58 @@ def demo_grasps(
     return out
 
 
+def rod_turns(
+    grasps: Sequence[Grasp], bbox_min: ArrayLike, bbox_max: ArrayLike, *, n: int = 12
+) -> list[Grasp]:
+    """Demonstrated grasps of a rod turned about its long axis, ``n`` turns each.
+
+    A rod lying on the table rests at any spin about its axis, and a hand that
+    came from above when the person picked it may have to come from below where
+    it lies now. Turning the grasp about the rod's axis (through the middle of
+    its cross-section) keeps what the demonstration says about a rod: where
+    along it the hand held it and at what angle to the axis. The copies keep the
+    source ``"demo"``, labelled with their turn (``"demo:rh@90"``); the exact
+    grasp comes first. Non-rods (no extent ≥ 1.8 × the others) are returned as given.
+
+    Parameters
+    ----------
+    grasps : sequence of Grasp
+        Grasps of the part, ``T_part_tool``.
+    bbox_min, bbox_max : array_like, shape (3,)
+        The part's bounding box, body frame, metres.
+    n : int
+        Turns (the identity included), ``2π k / n``.
+
+    Returns
+    -------
+    list of Grasp
+        For each grasp, the exact one then its ``n - 1`` turned copies.
+    """
+    lo = np.asarray(bbox_min, dtype=np.float64)
+    hi = np.asarray(bbox_max, dtype=np.float64)
+    ext = hi - lo
+    order = np.argsort(-ext, kind="stable")
+    if ext[order[0]] < 1.8 * ext[order[1]]:
+        return list(grasps)
+    a = int(order[0])
+    centre = (lo + hi) / 2.0
+    out: list[Grasp] = []
+    for g in grasps:
+        out.append(g)
+        for k in range(1, n):
+            ang = 2.0 * np.pi * k / n
+            c, s_ = np.cos(ang), np.sin(ang)
+            b, d = (a + 1) % 3, (a + 2) % 3
+            r = np.eye(4)
+            r[b, b], r[b, d], r[d, b], r[d, d] = c, -s_, s_, c
+            shift = np.eye(4)
+            shift[:3, 3] = centre
+            shift[a, 3] = 0.0
+            turn = shift @ r @ invert(shift)
+            out.append(Grasp(turn @ g.pose, g.source, f"{g.label}@{round(np.degrees(ang))}"))
+    return out
+
+
 def _core_point(p: FloatArray, bbox: tuple[ArrayLike, ArrayLike] | None) -> FloatArray:
     """The point of a box's core nearest ``p`` (3,): its axis for a rod, mid-plane for a plate.
 

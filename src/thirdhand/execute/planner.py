@@ -146,7 +146,8 @@ def shortcut(
     Each iteration draws two points along the path (uniform in arc length) and
     replaces what lies between them by the straight segment if it (and the
     remaining pieces of the two segments it cuts) is collision-free; a final
-    pass drops every vertex whose neighbours connect directly.
+    pass drops every vertex whose neighbours connect directly (until the
+    deadline, too).
 
     Parameters
     ----------
@@ -192,6 +193,9 @@ def shortcut(
     keep = [0]
     i = 0
     while i < len(p) - 1:
+        if time.perf_counter() > deadline:  # out of time: keep the remaining vertices
+            keep.extend(range(i + 1, len(p)))
+            break
         j = len(p) - 1
         while j > i + 1 and not free(p[[i, j]]):
             j -= 1

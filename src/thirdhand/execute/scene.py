@@ -519,17 +519,19 @@ class CollisionScene:
                     break
                 continue
             self.n_checks += 1
+            tfs: dict[int, coal.Transform3s] = {}  # one coal transform per body and config
             for p in np.flatnonzero(overlap[i]):
                 a, b = int(first[p]), int(second[p])
                 self.n_narrow += 1
                 self._result.clear()
+                ta = tfs.get(a)
+                if ta is None:
+                    ta = tfs[a] = _tf(t[i, a])
+                tb = tfs.get(b)
+                if tb is None:
+                    tb = tfs[b] = _tf(t[i, b])
                 if coal.collide(
-                    bodies[a].geometry,
-                    _tf(t[i, a]),
-                    bodies[b].geometry,
-                    _tf(t[i, b]),
-                    requests[p],
-                    self._result,
+                    bodies[a].geometry, ta, bodies[b].geometry, tb, requests[p], self._result
                 ):
                     ok[i] = False
                     break

@@ -106,8 +106,9 @@ def candidate_grasps(
     """Grasps worth trying on the part where it lies, best first.
 
     Grasps approaching from below are dropped (the hand would go through the
-    table); the rest are ranked demonstrated first, then by how steeply they
-    come from above plus how far they hold from where the part meets its parent.
+    table); the rest are ranked demonstrated first (exact, then turned about a rod's axis),
+    then by how steeply they come from above plus how far they hold from where the part
+    meets its parent.
     """
     obj = next(o for o in task.objects if o.name == constraint.child)
     cands = list(hints.get(constraint.child, ()))
@@ -115,15 +116,16 @@ def candidate_grasps(
         cands += grasp_mod.shape_grasps(obj.bbox_min, obj.bbox_max)
     avoid = invert(constraint.pose.matrix())[:3, 3]
     rot = part_pose[:3, :3]
-    scored: list[tuple[bool, float, int, grasp_mod.Grasp]] = []
+    scored: list[tuple[bool, bool, float, int, grasp_mod.Grasp]] = []
     for g in cands:
         down = -float((rot @ g.pose[:3, 2])[2])
         if down < -0.1:
             continue
         far = float(np.linalg.norm(g.pose[:3, 3] - avoid))
-        scored.append((g.source != "demo", -(down + 2.0 * far), len(scored), g))
-    scored.sort(key=lambda s: s[:3])
-    return [s[3] for s in scored[:max_grasps]]
+        turned = "@" in g.label  # a demonstrated grasp turned about a rod's axis
+        scored.append((g.source != "demo", turned, -(down + 2.0 * far), len(scored), g))
+    scored.sort(key=lambda s: s[:4])
+    return [s[4] for s in scored[:max_grasps]]
 
 
 class StepSearch:

@@ -1,0 +1,85 @@
+"""Grasps from the demonstration end to end: ``execute --demo`` holds parts where fingers did."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from thirdhand import se3
+from thirdhand.execute.goals import invert
+from thirdhand.execute.grasps import Grasp, demo_grasps, rod_turns, tool_frame
+from thirdhand.execute.record import TOOL_BODY
+
+
+def test_rod_turns_keep_the_place_along_the_axis_and_the_angle_to_it() -> None:
+    lo, hi = np.array([0.0, -0.04, -0.03]), np.array([0.28, 0.04, 0.05])  # axis: x through (0, .01)
+    g = Grasp(tool_frame([0.1, 0.05, 0.01], [-1.0, -1.0, 0.0], [0.0, 0.0, 1.0]), "demo", "demo:rh")
+    out = rod_turns([g], lo, hi, n=12)
+    assert len(out) == 12 and out[0] is g
+    assert [o.label for o in out[1:4]] == ["demo:rh@30", "demo:rh@60", "demo:rh@90"]
+    assert all(o.source == "demo" for o in out)
+    axis_point = np.array([0.0, 0.0, 0.01])
+    for o in out:
+        p = o.pose[:3, 3]
+        assert p[0] == pytest.approx(0.1)  # same place along the rod
+        assert np.linalg.norm(p[1:] - axis_point[1:]) == pytest.approx(0.05)  # same radius
+        assert o.pose[0, 2] == pytest.approx(g.pose[0, 2])  # same angle of approach to the axis
+        np.testing.assert_allclose(o.pose[:3, :3].T @ o.pose[:3, :3], np.eye(3), atol=1e-12)
+    # a quarter turn about x maps the approach (-1, -1, 0)/√2 to (-1, 0, -1)/√2
+    np.testing.assert_allclose(
+        out[3].pose[:3, 2], np.array([-1.0, 0.0, -1.0]) / np.sqrt(2), atol=1e-12
+    )
+    # not a rod: returned as given
+    assert rod_turns([g], [0, 0, 0], [0.3, 0.3, 0.02]) == [g]
+
+
+@pytest.mark.slow
+def test_execute_with_demo_holds_each_leg_where_the_fingers_did(tmp_path, shared_data) -> None:
+    import typer
+    from typer.testing import CliRunner
+
+    from thirdhand import io
+    from thirdhand.execute.cli import execute_command
+    from thirdhand.synth import make_scene
+    from thirdhand.synth.task import truth_task
+    from thirdhand.taskfile import save_task
+
+    demo = make_scene("bench", seed=1)
+    task = truth_task(demo)
+    task_path, demo_path = tmp_path / "bench.json", tmp_path / "bench_demo.parquet"
+    save_task(task, task_path)
+    io.save(demo, demo_path)
+    app = typer.Typer()
+    app.command()(execute_command)
+    out = tmp_path / "run.parquet"
+    meshes = str(shared_data / "3rdhand" / "meshes")
+    res = CliRunner().invoke(
+        app,
+        [str(task_path), "--demo", str(demo_path), "--record", str(out), "--meshes", meshes,
+         "--seed", "1"],
+        env={"COLUMNS": "220"},
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    assert "demo:rh" in res.output and "(demo)" in res.output
+    doc = json.loads(out.with_suffix(".json").read_text())
+    steps = doc["steps"]
+    assert doc["n_collisions"] == 0 and all(s["success"] for s in steps)
+    assert all(s["grasp_source"] == "demo" for s in steps), [s["grasp"] for s in steps]
+    assert any("@" not in s["grasp"] for s in steps)  # one leg held exactly as demonstrated
+    # the replay: when the leg is lifted, the tool holds it at the demonstrated grasp
+    replay = io.load(out)
+    by_child = {c.child: c for c in task.constraints}
+    for s in steps:
+        c = by_child[s["child"]]
+        obj = next(o for o in task.objects if o.name == c.child)
+        box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
+        hints = {g.label: g for g in rod_turns(demo_grasps(demo, c.child, c.time, bbox=box), *box)}
+        lift = next(
+            g for g in doc["segments"] if g["step"] == s["index"] and g["segment"] == "lift"
+        )
+        k = int(np.argmin(np.abs(replay.t - lift["t_start"])))
+        t_part = se3.pose_to_matrix(replay.pos(c.child)[k], replay.quat(c.child)[k])
+        t_tool = se3.pose_to_matrix(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
+        np.testing.assert_allclose(invert(t_part) @ t_tool, hints[s["grasp"]].pose, atol=1e-3)
