@@ -53,6 +53,7 @@ from thirdhand.execute.step_plan import (
     StepReport,
 )
 from thirdhand.execute.step_search import StepSearch
+from thirdhand.execute.timing import time_parametrize
 from thirdhand.execute.world import (
     SimWorld,
     WorldEvent,
@@ -250,6 +251,15 @@ class Executor:
     ) -> ExecutionResult:
         """Observe, detect what holds, plan and execute the next step; repeat.
 
+        With a perception block in the task (``stages["perception"]``, see
+        :mod:`thirdhand.perception.events`) and ``options.use_perception``, the part
+        a person points at (:func:`~thirdhand.perception.events.focus_object` on the
+        run's clock: seconds of executed motion and waiting since the start) is
+        theirs: its step is left to them while the pointing lasts (and
+        ``lookback`` seconds after), the robot does another one meanwhile or waits
+        (``options.wait_s`` at a time); once the claim lapses, a step the person
+        did not do is the robot's again.
+
         Parameters
         ----------
         seed : int
@@ -266,7 +276,9 @@ class Executor:
         n_done = 0
         pending_events = {k: list(v) for k, v in (events or {}).items()}
         steps = self._steps()
-        for _ in range(4 * len(steps) + 4):
+        clock = 0.0
+        pointed: set[str] = set()
+        for _ in range(4 * len(steps) + 4 + int(20.0 / max(self.options.wait_s, 0.1))):
             for ev in pending_events.pop(n_done, []):
                 log.append(ev(world))
             holds = detect_done(world, self.task, pos_tol=self.options.pos_tol,
@@ -281,6 +293,21 @@ class Executor:
                 if not holds[c.id] and c.id not in failed
                 and self._parent_ready(c, holds)
             ]  # fmt: skip
+            theirs = self._pointed_at(clock)
+            if theirs is not None and any(c.child == theirs for _, c in todo):
+                if theirs not in pointed:
+                    pointed.add(theirs)
+                    log.append(f"pointing: the person points at {theirs} (t = {clock:.1f} s): "
+                               "its step is theirs")  # fmt: skip
+                mine = [(i, c) for i, c in todo if c.child != theirs]
+                if not mine:  # only the person's step is left: wait for them
+                    if pending_events:
+                        n_done = min(pending_events)
+                    else:
+                        clock += self.options.wait_s
+                        log.append(f"wait: {self.options.wait_s:g} s for the person ({theirs})")
+                    continue
+                todo = mine
             if not todo:
                 if not pending_events:
                     break
@@ -293,15 +320,37 @@ class Executor:
             if not plan.report.success:
                 failed.add(c.id)
                 continue
+            n_before = len(trajectory)
             q = self._execute(world, plan, q, trajectory)
             plan.report.status = "done"
             n_done += 1
             # leave the shared workspace to the person before looking again
             q = self._go_home(world, q, seed, trajectory)
+            clock += self._duration(trajectory[n_before:])
         self._go_home(world, q, seed, trajectory)
         order = {c.id: k for k, (_, _, c) in enumerate(steps)}
         reports.sort(key=lambda r: order.get(r.constraint, -1))
         return self._result(world, reports, trajectory, log)
+
+    def _pointed_at(self, clock: float) -> str | None:
+        """The part the person singles out at ``clock`` (run's seconds), or None."""
+        block = self.task.stages.get("perception") if self.options.use_perception else None
+        if not block:
+            return None
+        from thirdhand.perception.events import focus_object
+
+        return focus_object(block, clock, lookback=self.options.pointing_lookback_s)
+
+    def _duration(self, segments: Sequence[dict[str, Any]]) -> float:
+        """Seconds the executed segments take (time-parametrised as when recorded)."""
+        return float(
+            sum(
+                time_parametrize(
+                    seg["path"], self.robot.velocity_limits, self.robot.acceleration_limits
+                ).duration_s
+                for seg in segments
+            )
+        )
 
     def _parent_ready(self, c: Constraint, holds: Mapping[str, bool]) -> bool:
         """The parent is the base, or its own constraint holds."""

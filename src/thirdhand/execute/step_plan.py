@@ -45,6 +45,12 @@ class ExecutionOptions:
         Length of the primitive's final approach followed by the place motion.
     pos_tol, rot_tol : float
         Tolerances of constraint detection, metres and radians.
+    use_perception : bool
+        Online: leave the part a person points at to them (``stages["perception"]``).
+    pointing_lookback_s : float
+        How long a pointing gesture keeps its part the person's after it ends.
+    wait_s : float
+        Online: how long the robot waits at a time when only the person's step is left.
     """
 
     sample_free_dofs: bool = True
@@ -61,6 +67,9 @@ class ExecutionOptions:
     primitive_m: float = 0.06
     pos_tol: float = POS_TOL_M
     rot_tol: float = ROT_TOL_RAD
+    use_perception: bool = True
+    pointing_lookback_s: float = 5.0
+    wait_s: float = 1.0
 
 
 @dataclass
