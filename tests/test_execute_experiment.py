@@ -82,12 +82,15 @@ def test_feasible_spins_agree_with_the_executor(shared_data) -> None:
 
 
 @pytest.mark.slow
-def test_sampling_never_does_worse_than_the_demonstrated_goal(shared_data) -> None:
+def test_sampling_places_the_leg_where_the_demonstrated_goal_fails(shared_data) -> None:
     from thirdhand.execute.experiments import free_dof_experiment
 
-    outs = free_dof_experiment(
-        _bench(), [3, 8], search=[str(shared_data / "3rdhand" / "meshes")], step_time_limit=10.0
-    )
-    for o in outs:
-        assert o.with_sampling or not o.without_sampling
-    assert sum(o.with_sampling for o in outs) >= sum(o.without_sampling for o in outs)
+    skipped: list[int] = []
+    (o,) = free_dof_experiment(
+        _bench(), [3], search=[str(shared_data / "3rdhand" / "meshes")], step_time_limit=20.0,
+        skipped=skipped,
+    )  # fmt: skip
+    assert not skipped and o.seed == 3 and o.condition == "reach+clutter"
+    assert 0.0 < o.feasible_fraction < 0.5  # hard, yet reachable in principle
+    # the demonstrated spin is blocked; a spin inside the free DOF is not
+    assert o.with_sampling and not o.without_sampling
