@@ -15,7 +15,12 @@ phase on the overlapping pairs) and by ``pinocchio.computeCollisions`` over a
 (``CollisionScene.to_pinocchio``), stopping at the first collision, in one run;
 prints both rates, their ratio, and that the verdicts agree.
 
-Usage: ``python benchmarks/planning.py [--queries 20] [--configs 2000] [--time-limit 5]``
+Steps: the synthetic chair's ground-truth task executed offline (Panda, start layouts
+of ``--step-seeds``), the median and mean planning time per step (grasp × goal search,
+IK, planning) and the median executed path length per step.
+
+Usage: ``python benchmarks/planning.py [--queries 20] [--configs 2000] [--time-limit 5]
+[--step-seeds 0,1,2] [--scene chair]``
 """
 
 from __future__ import annotations
@@ -146,16 +151,47 @@ def bench_checks(robot: Robot, n_configs: int) -> None:
     print(f"  ratio thirdhand batched / pinocchio {r_ours / r_peer:.2f}")
 
 
+def bench_steps(scene: str, seeds: list[int]) -> None:
+    """Execute the synthetic task offline per seed; planning time per step."""
+    from thirdhand.execute.executor import ExecutionOptions, Executor
+    from thirdhand.execute.layout import make_workcell, start_layout
+    from thirdhand.synth import make_scene
+    from thirdhand.synth.task import truth_task
+
+    search = [str(MESHES)] if MESHES.is_dir() else []
+    task = truth_task(make_scene(scene, seed=0))
+    cell = make_workcell(task, search=search)
+    robot = Robot.load("panda", base_pose=(cell.robot_base[:3, 3], [0.0, 0.0, 0.0, 1.0]))
+    times, lengths, ok = [], [], 0
+    for seed in seeds:
+        start = start_layout(task, cell, seed, search=search)
+        ex = Executor(robot, task, cell, start, ExecutionOptions(), search=search)
+        result = ex.run_offline(seed=seed)
+        times += [r.planning_time_s for r in result.steps]
+        lengths += [r.joint_length_rad for r in result.steps]
+        ok += sum(r.success for r in result.steps)
+    t = np.array(times)
+    print(f"steps: {scene}, seeds {seeds}, offline, Panda: {ok}/{len(times)} steps succeeded")
+    print(
+        f"  planning time per step median {np.median(t):.2f} s   mean {t.mean():.2f} s   "
+        f"max {t.max():.2f} s   executed path median {np.median(lengths):.1f} rad"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--queries", type=int, default=20)
     parser.add_argument("--configs", type=int, default=2000)
     parser.add_argument("--time-limit", type=float, default=5.0)
+    parser.add_argument("--step-seeds", default="0,1,2", help="Start layouts ('' to skip).")
+    parser.add_argument("--scene", default="chair", choices=["chair", "bench"])
     args = parser.parse_args()
     robot = Robot.load("panda", base_pose=([0.0, 0.0, TABLE_Z], [0.0, 0.0, 0.0, 1.0]))
     print(f"meshes: {'real STL' if (MESHES / 'chair_leg.stl').is_file() else 'boxes (no data)'}")
     bench_checks(robot, args.configs)
     bench_planning(robot, args.queries, args.time_limit)
+    if args.step_seeds:
+        bench_steps(args.scene, [int(v) for v in args.step_seeds.split(",")])
 
 
 if __name__ == "__main__":
