@@ -188,8 +188,10 @@ def main() -> None:
     args = parser.parse_args()
     robot = Robot.load("panda", base_pose=([0.0, 0.0, TABLE_Z], [0.0, 0.0, 0.0, 1.0]))
     print(f"meshes: {'real STL' if (MESHES / 'chair_leg.stl').is_file() else 'boxes (no data)'}")
-    bench_checks(robot, args.configs)
-    bench_planning(robot, args.queries, args.time_limit)
+    if args.configs > 0:
+        bench_checks(robot, args.configs)
+    if args.queries > 0:
+        bench_planning(robot, args.queries, args.time_limit)
     if args.step_seeds:
         bench_steps(args.scene, [int(v) for v in args.step_seeds.split(",")])
 
