@@ -1,0 +1,436 @@
+"""Checking configurations and paths of a collision world: pairs, margins, batched checks.
+
+The checking half of :class:`~thirdhand.execute.scene.CollisionScene` (which
+builds the world: table, boxes, parts, attach and detach). A configuration is
+checked in two phases, batched over many configurations at once: world-frame
+bounding boxes of every body (robot links from
+:class:`~thirdhand.execute.kinematics.Chain`, numpy) over a fixed list of active
+pairs, then coal's exact narrow phase on the pairs whose boxes overlap,
+stopping at the first contact. Paths are interpolated so that no point of the
+robot or the grasped part moves more than a given distance between two checks,
+and checked coarse to fine. Poses are homogeneous (4, 4) matrices in the
+world frame, metres; configurations are radians.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import coal
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from thirdhand.execute.robot import Robot
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.intp]
+
+GRIPPER = "gripper"
+ROBOT = "robot"
+
+
+@dataclass
+class Body:
+    """A body of the world: a coal geometry, where it is, and its local bounding box."""
+
+    name: str
+    geometry: coal.CollisionGeometry
+    transform: FloatArray  # T_world_body (objects) or T_joint_geom (robot links), (4, 4)
+    center: FloatArray  # local AABB centre (3,)
+    half: FloatArray  # local AABB half extents (3,)
+    offset: FloatArray = field(default_factory=lambda: np.eye(4))  # T_part_geometry
+
+
+def coal_transform(t: FloatArray) -> coal.Transform3s:
+    """coal transform of a homogeneous matrix (4, 4)."""
+    return coal.Transform3s(np.ascontiguousarray(t[:3, :3]), np.ascontiguousarray(t[:3, 3]))
+
+
+def _coarse_to_fine(n: int) -> NDArray[np.intp]:
+    """A permutation of ``range(n)`` by bit-reversed index: 0, n/2, n/4, 3n/4, ..."""
+    bits = max(int(n - 1).bit_length(), 1)
+    idx = np.arange(n)
+    rev = np.zeros(n, dtype=np.int64)
+    for b in range(bits):
+        rev |= ((idx >> b) & 1) << (bits - 1 - b)
+    return np.argsort(rev, kind="stable").astype(np.intp)
+
+
+def world_aabb(
+    t: FloatArray, center: FloatArray, half: FloatArray
+) -> tuple[FloatArray, FloatArray]:
+    """World AABB centres and half extents of boxes under transforms ``t`` (..., 4, 4)."""
+    rot = t[..., :3, :3]
+    c = np.einsum("...ij,...j->...i", rot, center) + t[..., :3, 3]
+    h = np.einsum("...ij,...j->...i", np.abs(rot), half)
+    return c, h
+
+
+class SceneChecks:
+    """Pairs, margins and the batched checks of a collision world (see the module notes).
+
+    The attributes are set by :class:`~thirdhand.execute.scene.CollisionScene`.
+    """
+
+    robot: Robot
+    tolerance: float
+    n_checks: int
+    n_narrow: int
+    _requests: dict[float, coal.CollisionRequest]
+    _result: coal.CollisionResult
+    _links: list[Body]
+    _link_joint: IntArray
+    _link_names: list[str]
+    _self_pairs: list[tuple[int, int]]
+    _objects: dict[str, Body]
+    _attached: Body | None
+    _t_tool_attached: FloatArray
+    _touch_links: set[str]
+    _allowed: set[frozenset[str]]
+    _pairs: tuple[IntArray, IntArray] | None
+    _lever: FloatArray | None
+    _moving: IntArray
+
+    # -- pairs ------------------------------------------------------------------------
+
+    def _invalidate(self) -> None:
+        """Forget the cached pair list and lever arms after the world changed."""
+        self._pairs = None
+        self._lever = None
+
+    def _is_allowed(self, a: str, b: str, a_is_link: bool) -> bool:
+        al = self._allowed
+        if frozenset((a, b)) in al:
+            return True
+        if a_is_link:
+            if frozenset((ROBOT, b)) in al:
+                return True
+            if a in self.robot.gripper_links and frozenset((GRIPPER, b)) in al:
+                return True
+        return False
+
+    def _active_pairs(self) -> tuple[IntArray, IntArray]:
+        """Body index pairs: links 0..G-1, objects G..G+E-1, grasped part G+E."""
+        if self._pairs is not None:
+            return self._pairs
+        names = self._link_names
+        n_links = len(names)
+        objs = list(self._objects.values())
+        first: list[int] = []
+        second: list[int] = []
+        for i, j in self._self_pairs:
+            if frozenset((names[i], names[j])) not in self._allowed:
+                first.append(i)
+                second.append(j)
+        for k, obj in enumerate(objs):
+            for i in range(n_links):
+                if not self._is_allowed(names[i], obj.name, True):
+                    first.append(i)
+                    second.append(n_links + k)
+        if self._attached is not None:
+            a_idx = n_links + len(objs)
+            a_name = self._attached.name
+            for k, obj in enumerate(objs):
+                if frozenset((a_name, obj.name)) not in self._allowed:
+                    first.append(a_idx)
+                    second.append(n_links + k)
+            exempt = set(self.robot.gripper_links) | self._touch_links
+            for i in range(n_links):
+                if names[i] not in exempt and not self._is_allowed(names[i], a_name, True):
+                    first.append(a_idx)
+                    second.append(i)
+        self._pairs = (np.array(first, dtype=np.intp), np.array(second, dtype=np.intp))
+        return self._pairs
+
+    def _margin(self, a: Body, b: Body) -> float:
+        """Contact margin of a pair: ``-tolerance``, or 0 with a mesh (coal's limitation)."""
+        mesh = isinstance(a.geometry, coal.BVHModelBase) or isinstance(
+            b.geometry, coal.BVHModelBase
+        )
+        return 0.0 if mesh else -self.tolerance
+
+    def _request(self, margin: float) -> coal.CollisionRequest:
+        req = self._requests.get(margin)
+        if req is None:
+            req = coal.CollisionRequest()
+            req.security_margin = margin
+            self._requests[margin] = req
+        return req
+
+    def _pair_margins(self, clearance: float = 0.0) -> FloatArray:
+        """Security margin of every active pair, metres, shape (P,).
+
+        Without clearance, the contact margin. With it, pairs with one moving body
+        need ``clearance`` and pairs of two moving bodies twice that.
+        """
+        first, second = self._active_pairs()
+        bodies = self._bodies()
+        base = np.array(
+            [self._margin(bodies[a], bodies[b]) for a, b in zip(first, second, strict=True)]
+        )
+        if clearance <= 0.0:
+            return base
+        n_links = len(self._links)
+        moving = np.zeros(len(bodies), dtype=bool)
+        moving[:n_links] = self._link_joint >= 0
+        if self._attached is not None:
+            moving[-1] = True
+        n_moving = moving[first].astype(int) + moving[second].astype(int)
+        return np.where(n_moving > 0, clearance * n_moving, base)
+
+    def _bodies(self) -> list[Body]:
+        bodies = self._links + list(self._objects.values())
+        if self._attached is not None:
+            bodies.append(self._attached)
+        return bodies
+
+    def _transforms(self, qs: FloatArray) -> FloatArray:
+        """World transforms of all bodies, shape (n, B, 4, 4)."""
+        n = qs.shape[0]
+        bodies = self._bodies()
+        out = np.empty((n, len(bodies), 4, 4))
+        tj = self.robot.chain.joint_transforms(qs)
+        n_links = len(self._links)
+        local = np.array([b.transform for b in self._links])
+        static = self._link_joint < 0
+        out[:, :n_links] = local[None]
+        mv = ~static
+        out[:, :n_links][:, mv] = tj[:, self._link_joint[mv]] @ local[mv]
+        k = n_links
+        for obj in self._objects.values():
+            out[:, k] = obj.transform
+            k += 1
+        if self._attached is not None:
+            out[:, k] = self.robot.tool_transforms(qs) @ self._attached.transform
+        return out
+
+    # -- checking ---------------------------------------------------------------------
+
+    def valid_mask(self, qs: ArrayLike, *, stop_at_first: bool = False) -> BoolArray:
+        """Collision-free and within-limits flag of many configurations.
+
+        Parameters
+        ----------
+        qs : array_like, shape (n, dof)
+            Configurations, radians.
+        stop_at_first : bool
+            Stop at the first invalid configuration (in order); the ones after it
+            are reported invalid without being checked.
+
+        Returns
+        -------
+        ndarray of bool, shape (n,)
+        """
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        return self._check(qa, self._pair_margins(), stop_at_first)
+
+    def _check(self, qa: FloatArray, margins: FloatArray, stop_at_first: bool) -> BoolArray:
+        """:meth:`valid_mask` with a security margin per active pair."""
+        n = qa.shape[0]
+        ok = np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9), axis=1)
+        first, second = self._active_pairs()
+        bodies = self._bodies()
+        centers = np.array([b.center for b in bodies])
+        halves = np.array([b.half for b in bodies])
+        t = self._transforms(qa)
+        c, h = world_aabb(t, centers[None], halves[None])
+        reach = h[:, first] + h[:, second] + np.maximum(margins, 0.0)[None, :, None] + 1e-9
+        overlap = np.all(np.abs(c[:, first] - c[:, second]) <= reach, axis=2)
+        requests = [self._request(float(m)) for m in margins]
+        for i in range(n):
+            if not ok[i]:
+                self.n_checks += 1
+                if stop_at_first:
+                    ok[i:] = False
+                    break
+                continue
+            self.n_checks += 1
+            tfs: dict[int, coal.Transform3s] = {}  # one coal transform per body and config
+            for p in np.flatnonzero(overlap[i]):
+                a, b = int(first[p]), int(second[p])
+                self.n_narrow += 1
+                self._result.clear()
+                ta = tfs.get(a)
+                if ta is None:
+                    ta = tfs[a] = coal_transform(t[i, a])
+                tb = tfs.get(b)
+                if tb is None:
+                    tb = tfs[b] = coal_transform(t[i, b])
+                if coal.collide(
+                    bodies[a].geometry, ta, bodies[b].geometry, tb, requests[p], self._result
+                ):
+                    ok[i] = False
+                    break
+            if stop_at_first and not ok[i]:
+                ok[i:] = False
+                break
+        return ok
+
+    def is_valid(self, q: ArrayLike) -> bool:
+        """True if ``q`` (dof,) is within the joint limits and collision-free."""
+        return bool(self.valid_mask(self.robot.check_q(q)[None])[0])
+
+    def collisions(self, q: ArrayLike) -> list[tuple[str, str]]:
+        """Every colliding pair of body (link or object) names at ``q`` (dof,), for diagnostics."""
+        first, second = self._active_pairs()
+        bodies = self._bodies()
+        hits = self._pair_hits(self.robot.check_q(q), self._pair_margins())
+        out: list[tuple[str, str]] = []
+        for p in np.flatnonzero(hits):
+            pair = (bodies[first[p]].name, bodies[second[p]].name)
+            if pair not in out:
+                out.append(pair)
+        return out
+
+    def _pair_hits(self, q: FloatArray, margins: FloatArray) -> NDArray[np.bool_]:
+        """Which active pairs collide at ``q`` (dof,) under ``margins`` (P,)."""
+        first, second = self._active_pairs()
+        bodies = self._bodies()
+        t = self._transforms(q[None])[0]
+        c, h = world_aabb(
+            t, np.array([b.center for b in bodies]), np.array([b.half for b in bodies])
+        )
+        reach = h[first] + h[second] + np.maximum(margins, 0.0)[:, None] + 1e-9
+        hits = np.zeros(len(first), dtype=bool)
+        for p in np.flatnonzero(np.all(np.abs(c[first] - c[second]) <= reach, axis=1)):
+            a, b = int(first[p]), int(second[p])
+            self._result.clear()
+            hits[p] = bool(
+                coal.collide(
+                    bodies[a].geometry,
+                    coal_transform(t[a]),
+                    bodies[b].geometry,
+                    coal_transform(t[b]),
+                    self._request(float(margins[p])),
+                    self._result,
+                )
+            )
+        return hits
+
+    def motion_bound(self) -> FloatArray:
+        """Per-joint lever arm, metres: no robot or grasped point moves more than ``Σ |Δq_j| r_j``.
+
+        ``r_j`` bounds the distance of any body moved by joint ``j`` from that
+        joint's axis (the distance from the joint origin to the far corner of
+        each body's bounding box, at the home configuration — the chain is rigid
+        between joints, so this distance does not depend on ``q``).
+
+        Returns
+        -------
+        ndarray, shape (dof,)
+        """
+        if self._lever is not None:
+            return self._lever
+        q = self.robot.home[None]
+        tj = self.robot.chain.joint_transforms(q)[0]
+        bodies = self._bodies()
+        t = self._transforms(q)[0]
+        radius = np.zeros(self.robot.dof)
+        n_links = len(self._links)
+        for k, body in enumerate(bodies):
+            if k < n_links:
+                j = int(self._link_joint[k])
+                if j < 0:
+                    continue
+                moved = self.robot.chain.ancestors(j)
+            elif self._attached is body:
+                moved = self.robot.chain.ancestors(self.robot._tool_joint)
+            else:
+                continue
+            c, h = world_aabb(t[k], body.center, body.half)
+            far = np.linalg.norm(c[None] - tj[:, :3, 3], axis=1) + np.linalg.norm(h)
+            radius = np.where(moved, np.maximum(radius, far), radius)
+        self._lever = radius
+        return radius
+
+    def interpolate(
+        self, qs: ArrayLike, *, max_step_m: float = 0.01, max_step_rad: float = 0.02
+    ) -> FloatArray:
+        """Densely interpolate a joint path so that no point moves more than ``max_step_m``.
+
+        Parameters
+        ----------
+        qs : array_like, shape (n, dof)
+            Waypoints, radians.
+        max_step_m : float
+            Largest displacement of any robot or grasped-part point between
+            consecutive configurations, metres (bounded by :meth:`motion_bound`).
+        max_step_rad : float
+            Largest change of any joint between consecutive configurations, radians.
+
+        Returns
+        -------
+        ndarray, shape (m, dof)
+            The waypoints and the configurations between them, in order.
+        """
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        if qa.shape[0] < 2:
+            return qa.copy()
+        lever = self.motion_bound()
+        d = np.abs(np.diff(qa, axis=0))
+        steps = np.maximum(d @ lever / max_step_m, d.max(axis=1) / max_step_rad)
+        counts = np.maximum(np.ceil(steps).astype(np.intp), 1)
+        parts = [qa[:1]]
+        for k in range(qa.shape[0] - 1):
+            s = (np.arange(1, counts[k] + 1) / counts[k])[:, None]
+            parts.append((1.0 - s) * qa[k] + s * qa[k + 1])
+        return np.vstack(parts)
+
+    def check_path(
+        self,
+        qs: ArrayLike,
+        *,
+        max_step_m: float = 0.01,
+        max_step_rad: float = 0.02,
+        clearance: bool = True,
+        chunk: int = 64,
+    ) -> bool:
+        """True if a piecewise-linear joint path is collision-free, checked densely.
+
+        Every segment is interpolated by :meth:`interpolate` (no point moves more
+        than ``max_step_m`` between checks) and each configuration checked, stopping
+        at the first collision; the configurations are visited coarse to fine
+        (every 2^k-th first), so a path that collides is usually rejected after a
+        few checks.
+
+        With ``clearance`` (the default) the check is conservative for the
+        continuous motion: between two checks no point is farther than
+        ``max_step_m / 2`` from where it was checked, so each checked configuration
+        must keep that distance to the world (twice it between two moving bodies).
+        Pairs that are closer than that at the first or the last waypoint — a
+        grasped part leaving the table, a hand at its grasp — are checked at
+        their contact tolerance instead.
+
+        Parameters
+        ----------
+        qs : array_like, shape (n, dof)
+            Waypoints, radians.
+        max_step_m, max_step_rad : float
+            Density of the check (see :meth:`interpolate`).
+        clearance : bool
+            Require the clearance above; without it only the checked
+            configurations are guaranteed collision-free.
+        chunk : int
+            Configurations checked per batch.
+        """
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        margins = self._pair_margins()
+        if clearance and len(qa) > 1:
+            wide = self._pair_margins(max_step_m / 2.0)
+            if not np.all(self._check(qa[[0, -1]], margins, False)):
+                return False
+            near = self._pair_hits(qa[0], wide) | self._pair_hits(qa[-1], wide)
+            margins = np.where(near, margins, wide)
+        dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
+        # coarse to fine (bit-reversed order): a colliding stretch is hit after few checks
+        dense = dense[_coarse_to_fine(dense.shape[0])]
+        for k in range(0, dense.shape[0], chunk):
+            if not np.all(self._check(dense[k : k + chunk], margins, True)):
+                return False
+        return True
+
+    def reset_counter(self) -> None:
+        """Set :attr:`n_checks` and :attr:`n_narrow` to zero."""
+        self.n_checks = 0
+        self.n_narrow = 0
