@@ -16,6 +16,10 @@ $(STAMP): pyproject.toml
 
 install: $(STAMP)
 
+# Real part meshes for the execution stage when the shared data sits beside the repository
+# (otherwise the parts are their bounding boxes); a THIRDHAND_MESH_PATH of your own wins.
+demo: export THIRDHAND_MESH_PATH ?= $(wildcard ../shared/data/3rdhand/meshes)
+
 ## The main job: synthetic chair demonstration through every stage, outputs in out/chair.
 demo: $(STAMP)
 	$(BIN)/thirdhand demo -o out/chair
