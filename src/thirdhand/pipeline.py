@@ -211,7 +211,9 @@ def _run_execution(out: Path, summary: dict[str, Any], *, seed: int) -> None:
     summary["files"] += [str(replay), str(trajectory)]
     done = sum(r.success for r in result.steps)
     planning = sum(r.planning_time_s for r in result.steps)
+    along_primitive = sum(getattr(r, "place_motion", "") == "primitive" for r in result.steps)
     summary["execution"] = {
+        "along_primitive": along_primitive,
         "robot": "panda",
         "steps": len(result.steps),
         "succeeded": done,
@@ -221,6 +223,7 @@ def _run_execution(out: Path, summary: dict[str, Any], *, seed: int) -> None:
     }
     summary["lines"].append(
         f"execution: Panda, offline, {done}/{len(result.steps)} steps done, "
+        f"{along_primitive} placed along their learned primitive, "
         f"{result.n_collisions} configurations in collision (dense check), "
         f"planning {planning:.1f} s → {replay} (view: thirdhand review {path} --demo {replay})"
     )
