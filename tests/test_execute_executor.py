@@ -17,7 +17,13 @@ from thirdhand.execute.executor import (
     slip,
 )
 from thirdhand.execute.goals import constraint_holds, invert
-from thirdhand.execute.layout import make_workcell, start_layout
+from thirdhand.execute.layout import (
+    assembled_vertices,
+    base_part,
+    make_workcell,
+    part_vertices,
+    start_layout,
+)
 from thirdhand.execute.record import TOOL_BODY, read_trajectory, write_run
 
 
@@ -69,6 +75,34 @@ def test_offline_every_step_succeeds_without_collisions(scene, seed, meshes) -> 
     _check_assembled(ex, result)
     assert [r.child for r in result.steps] == [s.child for s in task.plan]
     assert all(r.n_dense > 0 for r in result.steps)
+
+
+@pytest.mark.parametrize("robot", ["panda", "baxter"])
+@pytest.mark.parametrize("scene", ["bench", "chair"])
+def test_assembly_keeps_out_of_the_arms_inner_radius(scene, robot, monkeypatch) -> None:
+    # with boxes for parts the chair's back used to point at the Panda, its far end 8 cm
+    # from the first joint (inside panda_link1): no place configuration was valid
+    monkeypatch.delenv("THIRDHAND_MESH_PATH", raising=False)
+    task = _task(scene)
+    cell = make_workcell(task, robot)
+    objs = {o.name: o for o in task.objects}
+    base = base_part(task)
+    verts = {n: part_vertices(objs[n]) for n in {base} | {c.child for c in task.constraints}}
+    placed = assembled_vertices(task, base, verts)
+    every = np.vstack(list(placed.values())) @ cell.base_pose[:3, :3].T + cell.base_pose[:3, 3]
+    dist = np.linalg.norm(every[:, :2] - np.asarray(cell.arm_xy), axis=1)
+    assert dist.min() >= cell.reach[0]
+
+
+@pytest.mark.slow
+def test_chair_with_bounding_boxes_only_every_step_succeeds(monkeypatch) -> None:
+    # regression: without meshes the back's last step found no valid place configuration
+    monkeypatch.delenv("THIRDHAND_MESH_PATH", raising=False)
+    task = _task("chair")
+    ex = _executor(task, 0, [])
+    result = ex.run_offline(seed=0)
+    _check_assembled(ex, result)
+    assert [r.child for r in result.steps] == [s.child for s in task.plan]
 
 
 @pytest.mark.slow

@@ -15,14 +15,17 @@ out in a band of distances from the arm's first joint (:attr:`Workcell.arm_xy`,
 
 The assembly pose of the base part (the root of the constraint tree, e.g. the
 seat) is chosen from the geometry (:func:`assembly_base_pose`): of the six ways
-of turning one of the base's axes up, the one whose finished assembly is the
-lowest (the smallest vertical extent), ties broken by the lowest fixture; then
-of the four turns about the vertical, the one that keeps the finished assembly
-nearest the robot. The base rests on a fixture block when something attached
-to it reaches below its own underside. For the synthetic chair this stands the
-seat on its edge with its legs pointing sideways and the back sideways the other
-way (with the legs up, the back would point into the table); for the bench it
-lays the seat flat with its legs pointing up.
+of turning one of the base's axes up and four turns about the vertical, first
+those that keep the finished assembly out of the arm's inner radius (the near
+edge of :attr:`Workcell.reach`: nearer, a part stands in the robot's base or
+where the arm cannot fold to place it); of these the one whose finished assembly
+is the lowest (the smallest vertical extent), ties broken by the lowest fixture,
+then the one that keeps the finished assembly nearest the robot. The base rests
+on a fixture block when something attached to it reaches below its own
+underside. For the synthetic chair this stands the seat on its edge with its
+legs pointing sideways and the back sideways the other way (with the legs up,
+the back would point into the table; turned towards the robot, it would end in
+the robot's base); for the bench it lays the seat flat with its legs pointing up.
 
 Start layouts (:func:`start_layout`): every other part lies on the table within
 the robot's reach, a rod (one long axis) on its side spun at random about its
@@ -218,6 +221,7 @@ def assembly_base_pose(
     table_z: float = TABLE_Z,
     robot_xy: tuple[float, float] = (0.0, 0.0),
     clearance: float = 0.08,
+    inner_radius: float = 0.0,
     task_path: str | os.PathLike[str] | None = None,
     search: Sequence[str | os.PathLike[str]] = (),
 ) -> tuple[FloatArray, list[tuple[str, FloatArray, FloatArray]]]:
@@ -236,6 +240,12 @@ def assembly_base_pose(
         World x, y of the robot; the turn about the vertical keeps the assembly near it.
     clearance : float
         Gap between the table and the lowest attached part when a fixture is needed, metres.
+    inner_radius : float
+        Horizontal distance from ``robot_xy`` that the finished assembly should keep,
+        metres (:attr:`Workcell.reach`'s near edge): the orientations whose parts come
+        nearer are taken only when every orientation does, the least intruding first.
+        With boxes for parts the chair's 42 cm back would otherwise point at the robot
+        and end 8 cm from its first joint, inside its base link.
     task_path, search
         Where to find meshes (:func:`thirdhand.task.meshes.resolve_mesh`).
 
@@ -254,7 +264,7 @@ def assembly_base_pose(
     }
     placed = assembled_vertices(task, base, verts)
     every = np.vstack(list(placed.values()))
-    best: tuple[tuple[float, float, float], FloatArray, float] | None = None
+    best: tuple[tuple[float, float, float, float], FloatArray, float] | None = None
     for axis, sign in ((1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0), (0, 1.0), (0, -1.0)):
         for yaw in (0.0, np.pi / 2, np.pi, 3 * np.pi / 2):
             rot = _rotation_up(axis, sign, yaw)
@@ -266,8 +276,10 @@ def assembly_base_pose(
                 fixture += clearance
             centre = (base_w.min(axis=0) + base_w.max(axis=0)) / 2.0
             xy = world[:, :2] - centre[:2] + np.asarray(assembly_xy) - np.asarray(robot_xy)
-            reach = float(np.linalg.norm(xy, axis=1).max())
-            key = (round(height, 3), round(fixture, 3), round(reach, 3))
+            dist = np.linalg.norm(xy, axis=1)
+            reach = float(dist.max())
+            intrusion = max(inner_radius - float(dist.min()), 0.0)
+            key = (round(intrusion, 3), round(height, 3), round(fixture, 3), round(reach, 3))
             if best is None or key < best[0]:
                 t = np.eye(4)
                 t[:3, :3] = rot
@@ -325,6 +337,7 @@ def make_workcell(
         base=base,
         assembly_xy=ASSEMBLY_XY[robot] if assembly_xy is None else assembly_xy,
         robot_xy=ARM_XY[robot],
+        inner_radius=REACH[robot][0],
         task_path=task_path,
         search=search,
     )
