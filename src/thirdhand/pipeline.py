@@ -189,24 +189,16 @@ def _run_execution(out: Path, summary: dict[str, Any], *, seed: int) -> None:
     parts are their bounding boxes.
     """
     try:
-        from thirdhand.execute.executor import ExecutionOptions, Executor
-        from thirdhand.execute.layout import make_workcell, start_layout
+        from thirdhand.execute.executor import Executor
         from thirdhand.execute.record import write_run
-        from thirdhand.execute.robot import Robot
     except ImportError:
         return
-    import numpy as np
-
     from thirdhand.taskfile import load_task
 
     path = out / "task.json"
-    task = load_task(path)
-    cell = make_workcell(task, "panda", task_path=path)
-    arm = Robot.load("panda", base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0])))
-    start = start_layout(task, cell, seed, task_path=path)
-    result = Executor(arm, task, cell, start, ExecutionOptions(), task_path=path).run_offline(
-        seed=seed
-    )
+    executor = Executor.for_task(load_task(path), "panda", seed=seed, task_path=path)
+    result = executor.run_offline(seed=seed)
+    arm = executor.robot
     replay, trajectory = write_run(arm, result, out / "execution.parquet", task_name="chair")
     summary["files"] += [str(replay), str(trajectory)]
     done = sum(r.success for r in result.steps)

@@ -13,7 +13,6 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Annotated
 
-import numpy as np
 import typer
 from rich.console import Console
 from rich.table import Table
@@ -51,22 +50,18 @@ def execute_command(
     """Execute a task's plan on a simulated robot arm with a motion planner."""
     from thirdhand import io
     from thirdhand.execute.executor import ExecutionOptions, Executor, person_does
-    from thirdhand.execute.layout import make_workcell, start_layout
     from thirdhand.execute.record import write_run
-    from thirdhand.execute.robot import Robot
     from thirdhand.task.store import load_task
 
     console = Console()
     t = load_task(task)
     search = [str(m) for m in meshes or []]
-    cell = make_workcell(t, robot, task_path=task, search=search)
-    arm = Robot.load(robot, base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0])))
-    start = start_layout(t, cell, seed, task_path=task, search=search)
     opts = ExecutionOptions(
         sample_free_dofs=free_dofs, step_time_limit=step_time, plan_time_limit=plan_time
     )
     d = io.load(demo) if demo is not None else None
-    ex = Executor(arm, t, cell, start, opts, task_path=task, search=search, demo=d)
+    ex = Executor.for_task(t, robot, seed=seed, options=opts, task_path=task, search=search, demo=d)
+    arm = ex.robot
     ids = {c.id for c in t.constraints}
     for cid in person or []:
         if cid not in ids:

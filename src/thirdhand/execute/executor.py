@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import invert
-from thirdhand.execute.layout import Workcell
+from thirdhand.execute.layout import Workcell, make_workcell, start_layout
 from thirdhand.execute.planner import plan_motion
 from thirdhand.execute.primitive_motion import find_primitive
 from thirdhand.execute.robot import Robot
@@ -99,6 +99,36 @@ class Executor:
     demo : Demonstration, optional
         A demonstration of the task: grasps are taken from its fingers.
     """
+
+    @classmethod
+    def for_task(
+        cls,
+        task: TaskFile,
+        robot_name: str = "panda",
+        *,
+        seed: int = 0,
+        options: ExecutionOptions | None = None,
+        task_path: str | os.PathLike[str] | None = None,
+        search: Sequence[str | os.PathLike[str]] = (),
+        demo: Demonstration | None = None,
+    ) -> Executor:
+        """The work cell of ``task`` for ``robot_name``, the arm mounted in it, a seeded start.
+
+        Parameters
+        ----------
+        task : TaskFile
+        robot_name : {"panda", "baxter"}
+        seed : int
+            Seed of the start layout.
+        options, task_path, search, demo
+            As for the constructor.
+        """
+        cell = make_workcell(task, robot_name, task_path=task_path, search=search)
+        arm = Robot.load(
+            robot_name, base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0]))
+        )
+        start = start_layout(task, cell, seed, task_path=task_path, search=search)
+        return cls(arm, task, cell, start, options, task_path=task_path, search=search, demo=demo)
 
     def __init__(
         self,
