@@ -45,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from thirdhand.segment.assembly import ClosureConfig
 from thirdhand.segment.design import FeatureConfig
 from thirdhand.segment.pipeline import scores_by_kind, segment_demonstration
 from thirdhand.segment.training import fit_model
@@ -68,6 +69,10 @@ def main() -> None:
         "--extra-windows", default="2", help="further windows, latent steps, comma-separated"
     )
     ap.add_argument("--no-contact", action="store_true", help="no bounding-box contact distance")
+    ap.add_argument(
+        "--closure", type=float, default=0.01,
+        help="assembly closure: box gap (m) up to which parts touch; < 0 turns it off",
+    )  # fmt: skip
     ap.add_argument("--l2", type=float, default=1.0)
     ap.add_argument("-o", "--output", type=Path, default=DEFAULT_OUT / "segment_default.json")
     args = ap.parse_args()
@@ -89,6 +94,7 @@ def main() -> None:
         train,
         cfg,
         l2=args.l2,
+        closure=ClosureConfig(args.closure) if args.closure >= 0 else None,
         training={
             "data": f"thirdhand.synth scenes {', '.join(SCENES)}, seeds 0..{args.seeds - 1} "
             f"with SensorModel() defaults and 100..{100 + args.clean - 1} noise-free",

@@ -209,12 +209,16 @@ class DemoFeatures:
     Attributes
     ----------
     axis : LatentAxis
+    gaps : dict (a, b) -> ndarray, shape (n_steps,), metres
+        Bounding-box gap of every pair computed so far whose two bodies both have
+        a box (:mod:`thirdhand.segment.contact`), for the assembly closure.
     """
 
     def __init__(self, demo: Demonstration, config: FeatureConfig) -> None:
         self.demo = demo
         self.config = config
         self.axis: LatentAxis = latent_axis(demo.t, config.latent_rate)
+        self.gaps: dict[tuple[str, str], FloatArray] = {}
         self._bodies: dict[str, list[BodyStats]] = {}
         self._tracks: dict[str, tuple[FloatArray, FloatArray, BoolArray]] = {}
         per_step = np.bincount(self.axis.frame_step, minlength=self.axis.n_steps).astype(float)
@@ -260,10 +264,13 @@ class DemoFeatures:
         )
         evidence = (sab.count >= self.config.min_valid_fraction * self.nominal) & (sab.count >= 2)
         gap = None
-        if self.config.contact:
+        meta = self.demo.meta
+        box_a, box_b = body_box(meta, a), body_box(meta, b)
+        if self.config.contact or (box_a is not None and box_b is not None):
             assert sab.mean_pos is not None and sab.mean_quat is not None
-            meta = self.demo.meta
-            gap = box_gap(sab.mean_pos, sab.mean_quat, body_box(meta, a), body_box(meta, b))
+            gap = box_gap(sab.mean_pos, sab.mean_quat, box_a, box_b)
+            if box_a is not None and box_b is not None:
+                self.gaps[(a, b)] = gap
         return design_matrix(raw, evidence, self.config, sab.distance, gap), evidence
 
 

@@ -7,7 +7,10 @@ Document (``"format": "thirdhand.segment/1"``)::
      "feature_names": ["bias", "log_eps_nu_pos", ...],
      "theta": {"transition": [[w00, w01], [w10, w11]], "state": [...]},
      "per_kind": {"part-part": {"transition": ..., "state": ...}, ...},
-     "hand": {"min_fingers": 2}, "max_gap_s": 1.0, "training": {...}}
+     "hand": {"min_fingers": 2}, "max_gap_s": 1.0,
+     "closure": {"contact_max_m": 0.01}, "training": {...}}
+
+``closure`` is optional (absent or null: part–part labels are the CRF's own).
 
 ``transition[a][b]`` weighs ``y_t = a`` after ``y_{t-1} = b``.
 """
@@ -25,8 +28,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.errors import ThirdhandError
+from thirdhand.segment.assembly import ClosureConfig
 from thirdhand.segment.crf import PairCRF
 from thirdhand.segment.design import FeatureConfig
+from thirdhand.segment.features import SegmentationError
 
 FloatArray = NDArray[np.float64]
 
@@ -58,6 +63,9 @@ class SegmentModel:
     per_kind : dict kind -> (transition (2, 2), state (n_features,))
         Optional weights for one pair kind (``"finger-object"``, ``"tool-part"``,
         ``"part-part"``...), used instead of the shared ones for pairs of that kind.
+    closure : ClosureConfig or None
+        When set, part–part labels of parts whose boxes are apart come from the
+        assembly closure (:mod:`thirdhand.segment.assembly`).
     """
 
     features: FeatureConfig
@@ -67,6 +75,7 @@ class SegmentModel:
     max_gap_s: float = 1.0
     training: dict[str, Any] = field(default_factory=dict)
     per_kind: dict[str, tuple[FloatArray, FloatArray]] = field(default_factory=dict)
+    closure: ClosureConfig | None = None
 
     @classmethod
     def from_crf(cls, crf: PairCRF, features: FeatureConfig, **kwargs: Any) -> SegmentModel:
@@ -100,6 +109,7 @@ class SegmentModel:
             },
             "hand": {"min_fingers": self.min_fingers},
             "max_gap_s": self.max_gap_s,
+            "closure": None if self.closure is None else self.closure.to_dict(),
             "training": self.training,
         }
 
@@ -122,7 +132,9 @@ class SegmentModel:
                 )
                 for k, v in d.get("per_kind", {}).items()
             }
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            closure_d = d.get("closure")
+            closure = None if closure_d is None else ClosureConfig(**closure_d)
+        except (KeyError, TypeError, ValueError, AttributeError, SegmentationError) as exc:
             raise ModelFileError(
                 f"{source}: malformed model: {type(exc).__name__}: {exc}"
             ) from None
@@ -135,7 +147,7 @@ class SegmentModel:
                 )
             if not (np.all(np.isfinite(t)) and np.all(np.isfinite(w))):
                 raise ModelFileError(f"{source} ({where}): model weights must be finite")
-        return cls(feats, trans, state, min_f, max_gap, dict(d.get("training", {})), kinds)
+        return cls(feats, trans, state, min_f, max_gap, dict(d.get("training", {})), kinds, closure)
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the JSON document atomically (temporary file, then rename)."""

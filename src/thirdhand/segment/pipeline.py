@@ -4,7 +4,11 @@ Pairs considered by default (:func:`default_pairs`): finger–object and
 hand–object (objects are parts and tools), tool–part and part–part. Each pair
 gets the CRF's marginal probability and Viterbi label per latent step; each
 hand (fingers grouped by ``BodyInfo.hand_body``) gets an aggregated label per
-object: it interacts when at least ``min_fingers`` of its fingers do.
+object: it interacts when at least ``min_fingers`` of its fingers do. With a
+model carrying a :class:`~thirdhand.segment.assembly.ClosureConfig` (the shipped
+one does), part–part pairs whose bounding boxes are apart are labelled by
+whether the touching, interacting pairs connect them
+(:mod:`thirdhand.segment.assembly`).
 
 Missing data: a step whose window holds too few valid samples of both bodies
 has no evidence (zero state potential). Runs of such steps up to
@@ -25,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
+from thirdhand.segment.assembly import ClosureConfig, close_pairs, touching
 from thirdhand.segment.design import DemoFeatures
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.hands import aggregate_hand, finger_groups
@@ -51,9 +56,10 @@ class PairResult:
     kind : str
         ``"finger-object"``, ``"hand-object"``, ``"tool-part"``, ``"part-part"`` or ``"other"``.
     probability : ndarray, shape (n_steps,)
-        Marginal ``p(y_t = 1)``; NaN inside long gaps.
+        The pair's own CRF marginal ``p(y_t = 1)``; NaN inside long gaps.
     label : ndarray of int, shape (n_steps,)
-        Viterbi labels.
+        Viterbi labels; for a part–part pair whose boxes are apart, the assembly
+        closure's when the model has one (:mod:`thirdhand.segment.assembly`).
     evidence : ndarray of bool, shape (n_steps,)
     intervals : list of (start, end), seconds
     truth : ndarray of int, shape (n_steps,), or None
@@ -195,6 +201,22 @@ def _blank_long_gaps(
             label[lo:hi] = 0
 
 
+def _close_assembly(
+    pairs: list[PairResult],
+    gaps: dict[tuple[str, str], FloatArray],
+    config: ClosureConfig,
+) -> None:
+    """Replace part–part labels by the assembly closure (in place)."""
+    parts = [p for p in pairs if p.kind == "part-part"]
+    closed = close_pairs(
+        [(p.a, p.b) for p in parts],
+        [p.label for p in parts],
+        [touching(gaps.get((p.a, p.b)), config) for p in parts],
+    )
+    for p, y in zip(parts, closed, strict=True):
+        p.label = y
+
+
 def segment_demonstration(
     demo: Demonstration,
     model: SegmentModel | None = None,
@@ -231,29 +253,24 @@ def segment_demonstration(
     # Ground truth only for the pair kinds the labels cover (see labelled_kinds).
     covered = labelled_kinds(demo)
     result = SegmentationResult(times=axis.times, edges=axis.edges)
+    evidence: list[BoolArray] = []
     for a, b in pairs:
         x, ev = feats.pair(a, b)
         kind = pair_kind(demo, a, b)
         crf = crfs.setdefault(kind, model.crf(kind))
         prob, label = crf.decode(x)
-        _blank_long_gaps(prob, label, ev, max_steps)
         truth = (
             labels_from_intervals(pair_intervals(demo.labels, a, b), axis.times)
             if kind in covered
             else None
         )
-        result.pairs.append(
-            PairResult(
-                a=a,
-                b=b,
-                kind=kind,
-                probability=prob,
-                label=label,
-                evidence=ev,
-                intervals=intervals_from_labels(label, axis.edges),
-                truth=truth,
-            )
-        )
+        evidence.append(ev)
+        result.pairs.append(PairResult(a, b, kind, prob, label, ev, intervals=[], truth=truth))
+    if model.closure is not None:
+        _close_assembly(result.pairs, feats.gaps, model.closure)
+    for p, ev in zip(result.pairs, evidence, strict=True):
+        _blank_long_gaps(p.probability, p.label, ev, max_steps)
+        p.intervals = intervals_from_labels(p.label, axis.edges)
     result.hands = _hands(demo, result, model.min_fingers, has_truth)
     return result
 

@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
+from thirdhand.segment.assembly import ClosureConfig, touching
 from thirdhand.segment.crf import PairCRF
 from thirdhand.segment.design import DemoFeatures, FeatureConfig
 from thirdhand.segment.evaluate import boundary_error, frame_f1, interval_iou
@@ -43,12 +44,15 @@ class SequenceSet:
     ys : list of ndarray of int, each (n_steps_i,)
     pairs : list of (demo index, a, b, kind)
     edges : list of ndarray, each (n_steps_i + 1,), seconds
+    gaps : list of (ndarray, each (n_steps_i,), metres) or None
+        Bounding-box gap of the pair, None when a body has no box.
     """
 
     xs: list[FloatArray] = field(default_factory=list)
     ys: list[IntArray] = field(default_factory=list)
     pairs: list[tuple[int, str, str, str]] = field(default_factory=list)
     edges: list[FloatArray] = field(default_factory=list)
+    gaps: list[FloatArray | None] = field(default_factory=list)
 
     @property
     def n_steps(self) -> int:
@@ -96,6 +100,7 @@ def labelled_sequences(
             )
             out.pairs.append((k, a, b, pair_kind(demo, a, b)))
             out.edges.append(feats.axis.edges)
+            out.gaps.append(feats.gaps.get((a, b)))
     if not out.xs:
         side = "" if hand is None else f" of the {hand} hand"
         raise SegmentationError(f"no labelled pair{side} to learn from")
@@ -110,6 +115,7 @@ def fit_model(
     hand: str | None = None,
     per_kind: bool = True,
     min_sequences: int = 4,
+    closure: ClosureConfig | None = None,
     training: dict[str, Any] | None = None,
 ) -> SegmentModel:
     """Train a CRF segmentation model on labelled demonstrations.
@@ -127,6 +133,11 @@ def fit_model(
         part–part...) having at least ``min_sequences`` sequences and one interval;
         the shared weights, fitted on every pair, serve the other kinds.
     min_sequences : int
+    closure : ClosureConfig, optional
+        Close part–part labels over the assembly (:mod:`thirdhand.segment.assembly`).
+        The part–part weights are then fitted only on the pairs that touch at
+        some step (or have no boxes): the closure labels the others, whose
+        history-dependent labels at rest would only blur the touching ones.
     training : dict, optional
         Provenance merged into :attr:`SegmentModel.training`.
     """
@@ -144,6 +155,8 @@ def fit_model(
     if per_kind:
         for kind in sorted({p[3] for p in data.pairs}):
             idx = [i for i, p in enumerate(data.pairs) if p[3] == kind]
+            if closure is not None and kind == "part-part":
+                idx = [i for i in idx if _may_touch(data.gaps[i], closure)]
             xs = [data.xs[i] for i in idx]
             ys = [data.ys[i] for i in idx]
             if len(idx) < min_sequences or not any(y.any() for y in ys):
@@ -151,7 +164,12 @@ def fit_model(
             k_crf = PairCRF(l2=l2).fit(xs, ys)
             kinds[kind] = (k_crf.coef_transition_, k_crf.coef_state_)
             info[f"train_nll_per_variable[{kind}]"] = k_crf.nll(xs, ys) / sum(map(len, ys))
-    return SegmentModel.from_crf(crf, config, training=info, per_kind=kinds)
+    return SegmentModel.from_crf(crf, config, training=info, per_kind=kinds, closure=closure)
+
+
+def _may_touch(gap: FloatArray | None, closure: ClosureConfig) -> bool:
+    near = touching(gap, closure)
+    return near is None or bool(near.any())
 
 
 def scores(data: SequenceSet, pred: Sequence[IntArray]) -> dict[str, float]:
