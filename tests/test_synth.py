@@ -146,8 +146,15 @@ def test_fingers_interact_with_parts_attached_to_the_held_part(chair: Demonstrat
     legs = {c.child: c.time for c in chair.labels.constraints if c.child.startswith("leg")}
     carried = [i for i in chair.labels.interactions if i.a.startswith("lh_") and i.b in legs]
     assert carried
+    # Some before the leg is established: the pauses between screwing strokes.
+    assert any(i.end < legs[i.b] for i in carried)
     for i in carried:
-        assert i.start >= legs[i.b] - 1e-9  # only once the leg is established
+        # Once the leg is established, or while it rests in its thread between strokes:
+        # the leg's pose in the seat is constant throughout.
+        idx = _inside(chair, i.start, i.end)
+        if idx.size >= 2:
+            p, _ = _relative(chair, "seating", i.b, idx)
+            assert np.max(np.abs(p - p[0])) < 1e-9, (i.a, i.b, i.start)
         # ... and only while the hand holds the seat
         assert any(
             h.a == i.a and h.b == "seating" and h.start <= i.start + 1e-9 and i.end <= h.end + 1e-9
@@ -203,3 +210,34 @@ def test_scene_round_trips_through_parquet(scene: str, tmp_path: Path) -> None:
         np.testing.assert_allclose(back.pos(name), demo.pos(name), atol=1e-12, equal_nan=True)
         np.testing.assert_allclose(back.quat(name), demo.quat(name), atol=1e-12, equal_nan=True)
     assert back.labels == demo.labels
+
+
+def test_parts_interact_exactly_while_a_chain_of_resting_joints_connects_them(
+    chair: Demonstration, toolbox: Demonstration
+) -> None:
+    for demo in (chair, toolbox):
+        n = 0
+        for i in demo.labels.interactions:
+            if demo.info(i.a).kind != "part" or demo.info(i.b).kind != "part":
+                continue
+            idx = _inside(demo, i.start, i.end)
+            if idx.size < 2:
+                continue
+            p, q = _relative(demo, i.a, i.b, idx)
+            assert np.max(np.abs(p - p[0])) < 1e-9, (i.a, i.b, i.start)
+            assert np.min(_same_rotation(q, q[0])) > 1 - 1e-12, (i.a, i.b, i.start)
+            n += 1
+        assert n > 10
+    # A leg being screwed in rests in its thread between strokes: one interval per
+    # pause before it is established, none while it turns.
+    for c in chair.labels.constraints:
+        if not c.child.startswith("leg"):
+            continue
+        before = [
+            i
+            for i in chair.labels.interactions
+            if {i.a, i.b} == {"seating", c.child} and i.end < c.time - 1e-6
+        ]
+        assert len(before) >= 3, c.child
+        turning = [j for j in range(1, len(before)) if before[j].start - before[j - 1].end > 0.3]
+        assert len(turning) == len(before) - 1  # a stroke of at least 0.3 s between pauses

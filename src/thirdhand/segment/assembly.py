@@ -8,11 +8,16 @@ the whole toolbox rests on the table their two trajectories say nothing (both
 are still whether joined or not), and the CRF can only guess from history.
 
 The closure decides such pairs from the touching ones. Per latent step, the
-graph over the parts has an edge for every part–part pair that the CRF labels
-interacting **and** whose bounding boxes are within ``contact_max_m`` of each
-other; a pair whose boxes are farther apart is labelled by whether that graph
-connects its two parts. Connection through edges that are each rigid implies a
-rigid pair, so the closure keeps the definition.
+graph over the parts has an edge for every part–part pair (:data:`CLOSED_KINDS`)
+that the CRF labels interacting **and** whose bounding boxes are within
+``contact_max_m`` of each other; a pair whose boxes are farther apart is
+labelled by whether that graph connects its two parts. Tool–part pairs keep the
+CRF's labels: closed too, a board held against the toolbox front before its
+screws are tight (touching, moving with it, not joined) made the screwdriver
+"interact" with the front (held-out toolbox tool–part F1 0.998 → 0.83), while
+the CRF alone sees a screwdriver resting in a screw move with the screw's board.
+Connection through edges that are each rigid implies a rigid pair, so the
+closure keeps the definition.
 
 Pairs with a body without a bounding box (no geometry: a real recording without
 meshes) cannot be told touching from apart: they keep their own label and are
@@ -39,6 +44,9 @@ from thirdhand.segment.features import SegmentationError
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
+
+#: Pair kinds (:func:`thirdhand.segment.pipeline.pair_kind`) the closure labels.
+CLOSED_KINDS = ("part-part",)
 
 
 @dataclass(frozen=True)
@@ -146,4 +154,4 @@ def close_pairs(
     return [row.astype(np.int64) for row in out]
 
 
-__all__ = ["ClosureConfig", "close_pairs", "touching"]
+__all__ = ["CLOSED_KINDS", "ClosureConfig", "close_pairs", "touching"]

@@ -29,7 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
-from thirdhand.segment.assembly import ClosureConfig, close_pairs, touching
+from thirdhand.segment.assembly import CLOSED_KINDS, ClosureConfig, close_pairs, touching
 from thirdhand.segment.design import DemoFeatures
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.hands import aggregate_hand, finger_groups
@@ -58,8 +58,8 @@ class PairResult:
     probability : ndarray, shape (n_steps,)
         The pair's own CRF marginal ``p(y_t = 1)``; NaN inside long gaps.
     label : ndarray of int, shape (n_steps,)
-        Viterbi labels; for a part–part pair whose boxes are apart, the assembly
-        closure's when the model has one (:mod:`thirdhand.segment.assembly`).
+        Viterbi labels; for a part–part pair whose boxes are apart, the
+        assembly closure's when the model has one (:mod:`thirdhand.segment.assembly`).
     evidence : ndarray of bool, shape (n_steps,)
     intervals : list of (start, end), seconds
     truth : ndarray of int, shape (n_steps,), or None
@@ -207,7 +207,7 @@ def _close_assembly(
     config: ClosureConfig,
 ) -> None:
     """Replace part–part labels by the assembly closure (in place)."""
-    parts = [p for p in pairs if p.kind == "part-part"]
+    parts = [p for p in pairs if p.kind in CLOSED_KINDS]
     closed = close_pairs(
         [(p.a, p.b) for p in parts],
         [p.label for p in parts],

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
-from thirdhand.segment.assembly import ClosureConfig, touching
+from thirdhand.segment.assembly import CLOSED_KINDS, ClosureConfig, touching
 from thirdhand.segment.crf import PairCRF
 from thirdhand.segment.design import DemoFeatures, FeatureConfig
 from thirdhand.segment.evaluate import boundary_error, frame_f1, interval_iou
@@ -155,7 +155,7 @@ def fit_model(
     if per_kind:
         for kind in sorted({p[3] for p in data.pairs}):
             idx = [i for i, p in enumerate(data.pairs) if p[3] == kind]
-            if closure is not None and kind == "part-part":
+            if closure is not None and kind in CLOSED_KINDS:
                 idx = [i for i in idx if _may_touch(data.gaps[i], closure)]
             xs = [data.xs[i] for i in idx]
             ys = [data.ys[i] for i in idx]

@@ -15,22 +15,28 @@ exactly as simulated (see :mod:`thirdhand.synth.script`):
 - finger–part interactions through a held part (the transitive rule): a finger
   holding ``Q`` also interacts with every body ``P`` that interacts with ``Q``
   (part–part or tool–part, below) while ``P``'s pose in ``Q`` stays constant. A
-  finger holding the seat interacts with the legs already screwed in, not with
-  the leg being screwed in (not established yet) nor with a drawer sliding in a
-  frame it holds. Hands (fingers grouped by ``hand_body``) follow their fingers.
+  finger holding the seat interacts with the legs already screwed in and with
+  the leg being screwed in while it rests in its thread between two strokes,
+  not while it turns, nor with a drawer sliding in a frame it holds. Hands
+  (fingers grouped by ``hand_body``) follow their fingers.
 - tool–part interactions: the screwdriver and the screw it drives, from
   engagement to disengagement (the screwdriver's pose in the screw is constant;
-  the hand releases and regrips the handle between strokes meanwhile).
-- part–part interactions: from the moment a constraint is established to the end
-  of the recording (or its removal), for every pair of parts the established
-  constraints connect, **while their relative pose is constant** (a drawer
-  sliding in its rails or a lid turning on its hinges is not interacting with
-  its frame or box during the motion; fixed joints and tight legs are rigid
-  throughout). Rigidity is checked on a 960 Hz grid. A constraint is
-  established at the first instant from which the child's pose in the parent
-  stays within the constraint for good: a chair leg when its last screwing
-  turn ends (while it is screwed in it turns about and advances along its
-  axis, so the leg–seat pair is *not* an interaction during screwing), a screw
+  the hand releases and regrips the handle between strokes meanwhile); through
+  the links below, also the parts that screw rests in between strokes (the
+  board, and what the board is joined to).
+- part–part interactions follow the same definition, applied to the joints: two
+  parts interact while a chain of *links* connects them, each link at rest in
+  its joint (the child's pose in the parent constant; rigidity is checked on a
+  960 Hz grid). A link is a constraint from the moment it is established to the
+  end of the recording (or its removal), or a part seated in its joint before
+  that: a leg from its insertion into the thread (between screwing strokes it
+  rests there and moves with the seat), a screw resting in its hole. While a
+  leg or screw turns, a drawer slides in its rails or a lid turns on its hinges,
+  its link is broken, so a leg being screwed in interacts with the seat only in
+  the pauses between strokes, exactly like a drawer between two pushes; fixed
+  joints and tight legs are rigid throughout. A constraint is established at the
+  first instant from which the child's pose in the parent stays within the
+  constraint for good: a chair leg when its last screwing turn ends, a screw
   when it is tight, a toolbox board when its last screw is tight, the back when
   it is pushed home, a drawer when it enters its rails, a lid when it is on its
   hinge pins. For fixed constraints the relative pose is then constant; for the

@@ -174,7 +174,6 @@ def _drive(
     t = sim.carry("screwdriver", t, t_e - t, compose(sim.pose(screw, t_e), _ENGAGED))
     sim.timeline.put("screwdriver", t, _hold(_ENGAGED), screw)
     sim.pair("screwdriver", screw, t)
-    sim.end_pair(board, screw, t)
     ref = sim.timeline.relative_at(board, screw, t)
     hole = (ref[0] - se3.quat_rotate(ref[1], [-_PROUD, 0.0, 0.0]), ref[1])
     n = int(rng.integers(4, 6))
@@ -194,6 +193,8 @@ def _drive(
             t += 0.05
     final = (hole[0], se3.quat_multiply(hole[1], axis_angle_quat(X, theta)))
     sim.timeline.put(screw, t, _hold(final), board)
+    # In its hole from the start: interacting with the board wherever it rests in it.
+    sim.end_pair(board, screw, t)
     sim.establish(board, screw, t, "fixed", symbol=symbol, pose=final)
     return t
 

@@ -249,6 +249,7 @@ def _screw_leg(
             t = sim.reach(worker, leg, g, t, rng.uniform(0.45, 0.65), approach=0.02) + 0.05
     final = (slot_p, se3.quat_multiply(SLOT_Q, axis_angle_quat(X, theta)))
     sim.timeline.put(leg, t, _hold(final), "seating")
+    sim.engage("seating", leg, t_i, t)
     sim.establish("seating", leg, t, "revolute", symbol=slot, free_dofs=FREE_SPIN, pose=final)
     sim.rest(worker, sim.release(worker, t + 0.05, rng.uniform(0.25, 0.35)), rng.uniform(0.8, 1.1))
     t_hr = sim.release(helper, t + rng.uniform(0.1, 0.4), rng.uniform(0.25, 0.35))

@@ -10,13 +10,19 @@ exactly what was simulated:
   instant they start to open;
 - a tool–part interaction (screwdriver–screw) runs from engagement to
   disengagement, the tool's pose being constant in the screw's frame;
-- a part–part interaction runs from the instant a constraint is established
-  (see :meth:`Sim.establish`) to the end of the recording, for every pair of
-  parts that the established constraints connect, directly or through others.
+- a part–part interaction holds while the two parts are connected by a chain
+  of *links*, each at rest in its joint (the child's pose in the parent
+  constant): a constraint from the instant it is established (see
+  :meth:`Sim.establish`) to the end of the recording, a part seated in its
+  joint before the constraint is established (:meth:`Sim.engage`: a leg in its
+  thread between two screwing strokes), a screw resting in its hole. A leg or
+  screw being turned, a drawer sliding and a lid turning break their link for
+  as long as they move.
 """
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,6 +69,7 @@ class Sim:
     constraints: list[ConstraintEvent] = field(default_factory=list)
     plan: list[PlanStep] = field(default_factory=list)
     joins: list[tuple[float, str, str]] = field(default_factory=list)
+    engaged: list[tuple[str, str, float, float]] = field(default_factory=list)
     open_pairs: dict[tuple[str, str], float] = field(default_factory=dict)
     grasps: list[tuple[str, str, float, float]] = field(default_factory=list)
     end: float = 0.0
@@ -324,6 +331,15 @@ class Sim:
         start = self.open_pairs.pop((a, b))
         self.interactions.append(InteractionInterval(a, b, start, end))
 
+    def engage(self, parent: str, child: str, t0: float, t1: float) -> None:
+        """``child`` sits in its joint in ``parent`` from ``t0`` to ``t1``, not yet established.
+
+        The two interact wherever the child is at rest in the parent meanwhile (a
+        leg in its thread between two screwing strokes), as a drawer or a lid
+        does between two motions of an established joint.
+        """
+        self.engaged.append((parent, child, t0, t1))
+
     def establish(
         self,
         parent: str,
@@ -360,47 +376,64 @@ class Sim:
             self._steady(hand, t)
 
     def finish(self, end: float) -> None:
-        """Close every open label at ``end`` and add the part–part pairs of the joins."""
+        """Close every open label at ``end`` and label the part–part and tool–part pairs.
+
+        Both follow the links (:meth:`_connected`): a screwdriver engaged in a screw
+        resting in its board moves with the board as rigidly as the screw does.
+        """
         self.end = end
         for (a, b), start in sorted(self.open_pairs.items(), key=lambda kv: kv[1]):
             self.interactions.append(InteractionInterval(a, b, start, end))
         self.open_pairs.clear()
-        order = {name: i for i, name in enumerate(self.bodies)}
-        group: dict[str, set[str]] = {}
-        for t, a, b in sorted(self.joins, key=lambda j: j[0]):
-            ga = group.get(a, {a})
-            gb = group.get(b, {b})
-            if ga is gb:
-                continue
-            for x in sorted(ga, key=order.__getitem__):
-                for y in sorted(gb, key=order.__getitem__):
-                    u, v = (x, y) if order[x] < order[y] else (y, x)
-                    self.interactions.append(InteractionInterval(u, v, t, end))
-            merged = ga | gb
-            for name in merged:
-                group[name] = merged
-        self.interactions = self._rigid_only(self.interactions)
+        kinds = {name: info.kind for name, info in self.bodies.items()}
+        solid = ("part", "tool")
+        objects = [i for i in self.interactions if kinds[i.a] in solid and kinds[i.b] in solid]
+        links = [(i.a, i.b, i.start, i.end) for i in objects]
+        links += self.engaged
+        links += [(a, b, t, end) for t, a, b in self.joins]
+        self.interactions = [i for i in self.interactions if i not in objects]
+        self.interactions += self._connected(links)
         self.interactions += self._carried_along()
         self.interactions.sort(key=lambda i: (i.start, i.a, i.b))
 
-    def _rigid_only(
-        self, items: list[InteractionInterval], step: float = 1.0 / 960.0
+    def _connected(
+        self, links: list[tuple[str, str, float, float]], step: float = 1.0 / 960.0
     ) -> list[InteractionInterval]:
-        """Part–part intervals cut to the spans where the relative pose is constant.
+        """Part and tool pairs joined by a chain of links, each at rest in its joint.
 
-        A drawer sliding in its rails or a lid turning on its hinge is connected to
-        its parent but does not move rigidly with it; a fixed constraint is rigid
-        throughout and keeps its whole interval.
+        Every link ``(parent, child, t0, t1)`` is cut to the spans where the child's
+        pose in the parent is constant (``step``-second grid); between consecutive
+        span ends the links at rest are fixed, so the connected pairs are too.
+        A chain of rigid links is rigid, so every labelled pair is.
         """
-        out = []
-        for i in items:
-            if self.bodies[i.a].kind == "part" and self.bodies[i.b].kind == "part":
-                out += [
-                    InteractionInterval(i.a, i.b, s, e)
-                    for s, e in self._rigid_spans(i.a, i.b, i.start, i.end, step)
-                ]
-            else:
-                out.append(i)
+        spans = [
+            (a, b, s, e) for a, b, t0, t1 in links for s, e in self._rigid_spans(a, b, t0, t1, step)
+        ]
+        order = {name: i for i, name in enumerate(self.bodies)}
+        cuts = sorted({s for *_, s, _ in spans} | {e for *_, e in spans})
+        open_at: dict[tuple[str, str], float] = {}
+        out: list[InteractionInterval] = []
+        for lo, hi in itertools.pairwise(cuts):
+            mid = 0.5 * (lo + hi)
+            root: dict[str, str] = {}
+            for a, b, s, e in spans:
+                if s <= mid <= e:
+                    root[_find(root, a)] = _find(root, b)
+            groups: dict[str, list[str]] = {}
+            for x in list(root):
+                groups.setdefault(_find(root, x), []).append(x)
+            now = {
+                (u, v) if order[u] < order[v] else (v, u)
+                for g in groups.values()
+                for k, u in enumerate(g)
+                for v in g[k + 1 :]
+            }
+            for pair in [p for p in open_at if p not in now]:
+                out.append(InteractionInterval(*pair, open_at.pop(pair), lo))
+            for pair in now:
+                open_at.setdefault(pair, lo)
+        for pair, start in open_at.items():
+            out.append(InteractionInterval(*pair, start, cuts[-1]))
         return out
 
     def _carried_along(self, step: float = 1.0 / 960.0) -> list[InteractionInterval]:
@@ -457,6 +490,13 @@ class Sim:
             if hi - lo >= 2:
                 spans.append((float(t[lo]), float(t[hi - 1])))
         return spans
+
+
+def _find(root: dict[str, str], x: str) -> str:
+    """Union–find root of ``x`` (added as its own root when new)."""
+    while root.setdefault(x, x) != x:
+        x = root[x]
+    return x
 
 
 def movement_time(start: Pose, end: Pose) -> float:
