@@ -1,0 +1,83 @@
+"""The shipped segmentation model on real recordings with tracking gaps.
+
+The 3rdHand excerpt (Polhemus, ~100 Hz, 19–25 % of the samples of each sensor
+lost, in short runs) and the four IKEA bags (AR tags at ~23 Hz; the table is
+lost for 12–88 % of the frames, the leg for 0–100 %). None carries interaction
+labels, so these tests check what the model promises about gaps
+(``thirdhand.segment.pipeline``): a step has evidence only when its window
+holds enough valid samples of both bodies; runs without evidence up to
+``max_gap_s`` are bridged by the chain; longer ones get label 0 and probability
+NaN — nothing is fabricated over them. Figures: docs/segmentation_results.md.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thirdhand.io import load
+from thirdhand.segment.intervals import runs
+from thirdhand.segment.model import default_model
+from thirdhand.segment.pipeline import SegmentationResult, segment_demonstration
+
+IKEA = "niekum/ikea_table_leg_pos_1"
+
+
+def _check_gap_rules(result: SegmentationResult, rate: float) -> None:
+    max_steps = int(np.floor(default_model().max_gap_s * rate + 1e-9))
+    for p in result.pairs:
+        assert np.all(np.isfinite(p.probability[p.evidence])), (p.a, p.b)
+        long_gap = np.zeros(len(p.label), dtype=bool)
+        for lo, hi in runs((~p.evidence).astype(np.int64)):
+            if hi - lo > max_steps:
+                long_gap[lo:hi] = True
+        np.testing.assert_array_equal(np.isnan(p.probability), long_gap)
+        assert not p.label[long_gap].any(), (p.a, p.b)
+        for s, e in p.intervals:
+            assert result.edges[0] <= s < e <= result.edges[-1]
+
+
+def test_3rdhand_excerpt_with_lost_samples(shared_data: Path) -> None:
+    demo = load(shared_data / "3rdhand" / "toolbox_coop_4_excerpt")
+    missing = 1.0 - np.mean([demo.track(b.name).valid.mean() for b in demo.bodies])
+    assert 0.15 < missing < 0.3  # the ~20 % of lost samples the issue speaks of
+    result = segment_demonstration(demo)
+    # 9 fingers x 2 boards + the two boards; three hands aggregated per board.
+    assert len(result.pairs) == 19
+    assert {h.hand for h in result.hands} == {"/human/lh", "/human/rh", "/human/th"}
+    # The losses come in runs of a few frames: every 50 ms step keeps evidence.
+    assert all(p.evidence.all() for p in result.pairs)
+    _check_gap_rules(result, default_model().features.latent_rate)
+    # Everybody rests during this second, the right and left hands 0.8-1.2 m from
+    # both boards: never interacting with them.
+    for h in result.hands:
+        if h.hand in ("/human/lh", "/human/rh"):
+            assert not h.label.any(), (h.hand, h.object)
+
+
+@pytest.mark.parametrize("part", [1, 2, 3, 4])
+def test_ikea_bags_never_fill_long_gaps(shared_data: Path, part: int) -> None:
+    demo = load(shared_data / IKEA / f"part{part}.bag")
+    result = segment_demonstration(demo)
+    (pair,) = result.pairs
+    assert pair.kind == "part-part"
+    _check_gap_rules(result, default_model().features.latent_rate)
+    if part == 2:  # the leg's tag is never seen: a documented empty result
+        assert not pair.evidence.any() and not pair.label.any() and not pair.intervals
+        assert np.isnan(pair.probability).all()
+    else:
+        assert pair.evidence.mean() > 0.1
+
+
+def test_ikea_leg_rests_in_the_table_at_the_end_of_the_insert_test(shared_data: Path) -> None:
+    # Part 4 ("insert test"): the robot moves the leg in the table's hole, both
+    # tags jump by centimetres (AR tracking, far noisier than the training sensor),
+    # then lets go; in the last second the leg's pose in the table changes by
+    # under 4 mm. The longest interaction found is there.
+    result = segment_demonstration(load(shared_data / IKEA / "part4.bag"))
+    (pair,) = result.pairs
+    longest = max(pair.intervals, key=lambda iv: iv[1] - iv[0])
+    assert longest[1] - longest[0] >= 0.5
+    assert longest[0] >= result.edges[-1] - 1.5
