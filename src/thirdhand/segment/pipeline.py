@@ -253,7 +253,6 @@ def segment_demonstration(
     # Ground truth only for the pair kinds the labels cover (see labelled_kinds).
     covered = labelled_kinds(demo)
     result = SegmentationResult(times=axis.times, edges=axis.edges)
-    evidence: list[BoolArray] = []
     for a, b in pairs:
         x, ev = feats.pair(a, b)
         kind = pair_kind(demo, a, b)
@@ -264,12 +263,11 @@ def segment_demonstration(
             if kind in covered
             else None
         )
-        evidence.append(ev)
         result.pairs.append(PairResult(a, b, kind, prob, label, ev, intervals=[], truth=truth))
     if model.closure is not None:
         _close_assembly(result.pairs, feats.gaps, model.closure)
-    for p, ev in zip(result.pairs, evidence, strict=True):
-        _blank_long_gaps(p.probability, p.label, ev, max_steps)
+    for p in result.pairs:
+        _blank_long_gaps(p.probability, p.label, p.evidence, max_steps)
         p.intervals = intervals_from_labels(p.label, axis.edges)
     result.hands = _hands(demo, result, model.min_fingers, has_truth)
     return result

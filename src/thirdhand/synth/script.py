@@ -387,11 +387,14 @@ class Sim:
         self.open_pairs.clear()
         kinds = {name: info.kind for name, info in self.bodies.items()}
         solid = ("part", "tool")
-        objects = [i for i in self.interactions if kinds[i.a] in solid and kinds[i.b] in solid]
-        links = [(i.a, i.b, i.start, i.end) for i in objects]
-        links += self.engaged
-        links += [(a, b, t, end) for t, a, b in self.joins]
-        self.interactions = [i for i in self.interactions if i not in objects]
+        links = list(self.engaged) + [(a, b, t, end) for t, a, b in self.joins]
+        others = []
+        for i in self.interactions:
+            if kinds[i.a] in solid and kinds[i.b] in solid:
+                links.append((i.a, i.b, i.start, i.end))
+            else:
+                others.append(i)
+        self.interactions = others
         self.interactions += self._connected(links)
         self.interactions += self._carried_along()
         self.interactions.sort(key=lambda i: (i.start, i.a, i.b))
