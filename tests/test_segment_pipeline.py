@@ -194,3 +194,21 @@ def test_labels_from_a_kvg_annotation_file(tmp_path: Path) -> None:
     assert iv.start == pytest.approx(demo.t[120]) and iv.end == pytest.approx(demo.t[360])
     with pytest.raises(ThirdhandError, match="unknown label file type"):
         read_label_file(tmp_path / "labels.csv", demo)
+
+
+def test_a_kind_can_leave_features_out_and_hands_without_labels_have_no_truth() -> None:
+    demos = _toys(range(2))
+    model = fit_model(demos, l2=1.0, exclude={"finger-object": ["log_eps_zeta_rot"]})
+    col = model.features.feature_names.index("log_eps_zeta_rot")
+    _, w = model.per_kind["finger-object"]
+    assert w[col] == 0.0 and np.all(w[np.arange(w.size) != col] != 0.0)
+    with pytest.raises(SegmentationError, match="unknown feature"):
+        fit_model(demos, l2=1.0, exclude={"finger-object": ["nope"]})
+    # Labels of the left hand only: the right hand's pairs are unknown, not negatives.
+    demo = demos[0]
+    left = tuple(i for i in demo.labels.interactions if i.a.startswith("lh_"))
+    only_left = demo.replace(labels=type(demo.labels)(interactions=left))
+    result = segment_demonstration(only_left, model)
+    for p in result.pairs:
+        if p.kind == "finger-object":
+            assert (p.truth is not None) == p.a.startswith("lh_"), p.a

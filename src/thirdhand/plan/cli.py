@@ -59,6 +59,13 @@ def learn_command(
     no_segment: Annotated[
         bool, typer.Option("--no-segment", help="Skip the interaction segmentation.")
     ] = False,
+    segment_model: Annotated[
+        Path | None,
+        typer.Option(
+            "--segment-model",
+            help="Segmentation model JSON (e.g. from `segment calibrate`) or built-in name.",
+        ),
+    ] = None,
 ) -> None:
     """Learn constraints, symbols and the assembly plan; write the task file."""
     from thirdhand.plan.learn import learn
@@ -66,7 +73,20 @@ def learn_command(
 
     try:
         loaded = [_load(p) for p in demos]
-        result = learn(loaded, names=[p.name for p in demos], segment=not no_segment, inputs=demos)
+        phases = None
+        if segment_model is not None and not no_segment:
+            from thirdhand.segment import segment_demonstration
+            from thirdhand.segment.model import resolve_model
+
+            model = resolve_model(segment_model)
+            phases = [segment_demonstration(d, model) for d in loaded]
+        result = learn(
+            loaded,
+            names=[p.name for p in demos],
+            phases=phases,
+            segment=not no_segment,
+            inputs=demos,
+        )
         task = result.task()
         output.parent.mkdir(parents=True, exist_ok=True)
         save_task(task, output)

@@ -3,7 +3,13 @@
 ``thirdhand segment DEMO [--model M] [--json OUT] [--plot PNG]`` segments a
 recording (the default command); ``thirdhand segment train DEMOS… -o MODEL.json``
 trains a model; ``thirdhand segment evaluate DEMOS…`` runs the report's Table I
-protocol (train on the left hand's pairs, test on the right hand's).
+protocol (train on the left hand's pairs, test on the right hand's; or leave one
+object out, or split in time, within one hand's pairs); ``thirdhand segment
+calibrate DEMOS… -o MODEL.json`` refits a model's operating point to a user's
+rig from a few labelled intervals (:mod:`thirdhand.segment.calibrate`).
+
+Label files: ``--labels`` (one per recording); a 3rdHand folder holding an
+``ann_kvg.kvg`` uses it when ``--labels`` is not given (train, evaluate, calibrate).
 """
 
 from __future__ import annotations
@@ -69,16 +75,17 @@ def read_label_file(path: Path, demo: Any) -> Any:
 
 
 def _model(path: Path | None) -> Any:
-    from thirdhand.segment.model import default_model, load_model
+    from thirdhand.segment.model import resolve_model
 
-    return default_model() if path is None else load_model(path)
+    return resolve_model(path)
 
 
 @app.command(DEFAULT_COMMAND, hidden=True)
 def run(
     demo: Annotated[Path, typer.Argument(help="A recording of any supported format.")],
     model: Annotated[
-        Path | None, typer.Option("--model", "-m", help="Model JSON (default: shipped).")
+        Path | None,
+        typer.Option("--model", "-m", help="Model JSON or built-in: default, synthetic."),
     ] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write phases as JSON.")] = None,
     plot: Annotated[Path | None, typer.Option("--plot", help="Write a PNG (needs labels).")] = None,
@@ -118,7 +125,16 @@ def _with_labels(demos: list[Path], labels: list[Path] | None) -> list[Any]:
             f"--labels given {len(labels)} time(s) for {len(demos)} demonstration(s); "
             "give one label file per demonstration, in the same order"
         )
-    return [_load(p, None if not labels else labels[i]) for i, p in enumerate(demos)]
+    out = []
+    for i, p in enumerate(demos):
+        lab = labels[i] if labels else None
+        if lab is None and p.is_dir() and (p / "ann_kvg.kvg").is_file():
+            lab = p / "ann_kvg.kvg"
+        d = _load(p, lab)
+        if not d.labels.interactions:
+            raise ThirdhandError(f"{p}: no interaction labels; pass a label file with --labels")
+        out.append(d)
+    return out
 
 
 @app.command()
@@ -162,17 +178,42 @@ def evaluate(
     window: Annotated[int, typer.Option(help="Window length, latent steps.")] = 5,
     train_hand: Annotated[str, typer.Option(help="Hand whose pairs train.")] = "left",
     test_hand: Annotated[str, typer.Option(help="Hand whose pairs test.")] = "right",
+    split: Annotated[
+        str,
+        typer.Option(
+            help="hand: train on --train-hand, test on --test-hand; object: leave one "
+            "object out within --train-hand's pairs; time: first vs second half."
+        ),
+    ] = "hand",
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the table as JSON.")
     ] = None,
 ) -> None:
     """Table I protocol: logistic regression vs CRF, trained on one hand, tested on the other."""
+    from thirdhand.fileops import backup_existing
     from thirdhand.segment.design import FeatureConfig
-    from thirdhand.segment.training import table_one
+    from thirdhand.segment.training import (
+        labelled_sequences,
+        split_folds,
+        table_one,
+        table_one_folds,
+    )
 
+    for name, hand in (("--train-hand", train_hand), ("--test-hand", test_hand)):
+        if hand not in ("left", "right"):
+            raise ThirdhandError(f"{name} must be 'left' or 'right', got {hand!r}")
+    if split not in ("hand", "object", "time"):
+        raise ThirdhandError(f"--split must be 'hand', 'object' or 'time', got {split!r}")
     ds = _with_labels(demos, labels)
     cfg = FeatureConfig(latent_rate=latent_rate, window=window)
-    tab = table_one(ds, cfg, l2=l2, train_hand=train_hand, test_hand=test_hand)
+    if split == "hand":
+        tab = table_one(ds, cfg, l2=l2, train_hand=train_hand, test_hand=test_hand)
+        title = f"train: {train_hand} hand pairs, test: {test_hand} hand pairs"
+    else:
+        folds = split_folds(labelled_sequences(ds, cfg, hand=train_hand), split)
+        tab = table_one_folds(folds, l2=l2)
+        how = "leave one object out" if split == "object" else "split in time"
+        title = f"{train_hand} hand pairs, {how} ({len(folds)} folds; test pooled)"
     table = Table(
         "model",
         "split",
@@ -181,7 +222,7 @@ def evaluate(
         "frame F1",
         "interval IoU",
         "boundary err. (s)",
-        title=f"train: {train_hand} hand pairs, test: {test_hand} hand pairs",
+        title=title,
     )
     for name, label in (("logistic", "logistic regression"), ("crf", "CRF")):
         for split in ("train", "test"):
@@ -201,7 +242,50 @@ def evaluate(
         "test; CRF 2464.9 (0.0875) / 1912.8 (0.0679)"
     )
     if json_out is not None:
+        backup_existing(json_out)
         json_out.write_text(json.dumps(tab, indent=1))
+
+
+@app.command()
+def calibrate(
+    demos: Annotated[list[Path], typer.Argument(help="Your labelled recordings.")],
+    output: Annotated[Path, typer.Option("-o", "--output", help="Calibrated model JSON.")],
+    labels: Annotated[
+        list[Path] | None,
+        typer.Option("--labels", help="Label file (.kvg, .eaf, ELAN .txt), one per demo."),
+    ] = None,
+    model: Annotated[
+        Path | None, typer.Option("--model", "-m", help="Model JSON or built-in to calibrate.")
+    ] = None,
+    span: Annotated[
+        tuple[float, float] | None,
+        typer.Option(
+            help="Use only this part of each recording: START END, seconds from its start."
+        ),
+    ] = None,
+    prior: Annotated[
+        float, typer.Option(help="Weight of the prior that keeps the fit near the model.")
+    ] = 1.0,
+) -> None:
+    """Refit a model's score offset, scale and transitions to your rig from labelled intervals.
+
+    Label every interaction of the pairs you name (within --span when given):
+    the other steps of those pairs are taken as "not interacting".
+    """
+    from thirdhand.fileops import backup_existing
+    from thirdhand.segment.calibrate import calibrate as run_calibration
+
+    ds = _with_labels(demos, labels)
+    calibrated, report = run_calibration(_model(model), ds, span=span, prior=prior)
+    backup_existing(output)
+    calibrated.save(output)
+    for kind, r in report.items():
+        out.print(
+            f"{kind}: {r['sequences']} pair(s), {r['steps']} steps ({r['positive_steps']} "
+            f"interacting); score offset {r['offset']:+.3f}, scale {r['scale']:.3f}; "
+            f"NLL per step {r['nll_per_step_before']:.4f} → {r['nll_per_step_after']:.4f}"
+        )
+    out.print(f"wrote {output}")
 
 
 __all__ = ["DefaultCommandGroup", "app", "read_label_file"]

@@ -30,6 +30,13 @@ gap between the two bodies' bounding boxes (:mod:`thirdhand.segment.contact`;
 a body without a box is a point, so without geometry ``g`` is the distance
 between the origins).
 
+Optionally (``adaptive_eps=True``) the ``ε`` of the log transform of a pair is
+raised to the pair's measured noise floor (:mod:`thirdhand.segment.noise`):
+``ε = max(eps, τ_A + τ_B)``, so that on a noisy tracker (AR tags, 1–3 cm) the
+noise of a still pair maps where a still pair of a precise tracker does; for
+trackers of 1 mm or better the configured ``ε`` (3e-5 m²) is already above the
+floor and nothing changes.
+
 Steps without evidence (fewer valid samples in the window than
 ``min_valid_fraction`` of its nominal frame count) get an all-zero row: a zero
 state potential for both labels.
@@ -50,11 +57,14 @@ from thirdhand.segment.features import (
     BodyStats,
     LatentAxis,
     SegmentationError,
+    _continuous_quat,
     body_stats_multi,
     latent_axis,
     pair_stats_multi,
     raw_pair_features,
 )
+from thirdhand.segment.noise import NoiseFloor, at_rest, noise_floor
+from thirdhand.segment.static_fill import fill_static_gaps
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -100,6 +110,12 @@ class FeatureConfig:
         geometry).
     eps_contact : float
         ``ε`` of the contact feature, metres.
+    adaptive_eps : bool
+        Raise ``eps_pos`` / ``eps_rot`` of a pair to its measured noise floor
+        (see the module docstring).
+    fill_gaps_s : float
+        Bridge tracking gaps of up to this many seconds across which a body
+        stayed still (:mod:`thirdhand.segment.static_fill`); 0: off.
     """
 
     latent_rate: float = 10.0
@@ -114,6 +130,8 @@ class FeatureConfig:
     extra_windows: tuple[int, ...] = ()
     contact: bool = False
     eps_contact: float = 0.005
+    adaptive_eps: bool = False
+    fill_gaps_s: float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "extra_windows", tuple(int(w) for w in self.extra_windows))
@@ -130,6 +148,8 @@ class FeatureConfig:
             )
         if self.long_window < 0:
             raise SegmentationError(f"long_window must be >= 0 steps, got {self.long_window}")
+        if not (np.isfinite(self.fill_gaps_s) and self.fill_gaps_s >= 0):
+            raise SegmentationError(f"fill_gaps_s must be >= 0 s, got {self.fill_gaps_s}")
 
     @property
     def feature_names(self) -> list[str]:
@@ -158,6 +178,8 @@ def design_matrix(
     config: FeatureConfig,
     distance: FloatArray | None = None,
     contact: FloatArray | None = None,
+    *,
+    eps: tuple[float, float] | None = None,
 ) -> FloatArray:
     """Design rows from raw features.
 
@@ -172,6 +194,9 @@ def design_matrix(
         Window mean distance between the bodies; required when ``config.distance``.
     contact : ndarray, shape (n_steps,), metres, optional
         Bounding-box gap of the bodies; required when ``config.contact``.
+    eps : (float, float), optional
+        ``ε`` of the log transform for positions (m²) and rotations, instead of
+        the configuration's.
 
     Returns
     -------
@@ -179,8 +204,9 @@ def design_matrix(
     """
     raw = np.maximum(np.asarray(raw, dtype=np.float64), 0.0)
     if config.transform == "log":
-        eps = np.array([config.eps_pos, config.eps_rot, config.eps_pos, config.eps_rot])
-        feats = np.log(np.tile(eps, raw.shape[1] // 4) + raw)
+        ep, er = (config.eps_pos, config.eps_rot) if eps is None else eps
+        e4 = np.array([ep, er, ep, er])
+        feats = np.log(np.tile(e4, raw.shape[1] // 4) + raw)
     else:
         feats = raw
     cols = [np.ones((raw.shape[0], 1)), feats]
@@ -220,6 +246,9 @@ class DemoFeatures:
         self.axis: LatentAxis = latent_axis(demo.t, config.latent_rate)
         self.gaps: dict[tuple[str, str], FloatArray] = {}
         self._bodies: dict[str, list[BodyStats]] = {}
+        self._floors: dict[str, NoiseFloor] = {}
+        #: Frames filled per body by :mod:`thirdhand.segment.static_fill`.
+        self.filled: dict[str, int] = {}
         self._tracks: dict[str, tuple[FloatArray, FloatArray, BoolArray]] = {}
         per_step = np.bincount(self.axis.frame_step, minlength=self.axis.n_steps).astype(float)
         half = config.window // 2
@@ -233,7 +262,19 @@ class DemoFeatures:
     def _track(self, name: str) -> tuple[FloatArray, FloatArray, BoolArray]:
         if name not in self._tracks:
             tr = self.demo.track(name)
-            self._tracks[name] = (tr.pos, tr.quat, tr.valid)
+            track = (tr.pos, tr.quat, tr.valid)
+            if self.config.fill_gaps_s > 0:
+                floor = noise_floor(*track)
+                self._floors[name] = floor
+                q = _continuous_quat(
+                    np.where(tr.valid[:, None], tr.quat, 0.0).astype(np.float64), tr.valid
+                )
+                p, q, v, n = fill_static_gaps(
+                    self.demo.t, tr.pos, q, tr.valid, floor, max_gap_s=self.config.fill_gaps_s
+                )
+                self.filled[name] = n
+                track = (p, q, v)
+            self._tracks[name] = track
         return self._tracks[name]
 
     def body(self, name: str) -> list[BodyStats]:
@@ -242,6 +283,21 @@ class DemoFeatures:
             p, q, v = self._track(name)
             self._bodies[name] = body_stats_multi(p, q, v, self.axis, self.config.windows)
         return self._bodies[name]
+
+    def floor(self, name: str) -> NoiseFloor:
+        """Noise floor of one body's track (cached; :mod:`thirdhand.segment.noise`)."""
+        if name not in self._floors:
+            self._floors[name] = noise_floor(*self._track(name))
+        return self._floors[name]
+
+    def rest(self, name: str) -> BoolArray:
+        """Steps (n_steps,) at which the body shows no motion beyond its noise floor.
+
+        Decided on the shortest window of the configuration; steps without any
+        valid sample of the body are not at rest (nothing is known).
+        """
+        st = self.body(name)[0]
+        return at_rest(st.var_pos, st.var_rot, self.floor(name)) & (st.count >= 2)
 
     def pair(self, a: str, b: str) -> tuple[FloatArray, BoolArray]:
         """Design matrix (n_steps, n_features) and evidence mask (n_steps,) of the pair (a, b)."""
@@ -271,7 +327,15 @@ class DemoFeatures:
             gap = box_gap(sab.mean_pos, sab.mean_quat, box_a, box_b)
             if box_a is not None and box_b is not None:
                 self.gaps[(a, b)] = gap
-        return design_matrix(raw, evidence, self.config, sab.distance, gap), evidence
+        eps = None
+        if self.config.adaptive_eps:
+            fa, fb = self.floor(a), self.floor(b)
+            if fa.n and fb.n:
+                eps = (
+                    max(self.config.eps_pos, fa.pos + fb.pos),
+                    max(self.config.eps_rot, fa.rot + fb.rot),
+                )
+        return design_matrix(raw, evidence, self.config, sab.distance, gap, eps=eps), evidence
 
 
 def pair_design(

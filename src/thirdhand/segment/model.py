@@ -8,9 +8,12 @@ Document (``"format": "thirdhand.segment/1"``)::
      "theta": {"transition": [[w00, w01], [w10, w11]], "state": [...]},
      "per_kind": {"part-part": {"transition": ..., "state": ...}, ...},
      "hand": {"min_fingers": 2}, "max_gap_s": 1.0,
-     "closure": {"contact_max_m": 0.01}, "training": {...}}
+     "closure": {"contact_max_m": 0.01}, "rest_gate": true, "training": {...}}
 
 ``closure`` is optional (absent or null: part–part labels are the CRF's own).
+``rest_gate`` is optional (absent: false): hand/finger–object steps whose object
+or finger is at rest, by the recording's own noise floor, are labelled 0
+(:mod:`thirdhand.segment.noise`).
 
 ``transition[a][b]`` weighs ``y_t = a`` after ``y_{t-1} = b``.
 """
@@ -37,6 +40,10 @@ FloatArray = NDArray[np.float64]
 
 FORMAT = "thirdhand.segment/1"
 DEFAULT_MODEL_RESOURCE = "segment_default.json"
+#: Models shipped with the package, by name: ``default`` (synthetic scenes plus
+#: the real labelled pairs of ``toolbox_coop_4``) and ``synthetic`` (synthetic
+#: scenes only), both from ``scripts/train_default_segmenter.py``.
+BUILTIN_MODELS = {"default": DEFAULT_MODEL_RESOURCE, "synthetic": "segment_synthetic.json"}
 
 
 class ModelFileError(ThirdhandError, ValueError):
@@ -66,6 +73,10 @@ class SegmentModel:
     closure : ClosureConfig or None
         When set, part–part labels of parts whose boxes are apart come from the
         assembly closure (:mod:`thirdhand.segment.assembly`).
+    rest_gate : bool
+        Label 0 (probability 0) every hand/finger–object step at which the
+        object or the finger shows no motion beyond its noise floor
+        (:mod:`thirdhand.segment.noise`).
     """
 
     features: FeatureConfig
@@ -76,6 +87,7 @@ class SegmentModel:
     training: dict[str, Any] = field(default_factory=dict)
     per_kind: dict[str, tuple[FloatArray, FloatArray]] = field(default_factory=dict)
     closure: ClosureConfig | None = None
+    rest_gate: bool = False
 
     @classmethod
     def from_crf(cls, crf: PairCRF, features: FeatureConfig, **kwargs: Any) -> SegmentModel:
@@ -110,6 +122,7 @@ class SegmentModel:
             "hand": {"min_fingers": self.min_fingers},
             "max_gap_s": self.max_gap_s,
             "closure": None if self.closure is None else self.closure.to_dict(),
+            "rest_gate": self.rest_gate,
             "training": self.training,
         }
 
@@ -134,6 +147,9 @@ class SegmentModel:
             }
             closure_d = d.get("closure")
             closure = None if closure_d is None else ClosureConfig(**closure_d)
+            rest_gate = d.get("rest_gate", False)
+            if not isinstance(rest_gate, bool):
+                raise TypeError(f"rest_gate must be true or false, got {rest_gate!r}")
         except (KeyError, TypeError, ValueError, AttributeError, SegmentationError) as exc:
             raise ModelFileError(
                 f"{source}: malformed model: {type(exc).__name__}: {exc}"
@@ -147,7 +163,17 @@ class SegmentModel:
                 )
             if not (np.all(np.isfinite(t)) and np.all(np.isfinite(w))):
                 raise ModelFileError(f"{source} ({where}): model weights must be finite")
-        return cls(feats, trans, state, min_f, max_gap, dict(d.get("training", {})), kinds, closure)
+        return cls(
+            feats,
+            trans,
+            state,
+            min_f,
+            max_gap,
+            dict(d.get("training", {})),
+            kinds,
+            closure,
+            rest_gate,
+        )
 
     def save(self, path: str | os.PathLike[str]) -> None:
         """Write the JSON document atomically (temporary file, then rename)."""
@@ -171,17 +197,49 @@ def load_model(path: str | os.PathLike[str]) -> SegmentModel:
     return SegmentModel.from_dict(d, source=str(p))
 
 
-def default_model() -> SegmentModel:
-    """The model shipped with the package (trained on synthetic scenes)."""
-    ref = resources.files("thirdhand").joinpath("data", DEFAULT_MODEL_RESOURCE)
+def builtin_model(name: str) -> SegmentModel:
+    """A model shipped with the package, by name (:data:`BUILTIN_MODELS`)."""
+    if name not in BUILTIN_MODELS:
+        raise ModelFileError(
+            f"no built-in segmentation model {name!r}; built-in: {', '.join(BUILTIN_MODELS)}"
+        )
+    resource = BUILTIN_MODELS[name]
+    ref = resources.files("thirdhand").joinpath("data", resource)
     try:
         text = ref.read_text()
     except (FileNotFoundError, OSError):
         raise ModelFileError(
-            f"the default segmentation model {DEFAULT_MODEL_RESOURCE} is not installed; "
+            f"the built-in segmentation model {resource} is not installed; "
             "run scripts/train_default_segmenter.py or pass a model"
         ) from None
-    return SegmentModel.from_dict(json.loads(text), source=DEFAULT_MODEL_RESOURCE)
+    return SegmentModel.from_dict(json.loads(text), source=resource)
 
 
-__all__ = ["FORMAT", "ModelFileError", "SegmentModel", "default_model", "load_model"]
+def resolve_model(spec: str | os.PathLike[str] | None) -> SegmentModel:
+    """A model from a command line: None (the default), a built-in name, or a model file.
+
+    A name of :data:`BUILTIN_MODELS` is the built-in model unless a file of that
+    name exists in the working folder.
+    """
+    if spec is None:
+        return default_model()
+    if str(spec) in BUILTIN_MODELS and not Path(spec).exists():
+        return builtin_model(str(spec))
+    return load_model(spec)
+
+
+def default_model() -> SegmentModel:
+    """The model shipped with the package (synthetic scenes plus real labelled pairs)."""
+    return builtin_model("default")
+
+
+__all__ = [
+    "BUILTIN_MODELS",
+    "FORMAT",
+    "ModelFileError",
+    "SegmentModel",
+    "builtin_model",
+    "default_model",
+    "load_model",
+    "resolve_model",
+]

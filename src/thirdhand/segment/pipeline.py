@@ -10,6 +10,12 @@ one does), part–part pairs whose bounding boxes are apart are labelled by
 whether the touching, interacting pairs connect them
 (:mod:`thirdhand.segment.assembly`).
 
+Rest: with a model whose ``rest_gate`` is set (the shipped one), a
+hand/finger–object step at which the object or the finger shows no motion
+beyond its own noise floor is labelled 0 with probability 0
+(:mod:`thirdhand.segment.noise`): the report's label means the hand moves the
+object, and then both move.
+
 Missing data: a step whose window holds too few valid samples of both bodies
 has no evidence (zero state potential). Runs of such steps up to
 ``model.max_gap_s`` are bridged by the chain; longer runs are not guessed: they
@@ -42,6 +48,8 @@ from thirdhand.segment.intervals import (
 from thirdhand.segment.model import SegmentModel, default_model
 
 FloatArray = NDArray[np.float64]
+#: Pair kinds whose label is a hand moving an object (the rest gate applies).
+HAND_KINDS = ("finger-object", "hand-object")
 IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
@@ -180,6 +188,41 @@ def labelled_kinds(demo: Demonstration) -> set[str]:
     return {pair_kind(demo, i.a, i.b) for i in demo.labels.interactions if i.a != i.b}
 
 
+def hand_of(demo: Demonstration, body: str) -> str | None:
+    """The hand a finger or hand body belongs to (``hand_body``, or itself), else None."""
+    info = demo.info(body)
+    if info.kind == "finger":
+        return info.hand_body or body
+    return body if info.kind == "hand" else None
+
+
+def labelled_hands(demo: Demonstration) -> set[str]:
+    """Hands (:func:`hand_of`) with at least one labelled interval.
+
+    A recording may carry the labels of some hands only (``toolbox_coop_4``: the
+    left hand's; the others are kept apart): the pairs of the other hands are
+    unknown, not negatives, and get no ground truth.
+    """
+    out = set()
+    for i in demo.labels.interactions:
+        for body in (i.a, i.b):
+            h = hand_of(demo, body)
+            if h is not None:
+                out.add(h)
+    return out
+
+
+def pair_has_truth(demo: Demonstration, a: str, b: str, kinds: set[str], hands: set[str]) -> bool:
+    """Whether the pair (a, b) has ground truth: a labelled kind, and a labelled hand."""
+    kind = pair_kind(demo, a, b)
+    if kind not in kinds:
+        return False
+    if kind not in HAND_KINDS:
+        return True
+    h = hand_of(demo, a) or hand_of(demo, b)
+    return h in hands
+
+
 def default_pairs(demo: Demonstration) -> list[tuple[str, str]]:
     """Finger–object, hand–object, tool–part and part–part pairs, in a stable order."""
     parts = demo.bodies_of_kind("part")
@@ -252,15 +295,21 @@ def segment_demonstration(
     has_truth = bool(demo.labels.interactions)
     # Ground truth only for the pair kinds the labels cover (see labelled_kinds).
     covered = labelled_kinds(demo)
+    hands = labelled_hands(demo)
     result = SegmentationResult(times=axis.times, edges=axis.edges)
     for a, b in pairs:
         x, ev = feats.pair(a, b)
         kind = pair_kind(demo, a, b)
         crf = crfs.setdefault(kind, model.crf(kind))
         prob, label = crf.decode(x)
+        if model.rest_gate and kind in HAND_KINDS:
+            # Moving an object moves the hand and the object: either at rest, no.
+            still = feats.rest(a) | feats.rest(b)
+            prob = np.where(still, 0.0, prob)
+            label = np.where(still, 0, label)
         truth = (
             labels_from_intervals(pair_intervals(demo.labels, a, b), axis.times)
-            if kind in covered
+            if pair_has_truth(demo, a, b, covered, hands)
             else None
         )
         result.pairs.append(PairResult(a, b, kind, prob, label, ev, intervals=[], truth=truth))

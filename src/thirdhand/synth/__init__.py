@@ -58,17 +58,20 @@ exactly as simulated (see :mod:`thirdhand.synth.script`):
   by position on the base, ``s1``… by screw hole) whichever part goes there.
 """
 
-from thirdhand.synth.build import SCENES, make_scene
+from thirdhand.synth.build import SCENES, make_scene, random_scene
 from thirdhand.synth.geometry import PartGeometry, read_stl, stl_bounds
+from thirdhand.synth.human import HumanModel
 from thirdhand.synth.motion import min_jerk
 from thirdhand.synth.sensor import SensorModel
 
 __all__ = [
     "SCENES",
+    "HumanModel",
     "PartGeometry",
     "SensorModel",
     "make_scene",
     "min_jerk",
+    "random_scene",
     "read_stl",
     "stl_bounds",
 ]

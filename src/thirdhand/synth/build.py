@@ -26,6 +26,7 @@ from thirdhand.demonstration import (
 from thirdhand.errors import ThirdhandError
 from thirdhand.synth import extra_scenes, scenes
 from thirdhand.synth.engine import Segment, Timeline
+from thirdhand.synth.human import HumanModel
 from thirdhand.synth.pointing import add_pointing
 from thirdhand.synth.script import Sim
 from thirdhand.synth.sensor import SensorModel
@@ -50,6 +51,7 @@ def make_scene(
     seed: int = 0,
     sensor: SensorModel | None = SensorModel(),  # noqa: B008 - frozen, immutable default
     n_people: int = 1,
+    human: HumanModel | None = None,
     **scene_options: Any,
 ) -> Demonstration:
     """A synthetic demonstration of one scene with exact ground-truth labels.
@@ -63,6 +65,10 @@ def make_scene(
         Noise, gaps and sign flips; None gives the true poses at 120 Hz.
     n_people : {1, 2}
         With 2, the second person (bodies ``p2_…``) holds the parts.
+    human : HumanModel, optional
+        How much the hands move when they wait and when they hold a part
+        (:class:`~thirdhand.synth.human.HumanModel`); default: the synthetic
+        human's usual sway and wobble (a waiting hand is never still).
     duration : float, optional
         Seconds to fill with repeated assembly/disassembly cycles; the recording is
         cut there.
@@ -113,6 +119,8 @@ def make_scene(
     total = 0.0
     while True:
         sim = layout.new_sim(scene_rng)
+        if human is not None:
+            human.apply(sim.hands.values())
         for screw, part in layout.extra.get("preinserted", []):
             sim.pair(part, screw, 0.0)
         sim.finish(script(sim, layout, scene_rng))
@@ -129,7 +137,7 @@ def make_scene(
         if len(sims) > 100_000:
             raise ThirdhandError(f"scene {name!r}: cycles never reach {duration} s")
 
-    timeline, labels, end = _join(sims)
+    timeline, labels, end, holds = _join(sims)
     if duration is not None:
         end = float(duration)
     rate = sensor.rate if sensor is not None else 120.0
@@ -140,13 +148,24 @@ def make_scene(
     pos: dict[str, Any] = {}
     quat: dict[str, Any] = {}
     valid: dict[str, Any] = {}
+    # Hub dropouts and stamp jitter draw from their own stream: a sensor without
+    # them sees exactly what it saw before they existed.
+    hub_rng = np.random.default_rng([seed, 7919])
+    hubs: dict[str, Any] = {}
     for info in infos:
         p, q = poses[info.name]
         if sensor is not None:
-            p, q, v = sensor.observe(t, p, q, info.kind, sensor_rng)
+            hub = (info.hand_body or info.name) if info.kind == "finger" else "objects"
+            if info.kind not in ("finger", "part", "tool"):
+                hub = info.name
+            if sensor.dropout_rate > 0 and hub not in hubs:
+                hubs[hub] = sensor.dropouts(t.size, hub_rng)
+            p, q, v = sensor.observe(t, p, q, info.kind, sensor_rng, delivered=hubs.get(hub))
         else:
             v = np.ones(t.size, dtype=bool)
         pos[info.name], quat[info.name], valid[info.name] = p, q, v
+    if sensor is not None:
+        t = sensor.stamps(t, hub_rng)
     meta = {
         "source": "thirdhand.synth",
         "scene": name,
@@ -155,20 +174,46 @@ def make_scene(
         "cycles": len(sims),
         "options": {k: scene_options[k] for k in sorted(scene_options)},
         "sensor": None if sensor is None else sensor.to_meta(),
+        "human": None if human is None else human.to_meta(),
         "units": "m",
         "up_axis": "z",
         "table_z_m": scenes.TABLE_Z,
         "geometry": layout.meta,
+        # When each finger holds an object (contact, whether or not it moves it:
+        # the interaction labels keep only the manipulation), seconds.
+        "holds": [[i.a, i.b, i.start, min(i.end, float(t[-1]))] for i in holds if i.start <= t[-1]],
     }
     if pointed:
         meta["pointing"] = pointed
     return Demonstration(t, infos, pos, quat, valid, labels=_clip(labels, float(t[-1])), meta=meta)
 
 
-def _join(sims: list[Sim]) -> tuple[Timeline, Labels, float]:
-    """Concatenate cycles, each but the last followed by its time reversal."""
+def random_scene(name: str, seed: int, *, geometry: bool = True) -> Demonstration:
+    """A scene seen through a random sensor and done by a random person (seeded).
+
+    The realistic synthetic world the shipped segmentation model is trained on:
+    :meth:`SensorModel.random` (10 µm–1 mm, 20–120 Hz, hub dropouts, stamp
+    jitter) and :meth:`HumanModel.random` (still or swaying rests, hold wobble,
+    a flexing grip), both drawn from ``seed``; ``geometry=False`` withholds the
+    parts' bounding boxes, as most real recordings come without meshes.
+    """
+    rng = np.random.default_rng([seed, 31337])
+    sensor, human = SensorModel.random(rng), HumanModel.random(rng)
+    demo = make_scene(name, seed=seed, sensor=sensor, human=human)
+    if not geometry:
+        demo = demo.replace(meta={**demo.meta, "geometry": {}})
+    return demo
+
+
+def _join(sims: list[Sim]) -> tuple[Timeline, Labels, float, list[InteractionInterval]]:
+    """Concatenate cycles, each but the last followed by its time reversal.
+
+    Returns the timeline, the labels, the end time and the holds (when each
+    finger holds an object, :attr:`Sim.grasps`), joined like the interactions.
+    """
     timeline = Timeline()
     inter: list[InteractionInterval] = []
+    holds: list[InteractionInterval] = []
     cons: list[ConstraintEvent] = []
     plan: list[PlanStep] = []
     origin = 0.0
@@ -179,6 +224,8 @@ def _join(sims: list[Sim]) -> tuple[Timeline, Labels, float]:
                 timeline.add(body, _shift(s, origin, 1.0, origin + s.start))
         inter += [dataclasses.replace(i, start=i.start + origin, end=i.end + origin)
                   for i in sim.interactions]  # fmt: skip
+        grasps = [InteractionInterval(f, o, s, e) for f, o, s, e in sim.grasps]
+        holds += [InteractionInterval(i.a, i.b, i.start + origin, i.end + origin) for i in grasps]
         cons += [dataclasses.replace(c, time=c.time + origin) for c in sim.constraints]
         plan += [dataclasses.replace(p, time=(p.time or 0.0) + origin) for p in sim.plan]
         if k == len(sims) - 1:
@@ -191,11 +238,13 @@ def _join(sims: list[Sim]) -> tuple[Timeline, Labels, float]:
                 timeline.add(body, _shift(s, mirror, -1.0, mirror - e))
         inter += [dataclasses.replace(i, start=mirror - i.end, end=mirror - i.start)
                   for i in sim.interactions]  # fmt: skip
+        holds += [InteractionInterval(i.a, i.b, mirror - i.end, mirror - i.start) for i in grasps]
         cons += [dataclasses.replace(c, time=mirror - c.time, removed=True)
                  for c in reversed(sim.constraints)]  # fmt: skip
         origin = mirror
     cons.sort(key=lambda c: c.time)
-    return timeline, Labels(tuple(_merge(inter)), tuple(cons), tuple(plan)), origin
+    labels = Labels(tuple(_merge(inter)), tuple(cons), tuple(plan))
+    return timeline, labels, origin, _merge(holds)
 
 
 def _shift(seg: Segment, origin: float, sign: float, start: float) -> Segment:

@@ -10,13 +10,17 @@ the fingers open and close by changing the aperture, and curl slightly with it.
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
 from thirdhand.demonstration import BodyInfo
+from thirdhand.errors import ThirdhandError
 from thirdhand.synth.motion import PosePath, Tremor, hold_motion, min_jerk, phase, quat_exp
 
 FloatArray = NDArray[np.float64]
@@ -156,6 +160,9 @@ class Hand:
     hold_shift, hold_turn : Tremor or None
         The low-frequency motion it gives a part it holds at rest (metres;
         radians, world frame; see :class:`thirdhand.synth.motion.Wobble`).
+    grip : list of Tremor, one per finger, or None
+        How each fingertip flexes on a held object (metres, object frame; see
+        :class:`thirdhand.synth.motion.Flex`); None: rigid.
     t_free : float
         End of the hand's last scripted motion, seconds.
     pose : tuple of ndarray (3,), (4,)
@@ -176,6 +183,7 @@ class Hand:
     idle_turn: Tremor | None = None
     hold_shift: Tremor | None = None
     hold_turn: Tremor | None = None
+    grip: list[Tremor] | None = None
     t_free: float = 0.0
     pose: tuple[FloatArray, FloatArray] = field(default_factory=lambda: (np.zeros(3), np.zeros(4)))
     aperture: float = RELAXED_APERTURE
@@ -222,3 +230,88 @@ def make_hand(
     )
     hand.pose = (rest[0].copy(), rest[1].copy())
     return hand
+
+
+def _scaled(tremor: Tremor | None, scale: float) -> Tremor | None:
+    if tremor is None:
+        return None
+    return Tremor(tremor.freqs, tremor.amps * scale, tremor.phases)
+
+
+@dataclass(frozen=True)
+class HumanModel:
+    """How much a person's hands move when they are not moving a part.
+
+    Real resting fingers (a Polhemus G4 on the nails, ``toolbox_coop_4``) move by
+    10–80 µm within a quarter second; the synthetic human's idle sway is a few
+    millimetres. Both happen: a hand laid on the table is still, a hand held in
+    the air waits swaying.
+
+    Attributes
+    ----------
+    idle : float
+        Scale of a waiting hand's sway and of the fingers' own jitter (1: a few
+        millimetres and about two degrees; 0: perfectly still).
+    hold : float
+        Scale of the wobble a holding hand gives a part at rest (1: a few
+        millimetres and a degree or two).
+    tremor : float
+        Scale of the tremor added to a hand's moves.
+    grip : float
+        Largest displacement per axis of a fingertip on the object it holds, metres
+        (0: rigid, the default).
+    seed : int
+        Seeds the fingers' grip motion.
+    """
+
+    idle: float = 1.0
+    hold: float = 1.0
+    tremor: float = 1.0
+    grip: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("idle", "hold", "tremor", "grip"):
+            v = getattr(self, name)
+            if not (np.isfinite(v) and v >= 0):
+                raise ThirdhandError(f"HumanModel.{name} must be finite and >= 0, got {v}")
+
+    @classmethod
+    def random(cls, rng: np.random.Generator) -> HumanModel:
+        """A person drawn from still to restless: a third rest truly still."""
+        idle = 0.0 if rng.random() < 1 / 3 else float(np.exp(rng.uniform(np.log(0.02), 0.0)))
+        hold = float(np.exp(rng.uniform(np.log(0.2), np.log(1.5))))
+        grip = float(np.exp(rng.uniform(np.log(2e-4), np.log(3e-3))))
+        return cls(
+            idle=idle,
+            hold=hold,
+            tremor=float(rng.uniform(0.3, 1.2)),
+            grip=grip,
+            seed=int(rng.integers(0, 2**31)),
+        )
+
+    def apply(self, hands: Iterable[Hand]) -> None:
+        """Scale the motions of ``hands`` (in place, before any is scripted)."""
+        rng = np.random.default_rng(self.seed)
+        for h in hands:
+            if self.grip > 0:
+                h.grip = [
+                    Tremor(
+                        rng.uniform(0.5, 3.0, 3),
+                        self.grip * rng.uniform(0.3, 1.0, (3, 3)) / 3.0,
+                        rng.uniform(0.0, 2.0 * np.pi, (3, 3)),
+                    )
+                    for _ in h.fingers
+                ]
+            h.idle_shift = _scaled(h.idle_shift, self.idle)
+            h.idle_turn = _scaled(h.idle_turn, self.idle)
+            h.jitters = [t for t in (_scaled(j, self.idle) for j in h.jitters) if t is not None]
+            h.hold_shift = _scaled(h.hold_shift, self.hold)
+            h.hold_turn = _scaled(h.hold_turn, self.hold)
+            scaled = _scaled(h.tremor, self.tremor)
+            assert scaled is not None
+            h.tremor = scaled
+
+    def to_meta(self) -> dict[str, Any]:
+        """JSON-able parameters."""
+        return dataclasses.asdict(self)

@@ -310,6 +310,44 @@ class Wobble:
         return p, se3.quat_multiply(r, np.broadcast_to(self.quat, r.shape))
 
 
+@dataclasses.dataclass
+class Flex:
+    """A fingertip on a held object that is not perfectly rigid: a grasp that flexes.
+
+    Real fingertip sensors sit on the nails; while a hand moves an object the
+    fingers press, roll and slide on it by a millimetre or two (on the real
+    ``toolbox_coop_4`` the left fingers move by ~2 mm in the board's frame while
+    they carry it). The pose is the grasp pose ``(pos, quat)`` in the object's
+    frame plus ``shift(t)``, faded in over ``ramp`` seconds from ``t_start`` and
+    out over the ``ramp`` seconds before ``t_end`` (set when the hand lets go),
+    so the finger's path stays continuous at the grasp and at the release.
+
+    Attributes
+    ----------
+    pos : ndarray, shape (3,), metres, object frame
+    quat : ndarray, shape (4,), x y z w, object frame
+    shift : Tremor
+        Displacement, metres, object frame.
+    t_start : float, seconds
+    t_end : float, seconds (infinite until the release)
+    ramp : float, seconds
+    """
+
+    pos: FloatArray
+    quat: FloatArray
+    shift: Tremor
+    t_start: float
+    t_end: float = float("inf")
+    ramp: float = 0.3
+
+    def __call__(self, t: FloatArray) -> tuple[FloatArray, FloatArray]:
+        g = min_jerk(phase(t, self.t_start, self.t_start + self.ramp))
+        if np.isfinite(self.t_end):
+            g = g * (1.0 - min_jerk(phase(t, self.t_end - self.ramp, self.t_end)))
+        p = self.pos + g[:, None] * self.shift(t)
+        return p, np.broadcast_to(self.quat, (t.shape[0], 4)).copy()
+
+
 def hold_motion(
     rng: np.random.Generator, *, amplitude: float = 2.5e-3, angle: float = np.deg2rad(1.5)
 ) -> tuple[Tremor, Tremor]:

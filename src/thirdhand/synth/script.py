@@ -5,9 +5,14 @@ Primitives (reach and grasp, release, carry, screw, hold still) append motion
 segments and, at the same moments, the ground-truth labels, so the labels are
 exactly what was simulated:
 
-- a finger–object interaction runs from the instant the fingers close on the
-  object (their pose becomes a constant pose in the object's frame) to the
-  instant they start to open;
+- a finger–object interaction is the report's "the hand is actively
+  manipulating the object": while the fingers hold the object (from the
+  instant they close on it to the instant they start to open) **and** the
+  object is being moved — carried, turned, slid, directly or through a chain
+  of rigidly attached parts — beyond the small wobble of a holding hand
+  (:meth:`Sim.moving_spans`). A static hold, a hand steadying a part while the
+  other hand works on it, and fingers resting on a still part are not
+  interactions; when the fingers hold the object is kept in :attr:`Sim.grasps`;
 - a tool–part interaction (screwdriver–screw) runs from engagement to
   disengagement, the tool's pose being constant in the screw's frame;
 - a part–part interaction holds while the two parts are connected by a chain
@@ -39,7 +44,16 @@ from thirdhand.synth.human import (
     Hand,
     finger_pose_in_hand,
 )
-from thirdhand.synth.motion import Hold, PosePath, Push, ScrewPath, Sway, Tremor, Wobble
+from thirdhand.synth.motion import (
+    Flex,
+    Hold,
+    PosePath,
+    Push,
+    ScrewPath,
+    Sway,
+    Tremor,
+    Wobble,
+)
 
 FloatArray = NDArray[np.float64]
 Pose = tuple[FloatArray, FloatArray]
@@ -177,10 +191,16 @@ class Sim:
         return t_g
 
     def attach_hand(self, hand: Hand, obj: str, grasp: Grasp, t: float) -> None:
-        """From ``t`` the fingers ride rigidly on ``obj`` at ``grasp``."""
+        """From ``t`` the fingers ride on ``obj`` at ``grasp`` (rigidly, or flexing a little).
+
+        With ``hand.grip`` set (:class:`~thirdhand.synth.human.HumanModel`), each
+        fingertip moves by that small motion in the object's frame (:class:`Flex`).
+        """
         for i, name in enumerate(hand.fingers):
             rel = compose((grasp.pos, grasp.quat), finger_pose_in_hand(i, grasp.width))
-            self.timeline.put(name, t, Hold(*rel), obj)
+            grip = hand.grip[i] if hand.grip else None
+            motion = Hold(*rel) if grip is None else Flex(rel[0], rel[1], grip, t)
+            self.timeline.put(name, t, motion, obj)
         hand.holding, hand.grasp, hand.grasp_time, hand.t_free = obj, grasp, t, t
         self._steady(hand, t)
 
@@ -191,6 +211,9 @@ class Sim:
             raise RuntimeError(f"hand {hand.name} releases nothing")
         t0 = max(t0, hand.t_free)
         for name in hand.fingers:
+            flex = self.timeline.segment_at(name, t0).motion
+            if isinstance(flex, Flex):
+                flex.t_end = t0
             self.interactions.append(InteractionInterval(name, obj, hand.grasp_time, t0))
             self.grasps.append((name, obj, hand.grasp_time, t0))
         hr = compose(self.pose(obj, t0), (grasp.pos, grasp.quat))
@@ -397,7 +420,63 @@ class Sim:
         self.interactions = others
         self.interactions += self._connected(links)
         self.interactions += self._carried_along()
+        self.interactions = self._manipulating(self.interactions)
         self.interactions.sort(key=lambda i: (i.start, i.a, i.b))
+
+    def _manipulating(self, intervals: list[InteractionInterval]) -> list[InteractionInterval]:
+        """Cut every hand/finger–object interval to the spans where the object moves.
+
+        Part–part and tool–part intervals (attachment) are returned unchanged.
+        """
+        out: list[InteractionInterval] = []
+        cache: dict[str, list[tuple[float, float]]] = {}
+        for i in intervals:
+            ka, kb = self.bodies[i.a].kind, self.bodies[i.b].kind
+            if ka in ("finger", "hand") and kb in ("part", "tool"):
+                obj = i.b
+            elif kb in ("finger", "hand") and ka in ("part", "tool"):
+                obj = i.a
+            else:
+                out.append(i)
+                continue
+            if obj not in cache:
+                cache[obj] = self.moving_spans(obj, 0.0, self.end)
+            for s, e in cache[obj]:
+                lo, hi = max(s, i.start), min(e, i.end)
+                if hi > lo:
+                    out.append(InteractionInterval(i.a, i.b, lo, hi))
+        return out
+
+    def moving_spans(self, body: str, t0: float, t1: float) -> list[tuple[float, float]]:
+        """Where ``body`` is moved in the world during ``[t0, t1]``, seconds, merged.
+
+        A body is moved while its own motion or that of a body up its parent
+        chain is a scripted move (:class:`PosePath` with a displacement or turn,
+        :class:`ScrewPath` with a spin or slide) inside its active interval. A
+        :class:`Wobble` (a held body at rest following the hand's small motion,
+        pushes included), a :class:`Hold` and an idle hand's sway are not moves.
+        """
+        return _merge(self._moving(body, t0, t1, 0))
+
+    def _moving(self, body: str, t0: float, t1: float, depth: int) -> list[tuple[float, float]]:
+        if depth > 64:
+            raise RuntimeError(f"parent chain of {body} loops")
+        segs = self.timeline.segments[body]
+        out: list[tuple[float, float]] = []
+        for k, seg in enumerate(segs):
+            lo = max(t0, seg.start if k else -np.inf)
+            hi = min(t1, segs[k + 1].start if k + 1 < len(segs) else np.inf)
+            if hi <= lo:
+                continue
+            active = _driven(seg.motion)
+            if active is not None:
+                ends = [(u - seg.t_offset) / seg.t_sign for u in active]
+                a, b = min(ends), max(ends)
+                if min(b, hi) > max(a, lo):
+                    out.append((max(a, lo), min(b, hi)))
+            if seg.parent is not None:
+                out += self._moving(seg.parent, lo, hi, depth + 1)
+        return out
 
     def _connected(
         self, links: list[tuple[str, str, float, float]], step: float = 1.0 / 960.0
@@ -493,6 +572,28 @@ class Sim:
             if hi - lo >= 2:
                 spans.append((float(t[lo]), float(t[hi - 1])))
         return spans
+
+
+def _driven(motion: object) -> tuple[float, float] | None:
+    """Active interval (the motion's own time, seconds) of a scripted move, else None."""
+    if isinstance(motion, PosePath) and (
+        np.any(motion.dp != 0.0) or np.any(motion.rotvec != 0.0) or np.any(motion.bump != 0.0)
+    ):
+        return motion.t0, motion.t1
+    if isinstance(motion, ScrewPath) and (motion.dtheta != 0.0 or motion.dd != 0.0):
+        return motion.t0, motion.t1
+    return None
+
+
+def _merge(spans: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """Union of intervals, sorted, touching ones joined."""
+    out: list[tuple[float, float]] = []
+    for s, e in sorted(spans):
+        if out and s <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], e))
+        else:
+            out.append((s, e))
+    return out
 
 
 def _find(root: dict[str, str], x: str) -> str:
