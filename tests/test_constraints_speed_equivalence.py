@@ -22,9 +22,9 @@ from scipy.spatial.transform import Rotation
 
 from thirdhand import se3
 from thirdhand.constraints import NoiseModel, bic_weights, fit_constraint
-from thirdhand.constraints.select import CONFIDENCE_TEMPERATURE
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.models import prepare_track
+from thirdhand.constraints.select import CONFIDENCE_TEMPERATURE
 from thirdhand.constraints.synthetic import random_joint_track
 
 NAN = math.nan

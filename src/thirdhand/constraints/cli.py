@@ -97,7 +97,7 @@ def fit(
     noise: Annotated[
         str,
         typer.Option(
-            help="Noise: auto (estimated from the track), mocap (1 mm floor) or camera (1 cm floor)."
+            help="Noise: auto (estimated from the track), mocap (1 mm floor), camera (1 cm floor)."
         ),
     ] = "auto",
     models: Annotated[str, typer.Option(help="Comma-separated candidate models.")] = ",".join(

@@ -212,8 +212,7 @@ def prepare_track(
                 )
         raise ConstraintFitError(
             f"{where}: {n_ok} valid sample(s) of {n_all}; a constraint fit needs at "
-            f"least {MIN_SAMPLES} (samples with a NaN position or quaternion are dropped)"
-            + hint
+            f"least {MIN_SAMPLES} (samples with a NaN position or quaternion are dropped)" + hint
         )
     span = float(col_ptp(p).max())
     if span > 1e3:
