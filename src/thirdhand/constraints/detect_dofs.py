@@ -10,7 +10,7 @@ from thirdhand import se3
 from thirdhand.constraints.detect_types import DetectOptions, FloatArray
 from thirdhand.constraints.hmm import HMMParams
 from thirdhand.constraints.select import fit_constraint
-from thirdhand.constraints.types import Constraint, ConstraintFitError
+from thirdhand.constraints.types import Constraint, ConstraintFitError, NoiseModel
 
 
 def _on_joint(
@@ -29,7 +29,12 @@ def _on_joint(
     if ok.sum() < 10:
         return None
     try:
-        c = fit_constraint(p[ok], q[ok], models=("fixed", "prismatic", "revolute"))
+        # The motion-capture bounds, not the estimate from the track: these are
+        # 0.1 s step means of a pair mostly at rest, on which the estimator has not
+        # been validated (a synthetic lid on its hinge comes out fixed with it).
+        c = fit_constraint(
+            p[ok], q[ok], models=("fixed", "prismatic", "revolute"), noise=NoiseModel()
+        )
     except ConstraintFitError:
         return None
     span = c.ranges[:, 1] - c.ranges[:, 0]
@@ -110,7 +115,7 @@ def _joint_dofs(
     hinge keeps its axis point as the frame's position.
     """
     try:
-        fit = fit_constraint(p, q, models=("fixed", "prismatic", "revolute"))
+        fit = fit_constraint(p, q, models=("fixed", "prismatic", "revolute"), noise=NoiseModel())
     except ConstraintFitError:
         return None
     if fit.type not in ("prismatic", "revolute") or fit.quat is None:

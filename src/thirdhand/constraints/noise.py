@@ -42,10 +42,22 @@ DEFAULT_WINDOW = 7
 #: extra joint axis, and on white noise (every model's residual below the floor)
 #: costs only the resolution between one and two noise levels.
 FLOOR_FACTOR = 2.0
+#: The same for rotations: the real tracks need no allowance for slowly varying
+#: rotation error (the stapler's revolute wins at 1, 1.5 and 2), and each unit
+#: above 1 hides a turn's structure from the cylindrical-revolute comparison.
+ROT_FLOOR_FACTOR = 1.0
 #: Smallest floors, metres and radians: a noise-free track must not make a
 #: likelihood infinite.
 MIN_POS_FLOOR = 1e-6
 MIN_ROT_FLOOR = 1e-6
+#: Largest estimates, metres and radians: no tracker of the seed's users is noisier
+#: than 2 cm and 10°; a larger estimate is motion too fast for the window (a free
+#: part waved about, sampled 20 times), not noise.
+MAX_POS_NOISE = 0.02
+MAX_ROT_NOISE = math.radians(10.0)
+#: Ceilings of the constrained models (the spread above which motion is ``free``),
+#: in units of the floor, when above the defaults of :class:`NoiseModel`.
+CEILING_FACTOR = 2.0
 
 
 @dataclass(frozen=True)
@@ -73,17 +85,18 @@ class NoiseEstimate:
         """The bounds of the model fits: floors at :data:`FLOOR_FACTOR` times the estimate.
 
         Ceilings (the spread above which motion is ``free``) are the defaults of
-        :class:`NoiseModel` (2.5 cm, 6°) or four times the floor when larger.
+        :class:`NoiseModel` (2.5 cm, 6°) or :data:`CEILING_FACTOR` times the floor
+        when larger.
         """
         base = NoiseModel()
         fp = max(FLOOR_FACTOR * self.sigma_pos, MIN_POS_FLOOR)
-        sr = self.sigma_rot if math.isfinite(self.sigma_rot) else base.rot_floor / FLOOR_FACTOR
-        fr = max(FLOOR_FACTOR * sr, MIN_ROT_FLOOR)
+        sr = self.sigma_rot if math.isfinite(self.sigma_rot) else base.rot_floor / ROT_FLOOR_FACTOR
+        fr = max(ROT_FLOOR_FACTOR * sr, MIN_ROT_FLOOR)
         return NoiseModel(
             pos_floor=fp,
-            pos_ceiling=max(base.pos_ceiling, 4.0 * fp),
+            pos_ceiling=max(base.pos_ceiling, CEILING_FACTOR * fp),
             rot_floor=fr,
-            rot_ceiling=max(base.rot_ceiling, 4.0 * fr),
+            rot_ceiling=max(base.rot_ceiling, CEILING_FACTOR * fr),
             max_outliers=max_outliers,
         )
 
@@ -163,6 +176,7 @@ def estimate_noise(
 ) -> NoiseEstimate:
     """Estimate the white position and rotation noise of a prepared track.
 
+    Estimates are clipped to :data:`MAX_POS_NOISE` and :data:`MAX_ROT_NOISE`.
     Gross outliers are flagged first, from the residuals of 5-sample fits (beyond
     6 times a scale from their lowest decile), and the windows that hold one are
     left out of the medians.
@@ -206,9 +220,9 @@ def estimate_noise(
     res_p = _pos_residuals(pos, w)
     sigma_rot = math.nan
     if quat is not None:
-        sigma_rot = _robust_level(_rot_residuals(quat, w), keep)
+        sigma_rot = min(_robust_level(_rot_residuals(quat, w), keep), MAX_ROT_NOISE)
     return NoiseEstimate(
-        sigma_pos=_robust_level(res_p, keep),
+        sigma_pos=min(_robust_level(res_p, keep), MAX_POS_NOISE),
         sigma_rot=sigma_rot,
         window=w,
         n_windows=int(keep.sum()),
