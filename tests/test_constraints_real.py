@@ -32,8 +32,8 @@ def test_oriented_articulation_tracks(shared_data: Path, name: str, kind: str) -
     assert quat is not None
     c = fit_constraint(pos, quat)
     assert c.type == kind
-    # drawer.txt has 19 samples, 28 mm apart: the type is the likeliest, not a certainty.
-    assert c.confidence > (0.9 if name == "door.txt" else 0.5)
+    # drawer.txt has 19 samples, 28 mm apart: the type is the likeliest of five, no more.
+    assert c.confidence > (0.9 if name == "door.txt" else 0.3)
     assert c.noise_source == "estimated"
     # The camera override says the same, and so does position alone under it.
     assert fit_constraint(pos, quat, noise=CAMERA).type == kind
@@ -46,7 +46,7 @@ def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
     assert quat is None
     c = fit_constraint(pos)
     assert c.type == "revolute"
-    assert c.confidence > 0.99
+    assert c.confidence > 0.9
     assert c.axis is not None and c.radius is not None
     # The cabinet door turns about a vertical hinge, ~38 cm from the handle, by 70-115°.
     assert abs(c.axis[2]) > 0.98
@@ -118,7 +118,9 @@ def test_stapler_relative_tracks_are_revolute(shared_data: Path) -> None:
     fits = {k: fit_constraint(p, q) for k, (p, q) in tracks.items()}
     for name, c in fits.items():
         assert c.type == "revolute", (name, c.scores)
-        assert c.confidence > 0.9
+        # The 2 cm slide along the hinge keeps a cylindrical joint in the running.
+        assert c.confidence > 0.6
+        assert c.scores["revolute"] < c.scores["cylindrical"]
         assert fit_constraint(*tracks[name], noise=CAMERA).type == "revolute"
         # The stapler opens by about 160°.
         assert 150.0 < np.degrees(np.ptp(c.ranges[3])) < 170.0

@@ -20,7 +20,12 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from thirdhand.constraints.select import DEFAULT_MODELS, bic_weights, demo_track, fit_constraint
+from thirdhand.constraints.select import (
+    DEFAULT_MODELS,
+    demo_track,
+    fit_constraint,
+    type_probabilities,
+)
 from thirdhand.constraints.types import MODEL_TYPES, Constraint, ConstraintFitError, NoiseModel
 
 app = typer.Typer(
@@ -79,8 +84,11 @@ def _print_table(path: Path, where: str, c: Constraint) -> None:
             or "all locked"
         )
     )
-    table = Table("model", "BIC", "weight")
-    weights = bic_weights(c.scores)
+    table = Table("model", "BIC", "probability")
+    excluded = {note.split()[0] for note in c.notes}
+    weights = type_probabilities(
+        {k: (math.inf if k in excluded else v) for k, v in c.scores.items()}
+    )
     for name, score in sorted(c.scores.items(), key=lambda kv: kv[1]):
         table.add_row(name, f"{score:.1f}", f"{weights[name]:.3f}")
     out.print(table)

@@ -4,7 +4,9 @@ Unless the caller gives a :class:`~thirdhand.constraints.types.NoiseModel`, the
 noise bounds come from the track itself (:mod:`thirdhand.constraints.noise`). A
 joint whose turn the track cannot resolve (:func:`degenerate_joint`) is not
 chosen, whatever its score. The confidence is the posterior probability of the
-chosen type from the BIC scores at the temperature :data:`CONFIDENCE_TEMPERATURE`.
+chosen type (:func:`type_probabilities`): the BIC scores' weights at the
+temperature :data:`CONFIDENCE_TEMPERATURE`, mixed with :data:`CONFIDENCE_FLOOR`
+of a uniform guess, both calibrated on synthetic tracks.
 """
 
 from __future__ import annotations
@@ -42,12 +44,15 @@ FloatArray = NDArray[np.float64]
 DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrical", "free")
 
 
-#: Temperature of the confidence: BIC differences are divided by it before they
-#: become probabilities. Real errors are not white and the BIC's evidence grows
-#: with the number of samples as if they were; the value is the one that makes
-#: the confidence calibrated on synthetic tracks with slowly varying error
-#: (``scripts/constraint_calibration.py``, table in ``docs/constraints.md``).
-CONFIDENCE_TEMPERATURE = 1.0
+#: Calibration of the confidence (``scripts/constraint_sweep.py``, tables in
+#: ``docs/constraints.md``): the temperature that BIC differences are divided by
+#: before they become probabilities, and the share of a uniform guess mixed in.
+#: Real errors are not white and the BIC's evidence grows with the number of
+#: samples as if they were; a track with slowly varying error can be wrong by
+#: hundreds of BIC units, which no temperature alone makes honest. Both values
+#: minimise the log loss of the true type on the calibration seeds of the sweep.
+CONFIDENCE_TEMPERATURE = 5.0
+CONFIDENCE_FLOOR = 0.02
 #: An arc that bows away from its chord by less than this fraction of the chord
 #: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
 #: turn from positions alone: real trackers bend a straight stroke by 1-2 % of its
@@ -69,6 +74,25 @@ def bic_weights(scores: dict[str, float], temperature: float = 1.0) -> dict[str,
     out = {k: 0.0 for k in scores}
     out.update({k: float(v) for k, v in zip(names, w, strict=True)})
     return out
+
+
+def type_probabilities(
+    scores: dict[str, float],
+    *,
+    temperature: float = CONFIDENCE_TEMPERATURE,
+    floor: float = CONFIDENCE_FLOOR,
+) -> dict[str, float]:
+    """Calibrated probability of each type from its BIC (infinite scores get 0).
+
+    ``(1 - floor) · w + floor / K``, with ``w`` the :func:`bic_weights` at
+    ``temperature`` and ``K`` the number of candidates with a finite score.
+    """
+    w = bic_weights(scores, temperature)
+    k = sum(math.isfinite(v) for v in scores.values())
+    return {
+        name: ((1.0 - floor) * w[name] + floor / k) if math.isfinite(v) else 0.0
+        for name, v in scores.items()
+    }
 
 
 _NEEDS_ORIENTATION = ("cylindrical", "screw")
@@ -96,21 +120,24 @@ def effective_samples(fits: dict[str, ModelFit]) -> float:
     return max(min(n, float(MIN_SAMPLES)), n * (1.0 - rho) / (1.0 + rho))
 
 
-def degenerate_joint(fit: ModelFit, *, oriented: bool, rot_floor: float) -> str | None:
+def degenerate_joint(
+    fit: ModelFit, *, oriented: bool, rot_floor: float, n_eff: float
+) -> str | None:
     """Why a fitted joint with a turn cannot be told from one without, or None.
 
     A revolute, cylindrical or screw fit whose angle range ``φ`` (of the inlier
     samples) bows the path by less than :data:`MIN_SAGITTA_RATIO` of its chord is
     a straight stroke within a tracker's systematic error (its radius is far
-    beyond the track's extent) — unless orientations resolve the turn (``φ`` at
-    least :data:`MIN_TURN_FLOORS` rotation floors).
+    beyond the track's extent) — unless orientations resolve the turn: ``φ`` at
+    least :data:`MIN_TURN_FLOORS` standard errors ``σ √(12 / n_eff)`` of a linear
+    trend of ``n_eff`` effective samples of rotation noise ``σ`` (the floor).
     """
     name = fit.kernel.name
     if name not in ("revolute", "cylindrical", "screw"):
         return None
     lat = fit.proj.latent[fit.inlier, 0] if np.any(fit.inlier) else fit.proj.latent[:, 0]
     phi = float(np.ptp(lat))
-    if oriented and phi >= MIN_TURN_FLOORS * rot_floor:
+    if oriented and phi >= MIN_TURN_FLOORS * rot_floor * math.sqrt(12.0 / max(n_eff, 12.0)):
         return None
     ratio = 0.5 * math.tan(0.25 * min(phi, 2.0 * math.pi))
     if ratio >= MIN_SAGITTA_RATIO:
@@ -200,15 +227,14 @@ def fit_constraint(
     notes = []
     allowed = dict(scores)
     for name, fit in fits.items():
-        why = degenerate_joint(fit, oriented=q is not None, rot_floor=nm.rot_floor)
+        why = degenerate_joint(fit, oriented=q is not None, rot_floor=nm.rot_floor, n_eff=n_eff)
         if why is not None:
             allowed[name] = math.inf
             notes.append(why)
-    weights = bic_weights(allowed, CONFIDENCE_TEMPERATURE)
     if not any(math.isfinite(allowed[k]) for k in fits):
         # Only degenerate joints were asked for: the best of them, with its note.
         allowed = dict(scores)
-        weights = bic_weights(allowed, CONFIDENCE_TEMPERATURE)
+    weights = type_probabilities(allowed)
     best = min(fits, key=lambda k: allowed[k])
     c = to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
     return dataclasses.replace(

@@ -4,9 +4,10 @@ One :class:`Condition` is a way of drawing tracks (noise level, samples, outlier
 slowly varying error, opening angle); :func:`run_sweep` fits every joint type,
 oriented and position-only, under each condition and returns one :class:`Trial`
 per track with the truth, the fit and its motion-to-noise ratio.
-:func:`reliability` bins the confidences, :func:`fit_temperature` finds the
-temperature that makes them calibrated (the one scalar
-:data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE` holds).
+:func:`reliability` bins the confidences, :func:`fit_calibration` finds the
+temperature and floor that make them calibrated (the two numbers
+:data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE` and
+:data:`~thirdhand.constraints.select.CONFIDENCE_FLOOR` hold).
 """
 
 from __future__ import annotations
@@ -19,7 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from thirdhand.constraints.select import CONFIDENCE_TEMPERATURE, bic_weights, fit_constraint
+from thirdhand.constraints.select import (
+    CONFIDENCE_FLOOR,
+    CONFIDENCE_TEMPERATURE,
+    fit_constraint,
+    type_probabilities,
+)
 from thirdhand.constraints.synthetic import random_joint_track
 
 FloatArray = NDArray[np.float64]
@@ -87,10 +93,14 @@ class Trial:
         """Whether the predicted type is the true one."""
         return self.predicted == self.kind
 
-    def probability(self, temperature: float) -> dict[str, float]:
-        """The type probabilities at ``temperature`` (degenerate joints excluded)."""
+    def probability(
+        self, temperature: float = CONFIDENCE_TEMPERATURE, floor: float = CONFIDENCE_FLOOR
+    ) -> dict[str, float]:
+        """The type probabilities at a calibration (degenerate joints excluded)."""
         allowed = {k: (math.inf if k in self.excluded else v) for k, v in self.scores.items()}
-        return bic_weights(allowed, temperature)
+        if not any(math.isfinite(v) for v in allowed.values()):
+            allowed = dict(self.scores)
+        return type_probabilities(allowed, temperature=temperature, floor=floor)
 
 
 def _motion_ratio(kind: str, clean_pos: FloatArray, pos_noise: float) -> float:
@@ -153,9 +163,14 @@ def run_sweep(
 
 
 def reliability(
-    trials: Sequence[Trial], *, temperature: float = CONFIDENCE_TEMPERATURE, bins: int = 5
+    trials: Sequence[Trial],
+    *,
+    temperature: float = CONFIDENCE_TEMPERATURE,
+    floor: float = CONFIDENCE_FLOOR,
 ) -> tuple[list[tuple[float, float, float, int]], float]:
     """Reliability table and expected calibration error of the chosen types' confidence.
+
+    Bins: below 0.6, 0.6-0.8, 0.8-0.9, 0.9-0.99, at least 0.99.
 
     Returns
     -------
@@ -163,11 +178,9 @@ def reliability(
     ece : float
         Count-weighted mean of ``|accuracy - confidence|`` over the bins.
     """
-    conf = np.array([t.probability(temperature)[t.predicted] for t in trials])
+    conf = np.array([t.probability(temperature, floor)[t.predicted] for t in trials])
     ok = np.array([t.correct for t in trials], dtype=np.float64)
-    # Bins of equal width over [0.5, 1] with everything below 0.5 in the first one;
-    # the last bin holds the confidences of at least 0.99.
-    edges = np.array([0.0, 0.6, 0.8, 0.9, 0.99, 1.01])[: bins + 1]
+    edges = np.array([0.0, 0.6, 0.8, 0.9, 0.99, 1.01])
     table = []
     ece = 0.0
     for lo, hi in itertools.pairwise(edges):
@@ -179,15 +192,22 @@ def reliability(
     return table, ece / max(len(trials), 1)
 
 
-def log_loss(trials: Sequence[Trial], temperature: float) -> float:
-    """Mean negative log probability of the true type at ``temperature``."""
+def log_loss(trials: Sequence[Trial], temperature: float, floor: float) -> float:
+    """Mean negative log probability of the true type at a calibration."""
     total = 0.0
     for t in trials:
-        total -= math.log(max(t.probability(temperature).get(t.kind, 0.0), 1e-12))
+        total -= math.log(max(t.probability(temperature, floor).get(t.kind, 0.0), 1e-12))
     return total / max(len(trials), 1)
 
 
-def fit_temperature(trials: Sequence[Trial], grid: Sequence[float] | None = None) -> float:
-    """The temperature of least :func:`log_loss` over a logarithmic grid (1 to 100)."""
-    values = list(grid) if grid is not None else list(np.geomspace(1.0, 100.0, 41))
-    return float(min(values, key=lambda t: log_loss(trials, t)))
+def fit_calibration(
+    trials: Sequence[Trial],
+    *,
+    temperatures: Sequence[float] | None = None,
+    floors: Sequence[float] | None = None,
+) -> tuple[float, float]:
+    """The temperature (1 to 100) and floor (0 to 0.3) of least :func:`log_loss`, on grids."""
+    ts = list(temperatures) if temperatures is not None else list(np.geomspace(1.0, 100.0, 21))
+    fs = list(floors) if floors is not None else [0.0, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3]
+    best = min(((t, f) for t in ts for f in fs), key=lambda tf: log_loss(trials, *tf))
+    return float(best[0]), float(best[1])
