@@ -100,6 +100,17 @@ class NoiseEstimate:
             max_outliers=max_outliers,
         )
 
+    def at_least(self, bounds: NoiseModel, *, max_outliers: float = 0.25) -> NoiseModel:
+        """:meth:`noise_model`, with floors and ceilings no lower than ``bounds``'."""
+        nm = self.noise_model(max_outliers=max_outliers)
+        return NoiseModel(
+            pos_floor=max(nm.pos_floor, bounds.pos_floor),
+            pos_ceiling=max(nm.pos_ceiling, bounds.pos_ceiling),
+            rot_floor=max(nm.rot_floor, bounds.rot_floor),
+            rot_ceiling=max(nm.rot_ceiling, bounds.rot_ceiling),
+            max_outliers=max_outliers,
+        )
+
     def to_dict(self) -> dict[str, float | int | None]:
         """JSON-able form (NaN as None)."""
         return {
