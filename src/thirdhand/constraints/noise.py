@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.lib.stride_tricks import sliding_window_view
+from numba import njit
 from numpy.typing import NDArray
 
 from thirdhand.constraints import geometry as g
@@ -143,21 +143,45 @@ def _robust_level(res: FloatArray, keep: NDArray[np.bool_] | None = None) -> flo
 
 def _pos_residuals(pos: FloatArray, w: int) -> FloatArray:
     """Normalised centre residuals of local quadratics of positions, shape (n - w + 1, 3)."""
-    return np.asarray(
-        np.einsum("nkw,w->nk", sliding_window_view(pos, w, axis=0), _filter(w)), dtype=np.float64
-    )
+    return _pos_residuals_kernel(np.ascontiguousarray(pos), _filter(w))
+
+
+@njit(cache=True, error_model="numpy")
+def _pos_residuals_kernel(p: FloatArray, f: FloatArray) -> FloatArray:  # pragma: no cover
+    """:func:`_pos_residuals` for positions ``p (n, 3)`` and filter ``f (w,)``."""
+    w = f.shape[0]
+    m = p.shape[0] - w + 1
+    out = np.zeros((m, 3))
+    for i in range(m):
+        for j in range(w):
+            for a in range(3):
+                out[i, a] += f[j] * p[i + j, a]
+    return out
 
 
 def _rot_residuals(quat: FloatArray, w: int) -> FloatArray:
     """Same for rotations, as rotation vectors relative to each window's centre, radians."""
-    win = sliding_window_view(quat, w, axis=0).transpose(0, 2, 1)  # (m, w, 4)
-    centre = np.broadcast_to(win[:, w // 2 : w // 2 + 1, :], win.shape)
-    rel = g.quat_mul(
-        g.quat_conj(np.ascontiguousarray(centre).reshape(-1, 4)),
-        np.ascontiguousarray(win).reshape(-1, 4),
-    )
-    rv = g.quat_log(rel).reshape(win.shape[0], w, 3)
-    return np.asarray(np.einsum("nwk,w->nk", rv, _filter(w)), dtype=np.float64)
+    return _rot_residuals_kernel(np.ascontiguousarray(quat), _filter(w))
+
+
+@njit(cache=True, error_model="numpy")
+def _rot_residuals_kernel(q: FloatArray, f: FloatArray) -> FloatArray:  # pragma: no cover
+    """:func:`_rot_residuals` for unit quaternions ``q (n, 4)`` and filter ``f (w,)``."""
+    w = f.shape[0]
+    m = q.shape[0] - w + 1
+    h = w // 2
+    out = np.zeros((m, 3))
+    for i in range(m):
+        c = i + h
+        cx, cy, cz, cw = -q[c, 0], -q[c, 1], -q[c, 2], q[c, 3]
+        for j in range(w):
+            k = i + j
+            x, y, z, s = g.qmul(cx, cy, cz, cw, q[k, 0], q[k, 1], q[k, 2], q[k, 3])
+            scale = g._log_scale(x, y, z, s) * f[j]
+            out[i, 0] += x * scale
+            out[i, 1] += y * scale
+            out[i, 2] += z * scale
+    return out
 
 
 def _flag_outliers(res: FloatArray, w: int) -> NDArray[np.bool_]:
