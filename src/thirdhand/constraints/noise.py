@@ -19,6 +19,7 @@ bounds the model fits use.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -121,13 +122,16 @@ class NoiseEstimate:
         }
 
 
+@functools.lru_cache(maxsize=8)
 def _filter(window: int) -> FloatArray:
     """Weights giving the normalised centre residual of a local quadratic, shape (window,)."""
     h = window // 2
     t = np.arange(-h, h + 1, dtype=np.float64)
     v = np.vander(t, 3)
     hat = v @ np.linalg.pinv(v)
-    return np.asarray((np.eye(window) - hat)[h] / math.sqrt(1.0 - hat[h, h]), dtype=np.float64)
+    out = np.asarray((np.eye(window) - hat)[h] / math.sqrt(1.0 - hat[h, h]), dtype=np.float64)
+    out.setflags(write=False)
+    return out
 
 
 def _robust_level(res: FloatArray, keep: NDArray[np.bool_] | None = None) -> float:
@@ -136,9 +140,22 @@ def _robust_level(res: FloatArray, keep: NDArray[np.bool_] | None = None) -> flo
     From the median of the squared residuals of the ``keep`` rows (all when None,
     or when fewer than 3 are kept).
     """
-    r = res if keep is None or keep.sum() < 3 else res[keep]
-    med = np.median(r**2, axis=0) / _CHI2_1_MEDIAN
-    return math.sqrt(float(np.mean(med)))
+    rows = np.ones(res.shape[0], dtype=bool) if keep is None or keep.sum() < 3 else keep
+    return _robust_level_kernel(np.ascontiguousarray(res), rows)
+
+
+@njit(cache=True, error_model="numpy")
+def _robust_level_kernel(res: FloatArray, keep: NDArray[np.bool_]) -> float:  # pragma: no cover
+    """:func:`_robust_level` of ``res (m, k)`` over the rows where ``keep`` holds."""
+    idx = np.flatnonzero(keep)
+    k = res.shape[1]
+    col = np.empty(idx.size)
+    total = 0.0
+    for a in range(k):
+        for r in range(idx.size):
+            col[r] = res[idx[r], a] ** 2
+        total += np.median(col) / _CHI2_1_MEDIAN
+    return math.sqrt(total / k)
 
 
 def _pos_residuals(pos: FloatArray, w: int) -> FloatArray:
@@ -191,9 +208,9 @@ def _flag_outliers(res: FloatArray, w: int) -> NDArray[np.bool_]:
     windows of 5): the lowest decile of the squared residuals gives a first scale
     and centres beyond 6 of it are flagged.
     """
-    d2 = np.sum(res**2, axis=1)
+    d2 = np.einsum("ij,ij->i", res, res)
     # Lowest decile of a chi-square with 3 degrees of freedom.
-    s2 = float(np.quantile(d2, 0.1)) / 0.5844
+    s2 = float(np.partition(d2, d2.size // 10)[d2.size // 10]) / 0.5844
     m = res.shape[0]
     bad = np.zeros(m + w - 1, dtype=bool)
     bad[w // 2 : w // 2 + m] = d2 > 36.0 * 3.0 * max(s2, 1e-300)
