@@ -140,11 +140,12 @@ class Constraint:
     log_likelihood : float
         Of the chosen model, nats.
     confidence : float
-        Probability of the chosen type among those compared: the BIC scores'
-        posterior weights ``exp(-ΔBIC / (2 T))`` with the temperature ``T`` of
-        :data:`thirdhand.constraints.select.CONFIDENCE_TEMPERATURE`, calibrated on
-        synthetic tracks with slowly varying error (see ``docs/constraints.md``).
-        In [0, 1].
+        Probability of the chosen type among those compared
+        (:func:`thirdhand.constraints.select.type_probabilities`): the BIC scores'
+        weights ``exp(-ΔBIC / (2 T))`` at the temperature ``T`` of
+        :data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE`, mixed with a
+        uniform share :data:`~thirdhand.constraints.select.CONFIDENCE_FLOOR`, both
+        calibrated on synthetic tracks (see ``docs/constraints.md``). In [0, 1].
     scores : dict of str to float
         BIC of every model compared (lower is better).
     noise_pos, noise_rot : float
