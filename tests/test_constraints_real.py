@@ -1,12 +1,11 @@
 """Constraint types of real articulated-object tracks (Sturm et al.; Niekum et al.).
 
-Every track was recorded by a camera (checkerboard/marker detection, AR tags), so
-the fits use ``NoiseModel.camera()``: a 1 cm position floor, the default position
-noise of Sturm et al.'s articulation toolkit. With the 1 mm motion-capture floor,
-the cameras' slowly varying errors of a few millimetres read as evidence of a
-curved drawer path (a revolute joint of 5 m radius) or of a 2 cm slide along the
-stapler's hinge (cylindrical); ``test_mocap_floor_over_reads_camera_error``
-pins that down.
+Every track was recorded by a camera (checkerboard/marker detection, AR tags).
+The fits use the default flags: the noise is estimated from each track. With the
+1 mm motion-capture floor (``NoiseModel()``), the cameras' slowly varying errors
+of a few millimetres read as evidence of a 2 cm slide along the stapler's hinge
+(cylindrical); ``test_mocap_floor_over_reads_camera_error`` pins that down. The
+``NoiseModel.camera()`` override (1 cm floor) still gives the same types.
 """
 
 from __future__ import annotations
@@ -31,10 +30,13 @@ def _track(path: Path) -> tuple[np.ndarray, np.ndarray | None]:
 def test_oriented_articulation_tracks(shared_data: Path, name: str, kind: str) -> None:
     pos, quat = _track(shared_data / "articulation" / name)
     assert quat is not None
-    c = fit_constraint(pos, quat, noise=CAMERA)
+    c = fit_constraint(pos, quat)
     assert c.type == kind
-    assert c.confidence > 0.99
-    # Position alone says the same.
+    # drawer.txt has 19 samples, 28 mm apart: the type is the likeliest of five, no more.
+    assert c.confidence > (0.9 if name == "door.txt" else 0.3)
+    assert c.noise_source == "estimated"
+    # The camera override says the same, and so does position alone under it.
+    assert fit_constraint(pos, quat, noise=CAMERA).type == kind
     assert fit_constraint(pos, noise=CAMERA).type == kind
 
 
@@ -42,21 +44,22 @@ def test_oriented_articulation_tracks(shared_data: Path, name: str, kind: str) -
 def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
     pos, quat = _track(shared_data / "articulation" / "cabinet_one" / f"{index:03d}.log")
     assert quat is None
-    c = fit_constraint(pos, noise=CAMERA)
+    c = fit_constraint(pos)
     assert c.type == "revolute"
-    assert c.confidence > 0.99
+    assert c.confidence > 0.9
     assert c.axis is not None and c.radius is not None
-    # The cabinet door turns about a vertical hinge, ~38 cm from the handle, by 75-115°.
-    assert abs(c.axis[2]) > 0.99
+    # The cabinet door turns about a vertical hinge, ~38 cm from the handle, by 70-115°.
+    assert abs(c.axis[2]) > 0.98
     assert 0.3 < c.radius < 0.45
-    assert 75.0 < np.degrees(np.ptp(c.ranges[3])) < 115.0
+    assert 70.0 < np.degrees(np.ptp(c.ranges[3])) < 115.0
 
 
 DRAWER_004_REASON = (
     "drawer_one/004: at the end stop the tracked gripper slides 5 cm sideways along the "
     "handle (frames 84-90, x constant), stays there 18 frames, and the last row is a "
     "zero (lost) sample; 20 % of the track off the line in one cluster, which a "
-    "0.7 m-radius arc explains better than a line with outliers"
+    "0.7 m-radius arc turning 38° explains better than a line with outliers (the "
+    "confidence says so: below 0.9)"
 )
 
 
@@ -71,7 +74,7 @@ DRAWER_004_REASON = (
 )
 def test_drawer_one_is_prismatic(shared_data: Path, index: int) -> None:
     pos, _ = _track(shared_data / "articulation" / "drawer_one" / f"{index:03d}.log")
-    c = fit_constraint(pos, noise=CAMERA)
+    c = fit_constraint(pos)
     assert c.type == "prismatic", c.scores
     assert c.axis is not None
     # Drawers open along the camera's x axis by about 45 cm.
@@ -83,6 +86,10 @@ def test_drawer_one_004_stroke_is_prismatic(shared_data: Path) -> None:
     """Without the sideways slide at the end stop (frames 84 on), 004 is a drawer too."""
     pos, _ = _track(shared_data / "articulation" / "drawer_one" / "004.log")
     assert fit_constraint(pos[:84], noise=CAMERA).type == "prismatic"
+    # With the slide, the arc wins, and the confidence says it is unsure.
+    c = fit_constraint(pos)
+    assert c.type == "revolute"
+    assert c.confidence < 0.9
     # The slide is real: the tail sits 5 cm off the stroke's line.
     line = fit_prismatic(pos[:84], noise=CAMERA)
     assert line.axis is not None
@@ -108,10 +115,13 @@ def test_stapler_relative_tracks_are_revolute(shared_data: Path) -> None:
     p_inv, q_inv = se3.pose_invert(*tracks["relative1"])
     np.testing.assert_allclose(p_inv, tracks["relative2"][0], atol=1e-12)
     assert np.max(se3.quat_angle(q_inv, tracks["relative2"][1])) < 1e-6
-    fits = {k: fit_constraint(p, q, noise=CAMERA) for k, (p, q) in tracks.items()}
+    fits = {k: fit_constraint(p, q) for k, (p, q) in tracks.items()}
     for name, c in fits.items():
         assert c.type == "revolute", (name, c.scores)
-        assert c.confidence > 0.99
+        # The 2 cm slide along the hinge keeps a cylindrical joint in the running.
+        assert c.confidence > 0.6
+        assert c.scores["revolute"] < c.scores["cylindrical"]
+        assert fit_constraint(*tracks[name], noise=CAMERA).type == "revolute"
         # The stapler opens by about 160°.
         assert 150.0 < np.degrees(np.ptp(c.ranges[3])) < 170.0
     # relative1 is object2 in object1: same axis as the track computed from the objects.
@@ -122,7 +132,7 @@ def test_stapler_relative_tracks_are_revolute(shared_data: Path) -> None:
 
 def test_mocap_floor_over_reads_camera_error(shared_data: Path) -> None:
     p, q = _stapler(shared_data)["relative1"]
-    c = fit_constraint(p, q)
+    c = fit_constraint(p, q, noise=NoiseModel())
     assert c.type == "cylindrical"
     # ... by a 2 cm slide along the hinge axis, under the camera's 1 cm floor of noise.
     assert np.ptp(c.ranges[0]) < 0.025
@@ -137,18 +147,25 @@ def test_cli_fit_prints_json_and_table(shared_data: Path) -> None:
 
     runner = CliRunner()
     door = shared_data / "articulation" / "door.txt"
-    result = runner.invoke(app, ["fit", str(door), "--json", "--noise", "camera"])
+    result = runner.invoke(app, ["fit", str(door), "--json"])
     assert result.exit_code == 0, result.output
     d = json.loads(result.output)
     assert d["type"] == "revolute"
     assert d["track"] == "door"
     assert set(d["scores"]) == {"fixed", "prismatic", "revolute", "cylindrical", "free"}
-    assert d["confidence"] > 0.99
+    assert d["confidence"] > 0.9
+    # The estimated noise is reported: millimetres, not the 1 mm / 1 cm presets.
+    assert d["noise"]["source"] == "estimated"
+    assert 1e-3 < d["noise"]["sigma_pos"] < 2e-2
+    result = runner.invoke(app, ["fit", str(door), "--json", "--noise", "camera"])
+    assert json.loads(result.output)["noise"]["source"] == "given"
     log = shared_data / "articulation" / "drawer_one" / "001.log"
-    result = runner.invoke(app, ["fit", str(log), "--noise", "camera"])
+    result = runner.invoke(app, ["fit", str(log)])
     assert result.exit_code == 0, result.output
     assert "prismatic" in result.output
     assert "tx [" in result.output
+    assert "noise" in result.output
+    assert "revolute not chosen" in result.output
 
 
 def test_cli_errors_are_thirdhand_errors(shared_data: Path, tmp_path: Path) -> None:

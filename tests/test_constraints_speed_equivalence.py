@@ -4,8 +4,11 @@
 :mod:`thirdhand.constraints` before its hot loops were compiled with numba
 (commit d82d1c0): 30 seeded synthetic tracks of every joint type, oriented and
 position-only, with and without gross outliers, one noise-free, a third of them
-with the screw model among the candidates. Every field of the result must agree
-to 1e-9 relative (1e-12 absolute, for values that vanish).
+with the screw model among the candidates, fitted with the motion-capture noise
+bounds (``NoiseModel()``, the default of that time). Every field of the result
+must agree to 1e-9 relative (1e-12 absolute, for values that vanish); the
+confidence is the chosen model's weight at the current temperature of the
+reference scores.
 """
 
 from __future__ import annotations
@@ -18,9 +21,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from thirdhand import se3
-from thirdhand.constraints import fit_constraint
+from thirdhand.constraints import NoiseModel, fit_constraint
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.models import prepare_track
+from thirdhand.constraints.select import type_probabilities
 from thirdhand.constraints.synthetic import random_joint_track
 
 NAN = math.nan
@@ -847,7 +851,9 @@ def _fit(seed: int, kind: str, oriented: bool, outliers: float) -> dict[str, Any
         outliers=outliers,
     )
     models = ALL if seed % 3 == 0 else tuple(m for m in ALL if m != "screw")
-    c = fit_constraint(track.pos, track.quat if oriented else None, models=models)
+    c = fit_constraint(
+        track.pos, track.quat if oriented else None, models=models, noise=NoiseModel()
+    )
     return {
         "type": c.type,
         "axis": c.axis,
@@ -863,6 +869,7 @@ def _fit(seed: int, kind: str, oriented: bool, outliers: float) -> dict[str, Any
         "radius": c.radius,
         "pitch": c.pitch,
         "n_samples": c.n_samples,
+        "notes": c.notes,
     }
 
 
@@ -878,6 +885,11 @@ def test_fit_matches_reference(
 ) -> None:
     got = _fit(seed, kind, oriented, outliers)
     assert got["type"] == expected["type"]
+    # Joints passed over as degenerate (a prismatic's huge-radius arc) do not compete.
+    excluded = {note.split()[0] for note in got["notes"]}
+    allowed = {k: (math.inf if k in excluded else v) for k, v in expected["scores"].items()}
+    weights = type_probabilities(allowed)
+    assert got["confidence"] == pytest.approx(weights[expected["type"]], rel=RTOL, abs=ATOL)
     assert got["n_samples"] == expected["n_samples"]
     assert list(got["scores"]) == list(expected["scores"])
     for name, score in expected["scores"].items():
@@ -891,7 +903,6 @@ def test_fit_matches_reference(
         "sigma_pos",
         "sigma_rot",
         "log_likelihood",
-        "confidence",
         "outlier_fraction",
         "radius",
         "pitch",

@@ -140,3 +140,22 @@ def test_assembly_taken_apart_and_redone() -> None:
         if inst.end is not None:
             assert abs(inst.end - removed[(ev.child, ev.parent)]) < 0.3
     assert sum(i.end is None for i in det.instances) == 5
+
+
+def test_toolbox_boards_go_from_free_to_fixed(shared_data) -> None:  # type: ignore[no-untyped-def]
+    """The whole cooperative toolbox recording (Polhemus, 19-25 % of samples lost):
+    the two boards are apart, then rigidly attached to the end, once."""
+    from thirdhand import io
+
+    demo = io.load(shared_data / "3rdhand" / "toolbox_coop_4")
+    boards = ["/toolbox/side_left", "/toolbox/side_front"]
+    det = detect_constraints(demo, parts=boards)
+    (inst,) = det.instances
+    assert {inst.parent, inst.child} == set(boards)
+    assert inst.type == "fixed"
+    assert inst.end is None
+    post = det.pair_posterior(*boards)
+    t0 = float(demo.t[0])
+    assert 10.0 < inst.start - t0 < float(demo.t[-1]) - t0 - 10.0
+    assert np.nanmax(post[det.times < inst.start - 2.0]) < 0.5
+    assert np.nanmin(post[det.times > inst.start + 2.0]) > 0.5

@@ -3,7 +3,9 @@
 ``thirdhand constraints fit TRACK [--parent A --child B] [--json]`` loads any
 recording :func:`thirdhand.io.load` reads, takes the single body's pose (an
 articulation log) or the child's pose in the parent, fits every model and prints
-the chosen one with the BIC of all.
+the chosen one with the BIC of all. The noise is estimated from the track
+(``--noise auto``, the default) and reported; ``--noise mocap`` (1 mm floor) or
+``--noise camera`` (1 cm floor) override it.
 """
 
 from __future__ import annotations
@@ -18,7 +20,12 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
-from thirdhand.constraints.select import DEFAULT_MODELS, bic_weights, demo_track, fit_constraint
+from thirdhand.constraints.select import (
+    DEFAULT_MODELS,
+    demo_track,
+    fit_constraint,
+    type_probabilities,
+)
 from thirdhand.constraints.types import MODEL_TYPES, Constraint, ConstraintFitError, NoiseModel
 
 app = typer.Typer(
@@ -29,8 +36,9 @@ app = typer.Typer(
 )
 out = Console(highlight=False, soft_wrap=True)
 
-#: Noise presets by name (see :class:`~thirdhand.constraints.types.NoiseModel`).
-NOISE_PRESETS = {"mocap": NoiseModel, "camera": NoiseModel.camera}
+#: Noise presets by name (see :class:`~thirdhand.constraints.types.NoiseModel`);
+#: ``auto`` (None) estimates the noise from the track.
+NOISE_PRESETS = {"auto": None, "mocap": NoiseModel, "camera": NoiseModel.camera}
 
 
 @app.callback()
@@ -47,6 +55,15 @@ def _vec(v: np.ndarray | None, digits: int = 4) -> str:
 def _print_table(path: Path, where: str, c: Constraint) -> None:
     out.print(f"[bold]{path.name}[/bold] ({where}, {c.n_samples} valid samples)")
     out.print(f"  type        {c.type}   confidence {c.confidence:.3f}")
+    rot = "" if not math.isfinite(c.noise_rot) else f", {math.degrees(c.noise_rot):.2f} deg"
+    if math.isfinite(c.noise_pos):
+        out.print(
+            f"  noise       {1000 * c.noise_pos:.2f} mm{rot} per axis (estimated from the track"
+            + ("" if c.noise_source == "estimated" else "; bounds given by --noise")
+            + ")"
+        )
+    for note in c.notes:
+        out.print(f"  note        {note}")
     out.print(f"  axis        {_vec(c.axis)}")
     out.print(f"  origin      {_vec(c.origin)} m")
     if c.radius is not None:
@@ -67,8 +84,11 @@ def _print_table(path: Path, where: str, c: Constraint) -> None:
             or "all locked"
         )
     )
-    table = Table("model", "BIC", "weight")
-    weights = bic_weights(c.scores)
+    table = Table("model", "BIC", "probability")
+    excluded = {note.split()[0] for note in c.notes}
+    weights = type_probabilities(
+        {k: (math.inf if k in excluded else v) for k, v in c.scores.items()}
+    )
     for name, score in sorted(c.scores.items(), key=lambda kv: kv[1]):
         table.add_row(name, f"{score:.1f}", f"{weights[name]:.3f}")
     out.print(table)
@@ -83,8 +103,11 @@ def fit(
     child: Annotated[str | None, typer.Option(help="Child body.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
     noise: Annotated[
-        str, typer.Option(help="Noise preset: mocap (1 mm floor) or camera (1 cm floor).")
-    ] = "mocap",
+        str,
+        typer.Option(
+            help="Noise: auto (estimated from the track), mocap (1 mm floor), camera (1 cm floor)."
+        ),
+    ] = "auto",
     models: Annotated[str, typer.Option(help="Comma-separated candidate models.")] = ",".join(
         DEFAULT_MODELS
     ),
@@ -105,8 +128,13 @@ def fit(
         )
     demo = io.load(track)
     pos, quat, where = demo_track(demo, parent=parent, child=child)
+    preset = NOISE_PRESETS[noise]
     c = fit_constraint(
-        pos, quat, models=names, noise=NOISE_PRESETS[noise](), where=f"{track} ({where})"
+        pos,
+        quat,
+        models=names,
+        noise=None if preset is None else preset(),
+        where=f"{track} ({where})",
     )
     if as_json:
         d = {"file": str(track), "track": where, **c.to_dict()}

@@ -9,8 +9,26 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.constraints.detect_types import DetectOptions, FloatArray
 from thirdhand.constraints.hmm import HMMParams
+from thirdhand.constraints.noise import estimate_noise
+from thirdhand.constraints.robust import prepare_track
 from thirdhand.constraints.select import fit_constraint
-from thirdhand.constraints.types import Constraint, ConstraintFitError
+from thirdhand.constraints.types import Constraint, ConstraintFitError, NoiseModel
+
+
+def _step_noise(p: FloatArray, q: FloatArray) -> NoiseModel:
+    """Noise bounds of a pair's step-mean track: estimated from it, at least the mocap preset.
+
+    The estimate (:mod:`thirdhand.constraints.noise`) reads a camera's noise off
+    the track; on a noise-free or mocap recording it is tiny, and the step means
+    themselves then err by more (a mean of points of an arc lies inside the arc),
+    so the bounds never go below :class:`NoiseModel`'s 1 mm and 0.5°.
+    """
+    base = NoiseModel()
+    try:
+        p_ok, q_ok = prepare_track(p, q)
+    except ConstraintFitError:
+        return base
+    return estimate_noise(p_ok, q_ok).at_least(base)
 
 
 def _on_joint(
@@ -29,7 +47,9 @@ def _on_joint(
     if ok.sum() < 10:
         return None
     try:
-        c = fit_constraint(p[ok], q[ok], models=("fixed", "prismatic", "revolute"))
+        c = fit_constraint(
+            p[ok], q[ok], models=("fixed", "prismatic", "revolute"), noise=_step_noise(p[ok], q[ok])
+        )
     except ConstraintFitError:
         return None
     span = c.ranges[:, 1] - c.ranges[:, 0]
@@ -110,7 +130,10 @@ def _joint_dofs(
     hinge keeps its axis point as the frame's position.
     """
     try:
-        fit = fit_constraint(p, q, models=("fixed", "prismatic", "revolute"))
+        ok = np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
+        fit = fit_constraint(
+            p, q, models=("fixed", "prismatic", "revolute"), noise=_step_noise(p[ok], q[ok])
+        )
     except ConstraintFitError:
         return None
     if fit.type not in ("prismatic", "revolute") or fit.quat is None:

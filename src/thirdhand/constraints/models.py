@@ -9,6 +9,7 @@ ranges (:func:`to_constraint`). Model selection is in
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -16,6 +17,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
 from thirdhand.constraints import geometry as g
+from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import MIN_SAMPLES, ModelFit, fit_model, prepare_track
 from thirdhand.constraints.types import Constraint, ConstraintFitError, NoiseModel
 
@@ -158,11 +160,18 @@ def _fit_one(
     name: str, pos: ArrayLike, quat: ArrayLike | None, noise: NoiseModel | None
 ) -> Constraint:
     p, q = prepare_track(pos, quat)
-    fit = fit_model(name, p, q, noise=noise)
+    est = estimate_noise(p, q)
+    fit = fit_model(name, p, q, noise=est.noise_model() if noise is None else noise)
     if fit is None:
         why = "it needs orientations" if q is None else "the samples are degenerate"
         raise ConstraintFitError(f"track: cannot fit a {name} model: {why}")
-    return to_constraint(fit, p, q)
+    c = to_constraint(fit, p, q)
+    return dataclasses.replace(
+        c,
+        noise_pos=est.sigma_pos,
+        noise_rot=est.sigma_rot,
+        noise_source="estimated" if noise is None else "given",
+    )
 
 
 def fit_fixed(
@@ -177,7 +186,8 @@ def fit_fixed(
     quat : array_like, shape (n, 4), optional
         Child orientations in the parent frame, x y z w; None for position-only.
     noise : NoiseModel, optional
-        Noise bounds (defaults: 1 mm to 2.5 cm, 0.5° to 6°).
+        Noise bounds; by default estimated from the track
+        (:func:`thirdhand.constraints.noise.estimate_noise`).
 
     Returns
     -------

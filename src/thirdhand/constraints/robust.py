@@ -202,9 +202,17 @@ def prepare_track(
         np.ascontiguousarray(p), np.ascontiguousarray(q) if q is not None else _NO_QUAT
     )
     if n_ok < MIN_SAMPLES:
+        hint = ""
+        if q is not None:
+            n_pos = int(np.all(np.isfinite(np.asarray(pos, dtype=np.float64)), axis=1).sum())
+            if n_pos >= MIN_SAMPLES:
+                hint = (
+                    f"; {n_pos - n_ok} more have a position but no orientation: pass "
+                    "quat=None for a position-only fit"
+                )
         raise ConstraintFitError(
             f"{where}: {n_ok} valid sample(s) of {n_all}; a constraint fit needs at "
-            f"least {MIN_SAMPLES} (samples with a NaN position or quaternion are dropped)"
+            f"least {MIN_SAMPLES} (samples with a NaN position or quaternion are dropped)" + hint
         )
     span = float(col_ptp(p).max())
     if span > 1e3:

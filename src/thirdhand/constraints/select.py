@@ -1,7 +1,17 @@
-"""Model selection: fit every candidate model and keep the best by BIC."""
+"""Model selection: fit every candidate model and keep the best by BIC.
+
+Unless the caller gives a :class:`~thirdhand.constraints.types.NoiseModel`, the
+noise bounds come from the track itself (:mod:`thirdhand.constraints.noise`). A
+joint whose turn the track cannot resolve (:func:`degenerate_joint`) is not
+chosen, whatever its score. The confidence is the posterior probability of the
+chosen type (:func:`type_probabilities`): the BIC scores' weights at the
+temperature :data:`CONFIDENCE_TEMPERATURE`, mixed with :data:`CONFIDENCE_FLOOR`
+of a uniform guess, both calibrated on synthetic tracks.
+"""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 
@@ -15,6 +25,7 @@ from thirdhand.constraints.models import (
     prepare_track,
     to_constraint,
 )
+from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.types import (
     MODEL_TYPES,
     Constraint,
@@ -33,17 +44,55 @@ FloatArray = NDArray[np.float64]
 DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrical", "free")
 
 
-def bic_weights(scores: dict[str, float]) -> dict[str, float]:
-    """Posterior model weights ``exp(-BIC/2)``, normalised; infinite scores get 0."""
+#: Calibration of the confidence (``scripts/constraint_sweep.py``, tables in
+#: ``docs/constraints.md``): the temperature that BIC differences are divided by
+#: before they become probabilities, and the share of a uniform guess mixed in.
+#: Real errors are not white and the BIC's evidence grows with the number of
+#: samples as if they were; a track with slowly varying error can be wrong by
+#: hundreds of BIC units, which no temperature alone makes honest. Both values
+#: minimise the log loss of the true type on the calibration seeds of the sweep.
+CONFIDENCE_TEMPERATURE = 5.0
+CONFIDENCE_FLOOR = 0.02
+#: An arc that bows away from its chord by less than this fraction of the chord
+#: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
+#: turn from positions alone: real trackers bend a straight stroke by 1-2 % of its
+#: length (``drawer_one``: revolute fits of 3-14 m radius over a 45 cm stroke).
+MIN_SAGITTA_RATIO = 0.03
+#: Orientations confirm a turn they resolve: a range of at least this many
+#: rotation noise floors.
+MIN_TURN_FLOORS = 5.0
+
+
+def bic_weights(scores: dict[str, float], temperature: float = 1.0) -> dict[str, float]:
+    """Posterior model weights ``exp(-BIC / (2 T))``, normalised; infinite scores get 0."""
     names = [k for k, v in scores.items() if math.isfinite(v)]
     if not names:
         return {k: 0.0 for k in scores}
     b = np.array([scores[k] for k in names])
-    e = np.exp(-0.5 * (b - b.min()))
+    e = np.exp(-0.5 * (b - b.min()) / temperature)
     w = e / e.sum()
     out = {k: 0.0 for k in scores}
     out.update({k: float(v) for k, v in zip(names, w, strict=True)})
     return out
+
+
+def type_probabilities(
+    scores: dict[str, float],
+    *,
+    temperature: float = CONFIDENCE_TEMPERATURE,
+    floor: float = CONFIDENCE_FLOOR,
+) -> dict[str, float]:
+    """Calibrated probability of each type from its BIC (infinite scores get 0).
+
+    ``(1 - floor) · w + floor / K``, with ``w`` the :func:`bic_weights` at
+    ``temperature`` and ``K`` the number of candidates with a finite score.
+    """
+    w = bic_weights(scores, temperature)
+    k = sum(math.isfinite(v) for v in scores.values())
+    return {
+        name: ((1.0 - floor) * w[name] + floor / k) if math.isfinite(v) else 0.0
+        for name, v in scores.items()
+    }
 
 
 _NEEDS_ORIENTATION = ("cylindrical", "screw")
@@ -71,6 +120,36 @@ def effective_samples(fits: dict[str, ModelFit]) -> float:
     return max(min(n, float(MIN_SAMPLES)), n * (1.0 - rho) / (1.0 + rho))
 
 
+def degenerate_joint(
+    fit: ModelFit, *, oriented: bool, rot_floor: float, n_eff: float
+) -> str | None:
+    """Why a fitted joint with a turn cannot be told from one without, or None.
+
+    A revolute, cylindrical or screw fit whose angle range ``φ`` (of the inlier
+    samples) bows the path by less than :data:`MIN_SAGITTA_RATIO` of its chord is
+    a straight stroke within a tracker's systematic error (its radius is far
+    beyond the track's extent) — unless orientations resolve the turn: ``φ`` at
+    least :data:`MIN_TURN_FLOORS` standard errors ``σ √(12 / n_eff)`` of a linear
+    trend of ``n_eff`` effective samples of rotation noise ``σ`` (the floor).
+    """
+    name = fit.kernel.name
+    if name not in ("revolute", "cylindrical", "screw"):
+        return None
+    lat = fit.proj.latent[fit.inlier, 0] if np.any(fit.inlier) else fit.proj.latent[:, 0]
+    phi = float(np.ptp(lat))
+    if oriented and phi >= MIN_TURN_FLOORS * rot_floor * math.sqrt(12.0 / max(n_eff, 12.0)):
+        return None
+    ratio = 0.5 * math.tan(0.25 * min(phi, 2.0 * math.pi))
+    if ratio >= MIN_SAGITTA_RATIO:
+        return None
+    radius = float(np.linalg.norm(fit.geom.lever)) if fit.geom.lever is not None else math.nan
+    return (
+        f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) bows "
+        f"the path by {100 * ratio:.1f} % of its chord, under {100 * MIN_SAGITTA_RATIO:.0f} %"
+        + ("" if not oriented else ", and the orientations do not resolve it")
+    )
+
+
 def fit_constraint(
     pos: ArrayLike,
     quat: ArrayLike | None = None,
@@ -93,7 +172,10 @@ def fit_constraint(
         Candidates, among :data:`~thirdhand.constraints.types.MODEL_TYPES`
         (default :data:`DEFAULT_MODELS`: all but ``screw``).
     noise : NoiseModel, optional
-        Noise bounds (defaults: 1 mm to 2.5 cm, 0.5° to 6°).
+        Noise bounds. Default: estimated from the track
+        (:func:`~thirdhand.constraints.noise.estimate_noise`, floors at twice the
+        white-noise estimate); ``NoiseModel()`` is the motion-capture preset
+        (1 mm floor), ``NoiseModel.camera()`` the camera one (1 cm).
     where : str
         Name of the track in error messages.
 
@@ -101,10 +183,12 @@ def fit_constraint(
     -------
     Constraint
         The chosen model; ``scores`` holds the BIC of every candidate (``inf``
-        for one that cannot describe the track) and ``confidence`` the chosen
-        model's BIC weight. A candidate whose BIC falls far behind (by 200 plus
-        10 %) a model fitted before it stops iterating early: its score is then
-        an upper bound, not a converged value.
+        for one that cannot describe the track), ``confidence`` the calibrated
+        probability of the chosen type, ``noise_pos`` and ``noise_rot`` the
+        estimated white noise and ``notes`` why a better-scoring degenerate
+        joint was passed over (:func:`degenerate_joint`). A candidate whose BIC
+        falls far behind (by 200 plus 10 %) a model fitted before it stops
+        iterating early: its score is then an upper bound, not a converged value.
 
     Raises
     ------
@@ -118,13 +202,15 @@ def fit_constraint(
             f"choose among {', '.join(MODEL_TYPES)}"
         )
     p, q = prepare_track(pos, quat, where=where)
+    est = estimate_noise(p, q)
+    nm = est.noise_model() if noise is None else noise
     fits: dict[str, ModelFit] = {}
     best_bic = math.inf
     # Cheap models first: their BIC lets the joint models that fall far behind stop early.
     for name in sorted(dict.fromkeys(models), key=_FIT_ORDER.index):
         if name in _NEEDS_ORIENTATION and q is None:
             continue
-        fit = fit_model(name, p, q, noise=noise, stop_above=best_bic + _margin(best_bic))
+        fit = fit_model(name, p, q, noise=nm, stop_above=best_bic + _margin(best_bic))
         if fit is not None:
             fits[name] = fit
             best_bic = min(best_bic, fit.bic)
@@ -138,9 +224,26 @@ def fit_constraint(
         for name in dict.fromkeys(models)
         if not (name in _NEEDS_ORIENTATION and q is None)
     }
-    weights = bic_weights(scores)
-    best = min(fits, key=lambda k: scores[k])
-    return to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
+    notes = []
+    allowed = dict(scores)
+    for name, fit in fits.items():
+        why = degenerate_joint(fit, oriented=q is not None, rot_floor=nm.rot_floor, n_eff=n_eff)
+        if why is not None:
+            allowed[name] = math.inf
+            notes.append(why)
+    if not any(math.isfinite(allowed[k]) for k in fits):
+        # Only degenerate joints were asked for: the best of them, with its note.
+        allowed = dict(scores)
+    weights = type_probabilities(allowed)
+    best = min(fits, key=lambda k: allowed[k])
+    c = to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
+    return dataclasses.replace(
+        c,
+        noise_pos=est.sigma_pos,
+        noise_rot=est.sigma_rot,
+        noise_source="estimated" if noise is None else "given",
+        notes=tuple(notes),
+    )
 
 
 def demo_track(
@@ -213,7 +316,7 @@ def fit_relative(
     start, end : float, optional
         Window in seconds on the demonstration's time axis (inclusive).
     models, noise
-        As :func:`fit_constraint`.
+        As :func:`fit_constraint` (by default the noise is estimated from the track).
 
     Raises
     ------

@@ -56,13 +56,17 @@ def random_joint_track(
     pos_noise: float = 0.0,
     rot_noise: float = 0.0,
     outliers: float = 0.0,
+    span: float | None = None,
+    stroke: float | None = None,
+    drift: float = 0.0,
+    rot_drift: float = 0.0,
 ) -> JointTrack:
     """A random track of a fixed, prismatic, revolute, cylindrical, screw or free joint.
 
     Joint axes are uniform on the sphere; revolute radii 5–40 cm and angles
-    40–150°; prismatic strokes 10–40 cm; the configuration moves monotonically
-    (with a smooth speed profile) from its start to its end. A free track wanders
-    ±15 cm and ±60° smoothly.
+    40–150° (or ``span``); prismatic strokes 10–40 cm (or ``stroke``); the
+    configuration moves monotonically (with a smooth speed profile) from its start
+    to its end. A free track wanders ±15 cm and ±60° smoothly.
 
     Parameters
     ----------
@@ -77,6 +81,14 @@ def random_joint_track(
     outliers : float
         Fraction of samples replaced by gross outliers (a position 10–50 cm away
         and a uniformly random orientation).
+    span : float, optional
+        Angle turned by a revolute, cylindrical or screw joint, radians.
+    stroke : float, optional
+        Displacement of a prismatic or cylindrical joint, metres.
+    drift, rot_drift : float
+        Standard deviation per axis of a slowly varying error added to the
+        positions (metres) and orientations (radians): white noise smoothed over
+        a tenth of the track (a camera's bias that changes along a stroke).
     """
     s = np.linspace(0.0, 1.0, n)
     prog = 0.5 - 0.5 * np.cos(np.pi * s)
@@ -102,20 +114,22 @@ def random_joint_track(
         disp = np.zeros(n)
         lever = np.zeros(3)
         if kind in ("revolute", "cylindrical", "screw"):
-            span = np.radians(rng.uniform(40.0, 150.0))
-            theta = -span + span * prog
+            turn = np.radians(rng.uniform(40.0, 150.0))
+            span_ = turn if span is None else float(span)
+            theta = -span_ + span_ * prog
             perp = np.cross(axis, _unit(rng))
             lever = rng.uniform(0.05, 0.4) * perp / np.linalg.norm(perp)
             lever = lever + rng.uniform(-0.1, 0.1) * axis
-            ranges[3] = [-span, 0.0]
+            ranges[3] = [-span_, 0.0]
         if kind in ("prismatic", "cylindrical"):
-            stroke = rng.uniform(0.1, 0.4)
+            length = rng.uniform(0.1, 0.4)
+            stroke_ = length if stroke is None else float(stroke)
             direction = 1.0 if kind == "prismatic" else rng.choice([-1.0, 1.0])
             # A cylindrical joint's slide is not tied to its turn: linear in time,
             # while the turn follows the smooth profile.
             drive = s if kind == "cylindrical" else prog
-            disp = direction * (-stroke + stroke * drive)
-            ranges[0] = [-stroke, 0.0] if direction > 0 else [0.0, stroke]
+            disp = direction * (-stroke_ + stroke_ * drive)
+            ranges[0] = [-stroke_, 0.0] if direction > 0 else [0.0, stroke_]
         if kind == "screw":
             # 5-30 mm per radian either way (an M6 thread is 0.16 mm/rad; a lid
             # or a coarse wooden thread is in this range).
@@ -127,6 +141,11 @@ def random_joint_track(
         quat = g.quat_mul(rot, q_rest)
         origin = centre + ((pos[-1] - centre) @ axis) * axis
     pos = pos + pos_noise * rng.standard_normal(pos.shape)
+    if drift > 0.0:
+        pos = pos + drift * _slow_error(rng, n)
+    if rot_drift > 0.0:
+        slow = se3.quat_from_matrix(_rotvec_matrix(rot_drift * _slow_error(rng, n)))
+        quat = g.quat_mul(slow, quat)
     if rot_noise > 0.0:
         noise = se3.quat_from_matrix(_rotvec_matrix(rot_noise * rng.standard_normal((n, 3))))
         quat = g.quat_mul(noise, quat)
@@ -142,6 +161,17 @@ def random_joint_track(
         quat[idx] = se3.random_quat(rng, k)
     quat = quat * np.where(rng.random(n) < 0.5, -1.0, 1.0)[:, None]
     return JointTrack(kind, pos, quat, axis, origin, ranges, bad)
+
+
+def _slow_error(rng: np.random.Generator, n: int) -> FloatArray:
+    """Unit-variance smooth noise, shape (n, 3): white noise under a Gaussian of n/10 samples."""
+    width = max(1.0, n / 10.0)
+    half = int(3 * width)
+    k = np.exp(-0.5 * (np.arange(-half, half + 1) / width) ** 2)
+    white = rng.standard_normal((n + 2 * half, 3))
+    smooth = np.stack([np.convolve(white[:, a], k, mode="valid") for a in range(3)], axis=1)
+    smooth = smooth - smooth.mean(axis=0)
+    return np.asarray(smooth / smooth.std(axis=0).mean(), dtype=np.float64)
 
 
 def _rotvec_matrix(rv: FloatArray) -> FloatArray:

@@ -140,10 +140,22 @@ class Constraint:
     log_likelihood : float
         Of the chosen model, nats.
     confidence : float
-        Posterior weight of the chosen model among those compared, from the BIC
-        scores: ``exp(-BIC/2)`` normalised. In [0, 1].
+        Probability of the chosen type among those compared
+        (:func:`thirdhand.constraints.select.type_probabilities`): the BIC scores'
+        weights ``exp(-ΔBIC / (2 T))`` at the temperature ``T`` of
+        :data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE`, mixed with a
+        uniform share :data:`~thirdhand.constraints.select.CONFIDENCE_FLOOR`, both
+        calibrated on synthetic tracks (see ``docs/constraints.md``). In [0, 1].
     scores : dict of str to float
         BIC of every model compared (lower is better).
+    noise_pos, noise_rot : float
+        Estimated white noise of the track, per axis, metres and radians (NaN
+        when not estimated, or ``noise_rot`` for a position-only track).
+    noise_source : str
+        ``"estimated"`` when the noise bounds came from the track, ``"given"``
+        when the caller passed a :class:`NoiseModel`.
+    notes : tuple of str
+        Why a better-scoring model was not chosen (a degenerate joint).
     """
 
     type: str
@@ -165,6 +177,10 @@ class Constraint:
     log_likelihood: float
     confidence: float = 1.0
     scores: dict[str, float] = field(default_factory=dict)
+    noise_pos: float = math.nan
+    noise_rot: float = math.nan
+    noise_source: str = "given"
+    notes: tuple[str, ...] = ()
 
     @property
     def free_dofs(self) -> list[str]:
@@ -222,4 +238,10 @@ class Constraint:
             "log_likelihood": num(self.log_likelihood),
             "confidence": num(self.confidence),
             "scores": {k: num(v) for k, v in self.scores.items()},
+            "noise": {
+                "source": self.noise_source,
+                "sigma_pos": num(self.noise_pos),
+                "sigma_rot": num(self.noise_rot),
+            },
+            "notes": list(self.notes),
         }

@@ -1,0 +1,281 @@
+"""Sensor noise of a relative-pose track, estimated from the track itself.
+
+Every sample is compared with a quadratic fitted (least squares) to its
+``window`` neighbours in time, centre included; the residual at the centre,
+divided by ``sqrt(1 - h)`` (``h`` the centre's leverage), has the variance of the
+noise whatever the smooth motion underneath. Per coordinate, the noise level is
+the median of the squared residuals divided by the median of a chi-square with
+one degree of freedom (robust: up to half the windows may hold an outlier or a
+jump); the position level is the root mean square over x, y, z, and the
+rotation level that of the rotation vectors taken relative to each window's
+centre sample (so that a turn through π does not wrap).
+
+Such a short-window estimate sees the high-frequency (white) part of a
+tracker's error. Real trackers add a slowly varying part that no local smoother
+can tell from motion (a camera's lens distortion bends a drawer's stroke by 1–2 %
+of its length); :meth:`NoiseEstimate.noise_model` turns the estimate into the
+bounds the model fits use.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+from thirdhand.constraints import geometry as g
+from thirdhand.constraints.types import ConstraintFitError, NoiseModel
+
+FloatArray = NDArray[np.float64]
+
+#: Median of a chi-square with one degree of freedom.
+_CHI2_1_MEDIAN = 0.454936
+#: Samples per local fit (the shortest tracks use 5).
+DEFAULT_WINDOW = 7
+#: Noise floor of the model fits, in units of the white-noise estimate. On every
+#: real track of ``../shared/data`` the right model's per-axis residual is 2-5
+#: times the short-window estimate (the slowly varying part of the error); a
+#: floor at twice the estimate keeps deviations of that size from reading as an
+#: extra joint axis, and on white noise (every model's residual below the floor)
+#: costs only the resolution between one and two noise levels.
+FLOOR_FACTOR = 2.0
+#: The same for rotations: the real tracks need no allowance for slowly varying
+#: rotation error (the stapler's revolute wins at 1, 1.5 and 2), and each unit
+#: above 1 hides a turn's structure from the cylindrical-revolute comparison.
+ROT_FLOOR_FACTOR = 1.0
+#: Smallest floors, metres and radians: a noise-free track must not make a
+#: likelihood infinite.
+MIN_POS_FLOOR = 1e-6
+MIN_ROT_FLOOR = 1e-6
+#: Largest estimates, metres and radians: no tracker of the seed's users is noisier
+#: than 2 cm and 10°; a larger estimate is motion too fast for the window (a free
+#: part waved about, sampled 20 times), not noise.
+MAX_POS_NOISE = 0.02
+MAX_ROT_NOISE = math.radians(10.0)
+#: Ceilings of the constrained models (the spread above which motion is ``free``),
+#: in units of the floor, when above the defaults of :class:`NoiseModel`.
+CEILING_FACTOR = 2.0
+
+
+@dataclass(frozen=True)
+class NoiseEstimate:
+    """White-noise levels of a track, estimated from its short-window residuals.
+
+    Attributes
+    ----------
+    sigma_pos : float
+        Per-axis position noise, metres.
+    sigma_rot : float
+        Per-axis rotation noise, radians; NaN for a position-only track.
+    window : int
+        Samples per local fit.
+    n_windows : int
+        Number of local fits the medians were taken over.
+    """
+
+    sigma_pos: float
+    sigma_rot: float
+    window: int
+    n_windows: int
+
+    def noise_model(self, *, max_outliers: float = 0.25) -> NoiseModel:
+        """The bounds of the model fits: floors at :data:`FLOOR_FACTOR` times the estimate.
+
+        Ceilings (the spread above which motion is ``free``) are the defaults of
+        :class:`NoiseModel` (2.5 cm, 6°) or :data:`CEILING_FACTOR` times the floor
+        when larger.
+        """
+        base = NoiseModel()
+        fp = max(FLOOR_FACTOR * self.sigma_pos, MIN_POS_FLOOR)
+        sr = self.sigma_rot if math.isfinite(self.sigma_rot) else base.rot_floor / ROT_FLOOR_FACTOR
+        fr = max(ROT_FLOOR_FACTOR * sr, MIN_ROT_FLOOR)
+        return NoiseModel(
+            pos_floor=fp,
+            pos_ceiling=max(base.pos_ceiling, CEILING_FACTOR * fp),
+            rot_floor=fr,
+            rot_ceiling=max(base.rot_ceiling, CEILING_FACTOR * fr),
+            max_outliers=max_outliers,
+        )
+
+    def at_least(self, bounds: NoiseModel, *, max_outliers: float = 0.25) -> NoiseModel:
+        """:meth:`noise_model`, with floors and ceilings no lower than ``bounds``'."""
+        nm = self.noise_model(max_outliers=max_outliers)
+        return NoiseModel(
+            pos_floor=max(nm.pos_floor, bounds.pos_floor),
+            pos_ceiling=max(nm.pos_ceiling, bounds.pos_ceiling),
+            rot_floor=max(nm.rot_floor, bounds.rot_floor),
+            rot_ceiling=max(nm.rot_ceiling, bounds.rot_ceiling),
+            max_outliers=max_outliers,
+        )
+
+    def to_dict(self) -> dict[str, float | int | None]:
+        """JSON-able form (NaN as None)."""
+        return {
+            "sigma_pos": self.sigma_pos,
+            "sigma_rot": self.sigma_rot if math.isfinite(self.sigma_rot) else None,
+            "window": self.window,
+            "n_windows": self.n_windows,
+        }
+
+
+@functools.lru_cache(maxsize=8)
+def _filter(window: int) -> FloatArray:
+    """Weights giving the normalised centre residual of a local quadratic, shape (window,)."""
+    h = window // 2
+    t = np.arange(-h, h + 1, dtype=np.float64)
+    v = np.vander(t, 3)
+    hat = v @ np.linalg.pinv(v)
+    out = np.asarray((np.eye(window) - hat)[h] / math.sqrt(1.0 - hat[h, h]), dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
+def _robust_level(res: FloatArray, keep: NDArray[np.bool_] | None = None) -> float:
+    """Root mean square over coordinates of the robust per-coordinate scale of ``res (m, k)``.
+
+    From the median of the squared residuals of the ``keep`` rows (all when None,
+    or when fewer than 3 are kept).
+    """
+    rows = np.ones(res.shape[0], dtype=bool) if keep is None or keep.sum() < 3 else keep
+    return _robust_level_kernel(np.ascontiguousarray(res), rows)
+
+
+@njit(cache=True, error_model="numpy")
+def _robust_level_kernel(res: FloatArray, keep: NDArray[np.bool_]) -> float:  # pragma: no cover
+    """:func:`_robust_level` of ``res (m, k)`` over the rows where ``keep`` holds."""
+    idx = np.flatnonzero(keep)
+    k = res.shape[1]
+    col = np.empty(idx.size)
+    total = 0.0
+    for a in range(k):
+        for r in range(idx.size):
+            col[r] = res[idx[r], a] ** 2
+        total += np.median(col) / _CHI2_1_MEDIAN
+    return math.sqrt(total / k)
+
+
+def _pos_residuals(pos: FloatArray, w: int) -> FloatArray:
+    """Normalised centre residuals of local quadratics of positions, shape (n - w + 1, 3)."""
+    return _pos_residuals_kernel(np.ascontiguousarray(pos), _filter(w))
+
+
+@njit(cache=True, error_model="numpy")
+def _pos_residuals_kernel(p: FloatArray, f: FloatArray) -> FloatArray:  # pragma: no cover
+    """:func:`_pos_residuals` for positions ``p (n, 3)`` and filter ``f (w,)``."""
+    w = f.shape[0]
+    m = p.shape[0] - w + 1
+    out = np.zeros((m, 3))
+    for i in range(m):
+        for j in range(w):
+            for a in range(3):
+                out[i, a] += f[j] * p[i + j, a]
+    return out
+
+
+def _rot_residuals(quat: FloatArray, w: int) -> FloatArray:
+    """Same for rotations, as rotation vectors relative to each window's centre, radians."""
+    return _rot_residuals_kernel(np.ascontiguousarray(quat), _filter(w))
+
+
+@njit(cache=True, error_model="numpy")
+def _rot_residuals_kernel(q: FloatArray, f: FloatArray) -> FloatArray:  # pragma: no cover
+    """:func:`_rot_residuals` for unit quaternions ``q (n, 4)`` and filter ``f (w,)``."""
+    w = f.shape[0]
+    m = q.shape[0] - w + 1
+    h = w // 2
+    out = np.zeros((m, 3))
+    for i in range(m):
+        c = i + h
+        cx, cy, cz, cw = -q[c, 0], -q[c, 1], -q[c, 2], q[c, 3]
+        for j in range(w):
+            k = i + j
+            x, y, z, s = g.qmul(cx, cy, cz, cw, q[k, 0], q[k, 1], q[k, 2], q[k, 3])
+            scale = g._log_scale(x, y, z, s) * f[j]
+            out[i, 0] += x * scale
+            out[i, 1] += y * scale
+            out[i, 2] += z * scale
+    return out
+
+
+def _flag_outliers(res: FloatArray, w: int) -> NDArray[np.bool_]:
+    """Samples that are gross outliers, shape (n,), from centre residuals ``res (n - w + 1, 3)``.
+
+    An outlier spoils every window it falls in (with 25 % of them, three in four
+    windows of 5): the lowest decile of the squared residuals gives a first scale
+    and centres beyond 6 of it are flagged.
+    """
+    d2 = np.einsum("ij,ij->i", res, res)
+    # Lowest decile of a chi-square with 3 degrees of freedom.
+    s2 = float(np.partition(d2, d2.size // 10)[d2.size // 10]) / 0.5844
+    m = res.shape[0]
+    bad = np.zeros(m + w - 1, dtype=bool)
+    bad[w // 2 : w // 2 + m] = d2 > 36.0 * 3.0 * max(s2, 1e-300)
+    return bad
+
+
+def _clean_windows(bad: NDArray[np.bool_], w: int) -> NDArray[np.bool_]:
+    """Windows of ``w`` samples holding no flagged sample, shape (n - w + 1,)."""
+    hits = np.convolve(bad.astype(np.float64), np.ones(w), mode="valid")
+    return np.asarray(hits == 0.0, dtype=bool)
+
+
+def estimate_noise(
+    pos: FloatArray, quat: FloatArray | None = None, *, window: int = DEFAULT_WINDOW
+) -> NoiseEstimate:
+    """Estimate the white position and rotation noise of a prepared track.
+
+    Estimates are clipped to :data:`MAX_POS_NOISE` and :data:`MAX_ROT_NOISE`.
+    Gross outliers are flagged first, from the residuals of 5-sample fits (beyond
+    6 times a scale from their lowest decile), and the windows that hold one are
+    left out of the medians.
+
+    Parameters
+    ----------
+    pos : ndarray, shape (n, 3)
+        Valid child positions in the parent frame, metres, in time order
+        (see :func:`thirdhand.constraints.prepare_track`).
+    quat : ndarray, shape (n, 4), optional
+        Unit child orientations, x y z w; None for position-only.
+    window : int
+        Samples per local quadratic fit (odd, at least 5); a track shorter than
+        the window uses the largest odd window it holds.
+
+    Returns
+    -------
+    NoiseEstimate
+
+    Raises
+    ------
+    ConstraintFitError
+        For fewer than 5 samples or a bad window.
+    """
+    n = pos.shape[0]
+    if window < 5 or window % 2 == 0:
+        raise ConstraintFitError(f"noise estimate: expected an odd window >= 5, got {window}")
+    if n < 5:
+        raise ConstraintFitError(f"noise estimate: expected at least 5 samples, got {n}")
+    w = min(window, n if n % 2 else n - 1)
+    bad = _flag_outliers(_pos_residuals(pos, 5), 5)
+    if quat is not None:
+        bad |= _flag_outliers(_rot_residuals(quat, 5), 5)
+    keep = _clean_windows(bad, w)
+    if keep.sum() < 3 and w > 5:
+        # Outliers too dense for windows of w (a quarter of the samples): windows of 5.
+        w = 5
+        keep = _clean_windows(bad, w)
+    if keep.sum() < 3:
+        keep = np.ones(n - w + 1, dtype=bool)
+    res_p = _pos_residuals(pos, w)
+    sigma_rot = math.nan
+    if quat is not None:
+        sigma_rot = min(_robust_level(_rot_residuals(quat, w), keep), MAX_ROT_NOISE)
+    return NoiseEstimate(
+        sigma_pos=min(_robust_level(res_p, keep), MAX_POS_NOISE),
+        sigma_rot=sigma_rot,
+        window=w,
+        n_windows=int(keep.sum()),
+    )

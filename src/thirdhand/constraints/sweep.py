@@ -1,0 +1,213 @@
+"""Synthetic sweeps of constraint fits: accuracy by condition, axis errors, calibration.
+
+One :class:`Condition` is a way of drawing tracks (noise level, samples, outliers,
+slowly varying error, opening angle); :func:`run_sweep` fits every joint type,
+oriented and position-only, under each condition and returns one :class:`Trial`
+per track with the truth, the fit and its motion-to-noise ratio.
+:func:`reliability` bins the confidences, :func:`fit_calibration` finds the
+temperature and floor that make them calibrated (the two numbers
+:data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE` and
+:data:`~thirdhand.constraints.select.CONFIDENCE_FLOOR` hold).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.constraints.select import (
+    CONFIDENCE_FLOOR,
+    CONFIDENCE_TEMPERATURE,
+    fit_constraint,
+    type_probabilities,
+)
+from thirdhand.constraints.synthetic import random_joint_track
+
+FloatArray = NDArray[np.float64]
+
+#: Joint types and whether the track carries orientations. Cylindrical needs them.
+CASES: tuple[tuple[str, bool], ...] = (
+    ("fixed", True),
+    ("prismatic", True),
+    ("revolute", True),
+    ("cylindrical", True),
+    ("free", True),
+    ("fixed", False),
+    ("prismatic", False),
+    ("revolute", False),
+    ("free", False),
+)
+#: Rotation noise per metre of position noise: 1 mm goes with 0.5°.
+ROT_PER_POS = math.radians(0.5) / 1e-3
+
+
+@dataclass(frozen=True)
+class Condition:
+    """How tracks are drawn.
+
+    Attributes
+    ----------
+    name : str
+    pos_noise : float
+        White position noise per axis, metres (rotation: ``ROT_PER_POS`` times it).
+    n : int
+        Samples per track.
+    outliers : float
+        Fraction of gross outliers.
+    drift : float
+        Slowly varying error per axis, in units of the white noise.
+    span : float or None
+        Opening angle of the turning joints, radians (default 40-150°).
+    """
+
+    name: str
+    pos_noise: float
+    n: int = 200
+    outliers: float = 0.0
+    drift: float = 0.0
+    span: float | None = None
+
+
+@dataclass(frozen=True)
+class Trial:
+    """One synthetic track, its truth and the fit."""
+
+    condition: Condition
+    kind: str
+    oriented: bool
+    seed: int
+    predicted: str
+    confidence: float
+    scores: dict[str, float]
+    excluded: tuple[str, ...]
+    motion_ratio: float
+    axis_error: float
+
+    @property
+    def correct(self) -> bool:
+        """Whether the predicted type is the true one."""
+        return self.predicted == self.kind
+
+    def probability(
+        self, temperature: float = CONFIDENCE_TEMPERATURE, floor: float = CONFIDENCE_FLOOR
+    ) -> dict[str, float]:
+        """The type probabilities at a calibration (degenerate joints excluded)."""
+        allowed = {k: (math.inf if k in self.excluded else v) for k, v in self.scores.items()}
+        if not any(math.isfinite(v) for v in allowed.values()):
+            allowed = dict(self.scores)
+        return type_probabilities(allowed, temperature=temperature, floor=floor)
+
+
+def _motion_ratio(kind: str, clean_pos: FloatArray, pos_noise: float) -> float:
+    """Extent of the noise-free positions over the white position noise (inf for fixed)."""
+    if kind == "fixed":
+        return math.inf
+    return float(np.ptp(clean_pos, axis=0).max()) / max(pos_noise, 1e-12)
+
+
+def run_sweep(
+    conditions: Iterable[Condition],
+    seeds: Sequence[int],
+    *,
+    cases: Sequence[tuple[str, bool]] = CASES,
+) -> Iterator[Trial]:
+    """Fit every case under every condition for every seed (default flags).
+
+    Yields
+    ------
+    Trial
+        ``axis_error`` in degrees for a correctly typed joint with an axis, else NaN;
+        ``motion_ratio`` the track's extent over the white position noise.
+    """
+    for cond in conditions:
+        for kind, oriented in cases:
+            for seed in seeds:
+                key = [seed, round(cond.pos_noise * 1e7), list(cases).index((kind, oriented))]
+                rot = ROT_PER_POS * cond.pos_noise
+                track = random_joint_track(
+                    kind,
+                    np.random.default_rng(key),
+                    n=cond.n,
+                    pos_noise=cond.pos_noise,
+                    rot_noise=rot,
+                    outliers=cond.outliers,
+                    span=cond.span,
+                    drift=cond.drift * cond.pos_noise,
+                    rot_drift=cond.drift * rot,
+                )
+                # The same geometry without noise (the noise is drawn after it).
+                clean = random_joint_track(
+                    kind, np.random.default_rng(key), n=cond.n, span=cond.span
+                ).pos
+                c = fit_constraint(track.pos, track.quat if oriented else None)
+                err = math.nan
+                if c.type == kind and c.axis is not None and track.axis is not None:
+                    err = math.degrees(math.acos(min(1.0, abs(float(c.axis @ track.axis)))))
+                yield Trial(
+                    condition=cond,
+                    kind=kind,
+                    oriented=oriented,
+                    seed=seed,
+                    predicted=c.type,
+                    confidence=c.confidence,
+                    scores=dict(c.scores),
+                    excluded=tuple(note.split()[0] for note in c.notes),
+                    motion_ratio=_motion_ratio(kind, clean, cond.pos_noise),
+                    axis_error=err,
+                )
+
+
+def reliability(
+    trials: Sequence[Trial],
+    *,
+    temperature: float = CONFIDENCE_TEMPERATURE,
+    floor: float = CONFIDENCE_FLOOR,
+) -> tuple[list[tuple[float, float, float, int]], float]:
+    """Reliability table and expected calibration error of the chosen types' confidence.
+
+    Bins: below 0.6, 0.6-0.8, 0.8-0.9, 0.9-0.99, at least 0.99.
+
+    Returns
+    -------
+    table : list of (bin low, mean confidence, accuracy, count)
+    ece : float
+        Count-weighted mean of ``|accuracy - confidence|`` over the bins.
+    """
+    conf = np.array([t.probability(temperature, floor)[t.predicted] for t in trials])
+    ok = np.array([t.correct for t in trials], dtype=np.float64)
+    edges = np.array([0.0, 0.6, 0.8, 0.9, 0.99, 1.01])
+    table = []
+    ece = 0.0
+    for lo, hi in itertools.pairwise(edges):
+        m = (conf >= lo) & (conf < hi)
+        if not m.any():
+            continue
+        table.append((float(lo), float(conf[m].mean()), float(ok[m].mean()), int(m.sum())))
+        ece += m.sum() * abs(ok[m].mean() - conf[m].mean())
+    return table, ece / max(len(trials), 1)
+
+
+def log_loss(trials: Sequence[Trial], temperature: float, floor: float) -> float:
+    """Mean negative log probability of the true type at a calibration."""
+    total = 0.0
+    for t in trials:
+        total -= math.log(max(t.probability(temperature, floor).get(t.kind, 0.0), 1e-12))
+    return total / max(len(trials), 1)
+
+
+def fit_calibration(
+    trials: Sequence[Trial],
+    *,
+    temperatures: Sequence[float] | None = None,
+    floors: Sequence[float] | None = None,
+) -> tuple[float, float]:
+    """The temperature (1 to 100) and floor (0 to 0.3) of least :func:`log_loss`, on grids."""
+    ts = list(temperatures) if temperatures is not None else list(np.geomspace(1.0, 100.0, 21))
+    fs = list(floors) if floors is not None else [0.0, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3]
+    best = min(((t, f) for t in ts for f in fs), key=lambda tf: log_loss(trials, *tf))
+    return float(best[0]), float(best[1])
