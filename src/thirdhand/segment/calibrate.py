@@ -83,6 +83,8 @@ def calibrate(
     *,
     span: tuple[float, float] | None = None,
     prior: float = 1.0,
+    scale: bool = True,
+    transitions: bool = True,
 ) -> tuple[SegmentModel, dict[str, Any]]:
     """Refit the score offset, scale and transitions of each labelled pair kind.
 
@@ -96,6 +98,9 @@ def calibrate(
         Seconds from each recording's start: only the steps inside are used.
     prior : float
         ``λ`` of the Gaussian prior around the trained model (per parameter).
+    scale, transitions : bool
+        Refit the score's scale / the transition weights (else kept as trained;
+        the offset is always refitted).
 
     Returns
     -------
@@ -160,7 +165,12 @@ def calibrate(
             return f + 0.5 * prior * float(d @ d), g + prior * d
 
         before = crf.objective(theta0, data)[0] / data.n_steps
-        res = minimize(objective, theta0, jac=True, method="L-BFGS-B")
+        bounds: list[tuple[float | None, float | None]] = [(None, None)] * theta0.size
+        if not transitions:
+            bounds[:N_TRANS] = [(float(v), float(v)) for v in theta0[:N_TRANS]]
+        if not scale:
+            bounds[N_TRANS + 1] = (1.0, 1.0)
+        res = minimize(objective, theta0, jac=True, method="L-BFGS-B", bounds=bounds)
         theta = res.x
         after = crf.objective(theta, data)[0] / data.n_steps
         offset, scale = float(theta[N_TRANS]), float(theta[N_TRANS + 1])

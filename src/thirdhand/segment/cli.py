@@ -266,6 +266,12 @@ def calibrate(
     prior: Annotated[
         float, typer.Option(help="Weight of the prior that keeps the fit near the model.")
     ] = 1.0,
+    keep_scale: Annotated[
+        bool, typer.Option("--keep-scale", help="Refit the score offset only, not its scale.")
+    ] = False,
+    keep_transitions: Annotated[
+        bool, typer.Option("--keep-transitions", help="Keep the trained transition weights.")
+    ] = False,
 ) -> None:
     """Refit a model's score offset, scale and transitions to your rig from labelled intervals.
 
@@ -276,7 +282,14 @@ def calibrate(
     from thirdhand.segment.calibrate import calibrate as run_calibration
 
     ds = _with_labels(demos, labels)
-    calibrated, report = run_calibration(_model(model), ds, span=span, prior=prior)
+    calibrated, report = run_calibration(
+        _model(model),
+        ds,
+        span=span,
+        prior=prior,
+        scale=not keep_scale,
+        transitions=not keep_transitions,
+    )
     backup_existing(output)
     calibrated.save(output)
     for kind, r in report.items():

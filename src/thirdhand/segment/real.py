@@ -11,6 +11,7 @@ other hands' pairs are not negatives, they are unknown.
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,12 +67,23 @@ class HandScores:
     per_pair: dict[tuple[str, str], float]
 
 
-def hand_scores(result: SegmentationResult, hand: str = LABELLED_HAND) -> HandScores:
-    """Frame F1 and interval recall of ``hand``'s finger–object pairs (``a`` under ``hand/``)."""
+def hand_scores(
+    result: SegmentationResult,
+    hand: str = LABELLED_HAND,
+    *,
+    objects: Sequence[str] | None = None,
+) -> HandScores:
+    """Frame F1 and interval recall of ``hand``'s finger–object pairs (``a`` under ``hand/``).
+
+    ``objects`` restricts the pairs to those objects (e.g. a held-out board).
+    """
     rows = [
         (p, p.truth)
         for p in result.pairs
-        if p.truth is not None and p.kind == "finger-object" and p.a.startswith(hand + "/")
+        if p.truth is not None
+        and p.kind == "finger-object"
+        and p.a.startswith(hand + "/")
+        and (objects is None or p.b in objects)
     ]
     if not rows:
         raise ValueError(f"no labelled finger–object pair of {hand} in the result")
