@@ -336,9 +336,15 @@ def test_save_keeps_exact_previous_bytes_as_backup(tmp_path: Path) -> None:
     first_save = path.read_bytes()
     task.constraints[0].confidence = 0.25
     save_task(task, path)
-    assert (tmp_path / "task.json.bak").read_bytes() == first_save
+    # The first backup (the hand-written original) stays; the next one is numbered.
+    assert (tmp_path / "task.json.bak").read_bytes() == hand_written
+    assert (tmp_path / "task.json.bak.1").read_bytes() == first_save
     assert load_task(path).constraints[0].confidence == 0.25
-    assert not (tmp_path / "task.json.tmp").exists()
+    assert sorted(q.name for q in tmp_path.iterdir()) == [
+        "task.json",
+        "task.json.bak",
+        "task.json.bak.1",
+    ]
 
 
 def test_first_save_makes_no_backup(tmp_path: Path) -> None:

@@ -99,16 +99,25 @@ def save(
     """Write a demonstration; the format comes from ``format`` or the extension.
 
     A folder path without extension writes the 3rdHand ``poses.dat`` format.
+    Every format is written atomically (a uniquely named temporary file or
+    folder beside ``path``, then one rename); an existing ``path`` is replaced
+    and kept as its next numbered backup (``.bak``, ``.bak.1``, …). Whether a
+    command may replace it at all is decided before, by
+    :func:`thirdhand.fileops.check_output`.
     """
     p = Path(path)
     name = format or WRITE_EXTENSIONS.get(p.suffix.lower(), "mlr" if not p.suffix else "")
     if not name:
         raise FormatError(
-            p, f"cannot tell the format from the extension {p.suffix!r}; pass format="
+            p,
+            f"cannot tell the format from the extension {p.suffix!r}; "
+            f"writable extensions are {', '.join(sorted(WRITE_EXTENSIONS))} (or a folder)",
         )
     module = format_module(name)
     if not hasattr(module, "write"):
         raise FormatError(p, f"format {name} is read-only")
+    if name in ("mlr", "rosbag"):
+        options.setdefault("overwrite", True)
     module.write(demo, p, **options)
 
 

@@ -29,6 +29,7 @@ import numpy as np
 
 from thirdhand.demonstration import MAX_PLAUSIBLE_POSITION_M, BodyInfo, Demonstration
 from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.fileops import write_text
 from thirdhand.io.mlr import parse_numeric_rows
 
 #: Sampling rate assumed when the caller gives none, Hz.
@@ -174,10 +175,7 @@ def write(demo: Demonstration, path: str | os.PathLike[str]) -> None:
     table[~tr.valid, : 7 if tr.info.oriented else 3] = np.nan
     row = " ".join(["%.17g"] * table.shape[1]) + "\n"
     text = (row * table.shape[0]) % tuple(table.ravel().tolist())
-    tmp = p.with_name(p.name + ".tmp")
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.replace(tmp, p)
+    write_text(p, text)
 
 
 __all__ = ["COLUMNS", "DEFAULT_RATE_HZ", "read", "sniff", "write"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from collections.abc import Mapping, Sequence
@@ -13,6 +14,7 @@ from numpy.typing import ArrayLike
 
 from thirdhand.demonstration import Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.fileops import atomic_output
 from thirdhand.io.c3d.clusters import _layout, markers_from_demonstration
 from thirdhand.io.c3d.constants import FORMAT_VERSION, GROUP, MAX_FRAMES, FloatArray
 
@@ -82,15 +84,28 @@ def write(
         raise FormatError(p, f"demo.meta cannot be stored as JSON: {exc}") from None
     for key, chunk in params.items():
         c.add_parameter(GROUP, key, chunk)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp.c3d")
+    with atomic_output(p, verify=lambda tmp: _check_written(tmp, m, n)) as tmp:
+        try:
+            c.write(str(tmp))
+        except (RuntimeError, ValueError, TypeError) as exc:
+            raise FormatError(p, f"could not write: {exc}") from None
+
+
+def _check_written(tmp: Path, n_points: int, n_frames: int) -> None:
+    """Read the written file back: ezc3d does not report a short write (full disk)."""
+    import ezc3d
+
     try:
-        c.write(str(tmp))
-        os.replace(tmp, p)
-    except (OSError, RuntimeError, ValueError, TypeError) as exc:
-        raise FormatError(p, f"could not write: {exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+        back = ezc3d.c3d(str(tmp))
+        shape = back["data"]["points"].shape
+    except (RuntimeError, ValueError, OSError) as exc:
+        raise OSError(errno.EIO, f"the written file does not read back ({exc})") from None
+    if shape[1:] != (n_points, n_frames):
+        raise OSError(
+            errno.EIO,
+            f"the written file reads back {shape[2]} frames of {shape[1]} markers, "
+            f"expected {n_frames} of {n_points}",
+        )
 
 
 def _regular_axis(p: Path, t: FloatArray, rate: float | None) -> tuple[float, float]:
