@@ -15,9 +15,9 @@ from rich.table import Table
 
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
+from thirdhand.fileops import check_output
 
 out = Console(highlight=False, soft_wrap=True)
-err = Console(stderr=True, highlight=False, soft_wrap=True)
 
 app = typer.Typer(
     help="Learn a task file from recordings; accuracy experiments.",
@@ -59,20 +59,29 @@ def learn_command(
     no_segment: Annotated[
         bool, typer.Option("--no-segment", help="Skip the interaction segmentation.")
     ] = False,
+    force: Annotated[
+        bool,
+        typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
+    ] = False,
 ) -> None:
-    """Learn constraints, symbols and the assembly plan; write the task file."""
+    """Learn constraints, symbols and the assembly plan; write the task file.
+
+    Errors are :class:`~thirdhand.errors.ThirdhandError`; ``thirdhand.cli.main``
+    prints them as one ``thirdhand: error:`` line.
+    """
     from thirdhand.plan.learn import learn
     from thirdhand.taskfile import save_task
 
-    try:
-        loaded = [_load(p) for p in demos]
-        result = learn(loaded, names=[p.name for p in demos], segment=not no_segment, inputs=demos)
-        task = result.task()
-        output.parent.mkdir(parents=True, exist_ok=True)
-        save_task(task, output)
-    except ThirdhandError as exc:
-        err.print(f"error: {exc}")
-        raise typer.Exit(1) from None
+    check_output(output, force=force, inputs=demos)
+    if report is not None:
+        if report.exists() and not report.is_dir():
+            raise ThirdhandError(f"--report {report}: expected a folder, it is a file")
+        check_output(report / "index.html", force=force, inputs=[*demos, output])
+    loaded = [_load(p) for p in demos]
+    result = learn(loaded, names=[p.name for p in demos], segment=not no_segment, inputs=demos)
+    task = result.task()
+    check_output(output, force=force, inputs=demos)
+    save_task(task, output)
     out.print(f"root: {result.plan.root}")
     for line in result.plan.lines():
         out.print(f"  {line}")
