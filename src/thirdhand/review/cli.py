@@ -36,6 +36,10 @@ def review_command(
     Serves until Ctrl-C or the GUI's Quit button (which asks first when there
     are unsaved changes).
     """
+    from thirdhand import options
+
+    options.port(port)
+    options.host(host)
     from thirdhand.review.app import ReviewApp
 
     app = ReviewApp(
