@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import unicodedata
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -116,6 +117,14 @@ def save(
     module = format_module(name)
     if not hasattr(module, "write"):
         raise FormatError(p, f"format {name} is read-only")
+    for body in demo.body_names:
+        bad = [c for c in body if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp")]
+        if bad or body != body.strip():
+            raise FormatError(
+                p,
+                f"body name {body!r} holds a control character, line break or surrounding "
+                "blank; no recording format reads it back the same (rename the body)",
+            )
     if name in ("mlr", "rosbag"):
         options.setdefault("overwrite", True)
     module.write(demo, p, **options)
