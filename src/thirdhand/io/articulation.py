@@ -27,7 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from thirdhand.demonstration import MAX_PLAUSIBLE_POSITION_M, BodyInfo, Demonstration
+from thirdhand.demonstration import (
+    MAX_PLAUSIBLE_POSITION_M,
+    MAX_QUAT_NORM_ERROR,
+    BodyInfo,
+    Demonstration,
+)
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import write_text
 from thirdhand.io.mlr import parse_numeric_rows
@@ -133,6 +138,10 @@ def _check(vals: np.ndarray, valid: np.ndarray, lines: np.ndarray, path: Path) -
     if n_pose == 7:
         norm = np.linalg.norm(np.nan_to_num(vals[:, 3:7]), axis=1)
         fail(valid & (norm < 1e-9), "zero-norm quaternion")
+        fail(
+            valid & (np.abs(norm - 1.0) > MAX_QUAT_NORM_ERROR),
+            f"quaternion norm is not within {MAX_QUAT_NORM_ERROR:g} of 1 (not a unit quaternion)",
+        )
     far = np.abs(np.nan_to_num(vals[:, :3])).max(axis=1) > MAX_PLAUSIBLE_POSITION_M
     fail(
         far,

@@ -42,6 +42,7 @@ from numpy.typing import NDArray
 
 from thirdhand.demonstration import (
     MAX_PLAUSIBLE_POSITION_M,
+    MAX_QUAT_NORM_ERROR,
     BodyInfo,
     Demonstration,
     HandSide,
@@ -389,6 +390,11 @@ def _check_rows(
     fail(
         seen & (np.linalg.norm(sub[..., 3:], axis=2) < 1e-9),
         "zero-norm quaternion in a seen sensor row: {v}",
+    )
+    fail(
+        seen & (np.abs(np.linalg.norm(sub[..., 3:], axis=2) - 1.0) > MAX_QUAT_NORM_ERROR),
+        f"quaternion norm is not within {MAX_QUAT_NORM_ERROR:g} of 1 in a seen sensor row "
+        "(w x y z expected a unit quaternion): {v}",
     )
     fail(
         seen & (np.abs(sub[..., :3]).max(axis=2) > MAX_PLAUSIBLE_POSITION_M),
