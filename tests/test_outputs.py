@@ -10,7 +10,6 @@ lose no version.
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -446,8 +445,10 @@ def test_ctrl_c_during_start_up_is_one_line() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(("sig", "code", "word"), [(signal.SIGINT, 130, "interrupted"),
-                                                   (signal.SIGTERM, 143, "terminated")])  # fmt: skip
+@pytest.mark.parametrize(
+    ("sig", "code", "word"),
+    [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")],
+)
 def test_review_stops_on_signals_even_when_sigint_was_ignored(
     task_path: Path, sig: int, code: int, word: str
 ) -> None:
