@@ -299,9 +299,25 @@ def _on_sigterm(signum: int, frame: object) -> None:
     raise Terminated
 
 
-def _one_line(exc: BaseException) -> str:
+def _one_line(exc: BaseException | str) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     return f"thirdhand: error: {text}\n"
+
+
+def _is_usage_error(exc: Exception) -> bool:
+    """A click usage error (bad option value, unknown option, missing argument)."""
+    return all(hasattr(exc, a) for a in ("format_message", "exit_code", "show"))
+
+
+def _usage_error(exc: Any) -> int:
+    """Print a click usage error as one line (help for a bare group); return its status."""
+    if type(exc).__name__ == "NoArgsIsHelpError":
+        exc.show()  # a group called without a command prints its help, as standalone does
+        return int(exc.exit_code)
+    ctx = getattr(exc, "ctx", None)
+    hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+    sys.stderr.write(_one_line(exc.format_message() + hint))
+    return int(exc.exit_code)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -324,7 +340,8 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError:
             pass  # not the main thread (an embedding application): leave signals alone
     try:
-        app(args=argv, prog_name="thirdhand")
+        # Not standalone: usage errors come back here and are printed as one line.
+        code = app(args=argv, prog_name="thirdhand", standalone_mode=False)
     except ThirdhandError as exc:
         sys.stderr.write(_one_line(exc))
         return 1
@@ -334,19 +351,20 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("thirdhand: error: interrupted\n")
         return 130
-    except SystemExit as exc:
-        # typer turns Ctrl-C into a silent exit 130; say why in one line.
-        if isinstance(getattr(exc.__context__, "__cause__", None), KeyboardInterrupt):
-            sys.stderr.write("thirdhand: error: interrupted\n")
-            return 130
-        raise
     except Terminated:
         sys.stderr.write("thirdhand: error: terminated\n")
         return 143
+    except Exception as exc:
+        if not _is_usage_error(exc):
+            raise
+        return _usage_error(exc)
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
-    return 0
+    if isinstance(code, int) and code == 130:
+        # typer turns Ctrl-C inside a command into exit status 130; say why in one line.
+        sys.stderr.write("thirdhand: error: interrupted\n")
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":
