@@ -1,8 +1,8 @@
 """Hostile command lines: nonsense options and malformed inputs (issue 17).
 
 Every case must end in ONE line ``thirdhand: error: <what and where>`` on stderr
-and exit status 1 (2 for a usage error): no traceback (an exception escaping ``main`` fails the test),
-no hang, no silent default, no exit 0.
+and exit status 1 (2 for a usage error): no traceback (an exception escaping
+``main`` fails the test), no hang, no silent default, no exit 0.
 """
 
 from __future__ import annotations
