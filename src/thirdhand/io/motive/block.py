@@ -167,6 +167,18 @@ def _time_axis(
             f"frame numbers must increase: frame {frame[i - 1]} then {frame[i]}",
             line=line0 + i,
         )
+    steps = np.diff(frame)
+    uneven = np.flatnonzero(steps != steps[0]) if steps.size else steps
+    if uneven.size:
+        # Motive numbers every exported frame (every k-th when down-sampled): a
+        # changing step is a row lost or pasted in, which would load as a gap.
+        i = int(uneven[0]) + 1
+        raise FormatError(
+            path,
+            f"frame numbers step by {steps[0]} up to frame {frame[i - 1]}, then by "
+            f"{steps[i - 1]} to frame {frame[i]}: a row is missing or extra",
+            line=line0 + i,
+        )
     bad = np.flatnonzero(~(np.diff(time) > 0))
     if bad.size or not np.isfinite(time[0]):
         i = int(bad[0]) + 1 if bad.size else 0

@@ -199,7 +199,9 @@ def _body_arrays(
     for c in (*pcols[1:], *qcols):
         valid &= np.isfinite(c)
     if qcols:
-        sq = qcols[0] * qcols[0] + qcols[1] * qcols[1] + qcols[2] * qcols[2] + qcols[3] * qcols[3]
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge cell is reported below
+            sq = qcols[0] * qcols[0] + qcols[1] * qcols[1] + qcols[2] * qcols[2]
+            sq += qcols[3] * qcols[3]
         zero = np.flatnonzero(valid & (sq < 1e-18))
         if zero.size:
             i = int(zero[0])
