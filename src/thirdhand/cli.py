@@ -330,7 +330,7 @@ def main(argv: list[str] | None = None) -> int:
     exit status 130 or 143, temporary files removed and servers stopped by the
     ``finally`` blocks on the way out.
     """
-    previous = {}
+    previous: dict[signal.Signals, Any] = {}
     for sig, handler in (
         (signal.SIGINT, signal.default_int_handler),
         (signal.SIGTERM, _on_sigterm),
@@ -359,8 +359,8 @@ def main(argv: list[str] | None = None) -> int:
             raise
         return _usage_error(exc)
     finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        for signum, old in previous.items():
+            signal.signal(signum, old)
     if isinstance(code, int) and code == 130:
         # typer turns Ctrl-C inside a command into exit status 130; say why in one line.
         sys.stderr.write("thirdhand: error: interrupted\n")
