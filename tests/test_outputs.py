@@ -447,10 +447,10 @@ def test_ctrl_c_during_start_up_is_one_line() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("sig", "code", "word"),
-    [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")],
+    [(signal.SIGINT, 0, None), (signal.SIGTERM, 143, "thirdhand: error: terminated")],
 )
 def test_review_stops_on_signals_even_when_sigint_was_ignored(
-    task_path: Path, sig: int, code: int, word: str
+    task_path: Path, sig: int, code: int, word: str | None
 ) -> None:
     def ignore_sigint() -> None:  # what a shell does to a background job
         signal.signal(signal.SIGINT, signal.SIG_IGN)
@@ -470,8 +470,9 @@ def test_review_stops_on_signals_even_when_sigint_was_ignored(
         assert "http://" in line
         proc.send_signal(sig)
         _, err = proc.communicate(timeout=120)
+        # Ctrl-C is review's normal stop (exit 0); SIGTERM is one error line.
         assert proc.returncode == code
-        assert err.strip().splitlines()[-1] == f"thirdhand: error: {word}"
+        assert err.strip().splitlines()[-1:] == ([word] if word else [])
         assert "Traceback" not in err
     finally:
         proc.kill()
