@@ -185,3 +185,25 @@ def test_hostile_command_is_one_error_line(
     assert lines[0].startswith("thirdhand: error: "), err
     assert fragment in lines[0], lines[0]
     assert "Traceback" not in err and "wrote" not in out
+
+
+def test_mediapipe_logs_do_not_reach_stderr(shared_data: Path) -> None:
+    import subprocess
+    import sys
+
+    pytest.importorskip("mediapipe")
+    video = shared_data / "faces" / "no_face.mp4"
+    if not video.is_file():
+        pytest.skip(f"no face video at {video}")
+    proc = subprocess.run(
+        [sys.executable, "-m", "thirdhand", "headpose", str(video)],
+        capture_output=True,
+        text=True,
+        check=False,
+        timeout=300,
+    )
+    assert proc.returncode == 1
+    # Without the redirection TFLite and absl print three lines before this one.
+    assert proc.stderr.strip().splitlines() == [
+        f"thirdhand: error: {video}: no face found in any of the 95 frames read"
+    ]
