@@ -98,6 +98,16 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
         change(doc)
         out[name] = d / f"{name}.json"
         out[name].write_text(json.dumps(doc))
+    rng = np.random.default_rng(0)
+    names = [f"b{i}" for i in range(300)]
+    wide = Demonstration(
+        np.arange(3) / 100.0,
+        [BodyInfo(n) for n in names],
+        {n: rng.normal(size=(3, 3)) for n in names},
+        {n: se3.random_quat(rng, 3) for n in names},
+    )
+    out["wide"] = d / "wide.parquet"
+    io.save(wide, out["wide"])
     out["existing_png"] = d / "existing.png"
     out["existing_png"].write_bytes(b"png")
     return out
@@ -128,6 +138,8 @@ CASES: list[tuple[str, str]] = [
     ("segment {demo} -m {task}", "thirdhand.segment/1"),
     ("segment {demo} --plot {dir}/x.csv", "figure"),
     ("segment {demo} --json {demo}", "also an input"),
+    ("segment {wide}", "44850 body pairs"),
+    ("learn {wide} -o {dir}/w.json", "44850 body pairs"),
     ("segment train {demo} -o {dir}/m.json --window 0", "--window"),
     ("segment train {demo} -o {dir}/m.json --latent-rate inf", "--latent-rate"),
     ("segment evaluate {demo} --train-hand middle", "--train-hand"),

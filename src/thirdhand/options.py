@@ -120,4 +120,38 @@ def host(value: str, option: str = "--host", *, timeout_s: float = 5.0) -> str:
     return value
 
 
-__all__ = ["MAX_SEED", "finite", "host", "integer", "port", "seed", "vector"]
+#: Most body pairs the pairwise stages (segmentation, constraint detection) take on:
+#: about 200 bodies. Their time and memory grow with the number of pairs.
+MAX_BODY_PAIRS = 20000
+
+
+def body_pairs(n_bodies: int, source: str) -> int:
+    """The number of body pairs of a recording, refused beyond :data:`MAX_BODY_PAIRS`.
+
+    Raises
+    ------
+    OptionError
+        ``rec.csv: 10000 bodies make 49995000 body pairs; the pairwise stages take
+        at most 20000 (about 200 bodies): select the bodies first``.
+    """
+    pairs = n_bodies * (n_bodies - 1) // 2
+    if pairs > MAX_BODY_PAIRS:
+        raise OptionError(
+            f"{source}: {n_bodies} bodies make {pairs} body pairs; the pairwise stages take "
+            f"at most {MAX_BODY_PAIRS} (about 200 bodies): select the bodies first "
+            "(Demonstration.select)"
+        )
+    return pairs
+
+
+__all__ = [
+    "MAX_BODY_PAIRS",
+    "MAX_SEED",
+    "body_pairs",
+    "finite",
+    "host",
+    "integer",
+    "port",
+    "seed",
+    "vector",
+]

@@ -13,6 +13,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from thirdhand import options
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.fileops import check_output
@@ -78,6 +79,8 @@ def learn_command(
             raise ThirdhandError(f"--report {report}: expected a folder, it is a file")
         check_output(report / "index.html", force=force, inputs=[*demos, output])
     loaded = [_load(p) for p in demos]
+    for path, d in zip(demos, loaded, strict=True):
+        options.body_pairs(len(d), str(path))
     result = learn(loaded, names=[p.name for p in demos], segment=not no_segment, inputs=demos)
     task = result.task()
     check_output(output, force=force, inputs=demos)

@@ -99,6 +99,9 @@ def run(
     if json_out is not None and plot is not None and json_out.resolve() == plot.resolve():
         raise ThirdhandError(f"--json and --plot name the same file {plot}")
     d = _load(demo)
+    from thirdhand import options
+
+    options.body_pairs(len(d), str(demo))
     result = segment_demonstration(d, _model(model))
     out.print(f"{demo}: {len(result.pairs)} pairs, {len(result.times)} latent steps")
     for p in result.pairs:
