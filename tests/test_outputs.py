@@ -477,3 +477,20 @@ def test_review_stops_on_signals_even_when_sigint_was_ignored(
     finally:
         proc.kill()
         proc.wait()
+
+
+@pytest.mark.parametrize("target", ["rec", "rec.csv", "rec.parquet", "rec.bag"])
+@pytest.mark.parametrize("bad", ["seat\nrow", "seat\r", " seat", "se\x00at"])
+def test_writers_refuse_names_they_cannot_read_back(tmp_path: Path, target: str, bad: str) -> None:
+    from thirdhand.errors import FormatError
+
+    demo = small_demo()
+    demo = Demonstration(
+        demo.t,
+        [BodyInfo(bad), BodyInfo("leg")],
+        {bad: demo.pos("seat"), "leg": demo.pos("leg")},
+        {bad: demo.quat("seat"), "leg": demo.quat("leg")},
+    )
+    with pytest.raises(FormatError, match="no recording format reads it back"):
+        io.save(demo, tmp_path / target)
+    assert listing(tmp_path) == []
