@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from thirdhand import BodyInfo, Demonstration, io, se3
 from thirdhand.cli import main
@@ -494,3 +496,68 @@ def test_writers_refuse_names_they_cannot_read_back(tmp_path: Path, target: str,
     with pytest.raises(FormatError, match="no recording format reads it back"):
         io.save(demo, tmp_path / target)
     assert listing(tmp_path) == []
+
+
+#: Commands that write one output: (input kind, arguments with {IN} and {OUT}).
+WRITERS: list[tuple[str, str]] = [
+    ("demo", "convert {IN} {OUT}"),
+    ("demo", "segment {IN} --json {OUT}"),
+    ("demo", "segment {IN} --plot {OUT}"),
+    ("demo", "segment train {IN} -o {OUT}"),
+    ("demo", "learn {IN} -o {OUT}"),
+    ("demo", "primitives fit {IN} -o {OUT}"),
+    ("demo", "primitives library {IN} --body seat --plot {OUT}"),
+    ("demo", "gestures {IN} --json {OUT}"),
+    ("demo", "attention {IN} --json {OUT}"),
+    ("task", "irl learn {IN} --json {OUT}"),
+    ("task", "transfer {IN} --to bench -o {OUT}"),
+    ("task", "execute {IN} --record {OUT}"),
+]
+
+
+def alias_of(path: Path, how: str) -> Path:
+    """Another name of ``path``: itself, ``./``, ``sub/..``, a symlink or a hard link."""
+    folder = path.parent
+    if how == "same":
+        return path
+    if how == "dot":
+        return folder / "." / path.name
+    if how == "updown":
+        (folder / "sub").mkdir(exist_ok=True)
+        return folder / "sub" / ".." / path.name
+    link = folder / f"{how}-{path.name}"
+    if not os.path.lexists(link):
+        if how == "symlink":
+            link.symlink_to(path)
+        else:
+            os.link(path, link)
+    return link
+
+
+@settings(
+    max_examples=80, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
+)
+@given(
+    case=st.sampled_from(WRITERS),
+    how=st.sampled_from(["same", "dot", "updown", "symlink", "hardlink"]),
+    force=st.booleans(),
+)
+def test_property_no_command_writes_over_its_input(
+    capsys: pytest.CaptureFixture[str],
+    demo_path: Path,
+    task_path: Path,
+    case: tuple[str, str],
+    how: str,
+    force: bool,
+) -> None:
+    kind, template = case
+    inp = demo_path if kind == "demo" else task_path
+    out = alias_of(inp, how)
+    if "--record" in template:
+        out = out.with_suffix("")  # --record STEM writes STEM.json: the task
+    args = template.format(IN=inp, OUT=out).split() + (["--force"] if force else [])
+    before = inp.read_bytes()
+    rc, _, err = call(capsys, *args)
+    assert rc == 1, args
+    assert "also an input" in one_error_line(err), args
+    assert inp.read_bytes() == before

@@ -213,7 +213,7 @@ def attention_command(
             axis = []
         if len(axis) != 3 or not any(axis) or not np.all(np.isfinite(axis)):
             raise ThirdhandError(
-                f"--forward: expected three finite numbers 'x,y,z', not all zero, got {forward!r}"
+                f"--forward: expected three numbers 'x,y,z', finite, not all zero; got {forward!r}"
             )
         options.finite("--cone", cone, low=0.0, low_open=True, high=90.0)
         options.finite("--hysteresis", hysteresis, low=0.0, high=90.0)
