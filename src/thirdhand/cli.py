@@ -294,6 +294,11 @@ def _mount_subapps() -> None:
 
 _mount_subapps()
 
+# The imports are done: a program that imports this module (and never calls
+# main) keeps Python's own Ctrl-C behaviour.
+if signal.getsignal(signal.SIGINT) is _interrupted_at_start_up:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
 
 def _on_sigterm(signum: int, frame: object) -> None:
     raise Terminated
