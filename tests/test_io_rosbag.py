@@ -252,7 +252,14 @@ def test_write_refuses_to_overwrite(tmp_path: Path, rng: np.random.Generator) ->
         assert rosbag.read(path).body_names == demo.body_names
         rosbag.write(other, path, overwrite=True)
         assert rosbag.read(path).body_names == ["seat"]
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bag", "folder"]
+    # The replaced bags are kept as backups; no temporary file is left.
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "a.bag",
+        "a.bag.bak",
+        "folder",
+        "folder.bak",
+    ]
+    assert rosbag.read(tmp_path / "folder.bak").body_names == demo.body_names
 
 
 def test_failed_write_leaves_old_bag_and_no_debris(
@@ -271,6 +278,7 @@ def test_failed_write_leaves_old_bag_and_no_debris(
         with pytest.raises(RuntimeError, match="simulated failure"):
             rosbag.write(demo.select(["seat"]), tmp_path / name, overwrite=True)
         assert_same(demo, rosbag.read(tmp_path / name))
+    # A failed write replaces nothing, backs nothing up and leaves no temporary file.
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.bag", "folder"]
 
 

@@ -54,7 +54,10 @@ def test_pose_recovered_exactly_from_projected_model() -> None:
         pose = solve_head_pose(pts.reshape(-1, 2), k, guess=guess)
         np.testing.assert_allclose(pose.rotation, rot, atol=1e-6)
         np.testing.assert_allclose(pose.translation, t, atol=1e-6)
-        assert pose.rms_px < 1e-6 and pose.confidence > 0.999999
+        # The pose tolerance (1e-6 m at depth t_z, focal length k[0, 0] px) bounds the
+        # reprojection residual the solver may stop at: f * 1e-6 / z, about 1e-3 px.
+        # (A bound of 1e-6 px was one machine's solver exit, 1.03e-6 on another.)
+        assert pose.rms_px < k[0, 0] * 1e-6 / t[2] and pose.confidence > 0.999999
 
 
 def test_bad_landmarks_rejected() -> None:

@@ -665,7 +665,11 @@ def test_cli_serves_the_page_and_refuses_a_bad_file(tmp_path: Path, chair: Any) 
             assert b"<html" in response.read().lower()
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(timeout=20)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()  # never leak a server, whatever failed above
+            proc.wait()
     assert proc.returncode == 0
     bad = tmp_path / "bad.json"
     bad.write_text('{"schema": "other/1"}')

@@ -6,19 +6,36 @@ exit status, never a traceback. Long work shows progress on a terminal only.
 
 from __future__ import annotations
 
-import json
+import signal
 import sys
-import time
-from pathlib import Path
-from typing import Annotated, Any
 
-import typer
-from rich.console import Console
-from rich.table import Table
 
-from thirdhand import __version__
-from thirdhand.errors import ThirdhandError
-from thirdhand.fileops import backup_existing
+class Terminated(BaseException):
+    """Raised in the main thread on SIGTERM, so ``finally`` blocks (servers, temporaries) run."""
+
+
+def _interrupted_at_start_up(signum: int, frame: object) -> None:
+    sys.stderr.write("thirdhand: error: interrupted\n")
+    sys.stderr.flush()
+    raise SystemExit(130)
+
+
+# Ctrl-C while the (heavy) imports below run: one line, exit 130, no traceback.
+if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    signal.signal(signal.SIGINT, _interrupted_at_start_up)
+
+import json  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+from typing import Annotated, Any  # noqa: E402
+
+import typer  # noqa: E402
+from rich.console import Console  # noqa: E402
+from rich.table import Table  # noqa: E402
+
+from thirdhand import __version__, options  # noqa: E402
+from thirdhand.errors import ThirdhandError  # noqa: E402
+from thirdhand.fileops import check_output  # noqa: E402
 
 app = typer.Typer(
     name="thirdhand",
@@ -50,10 +67,8 @@ def _root(
     """Teach a robot an assembly task from human demonstrations."""
 
 
-def _check_output(path: Path, force: bool) -> None:
-    if path.exists() and not force:
-        _fail(f"{path} exists; pass --force to replace it (the old one is kept as {path.name}.bak)")
-    backup_existing(path)
+#: Most pointing gestures ``synth --pointing`` opens with (each adds seconds of motion).
+MAX_POINTING = 50
 
 
 @app.command()
@@ -67,9 +82,11 @@ def synth(
     rate: Annotated[float | None, typer.Option(help="Capture rate, Hz.")] = None,
     head: Annotated[bool, typer.Option(help="Track the person's head too.")] = False,
     pointing: Annotated[
-        int, typer.Option(help="Open with N pointing gestures (targets in the metadata).", min=0)
+        int, typer.Option(help="Open with N pointing gestures (targets in the metadata).")
     ] = 0,
-    force: Annotated[bool, typer.Option(help="Replace an existing output (kept as .bak).")] = False,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing output (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Generate a synthetic assembly demonstration with ground-truth labels."""
     from thirdhand import io
@@ -77,14 +94,19 @@ def synth(
 
     if scene not in SCENES:
         _fail(f"unknown scene {scene!r}; scenes are {', '.join(SCENES)}")
+    options.seed(seed)
+    if rate is not None:
+        options.finite("--rate", rate, low=1.0, high=10000.0)
+    options.integer("--pointing", pointing, low=0, high=MAX_POINTING)
+    check_output(output, force=force)
     sensor = None
     if not noise_free:
         sensor = SensorModel() if rate is None else SensorModel(rate=rate)
-    options: dict[str, Any] = {"head": True} if head else {}
+    scene_options: dict[str, Any] = {"head": True} if head else {}
     if pointing:
-        options["pointing"] = pointing
-    demo = make_scene(scene, seed=seed, sensor=sensor, **options)
-    _check_output(output, force)
+        scene_options["pointing"] = pointing
+    demo = make_scene(scene, seed=seed, sensor=sensor, **scene_options)
+    check_output(output, force=force)
     io.save(demo, output)
     out.print(f"wrote {output}: {demo}")
 
@@ -152,15 +174,16 @@ def convert(
     to: Annotated[
         str | None, typer.Option("--to", help="Output format, if not by extension.")
     ] = None,
-    force: Annotated[bool, typer.Option(help="Replace an existing output (kept as .bak).")] = False,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing output (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Convert a recording between formats (labels and metadata carried along)."""
     from thirdhand import io
 
+    check_output(target, force=force, inputs=[source])
     demo = io.load(source)
-    if source.resolve() == target.resolve():
-        _fail("source and target are the same path")
-    _check_output(target, force)
+    check_output(target, force=force, inputs=[source])
     io.save(demo, target, format=to)
     out.print(f"wrote {target}: {demo}")
 
@@ -173,15 +196,17 @@ def demo(
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic demonstration.")] = 0,
 ) -> None:
     """The main job: a synthetic chair assembly through every stage that exists."""
+    from thirdhand.fileops import write_text
     from thirdhand.pipeline import run_demo
 
+    options.seed(seed)
     start = time.perf_counter()
     summary = run_demo(output, seed=seed)
     out.print(f"[bold]thirdhand demo[/bold] (chair, seed {seed}) → {output}")
     for line in summary["lines"]:
         out.print(f"  {line}")
     out.print(f"done in {time.perf_counter() - start:.1f} s")
-    (output / "summary.json").write_text(json.dumps(summary, indent=2, default=str))
+    write_text(output / "summary.json", json.dumps(summary, indent=2, default=str))
 
 
 #: Sub-command groups: name -> module holding a typer ``app``. A group whose
@@ -269,22 +294,82 @@ def _mount_subapps() -> None:
 
 _mount_subapps()
 
+# The imports are done: a program that imports this module (and never calls
+# main) keeps Python's own Ctrl-C behaviour.
+if signal.getsignal(signal.SIGINT) is _interrupted_at_start_up:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated
+
+
+def _one_line(exc: BaseException | str) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return f"thirdhand: error: {text}\n"
+
+
+def _is_usage_error(exc: Exception) -> bool:
+    """A click usage error (bad option value, unknown option, missing argument)."""
+    return all(hasattr(exc, a) for a in ("format_message", "exit_code", "show"))
+
+
+def _usage_error(exc: Any) -> int:
+    """Print a click usage error as one line (help for a bare group); return its status."""
+    if type(exc).__name__ == "NoArgsIsHelpError":
+        exc.show()  # a group called without a command prints its help, as standalone does
+        return int(exc.exit_code)
+    ctx = getattr(exc, "ctx", None)
+    hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+    sys.stderr.write(_one_line(exc.format_message() + hint))
+    return int(exc.exit_code)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the CLI, print user errors on one line, return the exit status.
 
     Usage errors are reported by typer itself (standalone mode exits through
     ``SystemExit``); a user's bad input raises a ``ThirdhandError`` that ends here.
+    Ctrl-C (SIGINT) and SIGTERM stop the command whatever disposition the process
+    inherited (a background job starts with SIGINT ignored): one line on stderr,
+    exit status 130 or 143, temporary files removed and servers stopped by the
+    ``finally`` blocks on the way out.
     """
+    previous: dict[signal.Signals, Any] = {}
+    for sig, handler in (
+        (signal.SIGINT, signal.default_int_handler),
+        (signal.SIGTERM, _on_sigterm),
+    ):
+        try:
+            previous[sig] = signal.signal(sig, handler)
+        except ValueError:
+            pass  # not the main thread (an embedding application): leave signals alone
     try:
-        app(args=argv, prog_name="thirdhand")
+        # Not standalone: usage errors come back here and are printed as one line.
+        code = app(args=argv, prog_name="thirdhand", standalone_mode=False)
     except ThirdhandError as exc:
-        sys.stderr.write(f"thirdhand: error: {exc}\n")
+        sys.stderr.write(_one_line(exc))
         return 1
     except (OSError, MemoryError) as exc:
-        sys.stderr.write(f"thirdhand: error: {exc}\n")
+        sys.stderr.write(_one_line(exc))
         return 1
-    return 0
+    except KeyboardInterrupt:
+        sys.stderr.write("thirdhand: error: interrupted\n")
+        return 130
+    except Terminated:
+        sys.stderr.write("thirdhand: error: terminated\n")
+        return 143
+    except Exception as exc:
+        if not _is_usage_error(exc):
+            raise
+        return _usage_error(exc)
+    finally:
+        for signum, old in previous.items():
+            signal.signal(signum, old)
+    if isinstance(code, int) and code == 130:
+        # typer turns Ctrl-C inside a command into exit status 130; say why in one line.
+        sys.stderr.write("thirdhand: error: interrupted\n")
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":

@@ -38,6 +38,9 @@ DOF_NAMES: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 #: Largest plausible coordinate of a motion-capture volume, metres. Beyond it the
 #: data are almost surely millimetres read as metres.
 MAX_PLAUSIBLE_POSITION_M = 50.0
+#: Largest deviation from 1 of a stored quaternion's norm a reader accepts (and
+#: renormalises); beyond it a cell is corrupt, not rounded.
+MAX_QUAT_NORM_ERROR = 0.01
 
 
 @dataclass(frozen=True)

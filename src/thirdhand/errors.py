@@ -57,3 +57,16 @@ class FormatError(ThirdhandError, ValueError):
 
 class TaskFileError(ThirdhandError, ValueError):
     """A task file is invalid or could not be written."""
+
+
+class OutputError(ThirdhandError, OSError):
+    """An output cannot or may not be written.
+
+    Raised when a command would write over one of its inputs, over an existing
+    file without ``--force``, or when the write failed or was short (full disk,
+    file-size limit); the previous file is then left as it was.
+    """
+
+
+class OptionError(ThirdhandError, ValueError):
+    """A command-line option or a function argument is out of its range."""

@@ -12,7 +12,6 @@ from typing import Any
 
 from thirdhand import io
 from thirdhand.demonstration import ConstraintEvent, Demonstration, Labels
-from thirdhand.fileops import backup_existing
 
 
 def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]:
@@ -40,8 +39,7 @@ def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]
 
     demo = make_scene("chair", seed=seed, sensor=SensorModel())
     demo_path = out / "demonstration.parquet"
-    backup_existing(demo_path)
-    io.save(demo, demo_path)
+    io.save(demo, demo_path)  # a previous run's file is kept as a numbered backup
     summary["files"].append(str(demo_path))
     summary["demonstration"] = _demo_figures(demo)
     summary["lines"].append(
@@ -128,7 +126,7 @@ def _run_primitives(demo: Demonstration, task: Any, out: Path, summary: dict[str
     path = out / "task.json"
     current = load_task(path)
     current.stages["primitives"] = block
-    save_task(current, path)
+    save_task(current, path, backup=False)  # this run wrote it moments ago
     n = len(block.get("constraints", {}))
     summary["primitives"] = {"constraints": sorted(block.get("constraints", {}))}
     summary["lines"].append(
@@ -173,7 +171,7 @@ def _run_reward(out: Path, summary: dict[str, Any]) -> None:
         "reward_tree": str(model.rcsi.reward),
         "plans": plans,
     }
-    save_task(current, path)
+    save_task(current, path, backup=False)  # this run wrote it moments ago
     complete = [label for label, p in plans.items() if p["complete"]]
     summary["reward"] = {"complete": complete, "targets": list(REWARD_TARGETS)}
     summary["lines"].append(

@@ -126,6 +126,10 @@ def fit(
             f"--models: unknown model(s) {', '.join(map(repr, bad)) or '(none)'}; "
             f"choose among {', '.join(MODEL_TYPES)}"
         )
+    if parent is not None and parent == child:
+        raise ConstraintFitError(
+            f"--parent and --child are both {parent!r}; a constraint needs two bodies"
+        )
     demo = io.load(track)
     pos, quat, where = demo_track(demo, parent=parent, child=child)
     preset = NOISE_PRESETS[noise]

@@ -46,13 +46,24 @@ def execute_command(
     ] = True,
     step_time: Annotated[float, typer.Option(help="Time limit per step, seconds.")] = 60.0,
     plan_time: Annotated[float, typer.Option(help="Time limit per planning query, seconds.")] = 5.0,
+    force: Annotated[
+        bool, typer.Option(help="Replace existing --record files (kept as numbered .bak).")
+    ] = False,
 ) -> None:
     """Execute a task's plan on a simulated robot arm with a motion planner."""
-    from thirdhand import io
+    from thirdhand import io, options
     from thirdhand.execute.executor import ExecutionOptions, Executor, person_does
-    from thirdhand.execute.record import write_run
+    from thirdhand.execute.record import record_paths, write_run
+    from thirdhand.fileops import check_output
     from thirdhand.task.store import load_task
 
+    options.seed(seed)
+    options.finite("--step-time", step_time, low=0.0, low_open=True, high=86400.0)
+    options.finite("--plan-time", plan_time, low=0.0, low_open=True, high=86400.0)
+    if record is not None:
+        inputs = [task, *([demo] if demo else []), *(meshes or [])]
+        for target in record_paths(record):
+            check_output(target, force=force, inputs=inputs)
     console = Console()
     t = load_task(task)
     search = [str(m) for m in meshes or []]

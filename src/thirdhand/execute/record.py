@@ -26,7 +26,7 @@ from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.execute.executor import ExecutionResult
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.timing import time_parametrize
-from thirdhand.fileops import atomic_write_bytes, backup_existing
+from thirdhand.fileops import atomic_write_bytes
 
 FloatArray = NDArray[np.float64]
 
@@ -166,6 +166,14 @@ def trajectory_document(
     }
 
 
+def record_paths(out: str | os.PathLike[str]) -> tuple[Path, Path]:
+    """The replay (``.parquet``) and trajectory (``.json``) files ``--record out`` writes."""
+    replay = Path(out)
+    if replay.suffix.lower() != ".parquet":
+        replay = replay.with_suffix(".parquet")
+    return replay, replay.with_suffix(".json")
+
+
 def write_run(
     robot: Robot,
     result: ExecutionResult,
@@ -176,7 +184,8 @@ def write_run(
 ) -> tuple[Path, Path]:
     """Write the replay (``out``, parquet) and the trajectory (``out`` with ``.json``).
 
-    An existing file is backed up first (:func:`thirdhand.fileops.backup_existing`).
+    Both are written atomically; an existing file is kept as its next numbered
+    backup (:func:`thirdhand.fileops.atomic_output`).
 
     Returns
     -------
@@ -184,12 +193,7 @@ def write_run(
     """
     from thirdhand import io
 
-    replay = Path(out)
-    if replay.suffix.lower() != ".parquet":
-        replay = replay.with_suffix(".parquet")
-    traj_path = replay.with_suffix(".json")
-    for p in (replay, traj_path):
-        backup_existing(p)
+    replay, traj_path = record_paths(out)
     io.save(replay_demonstration(robot, result, rate_hz=rate_hz, task_name=task_name), replay)
     doc = trajectory_document(robot, result, rate_hz=rate_hz)
     atomic_write_bytes(traj_path, (json.dumps(doc, indent=1) + "\n").encode())

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import unicodedata
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -99,16 +100,33 @@ def save(
     """Write a demonstration; the format comes from ``format`` or the extension.
 
     A folder path without extension writes the 3rdHand ``poses.dat`` format.
+    Every format is written atomically (a uniquely named temporary file or
+    folder beside ``path``, then one rename); an existing ``path`` is replaced
+    and kept as its next numbered backup (``.bak``, ``.bak.1``, …). Whether a
+    command may replace it at all is decided before, by
+    :func:`thirdhand.fileops.check_output`.
     """
     p = Path(path)
     name = format or WRITE_EXTENSIONS.get(p.suffix.lower(), "mlr" if not p.suffix else "")
     if not name:
         raise FormatError(
-            p, f"cannot tell the format from the extension {p.suffix!r}; pass format="
+            p,
+            f"cannot tell the format from the extension {p.suffix!r}; "
+            f"writable extensions are {', '.join(sorted(WRITE_EXTENSIONS))} (or a folder)",
         )
     module = format_module(name)
     if not hasattr(module, "write"):
         raise FormatError(p, f"format {name} is read-only")
+    for body in demo.body_names:
+        bad = [c for c in body if unicodedata.category(c) in ("Cc", "Cf", "Zl", "Zp")]
+        if bad or body != body.strip():
+            raise FormatError(
+                p,
+                f"body name {body!r} holds a control character, line break or surrounding "
+                "blank; no recording format reads it back the same (rename the body)",
+            )
+    if name in ("mlr", "rosbag"):
+        options.setdefault("overwrite", True)
     module.write(demo, p, **options)
 
 

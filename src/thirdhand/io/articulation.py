@@ -27,8 +27,14 @@ from pathlib import Path
 
 import numpy as np
 
-from thirdhand.demonstration import MAX_PLAUSIBLE_POSITION_M, BodyInfo, Demonstration
+from thirdhand.demonstration import (
+    MAX_PLAUSIBLE_POSITION_M,
+    MAX_QUAT_NORM_ERROR,
+    BodyInfo,
+    Demonstration,
+)
 from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.fileops import write_text
 from thirdhand.io.mlr import parse_numeric_rows
 
 #: Sampling rate assumed when the caller gives none, Hz.
@@ -130,8 +136,13 @@ def _check(vals: np.ndarray, valid: np.ndarray, lines: np.ndarray, path: Path) -
     fail(valid & ~finite.all(axis=1), "position is finite but orientation is not")
     fail(~valid & finite.any(axis=1), "a row must be all numbers or all nan (not tracked)")
     if n_pose == 7:
-        norm = np.linalg.norm(np.nan_to_num(vals[:, 3:7]), axis=1)
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge cell fails below
+            norm = np.linalg.norm(np.nan_to_num(vals[:, 3:7]), axis=1)
         fail(valid & (norm < 1e-9), "zero-norm quaternion")
+        fail(
+            valid & ~(np.abs(norm - 1.0) <= MAX_QUAT_NORM_ERROR),
+            f"quaternion norm is not within {MAX_QUAT_NORM_ERROR:g} of 1 (not a unit quaternion)",
+        )
     far = np.abs(np.nan_to_num(vals[:, :3])).max(axis=1) > MAX_PLAUSIBLE_POSITION_M
     fail(
         far,
@@ -174,10 +185,7 @@ def write(demo: Demonstration, path: str | os.PathLike[str]) -> None:
     table[~tr.valid, : 7 if tr.info.oriented else 3] = np.nan
     row = " ".join(["%.17g"] * table.shape[1]) + "\n"
     text = (row * table.shape[0]) % tuple(table.ravel().tolist())
-    tmp = p.with_name(p.name + ".tmp")
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.replace(tmp, p)
+    write_text(p, text)
 
 
 __all__ = ["COLUMNS", "DEFAULT_RATE_HZ", "read", "sniff", "write"]

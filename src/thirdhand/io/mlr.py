@@ -32,7 +32,6 @@ from __future__ import annotations
 
 import os
 import re
-import shutil
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,12 +42,14 @@ from numpy.typing import NDArray
 
 from thirdhand.demonstration import (
     MAX_PLAUSIBLE_POSITION_M,
+    MAX_QUAT_NORM_ERROR,
     BodyInfo,
     Demonstration,
     HandSide,
     Labels,
 )
 from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.fileops import atomic_output
 from thirdhand.io import elan, kvg
 
 POSES = "poses.dat"
@@ -386,9 +387,13 @@ def _check_rows(
             )
 
     fail(~np.isfinite(sub).all(axis=2), "cell is not finite: {v}")
+    with np.errstate(over="ignore", invalid="ignore"):  # a huge cell fails the check below
+        norm = np.linalg.norm(sub[..., 3:], axis=2)
+    fail(seen & (norm < 1e-9), "zero-norm quaternion in a seen sensor row: {v}")
     fail(
-        seen & (np.linalg.norm(sub[..., 3:], axis=2) < 1e-9),
-        "zero-norm quaternion in a seen sensor row: {v}",
+        seen & ~(np.abs(norm - 1.0) <= MAX_QUAT_NORM_ERROR),
+        f"quaternion norm is not within {MAX_QUAT_NORM_ERROR:g} of 1 in a seen sensor row "
+        "(w x y z expected a unit quaternion): {v}",
     )
     fail(
         seen & (np.abs(sub[..., :3]).max(axis=2) > MAX_PLAUSIBLE_POSITION_M),
@@ -590,8 +595,8 @@ def write(demo: Demonstration, path: str | os.PathLike[str], *, overwrite: bool 
     path : path-like
         The folder to create.
     overwrite : bool
-        Replace an existing folder; the old one is kept as ``<folder>.bak`` (an
-        older ``.bak`` is deleted).
+        Replace an existing folder; the old one is kept as the next numbered
+        backup (``<folder>.bak``, ``<folder>.bak.1``, …; no backup is deleted).
 
     Raises
     ------
@@ -601,7 +606,7 @@ def write(demo: Demonstration, path: str | os.PathLike[str], *, overwrite: bool 
     target = Path(path)
     if target.exists() and not overwrite:
         raise FormatError(
-            target, "already exists; pass overwrite=True (the old folder is kept as .bak)"
+            target, "already exists (the command's --force replaces it, keeping a backup)"
         )
     if target.exists() and not target.is_dir():
         raise FormatError(target, "exists and is not a folder")
@@ -619,38 +624,11 @@ def write(demo: Demonstration, path: str | os.PathLike[str], *, overwrite: bool 
         files[ANNOTATIONS] = kvg.format_annotations(
             demo.labels, frame_times=demo.t, bodies=demo.bodies, path=target / ANNOTATIONS
         )
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = target.with_name(f".{target.name}.tmp-{os.getpid()}")
-    if tmp.exists():
-        shutil.rmtree(tmp)
-    tmp.mkdir()
-    try:
+    with atomic_output(target) as tmp:
+        tmp.mkdir()
         for name, text in files.items():
-            with open(tmp / name, "w", encoding="utf-8") as fh:
+            with open(tmp / name, "w", encoding="utf-8", newline="\n") as fh:
                 fh.write(text)
-                fh.flush()
-                os.fsync(fh.fileno())
-        _replace_folder(tmp, target)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
-def _replace_folder(tmp: Path, target: Path) -> None:
-    if not target.exists():
-        os.replace(tmp, target)
-        return
-    bak = target.with_name(target.name + ".bak")
-    if bak.is_dir():
-        shutil.rmtree(bak)
-    elif bak.exists():
-        bak.unlink()
-    os.replace(target, bak)
-    try:
-        os.replace(tmp, target)
-    except OSError:
-        os.replace(bak, target)
-        raise
 
 
 __all__ = [

@@ -23,6 +23,7 @@ from thirdhand.demonstration import (
     labels_to_dict,
 )
 from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.fileops import atomic_output
 
 FORMAT_VERSION = "thirdhand.demonstration/1"
 _META_KEY = b"thirdhand"
@@ -61,9 +62,8 @@ def write(demo: Demonstration, path: str | os.PathLike[str]) -> None:
     }
     table = pa.table(arrays)
     table = table.replace_schema_metadata({_META_KEY: json.dumps(header).encode()})
-    tmp = p.with_name(p.name + ".tmp")
-    pq.write_table(table, tmp, compression="zstd")
-    os.replace(tmp, p)
+    with atomic_output(p) as tmp:
+        pq.write_table(table, tmp, compression="zstd")
 
 
 def read(path: str | os.PathLike[str]) -> Demonstration:

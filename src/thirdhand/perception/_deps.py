@@ -6,8 +6,11 @@ missing one is a :class:`~thirdhand.errors.ThirdhandError` telling how to instal
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
+import sys
+from collections.abc import Iterator
 from types import ModuleType
 from typing import Any
 
@@ -45,3 +48,37 @@ def mediapipe() -> Any:
             "(mediapipe.solutions.face_mesh; versions 0.10.14-0.10.21 do); " + _HINT
         )
     return mp
+
+
+@contextlib.contextmanager
+def quiet_native_stderr() -> Iterator[None]:
+    """Send file descriptor 2 to the null device for the block; Python's stderr keeps working.
+
+    MediaPipe's C++ side (TFLite, absl) logs to descriptor 2 from its own threads,
+    before any logging set-up the environment variables could reach ("Created
+    TensorFlow Lite XNNPACK delegate", "All log messages before
+    absl::InitializeLog()"); the CLI's stderr is for one error line. Meanwhile
+    ``sys.stderr`` writes to a copy of the original descriptor, so Python's own
+    messages (warnings, a traceback) still reach the terminal.
+    """
+    try:
+        sys.stderr.flush()
+        saved = os.dup(2)
+    except (OSError, ValueError, AttributeError):
+        yield
+        return
+    python_stderr = sys.stderr
+    null = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(null, 2)
+    finally:
+        os.close(null)
+    sys.stderr = os.fdopen(os.dup(saved), "w", buffering=1, encoding="utf-8", errors="replace")
+    try:
+        yield
+    finally:
+        replacement = sys.stderr
+        sys.stderr = python_stderr
+        replacement.close()
+        os.dup2(saved, 2)
+        os.close(saved)

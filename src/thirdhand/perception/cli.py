@@ -17,6 +17,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
+from thirdhand import options
 from thirdhand.errors import ThirdhandError
 
 app = typer.Typer(
@@ -33,24 +34,25 @@ def _fail(message: str) -> NoReturn:
     raise typer.Exit(1)
 
 
-def _check_output(path: Path, force: bool) -> None:
-    if path.exists() and not force:
-        _fail(f"{path} exists; pass --force to replace it (the old one is kept as {path.name}.bak)")
+def _check_output(path: Path | None, force: bool, inputs: list[Path | None]) -> None:
+    """Refuse ``path`` if it is an input or exists without ``--force`` (``-`` is stdout)."""
+    from thirdhand.fileops import check_output
+
+    if path is not None and str(path) != "-":
+        check_output(path, force=force, inputs=[p for p in inputs if p is not None])
 
 
 def _write_json(data: Any, path: Path | None, force: bool) -> None:
-    """``-`` prints to stdout; a path is written atomically, an old file kept as .bak."""
+    """``-`` prints to stdout; a path is written atomically, an old file kept as a numbered .bak."""
     if path is None:
         return
     text = json.dumps(data, indent=2)
     if str(path) == "-":
         sys.stdout.write(text + "\n")
         return
-    from thirdhand.fileops import atomic_write_bytes, backup_existing
+    from thirdhand.fileops import write_bytes
 
-    _check_output(path, force)
-    backup_existing(path)
-    atomic_write_bytes(path, text.encode())
+    write_bytes(path, text.encode())
 
 
 def _load(path: Path) -> Any:
@@ -63,7 +65,7 @@ JsonOpt = Annotated[
     Path | None,
     typer.Option("--json", help="Write the results as JSON to this file ('-': stdout)."),
 ]
-ForceOpt = Annotated[bool, typer.Option(help="Replace existing outputs (kept as .bak).")]
+ForceOpt = Annotated[bool, typer.Option(help="Replace existing outputs (kept as numbered .bak).")]
 TaskOpt = Annotated[
     Path | None,
     typer.Option("--task", help="Task file whose stages.perception block receives the events."),
@@ -99,8 +101,12 @@ def headpose_command(
     try:
         if start < 0 or step < 1:
             raise ThirdhandError(f"bad frame range --start {start} --step {step}")
-        if overlay is not None:
-            _check_output(overlay, force)
+        if stop is not None and stop <= start:
+            raise ThirdhandError(f"--stop {stop}: expected a frame after --start {start}")
+        if focal is not None:
+            options.finite("--focal", focal, low=0.0, low_open=True)
+        _check_output(json_out, force, [video])
+        _check_output(overlay, force, [video, json_out])
         track = track_head(
             video, calibrate=calibrate, start=start, stop=stop, step=step, static=static,
             focal_px=focal,
@@ -153,6 +159,11 @@ def gestures_command(
     from thirdhand.perception.pointing import detect_pointing
 
     try:
+        if ray not in ("auto", "index", "head"):
+            raise ThirdhandError(f"--ray: expected auto, index or head, got {ray!r}")
+        options.finite("--dwell", dwell, low=0.0)
+        options.finite("--cone", cone, low=0.0, low_open=True, high=90.0)
+        _check_output(json_out, force, [recording, task])
         demo = _load(recording)
         events = detect_pointing(demo, ray=ray, dwell=dwell, cone_deg=cone)
         data = {
@@ -200,8 +211,14 @@ def attention_command(
             axis = [float(v) for v in forward.split(",")]
         except ValueError:
             axis = []
-        if len(axis) != 3 or not any(axis):
-            raise ThirdhandError(f"--forward: expected three numbers 'x,y,z', got {forward!r}")
+        if len(axis) != 3 or not any(axis) or not np.all(np.isfinite(axis)):
+            raise ThirdhandError(
+                f"--forward: expected three numbers 'x,y,z', finite, not all zero; got {forward!r}"
+            )
+        options.finite("--cone", cone, low=0.0, low_open=True, high=90.0)
+        options.finite("--hysteresis", hysteresis, low=0.0, high=90.0)
+        options.finite("--min-duration", min_duration, low=0.0)
+        _check_output(json_out, force, [recording, task])
         demo = _load(recording)
         intervals = attended_objects(
             demo, head, forward=axis, cone_deg=cone, hysteresis_deg=hysteresis,

@@ -14,6 +14,7 @@ on the image's left for a camera facing them):
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
@@ -21,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from thirdhand.perception._deps import cv2, mediapipe
+from thirdhand.perception._deps import cv2, mediapipe, quiet_native_stderr
 
 FloatArray = NDArray[np.float64]
 UInt8Array = NDArray[np.uint8]
@@ -94,13 +95,20 @@ class FaceMeshTracker:
     ) -> None:
         mp = mediapipe()
         self.static = static
-        self._mesh: Any = mp.solutions.face_mesh.FaceMesh(
-            static_image_mode=static,
-            max_num_faces=max_faces,
-            refine_landmarks=True,
-            min_detection_confidence=min_detection_confidence,
-            min_tracking_confidence=min_tracking_confidence,
-        )
+        # Quiet MediaPipe's C++ logging for the graph's whole life (its threads log).
+        self._quiet = contextlib.ExitStack()
+        self._quiet.enter_context(quiet_native_stderr())
+        try:
+            self._mesh: Any = mp.solutions.face_mesh.FaceMesh(
+                static_image_mode=static,
+                max_num_faces=max_faces,
+                refine_landmarks=True,
+                min_detection_confidence=min_detection_confidence,
+                min_tracking_confidence=min_tracking_confidence,
+            )
+        except BaseException:
+            self._quiet.close()
+            raise
 
     def __enter__(self) -> FaceMeshTracker:
         return self
@@ -114,8 +122,11 @@ class FaceMeshTracker:
         self.close()
 
     def close(self) -> None:
-        """Release the MediaPipe graph."""
-        self._mesh.close()
+        """Release the MediaPipe graph (and give descriptor 2 back)."""
+        try:
+            self._mesh.close()
+        finally:
+            self._quiet.close()
 
     def detect(self, frame_bgr: UInt8Array) -> list[FaceLandmarks]:
         """Landmarks of the faces in one frame (empty list: no face).

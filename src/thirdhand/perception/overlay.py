@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.errors import ThirdhandError
-from thirdhand.fileops import atomic_write_bytes, backup_existing
+from thirdhand.fileops import atomic_output, atomic_write_bytes
 from thirdhand.perception._deps import cv2
 from thirdhand.perception.track import HeadTrack
 from thirdhand.perception.video import read_frames
@@ -117,26 +117,23 @@ def render_overlay(
         ok, data = cv.imencode(suffix, _strip(track, n_tiles, tile_width))
         if not ok:
             raise ThirdhandError(f"{p}: OpenCV could not encode the strip")
-        backup_existing(p)
         atomic_write_bytes(p, data.tobytes())
         return p
     if suffix not in VIDEO_SUFFIXES:
         raise ThirdhandError(
             f"{p}: overlay must end in {', '.join(VIDEO_SUFFIXES + IMAGE_SUFFIXES)}"
         )
-    tmp = p.with_name(p.stem + ".tmp" + p.suffix)
     fourcc = cv.VideoWriter_fourcc(*("mp4v" if suffix == ".mp4" else "MJPG"))
     step = int(track.frame[1] - track.frame[0]) if len(track) > 1 else 1
-    writer = cv.VideoWriter(str(tmp), fourcc, track.fps / max(step, 1), track.size)
-    if not writer.isOpened():
-        raise ThirdhandError(f"{p}: OpenCV cannot write this video format here")
     rows = {int(f): r for r, f in enumerate(track.frame)}
-    try:
-        for index, _, frame in read_frames(track.source, stop=int(track.frame[-1]) + 1):
-            if index in rows:
-                writer.write(annotate(frame, track, rows[index]))
-    finally:
-        writer.release()
-    backup_existing(p)
-    os.replace(tmp, p)
+    with atomic_output(p) as tmp:
+        writer = cv.VideoWriter(str(tmp), fourcc, track.fps / max(step, 1), track.size)
+        if not writer.isOpened():
+            raise ThirdhandError(f"{p}: OpenCV cannot write this video format here")
+        try:
+            for index, _, frame in read_frames(track.source, stop=int(track.frame[-1]) + 1):
+                if index in rows:
+                    writer.write(annotate(frame, track, rows[index]))
+        finally:
+            writer.release()
     return p

@@ -13,11 +13,12 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from thirdhand import options
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
+from thirdhand.fileops import check_output
 
 out = Console(highlight=False, soft_wrap=True)
-err = Console(stderr=True, highlight=False, soft_wrap=True)
 
 app = typer.Typer(
     help="Learn a task file from recordings; accuracy experiments.",
@@ -66,33 +67,47 @@ def learn_command(
             help="Segmentation model JSON (e.g. from `segment calibrate`) or built-in name.",
         ),
     ] = None,
+    force: Annotated[
+        bool,
+        typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
+    ] = False,
 ) -> None:
-    """Learn constraints, symbols and the assembly plan; write the task file."""
+    """Learn constraints, symbols and the assembly plan; write the task file.
+
+    Errors are :class:`~thirdhand.errors.ThirdhandError`; ``thirdhand.cli.main``
+    prints them as one ``thirdhand: error:`` line.
+    """
     from thirdhand.plan.learn import learn
     from thirdhand.taskfile import save_task
 
-    try:
-        loaded = [_load(p) for p in demos]
-        phases = None
-        if segment_model is not None and not no_segment:
-            from thirdhand.segment import segment_demonstration
-            from thirdhand.segment.model import resolve_model
+    check_output(output, force=force, inputs=demos)
+    if report is not None:
+        if report.exists() and not report.is_dir():
+            raise ThirdhandError(f"--report {report}: expected a folder, it is a file")
+        check_output(report / "index.html", force=force, inputs=[*demos, output])
+    seg_model = None
+    if segment_model is not None and not no_segment:
+        from thirdhand.segment.model import resolve_model
 
-            model = resolve_model(segment_model)
-            phases = [segment_demonstration(d, model) for d in loaded]
-        result = learn(
-            loaded,
-            names=[p.name for p in demos],
-            phases=phases,
-            segment=not no_segment,
-            inputs=demos,
-        )
-        task = result.task()
-        output.parent.mkdir(parents=True, exist_ok=True)
-        save_task(task, output)
-    except ThirdhandError as exc:
-        err.print(f"error: {exc}")
-        raise typer.Exit(1) from None
+        seg_model = resolve_model(segment_model)
+    loaded = [_load(p) for p in demos]
+    for path, d in zip(demos, loaded, strict=True):
+        options.body_pairs(len(d), str(path))
+    phases = None
+    if seg_model is not None:
+        from thirdhand.segment import segment_demonstration
+
+        phases = [segment_demonstration(d, seg_model) for d in loaded]
+    result = learn(
+        loaded,
+        names=[p.name for p in demos],
+        phases=phases,
+        segment=not no_segment,
+        inputs=demos,
+    )
+    task = result.task()
+    check_output(output, force=force, inputs=demos)
+    save_task(task, output)
     out.print(f"root: {result.plan.root}")
     for line in result.plan.lines():
         out.print(f"  {line}")

@@ -239,7 +239,6 @@ def run_stage(
     report : bool
         Write the HTML report.
     """
-    from thirdhand.fileops import backup_existing
     from thirdhand.taskfile import save_task
 
     demos = [demos_or_demo] if isinstance(demos_or_demo, Demonstration) else list(demos_or_demo)
@@ -284,8 +283,6 @@ def run_stage(
         from thirdhand.plan.report import write_report
 
         folder = out / "report"
-        if (folder / "index.html").exists():
-            backup_existing(folder / "index.html")
         index = write_report(result, folder)
         summary["files"].append(str(index))
         summary["lines"].append(f"plan report → {index}")

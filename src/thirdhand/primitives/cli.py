@@ -17,8 +17,9 @@ import numpy as np
 import typer
 from rich.console import Console
 
+from thirdhand import options
 from thirdhand.errors import FormatError, ThirdhandError
-from thirdhand.fileops import atomic_write_bytes, backup_existing
+from thirdhand.fileops import atomic_output, check_output, write_bytes
 
 app = typer.Typer(
     help="Motor primitives: DMPs and ProMPs per constraint, primitive libraries.",
@@ -36,8 +37,12 @@ def _group() -> None:
 
 
 def _fail(exc: Exception) -> typer.Exit:
-    err.print(f"error: {exc}")
+    err.print(f"thirdhand: error: {' '.join(str(exc).split())}", markup=False)
     return typer.Exit(1)
+
+
+#: Most basis weights per dimension a DMP or ProMP may have.
+MAX_WEIGHTS = 1000
 
 
 @app.command()
@@ -53,14 +58,27 @@ def fit(
         Path | None,
         typer.Option(help="Also store the block as stages.primitives of this task file."),
     ] = None,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing OUTPUT (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
-    """Learn one pose DMP and one ProMP per constraint symbol from the demonstrations."""
+    """Learn one pose DMP and one ProMP per constraint symbol from the demonstrations.
+
+    ``--task`` updates that task file in place (its previous version is kept as
+    a numbered backup).
+    """
     from thirdhand import io
     from thirdhand.primitives.stage import primitives_stage
 
     if align not in ("phase", "dtw"):
         raise _fail(ValueError(f"--align must be phase or dtw, got {align!r}"))
     try:
+        check_output(output, force=force, inputs=[*demos, *([task] if task else [])])
+        if weights is not None:
+            options.integer("--weights", weights, low=2, high=MAX_WEIGHTS)
+        options.integer("--promp-weights", promp_weights, low=2, high=MAX_WEIGHTS)
+        if task is not None:
+            check_output(task, force=True, inputs=demos, option="--task")
         loaded = [io.load(p) for p in demos]
         block = primitives_stage(
             loaded,
@@ -71,17 +89,17 @@ def fit(
     except ThirdhandError as exc:
         raise _fail(exc) from None
     block["inputs"] = [str(p) for p in demos]
-    backup_existing(output)
-    atomic_write_bytes(output, json.dumps(block, indent=1).encode())
-    if task is not None:
-        from thirdhand.taskfile import load_task, save_task
+    try:
+        write_bytes(output, json.dumps(block, indent=1).encode())
+        if task is not None:
+            from thirdhand.taskfile import load_task, save_task
 
-        try:
             tf = load_task(task)
             tf.stages["primitives"] = block
             save_task(tf, task)
-        except ThirdhandError as exc:
-            raise _fail(exc) from None
+    except ThirdhandError as exc:
+        raise _fail(exc) from None
+    if task is not None:
         out.print(f"stored as stages.primitives in {task}")
     for key, c in block["constraints"].items():
         e = c["imitation_error"]
@@ -132,12 +150,28 @@ def library(
     seed: Annotated[int, typer.Option(help="Seed of the EM restarts.")] = 0,
     plot: Annotated[Path | None, typer.Option(help="Write a figure of the skills here.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing --plot file (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Learn skills and segmentation together; print the most likely parse of every track."""
     from thirdhand.primitives.library import PrimitiveLibrary
     from thirdhand.primitives.segment_features import smoothed_speed
 
     try:
+        options.integer("--skills", skills, low=1, high=100)
+        options.integer("--weights", weights, low=2, high=MAX_WEIGHTS)
+        options.integer("--window", window, low=1, high=10000)
+        options.seed(seed)
+        if threshold is not None:
+            options.finite("--threshold", threshold, low=0.0, low_open=True)
+        if plot is not None:
+            check_output(plot, force=force, inputs=tracks)
+            if plot.suffix.lower() not in (".png", ".pdf", ".svg"):
+                raise ThirdhandError(
+                    f"--plot {plot}: a figure is written as .png, .pdf or .svg; "
+                    f"got the extension {plot.suffix or '(none)'!r}"
+                )
         data = [tr for p in tracks for tr in _read_tracks(p, body)]
         thr = threshold
         if thr is None:
@@ -165,7 +199,8 @@ def library(
     if plot is not None:
         from thirdhand.primitives.plot import plot_library
 
-        plot_library(lib, plot, tracks=data[:2])
+        with atomic_output(plot) as tmp:
+            plot_library(lib, tmp, tracks=data[:2])
         result["plot"] = str(plot)
     if as_json:
         out.print(json.dumps(result, indent=1))

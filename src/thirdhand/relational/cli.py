@@ -18,6 +18,8 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from thirdhand import options
+from thirdhand.fileops import check_output, write_text
 from thirdhand.relational.assembly import (
     learn_assembly,
     load_trajectory,
@@ -35,6 +37,12 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 out = Console(highlight=False, soft_wrap=True)
+
+
+#: Most legs ``irl learn --legs`` plans a chair with (planning grows with the part count).
+MAX_LEGS = 12
+#: Most synthetic chairs ``irl learn --synth`` generates.
+MAX_SYNTH = 100
 
 
 @app.callback()
@@ -57,6 +65,9 @@ def experiment(
     tabulate: Annotated[
         bool, typer.Option(help="Only tabulate the trials in --checkpoint, run nothing.")
     ] = False,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing JSON output (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Run one of the paper's experiments and print its table beside the paper's."""
     if name not in EXPERIMENTS:
@@ -64,6 +75,9 @@ def experiment(
             f"unknown experiment {name!r}, expected one of {', '.join(EXPERIMENTS)}"
         )
     path = json_out if json_out is not None else Path(f"irl_{name}.json")
+    check_output(path, force=force, inputs=[checkpoint] if checkpoint else [])
+    options.integer("--runs", runs, low=2, high=100000)
+    options.integer("--jobs", jobs, low=1, high=1024)
     start = time.perf_counter()
     if tabulate and checkpoint is None:
         raise RelationalError("irl experiment: --tabulate needs --checkpoint")
@@ -92,8 +106,18 @@ def learn(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the result as JSON.")
     ] = None,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing --json file (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Learn a reward from demonstrated plans; plan a bench and chairs with it."""
+    if json_out is not None:
+        check_output(json_out, force=force, inputs=tasks or [])
+    options.seed(seed)
+    options.integer("--synth", synth, low=0, high=MAX_SYNTH)
+    options.integer("--n-random", n_random, low=0, high=100000)
+    for n in legs or []:
+        options.integer("--legs", n, low=1, high=MAX_LEGS)
     trajectories = [load_trajectory(p) for p in tasks or []]
     trajectories += synth_trajectories("chair", range(seed, seed + synth)) if synth else []
     if not trajectories:
@@ -113,6 +137,6 @@ def learn(
         for i, step in enumerate(plan.steps):
             out.print(f"  {i + 1}. {step}")
     if json_out is not None:
-        json_out.write_text(
-            json.dumps({"reward": str(model.rcsi.reward), "plans": plans}, indent=1)
+        write_text(
+            json_out, json.dumps({"reward": str(model.rcsi.reward), "plans": plans}, indent=1)
         )

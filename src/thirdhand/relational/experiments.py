@@ -468,5 +468,7 @@ def run_experiment(
         )
     result = EXPERIMENTS[name](runs, jobs, checkpoint=checkpoint, tabulate_only=tabulate_only)
     if out is not None:
-        Path(out).write_text(json.dumps(result, indent=1))
+        from thirdhand.fileops import write_text
+
+        write_text(out, json.dumps(result, indent=1))
     return result

@@ -33,9 +33,14 @@ def review_command(
 ) -> None:
     """Open a task in the review GUI (a local web app): see, animate and correct it.
 
-    Serves until Ctrl-C or the GUI's Quit button (which asks first when there
-    are unsaved changes).
+    Serves until Ctrl-C (or SIGTERM, whatever signal disposition the process
+    inherited) or the GUI's Quit button (which asks first when there are unsaved
+    changes).
     """
+    from thirdhand import options
+
+    options.port(port)
+    options.host(host)
     from thirdhand.review.app import ReviewApp
 
     app = ReviewApp(
@@ -46,10 +51,12 @@ def review_command(
         meshes=list(meshes or []),
         light_rendering=light,
     )
-    url = app.start()
-    sys.stdout.write(f"thirdhand review: {task} at {url} (Ctrl-C to stop)\n")
-    sys.stdout.flush()
+    # Ctrl-C (SIGINT) anywhere from here is the normal way to stop: exit 0. SIGTERM
+    # ends with status 143 (thirdhand.cli.main); both stop the server in ``finally``.
     try:
+        url = app.start()
+        sys.stdout.write(f"thirdhand review: {task} at {url} (Ctrl-C to stop)\n")
+        sys.stdout.flush()
         while not app.quit_requested.wait(0.5):
             pass
     except KeyboardInterrupt:

@@ -24,7 +24,7 @@ def transfer_command(
     output: Annotated[Path, typer.Option("-o", "--output", help="The new task file.")],
     force: Annotated[
         bool,
-        typer.Option("--force", help="Replace OUTPUT if it exists (the old one is kept as .bak)."),
+        typer.Option("--force", help="Replace OUTPUT if it exists (kept as a numbered .bak)."),
     ] = False,
 ) -> None:
     """Map a task onto another object set (chair -> bench) as a start for the person's adaptation.
@@ -33,12 +33,13 @@ def transfer_command(
     bounding boxes; orientations, free DOFs and the plan of the remaining steps are
     kept. Prints what was dropped or scaled.
     """
+    from thirdhand.fileops import check_output
     from thirdhand.review.transfer import transfer
     from thirdhand.taskfile import load_task, save_task
 
     try:
-        if output.exists() and not force:
-            raise ThirdhandError(f"{output} exists; pass --force to replace it (kept as .bak)")
+        inputs = [task, *([Path(to)] if Path(to).exists() else [])]
+        check_output(output, force=force, inputs=inputs)
         result = transfer(load_task(task), to)
         output.parent.mkdir(parents=True, exist_ok=True)
         save_task(result.task, output)

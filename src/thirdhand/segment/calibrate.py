@@ -173,13 +173,13 @@ def calibrate(
         res = minimize(objective, theta0, jac=True, method="L-BFGS-B", bounds=bounds)
         theta = res.x
         after = crf.objective(theta, data)[0] / data.n_steps
-        offset, scale = float(theta[N_TRANS]), float(theta[N_TRANS + 1])
-        w = scale * base.coef_state_
+        offset, factor = float(theta[N_TRANS]), float(theta[N_TRANS + 1])
+        w = factor * base.coef_state_
         w[0] += offset
         per_kind[kind] = (theta[:N_TRANS].reshape(2, 2).copy(), w)
         report[kind] = {
             "offset": offset,
-            "scale": scale,
+            "scale": factor,
             "transition": theta[:N_TRANS].reshape(2, 2).round(4).tolist(),
             "sequences": len(xs),
             "steps": data.n_steps,

@@ -24,6 +24,7 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from thirdhand.errors import ThirdhandError
+from thirdhand.fileops import atomic_output, check_output, write_text
 
 DEFAULT_COMMAND = "run"
 
@@ -89,12 +90,25 @@ def run(
     ] = None,
     json_out: Annotated[Path | None, typer.Option("--json", help="Write phases as JSON.")] = None,
     plot: Annotated[Path | None, typer.Option("--plot", help="Write a PNG (needs labels).")] = None,
+    force: Annotated[
+        bool, typer.Option(help="Replace existing outputs (kept as numbered .bak).")
+    ] = False,
 ) -> None:
     """Segment a recording into interaction phases per body pair and per hand."""
-    from thirdhand.fileops import backup_existing
     from thirdhand.segment.pipeline import scores_by_kind, segment_demonstration
 
+    inputs = [demo] + ([model] if model is not None else [])
+    for target in (json_out, plot):
+        if target is not None:
+            check_output(target, force=force, inputs=inputs)
+    if plot is not None:
+        check_plot_suffix(plot)
+    if json_out is not None and plot is not None and json_out.resolve() == plot.resolve():
+        raise ThirdhandError(f"--json and --plot name the same file {plot}")
     d = _load(demo)
+    from thirdhand import options
+
+    options.body_pairs(len(d), str(demo))
     result = segment_demonstration(d, _model(model))
     out.print(f"{demo}: {len(result.pairs)} pairs, {len(result.times)} latent steps")
     for p in result.pairs:
@@ -108,15 +122,27 @@ def run(
     for kind, s in scores_by_kind(result).items():
         out.print(f"  vs labels, {kind}: frame F1 {s['frame_f1']:.3f}, IoU {s['interval_iou']:.3f}")
     if json_out is not None:
-        backup_existing(json_out)
-        json_out.write_text(json.dumps(result.to_dict()))
+        write_text(json_out, json.dumps(result.to_dict()))
         out.print(f"wrote {json_out}")
     if plot is not None:
         from thirdhand.segment.plot import plot_phases
 
-        backup_existing(plot)
-        plot_phases(result, plot, only_labelled=True)
+        with atomic_output(plot) as tmp:
+            plot_phases(result, tmp, only_labelled=True)
         out.print(f"wrote {plot}")
+
+
+#: Figure formats every plotting option writes (matplotlib's, chosen by extension).
+PLOT_SUFFIXES = (".png", ".pdf", ".svg")
+
+
+def check_plot_suffix(path: Path) -> None:
+    """Raise unless ``path`` ends in a figure extension (``.png``, ``.pdf``, ``.svg``)."""
+    if path.suffix.lower() not in PLOT_SUFFIXES:
+        raise ThirdhandError(
+            f"{path}: a figure is written as {', '.join(PLOT_SUFFIXES)}; "
+            f"got the extension {path.suffix or '(none)'!r}"
+        )
 
 
 def _with_labels(demos: list[Path], labels: list[Path] | None) -> list[Any]:
@@ -148,16 +174,22 @@ def train(
     l2: Annotated[float, typer.Option(help="L2 penalty on the weights.")] = 1.0,
     latent_rate: Annotated[float, typer.Option(help="Latent steps per second, Hz.")] = 10.0,
     window: Annotated[int, typer.Option(help="Window length, latent steps.")] = 5,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing model (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Train a segmentation model on labelled recordings."""
-    from thirdhand.fileops import backup_existing
+    from thirdhand import options
     from thirdhand.segment.design import FeatureConfig
     from thirdhand.segment.training import fit_model
 
+    check_output(output, force=force, inputs=[*demos, *(labels or [])])
+    options.finite("--l2", l2, low=0.0)
+    options.finite("--latent-rate", latent_rate, low=0.0, low_open=True, high=1000.0)
+    options.integer("--window", window, low=1, high=1000)
     ds = _with_labels(demos, labels)
     cfg = FeatureConfig(latent_rate=latent_rate, window=window)
     model = fit_model(ds, cfg, l2=l2, training={"demonstrations": [str(p) for p in demos]})
-    backup_existing(output)
     model.save(output)
     info = model.training
     out.print(
@@ -188,9 +220,12 @@ def evaluate(
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the table as JSON.")
     ] = None,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing --json file (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Table I protocol: logistic regression vs CRF, trained on one hand, tested on the other."""
-    from thirdhand.fileops import backup_existing
+    from thirdhand import options
     from thirdhand.segment.design import FeatureConfig
     from thirdhand.segment.training import (
         labelled_sequences,
@@ -199,11 +234,16 @@ def evaluate(
         table_one_folds,
     )
 
-    for name, hand in (("--train-hand", train_hand), ("--test-hand", test_hand)):
+    if json_out is not None:
+        check_output(json_out, force=force, inputs=[*demos, *(labels or [])])
+    options.finite("--l2", l2, low=0.0)
+    options.finite("--latent-rate", latent_rate, low=0.0, low_open=True, high=1000.0)
+    options.integer("--window", window, low=1, high=1000)
+    for option, hand in (("--train-hand", train_hand), ("--test-hand", test_hand)):
         if hand not in ("left", "right"):
-            raise ThirdhandError(f"{name} must be 'left' or 'right', got {hand!r}")
+            raise ThirdhandError(f"{option}: expected left or right, got {hand!r}")
     if split not in ("hand", "object", "time"):
-        raise ThirdhandError(f"--split must be 'hand', 'object' or 'time', got {split!r}")
+        raise ThirdhandError(f"--split: expected hand, object or time, got {split!r}")
     ds = _with_labels(demos, labels)
     cfg = FeatureConfig(latent_rate=latent_rate, window=window)
     if split == "hand":
@@ -242,8 +282,7 @@ def evaluate(
         "test; CRF 2464.9 (0.0875) / 1912.8 (0.0679)"
     )
     if json_out is not None:
-        backup_existing(json_out)
-        json_out.write_text(json.dumps(tab, indent=1))
+        write_text(json_out, json.dumps(tab, indent=1))
 
 
 @app.command()
@@ -272,15 +311,23 @@ def calibrate(
     keep_transitions: Annotated[
         bool, typer.Option("--keep-transitions", help="Keep the trained transition weights.")
     ] = False,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing model (kept as a numbered .bak).")
+    ] = False,
 ) -> None:
     """Refit a model's score offset, scale and transitions to your rig from labelled intervals.
 
     Label every interaction of the pairs you name (within --span when given):
     the other steps of those pairs are taken as "not interacting".
     """
-    from thirdhand.fileops import backup_existing
+    from thirdhand import options
     from thirdhand.segment.calibrate import calibrate as run_calibration
 
+    inputs = [*demos, *(labels or [])]
+    if model is not None and model.exists():
+        inputs.append(model)
+    check_output(output, force=force, inputs=inputs)
+    options.finite("--prior", prior, low=0.0, low_open=True)
     ds = _with_labels(demos, labels)
     calibrated, report = run_calibration(
         _model(model),
@@ -290,7 +337,6 @@ def calibrate(
         scale=not keep_scale,
         transitions=not keep_transitions,
     )
-    backup_existing(output)
     calibrated.save(output)
     for kind, r in report.items():
         out.print(

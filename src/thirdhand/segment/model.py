@@ -176,18 +176,20 @@ class SegmentModel:
         )
 
     def save(self, path: str | os.PathLike[str]) -> None:
-        """Write the JSON document atomically (temporary file, then rename)."""
-        p = Path(path)
-        tmp = p.with_name(p.name + ".tmp")
-        tmp.write_text(json.dumps(self.to_dict(), indent=1) + "\n")
-        os.replace(tmp, p)
+        """Write the JSON document atomically (unique temporary file, then rename; a
+        previous file is kept as a numbered backup)."""
+        from thirdhand.fileops import write_text
+
+        write_text(path, json.dumps(self.to_dict(), indent=1) + "\n")
 
 
 def load_model(path: str | os.PathLike[str]) -> SegmentModel:
     """Read a model written by :meth:`SegmentModel.save`."""
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise ModelFileError(f"{p}: not a segmentation model (not UTF-8 JSON text)") from None
     except OSError as exc:
         raise ModelFileError(f"{p}: cannot read the model: {exc.strerror or exc}") from None
     try:

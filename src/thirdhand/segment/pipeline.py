@@ -406,12 +406,11 @@ def run_stage(demo: Demonstration, out: Any, summary: dict[str, Any]) -> Segment
     """
     import json
 
-    from thirdhand.fileops import backup_existing
+    from thirdhand.fileops import atomic_output, write_text
 
     result = segment_demonstration(demo)
     path = out / "phases.json"
-    backup_existing(path)
-    path.write_text(json.dumps(result.to_dict()))
+    write_text(path, json.dumps(result.to_dict()))
     summary["files"].append(str(path))
     scores = scores_by_kind(result)
     n_int = sum(len(p.intervals) for p in result.pairs)
@@ -432,7 +431,7 @@ def run_stage(demo: Demonstration, out: Any, summary: dict[str, Any]) -> Segment
         except ImportError:
             return result
         png = out / "phases.png"
-        backup_existing(png)
-        plot_phases(result, png)
+        with atomic_output(png) as tmp:
+            plot_phases(result, tmp)
         summary["files"].append(str(png))
     return result

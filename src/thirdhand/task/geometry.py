@@ -70,8 +70,23 @@ def _positive(v: float) -> float:
     return v
 
 
-#: Position x y z, metres.
-Vec3 = tuple[float, float, float]
+#: Largest coordinate a task file may hold, metres: anything farther is a unit
+#: mistake (millimetres read as metres), and would make the planners' matrices
+#: singular.
+MAX_COORDINATE_M = 1000.0
+
+
+def _plausible(v: tuple[float, float, float]) -> tuple[float, float, float]:
+    if max(abs(c) for c in v) > MAX_COORDINATE_M:
+        raise ValueError(
+            f"coordinate {max(v, key=abs):g} m is beyond {MAX_COORDINATE_M:g} m; "
+            "expected metres (millimetres read as metres?)"
+        )
+    return v
+
+
+#: Position x y z, metres, each within ±MAX_COORDINATE_M.
+Vec3 = Annotated[tuple[float, float, float], AfterValidator(_plausible)]
 #: Unit quaternion x y z w: zero rejected, near-unit normalised.
 Quat = Annotated[tuple[float, float, float, float], AfterValidator(_unit_quat)]
 #: A closed interval ``[min, max]`` with min <= max.

@@ -169,6 +169,34 @@ def _duplicates(names: Iterable[str]) -> list[tuple[int, str]]:
     return out
 
 
+def _tree_problem(constraints: Sequence[Any]) -> str | None:
+    """The first way the constraints' parent links fail to form a forest, or None.
+
+    Each object has at most one parent (several constraints between the same
+    pair, e.g. over time, are fine) and following parents never comes back.
+    """
+    parent_of: dict[str, tuple[str, int]] = {}
+    for i, c in enumerate(constraints):
+        first = parent_of.setdefault(c.child, (c.parent, i))
+        if first[0] != c.parent:
+            return (
+                f"constraints[{i}].parent: {c.child!r} already has the parent {first[0]!r} "
+                f"(constraints[{first[1]}]); an object has one parent, got also {c.parent!r}"
+            )
+    for start in parent_of:
+        seen = [start]
+        node = start
+        while node in parent_of:
+            node, i = parent_of[node]
+            if node == start:
+                cycle = " -> ".join([*seen, start])
+                return f"constraints[{i}]: the parents form a cycle ({cycle})"
+            if node in seen:
+                break
+            seen.append(node)
+    return None
+
+
 class TaskFile(TaskModel):
     """Everything learned about one task (schema ``thirdhand.task/1``).
 
@@ -220,6 +248,9 @@ class TaskFile(TaskModel):
                     return f"constraints[{i}].{role}: unknown object {getattr(c, role)!r}"
             if c.parent == c.child:
                 return f"constraints[{i}]: parent and child are both {c.parent!r}"
+        tree_problem = _tree_problem(self.constraints)
+        if tree_problem is not None:
+            return tree_problem
         ids = {c.id for c in self.constraints}
         for i, s in enumerate(self.plan):
             for role in ("parent", "child"):

@@ -1,21 +1,22 @@
 """Reading and writing task files: validated load, atomic save with a backup of the previous file.
 
 A user's corrected task is never lost: before a file is replaced, its exact
-bytes are kept as ``<name>.bak``, and the new content goes to ``<name>.tmp``,
-is flushed to disk, then renamed over the original in one step.
+bytes are kept as its next numbered backup (``<name>.bak``, ``<name>.bak.1``,
+…), and the new content goes to a uniquely named temporary file beside it, is
+flushed to disk, then renamed over the original in one step.
 """
 
 from __future__ import annotations
 
 import json
 import os
-import shutil
 from pathlib import Path
 from typing import Any
 
 from pydantic import ValidationError
 
-from thirdhand.errors import TaskFileError
+from thirdhand.errors import OutputError, TaskFileError
+from thirdhand.fileops import write_text
 from thirdhand.task.errors import first_error
 from thirdhand.task.model import TaskFile
 
@@ -116,25 +117,24 @@ def dump_task(task: TaskFile) -> str:
     return _format(task.to_json_dict(), "") + "\n"
 
 
-def _fsync_dir(folder: Path) -> None:
-    try:
-        fd = os.open(folder, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
-def save_task(task: TaskFile, path: str | os.PathLike[str]) -> None:
-    """Write ``task`` to ``path`` atomically, keeping the previous file as ``path.bak``.
+def save_task(task: TaskFile, path: str | os.PathLike[str], *, backup: bool = True) -> None:
+    """Write ``task`` to ``path`` atomically, keeping the previous file as a numbered backup.
 
     The task is validated again first (in-memory edits may have broken it), then
-    written to ``path.tmp``, flushed to disk and renamed over ``path``. If ``path``
-    exists, a complete copy of it is made as ``path.bak`` before anything replaces it.
+    written to a uniquely named temporary file beside ``path``, flushed to disk
+    and renamed over ``path`` (:func:`thirdhand.fileops.atomic_output`). If
+    ``path`` exists, it is kept as its next backup (``path.bak``, then
+    ``path.bak.1``, …) under a lock on the folder, so concurrent saves from
+    several processes each back up the version they replace and a reader only
+    ever sees a complete task file.
+
+    Parameters
+    ----------
+    task : TaskFile
+    path : path-like
+    backup : bool
+        Keep the previous file (default). Only for a file the same run wrote
+        moments before.
 
     Raises
     ------
@@ -148,21 +148,8 @@ def save_task(task: TaskFile, path: str | os.PathLike[str]) -> None:
     except ValueError as exc:
         raise TaskFileError(f"{p}: cannot write task: {exc}") from None
     parse_task(text, name=str(p))
-    tmp = p.with_name(p.name + ".tmp")
-    bak = p.with_name(p.name + ".bak")
     try:
-        if p.exists():
-            shutil.copyfile(p, tmp)
-            with open(tmp, "rb+") as fh:
-                os.fsync(fh.fileno())
-            os.replace(tmp, bak)
-        with open(tmp, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, p)
-        _fsync_dir(p.parent)
-    except OSError as exc:
-        raise TaskFileError(f"{p}: cannot write task file: {exc}") from None
-    finally:
-        tmp.unlink(missing_ok=True)
+        write_text(p, text, backup=backup)
+    except OutputError as exc:
+        reason = str(exc).removeprefix(f"{p}: cannot write: ")
+        raise TaskFileError(f"{p}: cannot write task file: {reason}") from None

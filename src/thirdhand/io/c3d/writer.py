@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
+import struct
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -13,6 +15,7 @@ from numpy.typing import ArrayLike
 
 from thirdhand.demonstration import Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.fileops import atomic_output
 from thirdhand.io.c3d.clusters import _layout, markers_from_demonstration
 from thirdhand.io.c3d.constants import FORMAT_VERSION, GROUP, MAX_FRAMES, FloatArray
 
@@ -82,15 +85,37 @@ def write(
         raise FormatError(p, f"demo.meta cannot be stored as JSON: {exc}") from None
     for key, chunk in params.items():
         c.add_parameter(GROUP, key, chunk)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp.c3d")
-    try:
-        c.write(str(tmp))
-        os.replace(tmp, p)
-    except (OSError, RuntimeError, ValueError, TypeError) as exc:
-        raise FormatError(p, f"could not write: {exc}") from None
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+    with atomic_output(p, verify=lambda tmp: _check_written(tmp, m, n)) as tmp:
+        try:
+            c.write(str(tmp))
+        except (RuntimeError, ValueError, TypeError) as exc:
+            raise FormatError(p, f"could not write: {exc}") from None
+
+
+def _check_written(tmp: Path, n_points: int, n_frames: int) -> None:
+    """Check the written file holds every frame: ezc3d does not report a short write.
+
+    The size the header implies, ``(DATA_START - 1) * 512`` bytes before the
+    data plus ``frames * (4 * points + analog) * word`` bytes of data, must all
+    be there. The header is parsed here, not by ezc3d, which crashes on a cut file.
+    """
+    size = tmp.stat().st_size
+    with open(tmp, "rb") as fh:
+        head = fh.read(24)
+    if len(head) < 24:
+        raise OSError(errno.EFBIG, f"only {size} bytes were written")
+    points, analog, first, last = struct.unpack("<HHHH", head[2:10])
+    (scale,) = struct.unpack("<f", head[12:16])
+    (data_start,) = struct.unpack("<H", head[16:18])
+    frames = last - first + 1
+    word = 4 if scale < 0 else 2
+    expected = (data_start - 1) * 512 + frames * (4 * points + analog) * word
+    if points != n_points or frames != n_frames or size < expected:
+        raise OSError(
+            errno.EFBIG,
+            f"the written file is short: {size} of {expected} bytes "
+            f"({frames} frames of {points} markers, expected {n_frames} of {n_points})",
+        )
 
 
 def _regular_axis(p: Path, t: FloatArray, rate: float | None) -> tuple[float, float]:

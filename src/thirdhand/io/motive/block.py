@@ -62,7 +62,33 @@ def _read_block(path: Path, header: _Header, columns: list[int]) -> dict[int, An
             raise _diagnose(path, header, columns, end) or FormatError(
                 path, f"data block could not be parsed: {exc}"
             ) from None
+    _check_complete(path, header, table.num_rows, end)
     return {j: table.column(names[j]) for j in columns}
+
+
+def _check_complete(path: Path, header: _Header, n_rows: int, end: int) -> None:
+    """Refuse a file cut short: no final line break, or fewer rows than the header states.
+
+    A cut inside the last cell would otherwise load a shortened number.
+    """
+    with open(path, "rb") as fh:
+        fh.seek(max(end, 0))
+        tail = fh.read(2)
+    if not tail.startswith((b"\n", b"\r")):
+        raise FormatError(
+            path,
+            "the file ends inside a line (no final line break): it looks cut short, "
+            "and the last row may hold a shortened number",
+            line=header.data_line + n_rows - 1,
+        )
+    stated = header.keys.get("Total Exported Frames", "").strip()
+    if stated.isdigit() and int(stated) > 0 and int(stated) != n_rows:
+        raise FormatError(
+            path,
+            f"the header states {int(stated)} exported frames (Total Exported Frames), "
+            f"the data block holds {n_rows} rows",
+            line=header.data_line + min(n_rows, int(stated)),
+        )
 
 
 def _diagnose(path: Path, header: _Header, columns: list[int], end: int) -> FormatError | None:
@@ -76,7 +102,7 @@ def _diagnose(path: Path, header: _Header, columns: list[int], end: int) -> Form
             raw = fh.readline()
             pos += len(raw)
             lineno += 1
-            row = _cells(_decode(raw).rstrip("\r\n"))
+            row = _cells(_decode(raw).rstrip("\r\n"), path, lineno)
             if len(row) != header.n_cols:
                 kind = "blank line" if not raw.strip() else f"{len(row)} columns"
                 return FormatError(
@@ -139,6 +165,18 @@ def _time_axis(
         raise FormatError(
             path,
             f"frame numbers must increase: frame {frame[i - 1]} then {frame[i]}",
+            line=line0 + i,
+        )
+    steps = np.diff(frame)
+    uneven = np.flatnonzero(steps != steps[0]) if steps.size else steps
+    if uneven.size:
+        # Motive numbers every exported frame (every k-th when down-sampled): a
+        # changing step is a row lost or pasted in, which would load as a gap.
+        i = int(uneven[0]) + 1
+        raise FormatError(
+            path,
+            f"frame numbers step by {steps[0]} up to frame {frame[i - 1]}, then by "
+            f"{steps[i - 1]} to frame {frame[i]}: a row is missing or extra",
             line=line0 + i,
         )
     bad = np.flatnonzero(~(np.diff(time) > 0))

@@ -28,6 +28,9 @@ class _Header:
     data_offset: int = 0
 
 
+_INTEGER = re.compile(r"[+-]?\d+")
+
+
 def sniff(path: Path) -> bool:
     """A file whose first line starts with ``Format Version,`` (Motive's CSV export)."""
     if not path.is_file():
@@ -44,8 +47,16 @@ def _decode(raw: bytes) -> str:
         return raw.decode("cp1252", errors="replace")
 
 
-def _cells(text: str) -> list[str]:
-    return next(csv.reader([text]), [])
+def _cells(text: str, path: Path | None = None, line: int | None = None) -> list[str]:
+    """The CSV cells of one line; a stray carriage return or quote is a FormatError."""
+    try:
+        return next(csv.reader([text]), [])
+    except csv.Error as exc:
+        raise FormatError(
+            path if path is not None else "<csv>",
+            f"cannot split the line into cells ({exc}); a stray carriage return or quote?",
+            line=line,
+        ) from None
 
 
 def _read_header(path: Path) -> _Header:
@@ -57,7 +68,7 @@ def _read_header(path: Path) -> _Header:
                 path, "empty file: expected Motive's 'Format Version,...' line", line=1
             )
         text = _decode(first.removeprefix(b"\xef\xbb\xbf")).rstrip("\r\n")
-        cells = _cells(text)
+        cells = _cells(text, path, 1)
         if not cells or cells[0].strip() != _MAGIC:
             raise FormatError(
                 path,
@@ -91,9 +102,16 @@ def _read_header(path: Path) -> _Header:
                     f"no 'Frame,Time (Seconds),...' row in the first {_MAX_HEADER_LINES} lines",
                     line=lineno,
                 )
-            row = _cells(_decode(raw).rstrip("\r\n"))
+            row = _cells(_decode(raw).rstrip("\r\n"), path, lineno)
             if not any(c.strip() for c in row):
                 continue
+            if _INTEGER.fullmatch(row[0].strip()):
+                raise FormatError(
+                    path,
+                    f"a data row (frame {row[0].strip()}) above the 'Frame,Time (Seconds),...' "
+                    "row; the Frame row must come right before the data",
+                    line=lineno,
+                )
             if row[0].strip() == "Frame":
                 _finish_header(path, header, row, lineno, unlabelled)
                 header.data_line = lineno + 1

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from thirdhand.demonstration import (
     BODY_KINDS,
     MAX_PLAUSIBLE_POSITION_M,
+    MAX_QUAT_NORM_ERROR,
     BodyInfo,
     BodyKind,
     Demonstration,
@@ -182,18 +183,43 @@ def _body_arrays(
     """
     pcols = [_as_float(block[j]) for j in spec.pos]
     qcols = [_as_float(block[j]) for j in spec.quat] if spec.quat is not None else []
+    where = f"body {spec.name!r}"
+    # Blank cells (NaN) mean "not tracked"; an infinite cell is corrupt, as in every reader.
+    for j, c in zip((*spec.pos, *(spec.quat or [])), (*pcols, *qcols), strict=True):
+        inf = np.flatnonzero(np.isinf(c))
+        if inf.size:
+            i = int(inf[0])
+            raise FormatError(
+                path,
+                f"cell is not finite: {float(c[i])!r} (a blank cell marks an untracked frame)",
+                line=header.data_line + i,
+                where=f"{where}, column {j + 1}",
+            )
     valid = np.isfinite(pcols[0])
     for c in (*pcols[1:], *qcols):
         valid &= np.isfinite(c)
-    where = f"body {spec.name!r}"
     if qcols:
-        sq = qcols[0] * qcols[0] + qcols[1] * qcols[1] + qcols[2] * qcols[2] + qcols[3] * qcols[3]
+        with np.errstate(over="ignore", invalid="ignore"):  # a huge cell is reported below
+            sq = qcols[0] * qcols[0] + qcols[1] * qcols[1] + qcols[2] * qcols[2]
+            sq += qcols[3] * qcols[3]
         zero = np.flatnonzero(valid & (sq < 1e-18))
         if zero.size:
             i = int(zero[0])
             found = tuple(float(c[i]) for c in qcols)
             raise FormatError(
                 path, f"zero-norm quaternion {found}", line=header.data_line + i, where=where
+            )
+        with np.errstate(invalid="ignore", over="ignore"):
+            off = np.flatnonzero(valid & ~(np.abs(np.sqrt(sq) - 1.0) <= MAX_QUAT_NORM_ERROR))
+        if off.size:
+            i = int(off[0])
+            found = tuple(float(c[i]) for c in qcols)
+            raise FormatError(
+                path,
+                f"quaternion {found} has norm {float(np.sqrt(sq[i])):.6g}; expected a unit "
+                f"quaternion (norm within {MAX_QUAT_NORM_ERROR:g} of 1)",
+                line=header.data_line + i,
+                where=where,
             )
     if scale != 1.0:
         pcols = [c / scale for c in pcols]

@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import FormatError
+from thirdhand.fileops import atomic_output
 from thirdhand.io.motive.constants import FloatArray
 
 _WRITE_VERSION = "1.23"
@@ -136,19 +137,13 @@ def write(
     lines = [",".join(f"{k},{v}" for k, v in [(_q(a), _q(b)) for a, b in first]), ""]
     lines += [",".join(_q(c) for c in row) for row in (types, names, ids, comps, axes)]
     table = pa.table(arrays)
-    tmp = p.with_name(f".{p.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            fh.write(("\n".join(lines) + "\n").encode("utf-8"))
-            pacsv.write_csv(
-                table,
-                fh,
-                write_options=pacsv.WriteOptions(include_header=False, quoting_style="none"),
-            )
-        os.replace(tmp, p)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with atomic_output(p) as tmp, open(tmp, "wb") as fh:
+        fh.write(("\n".join(lines) + "\n").encode("utf-8"))
+        pacsv.write_csv(
+            table,
+            fh,
+            write_options=pacsv.WriteOptions(include_header=False, quoting_style="none"),
+        )
 
 
 def _q(cell: str) -> str:

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -14,6 +13,7 @@ import numpy as np
 
 from thirdhand.demonstration import Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError
+from thirdhand.fileops import atomic_output
 from thirdhand.io.rosbag.classify import _fields
 from thirdhand.io.rosbag.collect import _frame_id
 from thirdhand.io.rosbag.constants import (
@@ -206,7 +206,7 @@ def write(
     if mode not in ("pose", "tf"):
         raise FormatError(p, f"mode must be 'pose' or 'tf', got {mode!r}")
     if p.exists() and not overwrite:
-        raise FormatError(p, "already exists; pass overwrite=True to replace it")
+        raise FormatError(p, "already exists (the command's --force replaces it, keeping a backup)")
     if not root_frame or _frame_id(root_frame) != root_frame:
         raise FormatError(
             p, f"root_frame must be a tf frame id without leading slash, got {root_frame!r}"
@@ -241,20 +241,15 @@ def write(
     except TypeError as exc:
         raise FormatError(p, f"demonstration meta is not JSON-able: {exc}") from None
     types = {t: _POSE_STAMPED for t in topic_of or []} or {"/tf": _TFMESSAGE}
-    tmp = p.parent / f".{p.name}.{os.getpid()}.tmp"
-    tmp.mkdir(parents=True)
-    try:
+    with atomic_output(p) as built:
         if ver == 1:
-            built = tmp / p.name
             _write_ros1(built, store, types, meta_msg, int(stamps[0]), messages)
+        elif single:
+            folder = built.parent / p.stem
+            _write_ros2(folder, store, plugin, types, meta_msg, int(stamps[0]), messages)
+            os.rename(folder / f"{p.stem}{p.suffix}", built)
         else:
-            built = tmp / (p.stem if single else p.name)
             _write_ros2(built, store, plugin, types, meta_msg, int(stamps[0]), messages)
-            if single:
-                built = built / f"{built.name}{p.suffix}"
-        _replace(built, p)
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
 
 
 def _write_ros1(
@@ -293,17 +288,3 @@ def _write_ros2(
         w.write(meta_conn, first, store.serialize_cdr(meta_msg, _STRING))
         for topic, stamp, msg in messages:
             w.write(conns[topic], stamp, store.serialize_cdr(msg, types[topic]))
-
-
-def _replace(built: Path, p: Path) -> None:
-    """Move a complete new bag to ``p``; an old bag there is removed only afterwards."""
-    if p.exists() and (p.is_dir() or built.is_dir()):
-        old = p.parent / f".{p.name}.{os.getpid()}.old"
-        os.replace(p, old)
-        os.replace(built, p)
-        if old.is_dir():
-            shutil.rmtree(old)
-        else:
-            old.unlink()
-    else:
-        os.replace(built, p)
