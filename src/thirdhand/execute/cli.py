@@ -49,6 +49,19 @@ def execute_command(
     force: Annotated[
         bool, typer.Option(help="Replace existing --record files (kept as numbered .bak).")
     ] = False,
+    order: Annotated[
+        str,
+        typer.Option(
+            help="What binds the step order: auto (the plan's order when learned from "
+            "several demonstrations), plan, or parents (only parents first)."
+        ),
+    ] = "auto",
+    max_grasps: Annotated[int, typer.Option(help="Grasp candidates tried per step.")] = 24,
+    goals: Annotated[int, typer.Option(help="Goal poses tried per step (free DOFs).")] = 16,
+    assembly_at: Annotated[
+        tuple[float, float] | None,
+        typer.Option(help="World x y (m) where the assembly is built (default: the robot's)."),
+    ] = None,
 ) -> None:
     """Execute a task's plan on a simulated robot arm with a motion planner."""
     from thirdhand import io, options
@@ -67,11 +80,24 @@ def execute_command(
     console = Console()
     t = load_task(task)
     search = [str(m) for m in meshes or []]
+    from thirdhand.execute.step_order import ORDERS
+
+    if order not in ORDERS:
+        raise ThirdhandError(f"--order {order}: expected one of {', '.join(ORDERS)}")
+    options.integer("--max-grasps", max_grasps, low=1, high=10_000)
+    options.integer("--goals", goals, low=1, high=10_000)
+    if assembly_at is not None:
+        for v in assembly_at:
+            options.finite("--assembly-at", v, low=-10.0, high=10.0)
     opts = ExecutionOptions(
-        sample_free_dofs=free_dofs, step_time_limit=step_time, plan_time_limit=plan_time
-    )
+        sample_free_dofs=free_dofs, step_time_limit=step_time, plan_time_limit=plan_time,
+        order=order, max_grasps=max_grasps, n_goal_samples=goals,
+    )  # fmt: skip
     d = io.load(demo) if demo is not None else None
-    ex = Executor.for_task(t, robot, seed=seed, options=opts, task_path=task, search=search, demo=d)
+    ex = Executor.for_task(
+        t, robot, seed=seed, options=opts, task_path=task, search=search, demo=d,
+        assembly_xy=assembly_at,
+    )  # fmt: skip
     arm = ex.robot
     ids = {c.id for c in t.constraints}
     for cid in person or []:
@@ -104,6 +130,20 @@ def execute_command(
     console.print(table)
     for e in result.events:
         console.print(f"event: {e}")
+    for r in result.steps:
+        if r.success:
+            continue
+        n = r.tried
+        if n:
+            console.print(
+                f"step {r.index} ({r.constraint}) tried: {n.get('grasps', 0)} grasps "
+                f"({n.get('grasp_ik_failed', 0)} IK failed, {n.get('grasp_in_collision', 0)} in "
+                f"collision), {n.get('goals', 0)} goals ({n.get('place_ik_failed', 0)} IK failed, "
+                f"{n.get('place_in_collision', 0)} in collision), "
+                f"{n.get('plans_failed', 0)}/{n.get('plans', 0)} plans failed"
+            )
+        for a, b, k in r.collision_pairs:
+            console.print(f"step {r.index} ({r.constraint}) colliding: {a} – {b} ({k} times)")
     if record is not None:
         replay, traj = write_run(arm, result, record, task_name=task.stem)
         console.print(f"wrote {replay} and {traj}")

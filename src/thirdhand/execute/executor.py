@@ -45,6 +45,12 @@ from thirdhand.execute.layout import Workcell, make_workcell, start_layout
 from thirdhand.execute.planner import plan_motion
 from thirdhand.execute.primitive_motion import find_primitive
 from thirdhand.execute.robot import Robot
+from thirdhand.execute.step_order import (
+    identical_parts,
+    plan_binds_order,
+    predecessors,
+    slot_difficulty,
+)
 from thirdhand.execute.step_plan import (
     ExecutionOptions,
     ExecutionResult,
@@ -111,6 +117,7 @@ class Executor:
         task_path: str | os.PathLike[str] | None = None,
         search: Sequence[str | os.PathLike[str]] = (),
         demo: Demonstration | None = None,
+        assembly_xy: tuple[float, float] | None = None,
     ) -> Executor:
         """The work cell of ``task`` for ``robot_name``, the arm mounted in it, a seeded start.
 
@@ -122,8 +129,12 @@ class Executor:
             Seed of the start layout.
         options, task_path, search, demo
             As for the constructor.
+        assembly_xy : (float, float), optional
+            World x, y where the assembly is built, metres (the robot's default otherwise).
         """
-        cell = make_workcell(task, robot_name, task_path=task_path, search=search)
+        cell = make_workcell(
+            task, robot_name, assembly_xy=assembly_xy, task_path=task_path, search=search
+        )
         arm = Robot.load(
             robot_name, base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0]))
         )
@@ -163,6 +174,8 @@ class Executor:
                     found = grasp_mod.rod_turns(found, *box)
                 self.hints[c.child] = found
         self.primitives = task.stages.get("primitives") if self.options.use_primitives else None
+        #: Constraint id → the part put into its slot (offline; identical parts swap).
+        self.bind: dict[str, str] = {}
 
     def new_world(self, poses: Mapping[str, FloatArray] | None = None) -> SimWorld:
         """A world with the parts at ``poses`` (the start layout by default)."""
@@ -187,14 +200,24 @@ class Executor:
         return out
 
     def plan_step(
-        self, world: SimWorld, index: int, constraint: Constraint, q_start: FloatArray, seed: int
-    ) -> StepPlan:
-        """Search and plan one step in ``world`` (left unchanged) from ``q_start``."""
+        self, world: SimWorld, index: int, constraint: Constraint, q_start: FloatArray, seed: int,
+        part: str | None = None,
+    ) -> StepPlan:  # fmt: skip
+        """Search and plan one step in ``world`` (left unchanged) from ``q_start``.
+
+        ``part`` puts that part (one identical to the constraint's child,
+        :func:`~thirdhand.execute.step_order.identical_parts`) into the slot instead;
+        the slot's learned primitive and demonstrated grasps are used for it.
+        """
         t0 = time.perf_counter()
         prim = find_primitive(self.primitives, constraint.parent, constraint.child)
+        hints: Mapping[str, Sequence[grasp_mod.Grasp]] = self.hints
+        if part is not None and part != constraint.child:
+            hints = {**self.hints, part: self.hints.get(constraint.child, [])}
+            constraint = constraint.model_copy(update={"child": part})
         search = StepSearch(
             world, self.task, constraint, self.options, seed=seed,
-            deadline=t0 + self.options.step_time_limit, primitive=prim, hints=self.hints,
+            deadline=t0 + self.options.step_time_limit, primitive=prim, hints=hints,
         )  # fmt: skip
         plan = search.run(q_start, np.random.default_rng([seed, index]))
         plan.report.index = index
@@ -251,16 +274,34 @@ class Executor:
         return q
 
     def run_offline(self, seed: int = 0) -> ExecutionResult:
-        """Plan every step first (in a model of the world), then execute the plan."""
-        model = self.new_world()
-        q = self.robot.home
-        plans: list[StepPlan] = []
-        for index, _, c in self._steps():
-            plan = self.plan_step(model, index, c, q, seed)
-            plans.append(plan)
-            if plan.report.success:
-                # advance the model as if the step ran
-                q = self._execute(model, plan, q, [])
+        """Plan every step first (in a model of the world), then execute the plan.
+
+        The order and the parts are chosen while planning
+        (:mod:`~thirdhand.execute.step_order`): among the steps allowed next, the
+        hardest slot first, each slot filled by the first of its interchangeable
+        parts whose step succeeds; when a step fails, it is moved to the front
+        (as early as its predecessors allow) and the plan is made again, at most
+        once per step. Every re-planning is said in the result's events.
+        """
+        steps = self._steps()
+        pre = predecessors(steps, use_plan=plan_binds_order(self.task, self.options.order))
+        first: list[str] = []
+        log: list[str] = []
+        cache: dict[tuple[tuple[str, str], ...], StepPlan] = {}
+        while True:
+            plans, failed, done = self._plan_in_order(steps, pre, first, seed, cache)
+            if failed is None or not self.options.reorder or failed in first:
+                break
+            # was anything it need not follow planned before it?
+            ahead = [cid for cid in done if cid not in pre[failed]]
+            if not ahead:
+                break
+            log.append(
+                f"re-plan: {failed} failed after {', '.join(ahead)}; planned again with "
+                f"{failed} first"
+            )
+            first.insert(0, failed)
+        self.bind = {p.report.constraint: p.report.child for p in plans if p.report.success}
         world = self.new_world()
         q = self.robot.home
         trajectory: list[dict[str, Any]] = []
@@ -274,7 +315,87 @@ class Executor:
                 rep.status = "done"
             reports.append(rep)
         self._go_home(world, q, seed, trajectory)
-        return self._result(world, reports, trajectory, [])
+        return self._result(world, reports, trajectory, log)
+
+    def _plan_in_order(
+        self, steps: Sequence[tuple[int, TaskStep, Constraint]], pre: Mapping[str, set[str]],
+        first: Sequence[str], seed: int,
+        cache: dict[tuple[tuple[str, str], ...], StepPlan],
+    ) -> tuple[list[StepPlan], str | None, list[str]]:  # fmt: skip
+        """Plan every step in a model of the world, choosing the order and the parts.
+
+        Returns the plans (in execution order, failed ones included), the first
+        step that failed (None if none did) and the steps planned before it.
+        ``cache`` holds the plans made, keyed by the (constraint, part) steps before
+        them and their own.
+        """
+        model = self.new_world()
+        q = self.robot.home
+        same = identical_parts(self.task)
+        by_id = {c.id: (i, c) for i, _, c in steps}
+        free = {c.child for _, _, c in steps}
+        done: list[str] = []
+        key: tuple[tuple[str, str], ...] = ()
+        plans: list[StepPlan] = []
+        failed: set[str] = set()
+        first_failed: str | None = None
+        done_before: list[str] = []
+        while len(done) + len(failed) < len(steps):
+            ready = [
+                c for _, _, c in steps
+                if c.id not in failed and c.id not in done and pre[c.id] <= set(done)
+            ]  # fmt: skip
+            if not ready:
+                for _, _, c in steps:  # their predecessors failed
+                    if c.id not in failed and c.id not in done:
+                        failed.add(c.id)
+                        miss = sorted(pre[c.id] - set(done))
+                        plans.append(StepPlan(StepReport(
+                            by_id[c.id][0], c.parent, c.child, c.id, False,
+                            f"not attempted: needs {', '.join(miss)} first, which failed",
+                        )))  # fmt: skip
+                break
+            c = min(ready, key=lambda c: self._rank(model, c, first))
+            index = by_id[c.id][0]
+            parts = [p for p in same.get(c.child, [c.child]) if p in free]
+            parts.sort(key=lambda p: (p != c.child, self._distance(model, p, c)))
+            plan = None
+            for part in parts[: max(1, self.options.max_parts)]:
+                # the model is in the state the steps of ``key`` leave: a plan made
+                # in an earlier round after the same steps holds here too
+                plan = cache.get((*key, (c.id, part)))
+                if plan is None:
+                    plan = self.plan_step(model, index, c, q, seed, part=part)
+                    cache[(*key, (c.id, part))] = plan
+                if plan.report.success:
+                    q = self._execute(model, plan, q, [])  # advance the model as if it ran
+                    break
+                t = plan.report.tried
+                if t.get("grasps_reachable", 0) > 0 and t.get("place_reachable", 0) == 0:
+                    break  # the goal is out of reach with every grasp: so for any twin part
+            assert plan is not None
+            plans.append(plan)
+            if plan.report.success:
+                done.append(c.id)
+                free.discard(plan.report.child)
+                key = (*key, (c.id, plan.report.child))
+            else:
+                failed.add(c.id)
+                if first_failed is None:
+                    first_failed, done_before = c.id, list(done)
+        return plans, first_failed, done_before
+
+    def _rank(self, world: SimWorld, c: Constraint, first: Sequence[str]) -> tuple[int, float]:
+        """Sort key of a step that may run next: moved to the front first, then hardest first."""
+        pos = first.index(c.id) if c.id in first else len(first)
+        goal = world.pose(c.parent) @ c.pose.matrix()
+        return pos, -slot_difficulty(goal, self.cell.arm_xy, self.cell.table_z)
+
+    @staticmethod
+    def _distance(world: SimWorld, part: str, c: Constraint) -> float:
+        """How far ``part`` lies from the slot of ``c``, metres."""
+        goal = world.pose(c.parent) @ c.pose.matrix()
+        return float(np.linalg.norm(world.pose(part)[:3, 3] - goal[:3, 3]))
 
     def run_online(
         self, seed: int = 0, events: Mapping[int, Sequence[WorldEvent]] | None = None
@@ -401,7 +522,15 @@ class Executor:
         self, world: SimWorld, reports: list[StepReport], trajectory: list[dict[str, Any]],
         log: list[str],
     ) -> ExecutionResult:  # fmt: skip
-        holds = detect_done(world, self.task, pos_tol=self.options.pos_tol,
+        holds = detect_done(world, self.bound_task(), pos_tol=self.options.pos_tol,
                             rot_tol=self.options.rot_tol)  # fmt: skip
         ok = all(holds[c.id] for _, _, c in self._steps())
         return ExecutionResult(reports, ok, trajectory, log, world.poses())
+
+    def bound_task(self) -> TaskFile:
+        """The task with each slot's child the part put into it (:attr:`bind`)."""
+        if all(self.bind.get(c.id, c.child) == c.child for c in self.task.constraints):
+            return self.task
+        cons = [c.model_copy(update={"child": self.bind.get(c.id, c.child)})
+                for c in self.task.constraints]  # fmt: skip
+        return self.task.model_copy(update={"constraints": cons})

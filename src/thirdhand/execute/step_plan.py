@@ -31,6 +31,13 @@ class ExecutionOptions:
         Goals tried per step (the nominal one first) when sampling.
     max_grasps : int
         Grasp candidates tried per step, best ranked first.
+    rank_by_reach : bool
+        Rank the grasps by a quick IK check at the pick and at the goals first
+        (:func:`~thirdhand.execute.step_search.rank_by_reach`). Off by default: on the
+        learned chair it changes the grasps so that no step follows its primitive, and
+        with a demonstration it can prefer a shape grasp to the person's.
+    n_rank_goals : int
+        Goals (the nominal one first) that check uses.
     plan_time_limit : float
         Bound of each motion-planning query.
     step_time_limit : float
@@ -51,11 +58,23 @@ class ExecutionOptions:
         How long a pointing gesture keeps its part the person's after it ends.
     wait_s : float
         Online: how long the robot waits at a time when only the person's step is left.
+    order : {"auto", "plan", "parents"}
+        What binds the order of the steps (:mod:`~thirdhand.execute.step_order`):
+        the learned plan's order (``"plan"``), only parents before children
+        (``"parents"``), or the plan's order when it was learned from several
+        demonstrations (``"auto"``).
+    reorder : bool
+        Offline: when a step fails, move it to the front and plan again.
+    max_parts : int
+        Interchangeable parts tried per slot (1: the slot's own part first, then
+        only when it is already used).
     """
 
     sample_free_dofs: bool = True
     n_goal_samples: int = 16
     max_grasps: int = 24
+    rank_by_reach: bool = False
+    n_rank_goals: int = 3
     plan_time_limit: float = 5.0
     step_time_limit: float = 60.0
     approach_m: float = 0.08
@@ -70,6 +89,9 @@ class ExecutionOptions:
     use_perception: bool = True
     pointing_lookback_s: float = 5.0
     wait_s: float = 1.0
+    order: str = "auto"
+    reorder: bool = True
+    max_parts: int = 2
 
 
 @dataclass
@@ -129,7 +151,14 @@ class StepReport:
     goal_dofs : list of float or None
         The goal's displacement inside the free DOFs (tx ty tz rx ry rz).
     tried : dict
-        Counts of what the search tried (grasps, goals, IK and planning outcomes).
+        Counts of what the search tried (grasps, goals, IK and planning outcomes):
+        ``grasp_ik_failed`` / ``place_ik_failed`` (no IK start converged),
+        ``grasp_in_collision`` / ``place_in_collision`` (IK converged, every
+        solution collides), ``straight_failed`` (a straight move blocked or not
+        solvable), ``plans_failed`` of ``plans``.
+    collision_pairs : list of (str, str, int)
+        The pairs most often colliding where IK converged (at most three, most
+        frequent first, with their counts): what to move when a step fails.
     """
 
     index: int
@@ -149,6 +178,7 @@ class StepReport:
     motions: dict[str, str] = field(default_factory=dict)
     goal_dofs: list[float] | None = None
     tried: dict[str, int] = field(default_factory=dict)
+    collision_pairs: list[tuple[str, str, int]] = field(default_factory=list)
 
 
 @dataclass

@@ -12,6 +12,7 @@ none does, the report says what was tried.
 from __future__ import annotations
 
 import time
+from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -49,6 +50,7 @@ def first_valid_ik(
     *,
     seed: int,
     n_restarts: int = 24,
+    why: dict[str, Any] | None = None,
 ) -> list[FloatArray | None]:
     """For each target, the collision-free IK solution nearest ``q_seed``, all solved at once.
 
@@ -69,6 +71,11 @@ def first_valid_ik(
         Seed of the random starts.
     n_restarts : int
         Random starts per target.
+    why : dict, optional
+        Receives why targets got no solution: ``why["ik_failed"]`` (no start
+        converged) and ``why["in_collision"]`` (every converged solution collides)
+        are incremented, and ``why["pairs"]`` (a :class:`collections.Counter`) counts
+        the colliding pairs of the nearest colliding solution of each such target.
 
     Returns
     -------
@@ -93,6 +100,16 @@ def first_valid_ik(
         for i, qi, valid in zip(rows, cand, scene.valid_mask(cand), strict=True):
             if valid:
                 out[i] = qi.copy()
+    if why is not None:
+        pairs = why.setdefault("pairs", Counter())
+        for i in range(k):
+            if out[i] is not None:
+                continue
+            if not np.isfinite(dist[i, order[i, 0]]):
+                why["ik_failed"] = why.get("ik_failed", 0) + 1
+                continue
+            why["in_collision"] = why.get("in_collision", 0) + 1
+            pairs.update(scene.collisions(q[i, order[i, 0]]))
     return out
 
 
@@ -106,9 +123,14 @@ def candidate_grasps(
     """Grasps worth trying on the part where it lies, best first.
 
     Grasps approaching from below are dropped (the hand would go through the
-    table); the rest are ranked demonstrated first (exact, then turned about a rod's axis),
-    then by how steeply they come from above plus how far they hold from where the part
-    meets its parent.
+    table), and 180° roll twins go last (:func:`drop_twins`: the two fingers are
+    alike, so a grasp turned half a turn about its approach holds the part the same
+    way; only the wrist's limits tell them apart); the rest are ranked demonstrated
+    first (exact, then turned about a rod's axis), then by how steeply they come from
+    above plus how far they hold from where the part meets its parent. With
+    ``ExecutionOptions.rank_by_reach``, :meth:`StepSearch.run` then ranks them by
+    whether the arm can reach them both where the part lies and at its goal
+    (:func:`rank_by_reach`).
     """
     obj = next(o for o in task.objects if o.name == constraint.child)
     cands = list(hints.get(constraint.child, ()))
@@ -125,7 +147,80 @@ def candidate_grasps(
         turned = "@" in g.label  # a demonstrated grasp turned about a rod's axis
         scored.append((g.source != "demo", turned, -(down + 2.0 * far), len(scored), g))
     scored.sort(key=lambda s: s[:4])
-    return [s[4] for s in scored[:max_grasps]]
+    ranked = [s[4] for s in scored]
+    kept = drop_twins(ranked)
+    ids = {id(g) for g in kept}
+    return (kept + [g for g in ranked if id(g) not in ids])[:max_grasps]
+
+
+def drop_twins(grasps: Sequence[grasp_mod.Grasp]) -> list[grasp_mod.Grasp]:
+    """``grasps`` without the later of every pair turned 180° about the approach of each other.
+
+    Twins: origins within 1 mm, approach directions within about 2.5°, closing
+    directions opposite within the same angle.
+    """
+    kept: list[grasp_mod.Grasp] = []
+    for g in grasps:
+        p, z, y = g.pose[:3, 3], g.pose[:3, 2], g.pose[:3, 1]
+        if not any(
+            np.linalg.norm(k.pose[:3, 3] - p) < 1e-3
+            and float(k.pose[:3, 2] @ z) > 0.999
+            and float(k.pose[:3, 1] @ y) < -0.999
+            for k in kept
+        ):
+            kept.append(g)
+    return kept
+
+
+def rank_by_reach(
+    robot: Robot,
+    scene: CollisionScene,
+    grasps: Sequence[grasp_mod.Grasp],
+    part: str,
+    part_pose: FloatArray,
+    goals: FloatArray,
+    q_seed: FloatArray,
+    *,
+    seed: int,
+    n_restarts: int = 3,
+) -> tuple[list[grasp_mod.Grasp], int]:
+    """Grasps reachable both where the part lies and at one of ``goals`` first.
+
+    A quick batched IK check of every grasp (``n_restarts`` random starts besides
+    ``q_seed``): at the pick (the gripper may touch the part) and at each goal (the
+    arm alone against the world: placed parts, fixture, table). Grasps reachable
+    at both come first (with the demonstrated ones reachable at the pick: a quick
+    check with few starts does not overrule the person), then those reachable at
+    the pick only, then the rest; the order is kept within each group.
+
+    Returns
+    -------
+    grasps : list of Grasp
+    n_both : int
+        How many are reachable at the pick and at a goal.
+    """
+    if not grasps:
+        return [], 0
+    pick_t = np.stack([part_pose @ g.pose for g in grasps])
+    scene.allow(GRIPPER, part)
+    try:
+        pick = first_valid_ik(robot, scene, pick_t, q_seed, seed=seed, n_restarts=n_restarts)
+    finally:
+        scene.disallow(GRIPPER, part)
+    ok_pick = np.array([q is not None for q in pick])
+    ok_place = np.zeros(len(grasps), dtype=bool)
+    rows = np.flatnonzero(ok_pick)
+    for goal in goals:
+        todo = rows[~ok_place[rows]]
+        if todo.size == 0:
+            break
+        place_t = np.stack([goal @ grasps[i].pose for i in todo])
+        sols = first_valid_ik(robot, scene, place_t, q_seed, seed=seed + 1, n_restarts=n_restarts)
+        ok_place[todo] = [q is not None for q in sols]
+    demo = np.array([g.source == "demo" for g in grasps])
+    group = np.where(ok_pick & (ok_place | demo), 0, np.where(ok_pick, 1, 2))
+    order = np.argsort(group, kind="stable")
+    return [grasps[i] for i in order], int(np.count_nonzero(ok_pick & ok_place))
 
 
 class StepSearch:
@@ -158,17 +253,23 @@ class StepSearch:
         self.primitive = primitive
         self.hints = hints
         self.tried = {"grasps": 0, "grasps_reachable": 0, "goals": 0, "place_reachable": 0,
-                      "plans": 0, "plans_failed": 0, "primitive_rejected": 0}  # fmt: skip
+                      "plans": 0, "plans_failed": 0, "primitive_rejected": 0,
+                      "grasp_ik_failed": 0, "grasp_in_collision": 0, "place_ik_failed": 0,
+                      "place_in_collision": 0, "straight_failed": 0}  # fmt: skip
+        #: Why IK found no valid configuration, per kind (``"grasp"``, ``"place"``).
+        self.why: dict[str, dict[str, Any]] = {"grasp": {}, "place": {}}
 
     def left(self) -> float:
         return self.deadline - time.perf_counter()
 
     def _ik_blocks(
-        self, targets: Callable[[int], FloatArray], n: int, q_seed: FloatArray, salt: int
-    ) -> Callable[[int], FloatArray | None]:
+        self, targets: Callable[[int], FloatArray], n: int, q_seed: FloatArray, salt: int,
+        kind: str,
+    ) -> Callable[[int], FloatArray | None]:  # fmt: skip
         """Lazy IK of ``n`` targets (``targets(i)`` → (4, 4)), solved :data:`IK_BLOCK` at a time.
 
         The scene must be in the same state at every call of the returned function.
+        Why targets got no solution is added to ``self.why[kind]``.
         """
         cache: dict[int, FloatArray | None] = {}
 
@@ -177,7 +278,7 @@ class StepSearch:
                 block = list(range(i, min(i + IK_BLOCK, n)))
                 sols = first_valid_ik(
                     self.robot, self.scene, np.stack([targets(b) for b in block]), q_seed,
-                    seed=self.seed * 7919 + salt + i,
+                    seed=self.seed * 7919 + salt + i, why=self.why[kind],
                 )  # fmt: skip
                 cache.update(zip(block, sols, strict=True))
             return cache[i]
@@ -187,6 +288,7 @@ class StepSearch:
     def _line(self, q_a: FloatArray, t_b: FloatArray) -> FloatArray | None:
         path = linear_motion(self.robot, q_a, t_b)
         if path is None or not self.scene.check_path(path):
+            self.tried["straight_failed"] += 1
             return None
         return path
 
@@ -253,8 +355,17 @@ class StepSearch:
         n_goals = opt.n_goal_samples if opt.sample_free_dofs else 1
         goals, dofs = sample_goals(parent_pose, c, n_goals, rng, stratified=True)
         axis = insertion_axis(self.task, c)
-        grasps = candidate_grasps(self.task, c, self.hints, part_pose, opt.max_grasps)
-        grasp_ik = self._ik_blocks(lambda i: part_pose @ grasps[i].pose, len(grasps), q_start, 0)
+        grasps = candidate_grasps(self.task, c, self.hints, part_pose, 10**6)
+        if opt.rank_by_reach:
+            grasps, n_both = rank_by_reach(
+                self.robot, scene, grasps, name, part_pose, goals[: opt.n_rank_goals], q_start,
+                seed=self.seed * 7919 + 5000,
+            )  # fmt: skip
+            self.tried["grasps_reach_both"] = n_both
+        grasps = grasps[: opt.max_grasps]
+        grasp_ik = self._ik_blocks(
+            lambda i: part_pose @ grasps[i].pose, len(grasps), q_start, 0, "grasp"
+        )
         for k, g in enumerate(grasps):
             if self.left() <= 0:
                 report.status = f"step time limit ({opt.step_time_limit:g} s) reached"
@@ -293,7 +404,9 @@ class StepSearch:
                 "retreat": "straight",
             }
             report.goal_dofs = [float(v) for v in dofs[j]]
+            self._count_why()
             report.tried = dict(self.tried)
+            report.collision_pairs = self.top_pairs()
             segs = [
                 Segment("approach", approach),
                 Segment("grasp", back[::-1].copy(), before=[("allow", GRIPPER, name)],
@@ -305,7 +418,9 @@ class StepSearch:
                 Segment("retreat", retreat, after=[("disallow", GRIPPER, name)]),
             ]  # fmt: skip
             return StepPlan(report, segs, goals[j])
+        self._count_why()
         report.tried = dict(self.tried)
+        report.collision_pairs = self.top_pairs()
         if not report.status:
             t = self.tried
             report.status = (
@@ -314,7 +429,36 @@ class StepSearch:
                 f"free DOFs {'sampled' if opt.sample_free_dofs else 'not sampled'}), "
                 f"{t['plans_failed']} of {t['plans']} planning queries failed"
             )
+        report.status += self.explain()
         return StepPlan(report)
+
+    def _count_why(self) -> None:
+        for kind in ("grasp", "place"):
+            for what in ("ik_failed", "in_collision"):
+                self.tried[f"{kind}_{what}"] = int(self.why[kind].get(what, 0))
+
+    def top_pairs(self, n: int = 3) -> list[tuple[str, str, int]]:
+        """The ``n`` pairs most often colliding where IK converged (grasp, place), with counts."""
+        total: Counter[tuple[str, str]] = Counter()
+        for kind in ("grasp", "place"):
+            total.update(self.why[kind].get("pairs", Counter()))
+        return [(a, b, int(k)) for (a, b), k in total.most_common(n)]
+
+    def explain(self) -> str:
+        """Why the search failed, in words: IK failures vs collisions, the top colliding pair."""
+        t = self.tried
+        parts = []
+        for kind, word in (("grasp", "grasp"), ("place", "place")):
+            ik, col = t[f"{kind}_ik_failed"], t[f"{kind}_in_collision"]
+            if ik or col:
+                parts.append(f"{word} IK: {ik} unreachable, {col} only in collision")
+        if t["straight_failed"]:
+            parts.append(f"{t['straight_failed']} straight moves blocked")
+        top = self.top_pairs(1)
+        if top:
+            a, b, k = top[0]
+            parts.append(f"most often colliding: {a}–{b} ({k})")
+        return "; " + "; ".join(parts) if parts else ""
 
     def _with_grasp(
         self, q_grasp: FloatArray, g: grasp_mod.Grasp, goals: FloatArray, dofs: FloatArray,
@@ -329,7 +473,9 @@ class StepSearch:
             if lift is None:
                 return None
             q_lift = lift[-1]
-            place_ik = self._ik_blocks(lambda i: goals[i] @ g.pose, len(goals), q_lift, 1000)
+            place_ik = self._ik_blocks(
+                lambda i: goals[i] @ g.pose, len(goals), q_lift, 1000, "place"
+            )
             for j, goal in enumerate(goals):
                 if self.left() <= 0:
                     return None
