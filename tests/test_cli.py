@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_helpers import call
 from thirdhand import BodyInfo, Demonstration, io, se3
-from thirdhand.cli import main
 
 
 def run(*args: str) -> tuple[int, str, str]:
@@ -19,15 +19,6 @@ def run(*args: str) -> tuple[int, str, str]:
         [sys.executable, "-m", "thirdhand", *args], capture_output=True, text=True, check=False
     )
     return proc.returncode, proc.stdout, proc.stderr
-
-
-def call(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    try:
-        rc = main(list(args))
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    cap = capsys.readouterr()
-    return rc, cap.out, cap.err
 
 
 @pytest.fixture

@@ -13,18 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cli_helpers import call
 from thirdhand import BodyInfo, Demonstration, io, se3
-from thirdhand.cli import main
 from thirdhand.taskfile import SCHEMA, TaskFile, save_task
-
-
-def call(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    try:
-        rc = main(list(args))
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    cap = capsys.readouterr()
-    return rc, cap.out, cap.err
 
 
 def small_demo(n: int = 25, seed: int = 1) -> Demonstration:

@@ -22,20 +22,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from cli_helpers import call
 from thirdhand import BodyInfo, Demonstration, io, se3
-from thirdhand.cli import main
 from thirdhand.errors import OutputError
 from thirdhand.fileops import atomic_output, check_output, next_backup, write_bytes
 from thirdhand.taskfile import SCHEMA, TaskFile, load_task, save_task
-
-
-def call(capsys: pytest.CaptureFixture[str], *args: str) -> tuple[int, str, str]:
-    try:
-        rc = main(list(args))
-    except SystemExit as exc:
-        rc = int(exc.code or 0)
-    cap = capsys.readouterr()
-    return rc, cap.out, cap.err
 
 
 def one_error_line(err: str) -> str:
