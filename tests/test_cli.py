@@ -102,3 +102,64 @@ def test_info_on_real_3rdhand_excerpt(
     assert info["rate_hz"] == pytest.approx(100.0, rel=0.01)
     missing = [b["missing"] for b in info["bodies"]]
     assert all(0.0 < m < 1.0 for m in missing)
+
+
+# -- start-up: stage commands are imported only when they run (issue 18) -------------
+
+#: Heavy modules no stage-free command needs (``thirdhand --help`` must not import them).
+HEAVY = ("scipy", "numba", "pinocchio", "coal", "ompl", "cma", "matplotlib", "viser", "pyarrow")
+
+
+def test_help_imports_no_stage_dependency() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, contextlib, io\n"
+        "from thirdhand.cli import main\n"
+        "with contextlib.redirect_stdout(io.StringIO()):\n"
+        "    status = main(['--help'])\n"
+        f"heavy = [m for m in {HEAVY!r} if m in sys.modules]\n"
+        "stages = [m for m in sys.modules\n"
+        "          if m.startswith('thirdhand.') and m.endswith('cli') and m != 'thirdhand.cli']\n"
+        "print(status, heavy, stages)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == "0 [] []", run.stdout + run.stderr
+
+
+def test_every_lazy_command_loads_with_its_listed_help() -> None:
+    from thirdhand.cli import LAZY, load_command
+
+    for name, entry in LAZY.items():
+        command = load_command(name)
+        assert command.name == name
+        # The one line shown by ``thirdhand --help`` is the start of the command's own help.
+        assert " ".join((command.help or "").split()).startswith(entry.help), name
+
+
+def test_help_lists_every_stage_command(capsys: pytest.CaptureFixture[str]) -> None:
+    from thirdhand.cli import LAZY
+
+    status, text, _ = call(capsys, "--help")
+    assert status == 0
+    for name in LAZY:
+        assert name in text
+
+
+def test_a_missing_dependency_is_one_line(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from thirdhand import cli
+
+    (tmp_path / "stage_needing_extra.py").write_text("import not_installed_pkg_xyz\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setitem(
+        cli.LAZY, "needy", cli.LazyCommand("stage_needing_extra", "app", "Needs an extra.")
+    )
+    status, out, err = call(capsys, "needy", "--help")
+    assert status == 1 and out == ""
+    assert err == (
+        "thirdhand: error: 'thirdhand needy' needs the Python package 'not_installed_pkg_xyz', "
+        "which is not installed; install thirdhand with its extras: pip install 'thirdhand[dev]'\n"
+    )

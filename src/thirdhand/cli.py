@@ -26,18 +26,154 @@ if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
 
 import json  # noqa: E402
 import time  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
 from typing import Annotated, Any  # noqa: E402
 
 import typer  # noqa: E402
 from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
+from typer.core import TyperCommand, TyperGroup  # noqa: E402
 
 from thirdhand import __version__, options  # noqa: E402
 from thirdhand.errors import ThirdhandError  # noqa: E402
 from thirdhand.fileops import check_output  # noqa: E402
 
+
+@dataclass(frozen=True)
+class LazyCommand:
+    """A command or command group whose module is imported only when it runs.
+
+    Attributes
+    ----------
+    module : str
+        Module defining it (imported on first use: its dependencies stay unloaded
+        for ``thirdhand --help`` and every other command).
+    attr : str
+        A typer ``Typer`` (a command group) or a command function in ``module``.
+    help : str
+        One line for the command list of ``thirdhand --help``.
+    """
+
+    module: str
+    attr: str
+    help: str
+
+
+#: Stage commands, imported when they run: name -> where they live. The order is
+#: the order of ``thirdhand --help`` after the commands defined in this module.
+LAZY: dict[str, LazyCommand] = {
+    "learn": LazyCommand(
+        "thirdhand.plan.cli", "learn_command", "Learn a task file from recordings (every stage)."
+    ),
+    "segment": LazyCommand(
+        "thirdhand.segment.cli", "app", "Interaction phases per body pair (linear-chain CRF)."
+    ),
+    "constraints": LazyCommand(
+        "thirdhand.constraints.cli",
+        "app",
+        "Kinematic constraints (fixed, prismatic, revolute, cylindrical, free) of a track.",
+    ),
+    "primitives": LazyCommand(
+        "thirdhand.primitives.cli",
+        "app",
+        "Motor primitives: DMPs and ProMPs per constraint, primitive libraries.",
+    ),
+    "irl": LazyCommand(
+        "thirdhand.relational.cli",
+        "app",
+        "Relational inverse reinforcement learning (RCSI, BLMRIL).",
+    ),
+    "execute": LazyCommand(
+        "thirdhand.execute.cli",
+        "execute_command",
+        "Execute a task's plan on a simulated robot arm with a motion planner.",
+    ),
+    "review": LazyCommand(
+        "thirdhand.review.cli",
+        "review_command",
+        "Open a task in the review GUI (a local web app): see, animate and correct it.",
+    ),
+    "transfer": LazyCommand(
+        "thirdhand.review.transfer_cli",
+        "transfer_command",
+        "Map a task onto another object set (chair -> bench) as a start for adaptation.",
+    ),
+    "headpose": LazyCommand(
+        "thirdhand.perception.cli",
+        "headpose_command",
+        "Head pose (yaw, pitch, roll) per frame of a video, relative to a calibration pose.",
+    ),
+    "gestures": LazyCommand(
+        "thirdhand.perception.cli",
+        "gestures_command",
+        "Pointing gestures (hand, target object, interval) in a recording.",
+    ),
+    "attention": LazyCommand(
+        "thirdhand.perception.cli",
+        "attention_command",
+        "Which object a tracked head attends to, as intervals.",
+    ),
+    "experiment": LazyCommand(
+        "thirdhand.plan.cli",
+        "experiment_app",
+        "Accuracy experiments on synthetic scenes, beside the report's numbers.",
+    ),
+}
+
+
+def load_command(name: str) -> Any:
+    """Import the stage command ``name`` of :data:`LAZY` and return it as a click command.
+
+    Raises
+    ------
+    ThirdhandError
+        When a package the command needs is not installed (one line naming it).
+    """
+    import importlib
+
+    entry = LAZY[name]
+    try:
+        mod = importlib.import_module(entry.module)
+    except ModuleNotFoundError as exc:
+        if exc.name is None or exc.name.split(".")[0] == "thirdhand":
+            raise
+        raise ThirdhandError(
+            f"'thirdhand {name}' needs the Python package {exc.name!r}, which is not installed; "
+            "install thirdhand with its extras: pip install 'thirdhand[dev]'"
+        ) from None
+    obj = getattr(mod, entry.attr)
+    command: Any
+    if isinstance(obj, typer.Typer):
+        command = typer.main.get_group(obj)
+    else:
+        single = typer.Typer(add_completion=False, pretty_exceptions_enable=False)
+        single.command(name, help=entry.help)(obj)
+        command = typer.main.get_command(single)
+    command.name = name
+    return command
+
+
+class _LazyGroup(TyperGroup):
+    """The root group: lists :data:`LAZY` commands by their one line, imports one when it runs."""
+
+    def list_commands(self, ctx: Any) -> list[str]:
+        return [*super().list_commands(ctx), *(n for n in LAZY if n not in self.commands)]
+
+    def get_command(self, ctx: Any, cmd_name: str) -> Any:
+        if cmd_name in self.commands or cmd_name not in LAZY:
+            return super().get_command(ctx, cmd_name)
+        # Listing (help): a stand-in with the one line, no import.
+        return TyperCommand(cmd_name, help=LAZY[cmd_name].help, callback=None)
+
+    def resolve_command(self, ctx: Any, args: list[str]) -> Any:
+        if args and args[0] in LAZY and args[0] not in self.commands:
+            return args[0], load_command(args[0]), args[1:]
+        return super().resolve_command(ctx, args)
+
+
 app = typer.Typer(
+    cls=_LazyGroup,
     name="thirdhand",
     help="Teach a robot an assembly task from human demonstrations.",
     no_args_is_help=True,
@@ -208,91 +344,6 @@ def demo(
     out.print(f"done in {time.perf_counter() - start:.1f} s")
     write_text(output / "summary.json", json.dumps(summary, indent=2, default=str))
 
-
-#: Sub-command groups: name -> module holding a typer ``app``. A group whose
-#: module cannot be imported (an optional extra not installed) is left out.
-SUBAPPS: dict[str, str] = {
-    "segment": "thirdhand.segment.cli",
-    "constraints": "thirdhand.constraints.cli",
-    "primitives": "thirdhand.primitives.cli",
-    "irl": "thirdhand.relational.cli",
-}
-
-
-#: Top-level commands defined in their stage's module: name -> (module, function, help).
-#: A command whose module is absent from this installation is left out.
-COMMANDS: dict[str, tuple[str, str, str]] = {
-    "review": (
-        "thirdhand.review.cli",
-        "review_command",
-        "Open a task in the review GUI (a local web app): see, animate and correct it.",
-    ),
-    "transfer": (
-        "thirdhand.review.transfer_cli",
-        "transfer_command",
-        "Map a task onto another object set (chair -> bench) as a start for adaptation.",
-    ),
-    "execute": (
-        "thirdhand.execute.cli",
-        "execute_command",
-        "Execute a task's plan on a simulated robot arm with a motion planner.",
-    ),
-    "headpose": (
-        "thirdhand.perception.cli",
-        "headpose_command",
-        "Head pose (yaw, pitch, roll) per frame of a video, relative to a calibration pose.",
-    ),
-    "gestures": (
-        "thirdhand.perception.cli",
-        "gestures_command",
-        "Pointing gestures (hand, target object, interval) in a recording.",
-    ),
-    "attention": (
-        "thirdhand.perception.cli",
-        "attention_command",
-        "Which object a tracked head attends to, as intervals.",
-    ),
-}
-
-
-def _absent(exc: ModuleNotFoundError, module: str) -> bool:
-    """True when ``exc`` says ``module`` itself (or its package) is not installed."""
-    return exc.name is not None and module.startswith(exc.name)
-
-
-def _mount_subapps() -> None:
-    import importlib
-
-    for cmd, (module, function, help_text) in COMMANDS.items():
-        try:
-            mod = importlib.import_module(module)
-        except ModuleNotFoundError as exc:
-            if _absent(exc, module):
-                continue
-            raise
-        if hasattr(mod, function):
-            app.command(cmd, help=help_text)(getattr(mod, function))
-    for name, module in SUBAPPS.items():
-        try:
-            sub = importlib.import_module(module)
-        except ModuleNotFoundError as exc:
-            if exc.name is not None and module.startswith(exc.name):
-                continue  # the stage is not part of this installation
-            raise
-        app.add_typer(sub.app, name=name)
-    try:
-        from thirdhand.plan import cli as plan_cli
-    except ModuleNotFoundError as exc:
-        if exc.name is None or not "thirdhand.plan.cli".startswith(exc.name):
-            raise
-    else:
-        app.command("learn", help="Learn a task file from recordings (the whole pipeline).")(
-            plan_cli.learn_command
-        )
-        app.add_typer(plan_cli.experiment_app, name="experiment")
-
-
-_mount_subapps()
 
 # The imports are done: a program that imports this module (and never calls
 # main) keeps Python's own Ctrl-C behaviour.
