@@ -22,17 +22,11 @@ from thirdhand.primitives.serialize import pose_dmp_to_dict
 @pytest.fixture(scope="module")
 def learned_chair():
     """The chair task learned from one synthetic demonstration, with its primitives block."""
-    from thirdhand.demonstration import Labels
-    from thirdhand.pipeline import learned_constraint_events
-    from thirdhand.plan.learn import learn
-    from thirdhand.primitives.stage import primitives_stage
     from thirdhand.synth import make_scene
+    from thirdhand.task_learning import learn_task
 
     demo = make_scene("chair", seed=0)
-    task = learn([demo]).task()
-    learned = demo.replace(labels=Labels(constraints=learned_constraint_events(task)))
-    task.stages["primitives"] = primitives_stage([learned])
-    return task
+    return learn_task([demo], segment=False, reward=False).task
 
 
 @pytest.fixture

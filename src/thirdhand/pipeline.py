@@ -1,17 +1,29 @@
-"""The main job: a synthetic chair assembly through every stage that exists.
+"""The main job: a synthetic chair assembly through every stage.
 
-Each stage reads the previous stage's output and writes its own files into the
-output folder; the returned summary lists what was written and the key figures.
+Make the scene, learn the task in memory (:func:`thirdhand.task_learning.learn_task`:
+phases, constraints, plan, primitives, relational reward), execute it on a
+simulated Panda, and write each output once into the output folder; the
+returned summary lists what was written and the key figures.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
 from typing import Any
 
 from thirdhand import io
-from thirdhand.demonstration import ConstraintEvent, Demonstration, Labels
+from thirdhand.demonstration import Demonstration
+from thirdhand.fileops import atomic_output, write_text
+from thirdhand.task_learning import LearnedTask, learn_task
+
+#: Part sets the learned reward plans for, to show it transfers to other sizes.
+REWARD_TARGETS: dict[str, list[str]] = {
+    "bench": ["seating", "leg1", "leg2", "leg3", "leg4"],
+    "chair with 3 legs": ["seating", "leg1", "leg2", "leg3", "back"],
+    "chair with 5 legs": ["seating", "leg1", "leg2", "leg3", "leg4", "leg5", "back"],
+}
 
 
 def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]:
@@ -21,7 +33,7 @@ def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]
     ----------
     output : path-like
         Folder for the outputs; created if needed. Files in it are replaced, each
-        previous version kept as ``<name>.bak``.
+        previous version kept as a numbered backup.
     seed : int
         Seed of the synthetic demonstration.
 
@@ -48,12 +60,13 @@ def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]
         f"{len(demo.labels.interactions)} labelled interactions, "
         f"{len(demo.labels.constraints)} constraints → {demo_path}"
     )
-    phases = _run_segmentation(demo, out, summary)
-    task = _run_plan(demo, out, summary, phases)
-    if task is not None:
-        _run_primitives(demo, task, out, summary)
-        _run_reward(out, summary)
-        _run_execution(out, summary, seed=seed)
+    from thirdhand.segment import segment_demonstration
+
+    phases = segment_demonstration(demo)
+    _write_segmentation(phases, out, summary)
+    learned = learn_task([demo], phases=[phases], reward_plans=REWARD_TARGETS, seed=0)
+    path = _write_task(learned, out, summary)
+    _run_execution(learned, path, out, summary, seed=seed)
     return summary
 
 
@@ -68,133 +81,91 @@ def _demo_figures(demo: Demonstration) -> dict[str, Any]:
     }
 
 
-def _run_segmentation(demo: Demonstration, out: Path, summary: dict[str, Any]) -> Any:
-    try:
-        from thirdhand.segment.pipeline import run_stage
-    except ImportError:
-        return None
-    return run_stage(demo, out, summary)
+def _write_segmentation(result: Any, out: Path, summary: dict[str, Any]) -> None:
+    """``phases.json`` (and ``phases.png`` with the plot extra) and the segmentation figures."""
+    import importlib.util
 
+    from thirdhand.segment.pipeline import scores_by_kind
 
-def _run_plan(demo: Demonstration, out: Path, summary: dict[str, Any], phases: Any) -> Any:
-    """Constraints, keyframes and the assembly plan → ``task.json`` and the HTML report."""
-    try:
-        from thirdhand.plan.learn import run_stage
-    except ImportError:
-        return None
-    return run_stage(demo, out, summary, phases=phases)
-
-
-def learned_constraint_events(task: Any) -> tuple[ConstraintEvent, ...]:
-    """The task file's learned constraints as constraint events on the demonstration's clock.
-
-    Later stages consume constraint events; feeding them the learned ones (not the
-    synthetic ground truth) keeps the main job honest.
-    """
-    events = []
-    for c in task.constraints:
-        if c.time is None:
-            continue
-        events.append(
-            ConstraintEvent(
-                time=float(c.time),
-                parent=c.parent,
-                child=c.child,
-                type=c.type,
-                pos=tuple(c.pos),
-                quat=tuple(c.quat),
-                free_dofs=tuple(tuple(r) for r in c.free_dof_array().tolist()),
-                symbol=c.symbol,
-            )
-        )
-    return tuple(sorted(events, key=lambda e: e.time))
-
-
-def _run_primitives(demo: Demonstration, task: Any, out: Path, summary: dict[str, Any]) -> None:
-    """Motor primitives per learned constraint, stored in the task file's stages."""
-    try:
-        from thirdhand.primitives.stage import primitives_stage
-    except ImportError:
-        return
-    from thirdhand.taskfile import load_task, save_task
-
-    events = learned_constraint_events(task)
-    if not events:
-        return
-    learned = demo.replace(labels=Labels(constraints=events))
-    block = primitives_stage([learned])
-    path = out / "task.json"
-    current = load_task(path)
-    current.stages["primitives"] = block
-    save_task(current, path, backup=False)  # this run wrote it moments ago
-    n = len(block.get("constraints", {}))
-    summary["primitives"] = {"constraints": sorted(block.get("constraints", {}))}
-    summary["lines"].append(
-        f"primitives: {n} constraint motions (quaternion DMP + ProMP) → {path} stages.primitives"
-    )
-
-
-#: Part sets the learned reward plans for, to show it transfers to other sizes.
-REWARD_TARGETS: dict[str, dict[str, int]] = {
-    "bench": {"seating": 1, "leg": 4},
-    "chair with 3 legs": {"seating": 1, "leg": 3, "back": 1},
-    "chair with 5 legs": {"seating": 1, "leg": 5, "back": 1},
-}
-
-
-def _run_reward(out: Path, summary: dict[str, Any]) -> None:
-    """Relational IRL on the learned plan; plans for other part sets, in ``stages.reward``."""
-    try:
-        from thirdhand.relational.assembly import (
-            learn_assembly,
-            load_trajectory,
-            part_names,
-            plan_assembly,
-        )
-    except ImportError:
-        return
-    from thirdhand.taskfile import load_task, save_task
-
-    path = out / "task.json"
-    model = learn_assembly([load_trajectory(path)], seed=0)
-    plans: dict[str, Any] = {}
-    for label, counts in REWARD_TARGETS.items():
-        plan = plan_assembly(model, part_names(counts))
-        plans[label] = {
-            "complete": plan.complete,
-            "perf": plan.perf,
-            "steps": list(plan.steps),
-        }
-    current = load_task(path)
-    current.stages["reward"] = {
-        "method": "RCSI (relational cascaded supervised IRL) on the learned plan",
-        "reward_tree": str(model.rcsi.reward),
-        "plans": plans,
+    path = out / "phases.json"
+    write_text(path, json.dumps(result.to_dict()))
+    summary["files"].append(str(path))
+    scores = scores_by_kind(result)
+    n_int = sum(len(p.intervals) for p in result.pairs)
+    summary["segmentation"] = {
+        "pairs": len(result.pairs),
+        "hands": len(result.hands),
+        "intervals": n_int,
+        "scores": scores,
     }
-    save_task(current, path, backup=False)  # this run wrote it moments ago
-    complete = [label for label, p in plans.items() if p["complete"]]
-    summary["reward"] = {"complete": complete, "targets": list(REWARD_TARGETS)}
-    summary["lines"].append(
-        f"reward: relational IRL on the plan; complete plans for {len(complete)}/"
-        f"{len(plans)} new part sets ({', '.join(complete)}) → {path} stages.reward"
-    )
+    line = f"segmentation: {len(result.pairs)} pairs, {n_int} interaction intervals"
+    if scores:
+        line += " (frame F1 " + ", ".join(f"{k} {v['frame_f1']:.3f}" for k, v in scores.items())
+        line += ")"
+    summary["lines"].append(f"{line} → {path}")
+    if not scores:
+        return
+    if importlib.util.find_spec("matplotlib") is None:
+        summary["lines"].append(
+            "segmentation plot: not drawn (matplotlib is not installed: "
+            "pip install 'thirdhand[plot]')"
+        )
+        return
+    from thirdhand.segment.plot import plot_phases
+
+    png = out / "phases.png"
+    with atomic_output(png) as tmp:
+        plot_phases(result, tmp)
+    summary["files"].append(str(png))
 
 
-def _run_execution(out: Path, summary: dict[str, Any], *, seed: int) -> None:
+def _write_task(learned: LearnedTask, out: Path, summary: dict[str, Any]) -> Path:
+    """``task.json`` (every stage block), the HTML report, and each stage's figures."""
+    from thirdhand.plan.learn import plan_figures
+    from thirdhand.plan.report import write_report
+    from thirdhand.taskfile import save_task
+
+    path = out / "task.json"
+    save_task(learned.task, path)
+    summary["files"].append(str(path))
+    block, line = plan_figures(learned.learned)
+    summary["plan"] = block
+    summary["lines"].append(f"{line} → {path}")
+    index = write_report(learned.learned, out / "report")
+    summary["files"].append(str(index))
+    summary["lines"].append(f"plan report → {index}")
+    if learned.primitives is not None:
+        keys = sorted(learned.primitives.get("constraints", {}))
+        summary["primitives"] = {"constraints": keys}
+        summary["lines"].append(
+            f"primitives: {len(keys)} constraint motions (quaternion DMP + ProMP) "
+            f"→ {path} stages.primitives"
+        )
+    if learned.reward is not None:
+        plans = learned.reward.plans
+        complete = [label for label, p in plans.items() if p.complete]
+        summary["reward"] = {"complete": complete, "targets": list(plans)}
+        summary["lines"].append(
+            f"reward: relational IRL on the plan; complete plans for {len(complete)}/"
+            f"{len(plans)} new part sets ({', '.join(complete)}) → {path} stages.reward"
+        )
+    for reason in learned.skipped:
+        summary["lines"].append(reason)
+    return path
+
+
+def _run_execution(
+    learned: LearnedTask, path: Path, out: Path, summary: dict[str, Any], *, seed: int
+) -> None:
     """The learned plan executed offline on a simulated Panda; replay and trajectory files.
 
     Part meshes are looked up along ``THIRDHAND_MESH_PATH``; without them the
     parts are their bounding boxes.
     """
-    try:
-        from thirdhand.execute.executor import Executor
-        from thirdhand.execute.record import write_run
-    except ImportError:
-        return
-    from thirdhand.taskfile import load_task
+    from thirdhand.execute.executor import Executor
+    from thirdhand.execute.record import write_run
 
-    path = out / "task.json"
-    executor = Executor.for_task(load_task(path), "panda", seed=seed, task_path=path)
+    executor = Executor.for_task(learned.task, "panda", seed=seed, task_path=path)
     result = executor.run_offline(seed=seed)
     arm = executor.robot
     replay, trajectory = write_run(arm, result, out / "execution.parquet", task_name="chair")

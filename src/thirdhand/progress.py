@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 
 from rich.console import Console
@@ -28,3 +28,21 @@ def progress() -> Iterator[Progress]:
     )
     with bar:
         yield bar
+
+
+@contextmanager
+def stage_status(prefix: str = "learn") -> Iterator[Callable[[str], None]]:
+    """A callable naming the stage that runs, shown as a spinner on a terminal.
+
+    Yields
+    ------
+    callable
+        ``say("primitives")`` shows ``learn: primitives…`` on stderr (when stderr
+        is a terminal; otherwise it does nothing).
+    """
+    if not interactive():
+        yield lambda _stage: None
+        return
+    console = Console(stderr=True)
+    with console.status(f"{prefix}…") as status:
+        yield lambda stage: status.update(f"{prefix}: {stage}…")

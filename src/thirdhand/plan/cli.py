@@ -17,6 +17,7 @@ from thirdhand import options
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.fileops import check_output
+from thirdhand.progress import stage_status
 
 out = Console(highlight=False, soft_wrap=True)
 
@@ -60,6 +61,13 @@ def learn_command(
     no_segment: Annotated[
         bool, typer.Option("--no-segment", help="Skip the interaction segmentation.")
     ] = False,
+    no_primitives: Annotated[
+        bool, typer.Option("--no-primitives", help="Skip the motor primitives (DMP + ProMP).")
+    ] = False,
+    no_reward: Annotated[
+        bool, typer.Option("--no-reward", help="Skip the relational reward (RCSI).")
+    ] = False,
+    seed: Annotated[int, typer.Option(help="Seed of the reward stage.")] = 0,
     segment_model: Annotated[
         Path | None,
         typer.Option(
@@ -72,14 +80,18 @@ def learn_command(
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
     ] = False,
 ) -> None:
-    """Learn constraints, symbols and the assembly plan; write the task file.
+    """Learn a task from recordings: every stage that needs no robot, into one task file.
 
-    Errors are :class:`~thirdhand.errors.ThirdhandError`; ``thirdhand.cli.main``
-    prints them as one ``thirdhand: error:`` line.
+    Interaction phases (CRF), constraints, keyframes, symbols, the assembly plan,
+    the motor primitives of every learned constraint and the relational reward
+    (with the plans it makes for other part sets). Errors are
+    :class:`~thirdhand.errors.ThirdhandError`; ``thirdhand.cli.main`` prints them as
+    one ``thirdhand: error:`` line.
     """
-    from thirdhand.plan.learn import learn
+    from thirdhand.task_learning import learn_task
     from thirdhand.taskfile import save_task
 
+    options.seed(seed)
     check_output(output, force=force, inputs=demos)
     if report is not None:
         if report.exists() and not report.is_dir():
@@ -93,29 +105,37 @@ def learn_command(
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
-    phases = None
-    if seg_model is not None:
-        from thirdhand.segment import segment_demonstration
-
-        phases = [segment_demonstration(d, seg_model) for d in loaded]
-    result = learn(
-        loaded,
-        names=[p.name for p in demos],
-        phases=phases,
-        segment=not no_segment,
-        inputs=demos,
-    )
-    task = result.task()
+    with stage_status() as say:
+        result = learn_task(
+            loaded,
+            names=[p.name for p in demos],
+            segment=not no_segment,
+            segment_model=seg_model,
+            primitives=not no_primitives,
+            reward=not no_reward,
+            seed=seed,
+            inputs=demos,
+            progress=say,
+        )
+    task = result.task
     check_output(output, force=force, inputs=demos)
     save_task(task, output)
-    out.print(f"root: {result.plan.root}")
-    for line in result.plan.lines():
+    plan = result.learned.plan
+    out.print(f"root: {plan.root}")
+    for line in plan.lines():
         out.print(f"  {line}")
-    out.print(f"{len(task.constraints)} constraints, {len(task.plan)} steps → {output}")
+    blocks = ", ".join(task.stages)
+    out.print(f"{len(task.constraints)} constraints, {len(task.plan)} steps → {output} ({blocks})")
+    if result.reward is not None:
+        for label, p in result.reward.plans.items():
+            state = "complete" if p.complete else "incomplete"
+            out.print(f"  reward plan for {label}: {len(p.steps)} steps, {state}")
+    for reason in result.skipped:
+        out.print(f"  {reason}")
     if report is not None:
         from thirdhand.plan.report import write_report
 
-        out.print(f"report → {write_report(result, report)}")
+        out.print(f"report → {write_report(result.learned, report)}")
 
 
 def _table(title: str, rows: list, ours: str = "thirdhand") -> None:

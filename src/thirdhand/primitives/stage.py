@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
-from thirdhand.demonstration import Demonstration
+from thirdhand.demonstration import ConstraintEvent, Demonstration
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.align import average
 from thirdhand.primitives.promp import ProMP
@@ -187,15 +187,20 @@ def primitives_stage(
     promp_weights: int = 10,
     align: Literal["phase", "dtw"] = "phase",
     keyframe_times: Sequence[Sequence[float]] | None = None,
+    events: Sequence[Sequence[ConstraintEvent]] | None = None,
 ) -> dict[str, Any]:
     """Learn per-constraint primitives from demonstrations; a JSON-able task-file block.
 
     Parameters
     ----------
     demos : sequence of Demonstration
-        With constraint events in their labels.
+        With constraint events in their labels, unless ``events`` is given.
     keyframe_times : sequence of sequences of float, optional
         Per demonstration, keyframe times (default: the constraint events).
+    events : sequence of sequences of ConstraintEvent, optional
+        Per demonstration, the constraints to learn motions for (e.g. the learned
+        ones, :func:`thirdhand.task_learning.learned_events`); default each
+        demonstration's labels.
 
     Returns
     -------
@@ -205,10 +210,15 @@ def primitives_stage(
     """
     if not demos:
         raise PrimitiveError("primitives stage: no demonstration given")
+    if events is not None and len(events) != len(demos):
+        raise PrimitiveError(
+            f"primitives stage: {len(events)} event lists for {len(demos)} demonstrations"
+        )
     segs: list[ConstraintSegment] = []
     for i, d in enumerate(demos):
         kf = None if keyframe_times is None else keyframe_times[i]
-        segs.extend(constraint_segments(d, keyframe_times=kf))
+        ev = None if events is None else events[i]
+        segs.extend(constraint_segments(d, keyframe_times=kf, events=ev))
     out: dict[str, Any] = {
         "schema": SCHEMA,
         "frame": "child pose in the parent part's frame",

@@ -1,0 +1,125 @@
+"""``thirdhand.task_learning``: every stage that needs no robot, in memory, into one task."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thirdhand import io
+from thirdhand.demonstration import Labels
+from thirdhand.errors import ThirdhandError
+from thirdhand.synth import make_scene
+from thirdhand.task_learning import learn_task, learned_events, reward_targets
+from thirdhand.taskfile import dump_task, load_task, parse_task
+
+
+@pytest.fixture(scope="module")
+def bench():
+    return make_scene("bench", seed=3, sensor=None)
+
+
+@pytest.fixture(scope="module")
+def learned_bench(bench):
+    return learn_task([bench], segment=False, seed=0)
+
+
+def test_every_stage_block_in_one_task(learned_bench) -> None:
+    task = learned_bench.task
+    assert set(task.stages) == {"constraints", "plan", "primitives", "reward"}
+    ids = {c.id for c in task.constraints}
+    assert len(ids) == 4
+    assert set(task.stages["primitives"]["constraints"]) == ids
+    assert learned_bench.skipped == ("segment: skipped by the user",)
+    # the in-memory task is a valid task file (what `learn -o` writes is this object)
+    assert dump_task(parse_task(dump_task(task))) == dump_task(task)
+
+
+def test_primitives_use_the_learned_constraints_not_the_labels(bench, learned_bench) -> None:
+    events = learned_events(learned_bench.learned)
+    assert len(events) == 1
+    instances = learned_bench.learned.instances[0]
+    assert sorted(e.time for e in events[0]) == sorted(i.start for i in instances)
+    assert {(e.parent, e.child) for e in events[0]} == {(i.parent, i.child) for i in instances}
+    # without any ground truth in the recording, the same motions are learned
+    blind = learn_task([bench.replace(labels=Labels())], segment=False, reward=False)
+    assert blind.primitives == learned_bench.primitives
+    assert bench.labels.constraints  # the recording's labels are untouched
+
+
+def test_reward_plans_every_target(learned_bench) -> None:
+    plans = learned_bench.reward.plans
+    assert set(plans) == {"as demonstrated", "3 leg", "5 leg"}
+    assert all(p.complete for p in plans.values())
+    assert len(plans["3 leg"].steps) == 3 and len(plans["5 leg"].steps) == 5
+    block = learned_bench.task.stages["reward"]
+    assert block["plans"]["5 leg"]["parts"] == ["seating", "leg1", "leg2", "leg3", "leg4", "leg5"]
+
+
+def test_reward_targets() -> None:
+    chair = ["seating", "leg1", "leg2", "leg3", "leg4", "back"]
+    assert reward_targets(chair) == {
+        "as demonstrated": chair,
+        "3 leg": ["seating", "back", "leg1", "leg2", "leg3"],
+        "5 leg": ["seating", "back", "leg1", "leg2", "leg3", "leg4", "leg5"],
+    }
+    # unnumbered parts of distinct names are not varied
+    boards = ["/toolbox/side_front", "/toolbox/side_left"]
+    assert reward_targets(boards) == {"as demonstrated": boards}
+
+
+def test_skipped_stages_say_why(bench) -> None:
+    res = learn_task([bench], segment=False, primitives=False, reward=False)
+    assert set(res.task.stages) == {"constraints", "plan"}
+    assert res.primitives is None and res.reward is None
+    assert res.skipped == (
+        "segment: skipped by the user",
+        "primitives: skipped by the user",
+        "reward: skipped by the user",
+    )
+
+
+def test_no_demonstration_is_an_error() -> None:
+    with pytest.raises(ThirdhandError, match="no demonstration"):
+        learn_task([])
+
+
+def test_progress_names_each_stage(bench) -> None:
+    said: list[str] = []
+    learn_task([bench], segment=False, reward=False, progress=said.append)
+    assert said == ["constraints and plan", "primitives"]
+
+
+@pytest.mark.slow
+def test_cli_learn_on_the_real_toolbox(shared_data: Path, tmp_path: Path, capsys) -> None:
+    from cli_helpers import call
+
+    out = tmp_path / "toolbox.json"
+    status, text, err = call(
+        capsys, "learn", str(shared_data / "3rdhand" / "toolbox_coop_4"), "-o", str(out)
+    )
+    assert status == 0, err
+    task = load_task(out)
+    assert set(task.stages) == {"constraints", "plan", "primitives", "reward"}
+    assert [c.type for c in task.constraints] == ["fixed"]
+    assert "reward plan for as demonstrated: 1 steps, complete" in text
+    # the recording itself is never written
+    assert not any(p.suffix == ".json" for p in (shared_data / "3rdhand").iterdir())
+
+
+def test_cli_learn_chair_writes_every_block(tmp_path: Path, capsys) -> None:
+    from cli_helpers import call
+
+    path = tmp_path / "chair.parquet"
+    io.save(make_scene("chair", seed=1, sensor=None), path)
+    out = tmp_path / "task.json"
+    status, _, err = call(capsys, "learn", str(path), "-o", str(out), "--no-segment")
+    assert status == 0, err
+    task = load_task(out)
+    assert set(task.stages) == {"constraints", "plan", "primitives", "reward"}
+    assert len(task.plan) == 5
+    legs = [c for c in task.constraints if c.child.startswith("leg")]
+    assert all(np.isclose(c.free_dofs.rx[1] - c.free_dofs.rx[0], 2 * np.pi) for c in legs)
+    status, _, err = call(capsys, "learn", str(path), "-o", str(out), "--no-segment")
+    assert status == 1 and "exists" in err and err.count("\n") == 1
