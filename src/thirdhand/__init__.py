@@ -1,5 +1,23 @@
-"""thirdhand: teach a robot an assembly task from human demonstrations."""
+"""thirdhand: teach a robot an assembly task from human demonstrations.
 
+``import thirdhand as th`` gives the core types and one verb per stage
+(:mod:`thirdhand.api`); each stage is imported when its verb is called, and the
+subpackages (``th.io``, ``th.synth``, ``th.taskfile``…) on first use.
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+from thirdhand.api import (
+    detect_constraints,
+    execute_task,
+    fit_primitives,
+    learn_reward,
+    plan_assembly,
+    segment_phases,
+)
 from thirdhand.demonstration import (
     BodyInfo,
     ConstraintEvent,
@@ -9,8 +27,35 @@ from thirdhand.demonstration import (
     PlanStep,
 )
 from thirdhand.errors import DemonstrationError, FormatError, TaskFileError, ThirdhandError
+from thirdhand.task_learning import LearnedTask, learn_task
 
 __version__ = "0.1.0"
+
+#: Subpackages and modules reachable as attributes, imported on first use.
+_LAZY_MODULES = frozenset(
+    {
+        "constraints",
+        "execute",
+        "io",
+        "perception",
+        "plan",
+        "primitives",
+        "relational",
+        "review",
+        "se3",
+        "segment",
+        "synth",
+        "task",
+        "taskfile",
+    }
+)
+
+
+def __getattr__(name: str) -> ModuleType:
+    if name in _LAZY_MODULES:
+        return importlib.import_module(f"thirdhand.{name}")
+    raise AttributeError(f"module 'thirdhand' has no attribute {name!r}")
+
 
 __all__ = [
     "BodyInfo",
@@ -20,8 +65,16 @@ __all__ = [
     "FormatError",
     "InteractionInterval",
     "Labels",
+    "LearnedTask",
     "PlanStep",
     "TaskFileError",
     "ThirdhandError",
     "__version__",
+    "detect_constraints",
+    "execute_task",
+    "fit_primitives",
+    "learn_reward",
+    "learn_task",
+    "plan_assembly",
+    "segment_phases",
 ]

@@ -1,0 +1,167 @@
+"""One verb per stage, for a notebook or a script: ``import thirdhand as th``.
+
+Each verb takes and returns the stages' typed records (no file paths, no
+dicts between stages) and imports its stage only when called, so
+``import thirdhand`` stays light::
+
+    demo = th.io.load("chair.parquet")
+    phases = th.segment_phases(demo)
+    detection = th.detect_constraints(demo, phases=phases)
+    plan = th.plan_assembly([detection])
+    learned = th.learn_task([demo])          # every stage above, plus primitives and reward
+    result = th.execute_task(learned.task, robot="panda")
+
+(The verbs of segmentation and execution are ``segment_phases`` and ``execute_task``:
+``thirdhand.segment`` and ``thirdhand.execute`` are the stages' packages.)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Literal
+
+from thirdhand.demonstration import ConstraintEvent, Demonstration
+from thirdhand.errors import ThirdhandError
+
+if TYPE_CHECKING:
+    from thirdhand.constraints.detect_types import DetectionResult
+    from thirdhand.execute.step_plan import ExecutionResult
+    from thirdhand.plan.assembly import AssemblyPlan
+    from thirdhand.primitives.stage import ConstraintPrimitive
+    from thirdhand.relational.assembly import AssemblyModel
+    from thirdhand.segment.model import SegmentModel
+    from thirdhand.segment.pipeline import SegmentationResult
+    from thirdhand.task.model import TaskFile
+
+#: Robots :func:`execute` can drive.
+ROBOTS = ("panda", "baxter")
+
+
+def segment_phases(demo: Demonstration, model: SegmentModel | None = None) -> SegmentationResult:
+    """Interaction phases of every body pair and every hand (linear-chain CRF).
+
+    Parameters
+    ----------
+    demo : Demonstration
+    model : SegmentModel, optional
+        Default: the shipped model (``thirdhand.segment.model.builtin_model("default")``).
+    """
+    from thirdhand.segment import segment_demonstration
+
+    return segment_demonstration(demo, model)
+
+
+def detect_constraints(
+    demo: Demonstration, *, phases: SegmentationResult | None = None
+) -> DetectionResult:
+    """The kinematic constraints created between the parts of a recording, over time.
+
+    Parameters
+    ----------
+    demo : Demonstration
+    phases : SegmentationResult, optional
+        From :func:`segment_phases` of the same recording (its hand-holding supports
+        the approach of each constraint).
+    """
+    from thirdhand.constraints.detect import detect_constraints as detect
+
+    return detect(demo, phases=phases)
+
+
+def plan_assembly(detections: Sequence[DetectionResult]) -> AssemblyPlan:
+    """The assembly plan of one or several recordings' detections (symbols assigned).
+
+    Parameters
+    ----------
+    detections : sequence of DetectionResult
+        One per recording of the same task, from :func:`detect_constraints`.
+    """
+    from thirdhand.plan.assembly import plan_from_demos
+    from thirdhand.plan.symbols import assign_symbols
+
+    if not detections:
+        raise ThirdhandError("plan_assembly: no detection given")
+    symbols = assign_symbols([i for d in detections for i in d.instances])
+    return plan_from_demos([d.instances for d in detections], symbols)
+
+
+def fit_primitives(
+    demos: Sequence[Demonstration], constraints: Sequence[Sequence[ConstraintEvent]]
+) -> dict[str, ConstraintPrimitive]:
+    """A quaternion DMP and a ProMP per constraint, from the motions that created it.
+
+    Parameters
+    ----------
+    demos : sequence of Demonstration
+    constraints : sequence of sequences of ConstraintEvent
+        Per recording, its constraints (e.g.
+        :func:`thirdhand.task_learning.learned_events` of a learned task).
+
+    Returns
+    -------
+    dict of str to ConstraintPrimitive
+        Keyed by constraint symbol.
+    """
+    from thirdhand.primitives.segments import constraint_segments, group_segments
+    from thirdhand.primitives.stage import fit_constraint_primitive
+
+    if len(constraints) != len(demos):
+        raise ThirdhandError(
+            f"fit_primitives: {len(constraints)} constraint lists for {len(demos)} recordings"
+        )
+    segs = [
+        s
+        for d, ev in zip(demos, constraints, strict=True)
+        for s in constraint_segments(d, events=ev)
+    ]
+    return {key: fit_constraint_primitive(group) for key, group in group_segments(segs).items()}
+
+
+def learn_reward(tasks: Sequence[TaskFile], *, seed: int = 0) -> AssemblyModel:
+    """The relational reward (RCSI) of the tasks' demonstrated plans.
+
+    Plan other part sets with it by
+    :func:`thirdhand.relational.assembly.plan_assembly`.
+    """
+    from thirdhand.relational.assembly import learn_assembly
+    from thirdhand.relational.domains.plans import trajectory_from_steps
+
+    if not tasks:
+        raise ThirdhandError("learn_reward: no task given (expected at least one plan)")
+    empty = [i for i, t in enumerate(tasks) if not t.plan]
+    if empty:
+        raise ThirdhandError(f"learn_reward: task {empty[0]} has no plan")
+    trajectories = [
+        trajectory_from_steps([s.model_dump() for s in t.plan], source=f"task {i}")
+        for i, t in enumerate(tasks)
+    ]
+    return learn_assembly(trajectories, seed=seed)
+
+
+def execute_task(
+    task: TaskFile,
+    *,
+    robot: str = "panda",
+    mode: Literal["offline", "online"] = "offline",
+    seed: int = 0,
+) -> ExecutionResult:
+    """Execute a task's plan on a simulated robot arm with a motion planner.
+
+    Parameters
+    ----------
+    task : TaskFile
+        E.g. ``learn_task(...).task`` or ``thirdhand.taskfile.load_task(path)``.
+    robot : {"panda", "baxter"}
+    mode : {"offline", "online"}
+        Plan every step first, or observe–plan–act step by step.
+    seed : int
+        Seed of the start layout and the planner.
+    """
+    from thirdhand.execute.executor import Executor
+
+    if robot not in ROBOTS:
+        raise ThirdhandError(f"execute: robot {robot!r} unknown (expected one of {ROBOTS})")
+    if mode not in ("offline", "online"):
+        raise ThirdhandError(f"execute: mode {mode!r} unknown (expected 'offline' or 'online')")
+    executor = Executor.for_task(task, robot, seed=seed)
+    return executor.run_offline(seed=seed) if mode == "offline" else executor.run_online(seed=seed)
