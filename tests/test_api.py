@@ -90,3 +90,12 @@ def test_no_verb_is_shadowed_by_a_stage_package() -> None:
     assert len(verbs) == 7
     for name in verbs:
         assert inspect.isfunction(getattr(th, name)), name
+
+
+def test_task_package_does_not_import_the_synthetic_world() -> None:
+    code = (
+        "import sys, thirdhand.task, thirdhand.task.meshes, thirdhand.taskfile\n"
+        "print([m for m in sys.modules if m.startswith('thirdhand.synth')])\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert run.stdout.strip() == "[]", run.stdout + run.stderr

@@ -10,7 +10,7 @@ from thirdhand import se3
 from thirdhand.execute import CollisionScene, Robot, RobotError, SceneError, as_pose
 from thirdhand.execute.kinematics import rotation_error
 from thirdhand.execute.meshes import load_mesh, local_aabb
-from thirdhand.synth.geometry import read_stl
+from thirdhand.io.stl import read_stl
 from thirdhand.taskfile import Pose
 
 BASE = (

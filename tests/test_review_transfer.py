@@ -110,8 +110,8 @@ def test_transfer_from_3rdhand_meshes(chair: TaskFile, bench: TaskFile) -> None:
     for a, b in zip(by_scene.constraints, by_mesh.constraints, strict=True):
         assert np.allclose(a.pos, b.pos, atol=1e-6)
     # The mesh box lands on the object's box in the body frame (body axes from the chair's).
+    from thirdhand.io.stl import read_stl
     from thirdhand.se3 import quat_rotate
-    from thirdhand.synth.geometry import read_stl
 
     for obj in by_mesh.objects:
         if obj.kind != "part":

@@ -16,7 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand.errors import ThirdhandError
-from thirdhand.synth.geometry import read_stl
+from thirdhand.io.stl import read_stl
 
 FloatArray = NDArray[np.float64]
 

@@ -144,7 +144,7 @@ def match_objects(source: Sequence[str], target: Sequence[str]) -> dict[str, str
 
 
 def _mesh_bounds(path: Path) -> tuple[np.ndarray, np.ndarray, float]:
-    from thirdhand.synth.geometry import read_stl
+    from thirdhand.io.stl import read_stl
 
     tri = read_stl(path).reshape(-1, 3)
     if not tri.size:

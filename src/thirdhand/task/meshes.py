@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.io.stl import read_stl
 from thirdhand.se3 import matrix_from_quat, quat_from_matrix
-from thirdhand.synth.geometry import read_stl
 from thirdhand.task.geometry import Pose
 from thirdhand.task.model import TaskObject
 
