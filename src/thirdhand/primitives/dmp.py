@@ -128,7 +128,80 @@ def linear_rollout(
     return out[:, 0, :], out[:, 1, :]
 
 
-class DMP:
+class TransformationSystem:
+    """What a position DMP and a quaternion DMP share: gains, phase, weight fit, time grid.
+
+    Parameters
+    ----------
+    n_weights : int
+        Basis functions of the forcing term.
+    alpha : float
+        Damping ``D``; the stiffness is ``K = alpha² / 4`` (critically damped).
+    alpha_x : float, optional
+        Phase decay; default ``-log(FINAL_PHASE)`` (the phase ends at 0.01).
+    regularization : float
+        Ridge term of the weight fit, relative to the trace of the Gram matrix.
+    """
+
+    #: Fitted by the subclass: duration (s), median sample interval (s), weights.
+    tau_: float
+    dt_: float
+    weights_: FloatArray
+
+    def __init__(
+        self,
+        n_weights: int = 30,
+        *,
+        alpha: float = 25.0,
+        alpha_x: float | None = None,
+        regularization: float = 1e-10,
+    ) -> None:
+        self.n_weights = n_weights
+        self.alpha = alpha
+        self.alpha_x = alpha_x
+        self.regularization = regularization
+
+    @property
+    def stiffness(self) -> float:
+        """``K = alpha² / 4``."""
+        return self.alpha**2 / 4.0
+
+    @property
+    def alpha_x_(self) -> float:
+        """The phase decay actually used."""
+        return float(-np.log(FINAL_PHASE)) if self.alpha_x is None else float(self.alpha_x)
+
+    def _basis(self) -> tuple[FloatArray, FloatArray]:
+        return basis_centres(self.n_weights, self.alpha_x_)
+
+    def _fit_weights(self, x: FloatArray, target: FloatArray) -> None:
+        """Ridge least squares of the forcing weights: ``features(x) @ W ≈ target``."""
+        feats = forcing_features(x, *self._basis())
+        gram = feats.T @ feats
+        gram[np.diag_indices_from(gram)] += self.regularization * max(np.trace(gram), 1e-12)
+        self.weights_ = np.linalg.solve(gram, feats.T @ target).astype(np.float64, copy=False)
+
+    def _time_grid(
+        self, duration: float | None, run_time: float | None, dt: float | None, what: str
+    ) -> tuple[float, FloatArray]:
+        """``tau`` and the output times (from 0, at least two) of a rollout.
+
+        Raises
+        ------
+        PrimitiveError
+            If the duration, run time or step is not positive.
+        """
+        tau = self.tau_ if duration is None else float(duration)
+        run = tau if run_time is None else float(run_time)
+        step = self.dt_ * tau / self.tau_ if dt is None else float(dt)
+        if not (tau > 0 and run > 0 and step > 0):
+            raise PrimitiveError(
+                f"{what} rollout: duration, run time and dt must be > 0, got {tau}, {run}, {step}"
+            )
+        return tau, np.linspace(0.0, run, max(round(run / step) + 1, 2))
+
+
+class DMP(TransformationSystem):
     """Discrete DMP over ``dims`` independent dimensions sharing one phase.
 
     Parameters
@@ -153,33 +226,6 @@ class DMP:
         Median sample interval of the demonstration, seconds.
     """
 
-    def __init__(
-        self,
-        n_weights: int = 30,
-        *,
-        alpha: float = 25.0,
-        alpha_x: float | None = None,
-        regularization: float = 1e-10,
-    ) -> None:
-        self.n_weights = n_weights
-        self.alpha = alpha
-        self.alpha_x = alpha_x
-        self.regularization = regularization
-
-    # ------------------------------------------------------------------ params
-    @property
-    def stiffness(self) -> float:
-        """``K = alpha² / 4``."""
-        return self.alpha**2 / 4.0
-
-    @property
-    def alpha_x_(self) -> float:
-        """The phase decay actually used."""
-        return float(-np.log(FINAL_PHASE)) if self.alpha_x is None else float(self.alpha_x)
-
-    def _basis(self) -> tuple[FloatArray, FloatArray]:
-        return basis_centres(self.n_weights, self.alpha_x_)
-
     # --------------------------------------------------------------------- fit
     def fit(self, t: ArrayLike, y: ArrayLike, *, name: str = "demonstration") -> DMP:
         """Learn the forcing term from one demonstration.
@@ -202,10 +248,7 @@ class DMP:
         g, y0 = ya[-1], ya[0]
         k, d = self.stiffness, self.alpha
         target = tau**2 * ydd - k * (g - ya) + d * tau * yd + k * (g - y0) * x[:, None]
-        feats = forcing_features(x, *self._basis())
-        gram = feats.T @ feats
-        gram[np.diag_indices_from(gram)] += self.regularization * max(np.trace(gram), 1e-12)
-        self.weights_ = np.linalg.solve(gram, feats.T @ target)
+        self._fit_weights(x, target)
         self.tau_ = tau
         self.start_, self.goal_ = y0.copy(), g.copy()
         self.start_velocity_ = yd[0].copy()
@@ -249,15 +292,7 @@ class DMP:
         y, yd : ndarray, shape (n, dims)
             Positions and velocities.
         """
-        tau = self.tau_ if duration is None else float(duration)
-        run = tau if run_time is None else float(run_time)
-        step = self.dt_ * tau / self.tau_ if dt is None else float(dt)
-        if not (tau > 0 and run > 0 and step > 0):
-            raise PrimitiveError(
-                f"DMP rollout: duration, run time and dt must be > 0, got {tau}, {run}, {step}"
-            )
-        n = round(run / step) + 1
-        s = np.linspace(0.0, run, max(n, 2))
+        tau, s = self._time_grid(duration, run_time, dt, "DMP")
         dims = self.weights_.shape[1]
         y0 = self.start_ if start is None else _vec(start, dims, "start")
         g = self.goal_ if goal is None else _vec(goal, dims, "goal")

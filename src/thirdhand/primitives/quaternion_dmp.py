@@ -25,7 +25,13 @@ from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory, check_unit_quaternions
-from thirdhand.primitives.dmp import DMP, basis_centres, forcing_features, phase, tail_gate
+from thirdhand.primitives.dmp import (
+    DMP,
+    TransformationSystem,
+    forcing_features,
+    phase,
+    tail_gate,
+)
 
 FloatArray = NDArray[np.float64]
 
@@ -61,7 +67,7 @@ def angular_velocity(s: FloatArray, q: FloatArray) -> FloatArray:
     return 2.0 * se3.quat_multiply(qd, se3.quat_conjugate(q))[:, :3]
 
 
-class QuaternionDMP:
+class QuaternionDMP(TransformationSystem):
     """Orientation DMP on unit quaternions (Ude, Nemec, Petrič, Morimoto 2014).
 
     Parameters
@@ -95,21 +101,8 @@ class QuaternionDMP:
         regularization: float = 1e-10,
         substeps: int = 2,
     ) -> None:
-        self.n_weights = n_weights
-        self.alpha = alpha
-        self.alpha_x = alpha_x
-        self.regularization = regularization
+        super().__init__(n_weights, alpha=alpha, alpha_x=alpha_x, regularization=regularization)
         self.substeps = substeps
-
-    @property
-    def stiffness(self) -> float:
-        """``K = alpha² / 4``."""
-        return self.alpha**2 / 4.0
-
-    @property
-    def alpha_x_(self) -> float:
-        """The phase decay actually used."""
-        return float(-np.log(0.01)) if self.alpha_x is None else float(self.alpha_x)
 
     def fit(self, t: ArrayLike, q: ArrayLike, *, name: str = "orientation track") -> QuaternionDMP:
         """Learn from one orientation track.
@@ -134,10 +127,7 @@ class QuaternionDMP:
         x = phase(s, tau, self.alpha_x_)
         k, d = self.stiffness, self.alpha
         target = tau**2 * wd - k * e + d * tau * w + k * e0 * x[:, None]
-        feats = forcing_features(x, *basis_centres(self.n_weights, self.alpha_x_))
-        gram = feats.T @ feats
-        gram[np.diag_indices_from(gram)] += self.regularization * max(np.trace(gram), 1e-12)
-        self.weights_ = np.linalg.solve(gram, feats.T @ target)
+        self._fit_weights(x, target)
         self.tau_ = tau
         self.start_, self.goal_ = q0.copy(), g.copy()
         self.start_velocity_ = w[0].copy()
@@ -174,16 +164,8 @@ class QuaternionDMP:
         w : ndarray, shape (n, 3) or (n, batch, 3)
             Angular velocity, rad/s, base frame.
         """
-        tau = self.tau_ if duration is None else float(duration)
-        run = tau if run_time is None else float(run_time)
-        step = self.dt_ * tau / self.tau_ if dt is None else float(dt)
-        if not (tau > 0 and run > 0 and step > 0):
-            raise PrimitiveError(
-                f"quaternion DMP rollout: duration, run time and dt must be > 0, "
-                f"got {tau}, {run}, {step}"
-            )
-        n = max(round(run / step) + 1, 2)
-        s = np.linspace(0.0, run, n)
+        tau, s = self._time_grid(duration, run_time, dt, "quaternion DMP")
+        n, run = len(s), float(s[-1])
         q0 = self.start_ if start is None else np.asarray(start, dtype=np.float64)
         batched = q0.ndim == 2
         q = np.atleast_2d(q0).copy()
@@ -206,7 +188,7 @@ class QuaternionDMP:
         m = self.substeps
         fine = np.linspace(0.0, run, 2 * m * (n - 1) + 1)
         x = phase(fine, tau, self.alpha_x_)
-        fx = forcing_features(x, *basis_centres(self.n_weights, self.alpha_x_)) @ self.weights_
+        fx = forcing_features(x, *self._basis()) @ self.weights_
         gate = tail_gate(fine, tau)[:, None, None]
         drive = gate * (fx[:, None, :] - k * e0[None] * x[:, None, None]) / tau**2
         h = (s[1] - s[0]) / m
