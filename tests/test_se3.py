@@ -149,3 +149,26 @@ def test_kabsch_never_returns_a_reflection(rng: np.random.Generator) -> None:
     mirrored = ref * [1, 1, -1]
     _, q, _ = se3.kabsch(ref, mirrored[None])
     assert np.isclose(np.linalg.det(se3.matrix_from_quat(q[0])), 1.0)
+
+
+@settings(max_examples=300, deadline=None)
+@given(special)
+def test_rotvec_matches_scipy_near_identity_and_half_turn(q: np.ndarray) -> None:
+    rv = se3.quat_to_rotvec(q)
+    assert np.linalg.norm(rv) <= np.pi + 1e-12
+    # the same rotation as scipy's (whose rotation vector may be the other one at π)
+    back = se3.rotvec_to_quat(rv)
+    assert float(se3.quat_angle(back, q)) < 1e-9
+    assert float(se3.quat_angle(se3.rotvec_to_quat(Rotation.from_quat(q).as_rotvec()), q)) < 1e-9
+    if np.linalg.norm(rv) < 3.0:
+        np.testing.assert_allclose(rv, Rotation.from_quat(q).as_rotvec(), atol=1e-12)
+    # log/exp are the half-angle versions of the same map
+    np.testing.assert_array_equal(se3.quat_log(q), 0.5 * rv)
+    assert float(se3.quat_angle(se3.quat_exp(se3.quat_log(q)), q)) < 1e-9
+
+
+def test_rotvec_exact_at_identity_and_sign_free() -> None:
+    assert np.all(se3.quat_to_rotvec(np.array([0.0, 0.0, 0.0, -1.0])) == 0.0)
+    np.testing.assert_array_equal(se3.rotvec_to_quat(np.zeros(3)), [0.0, 0.0, 0.0, 1.0])
+    q = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_quat()
+    np.testing.assert_array_equal(se3.quat_to_rotvec(-q), se3.quat_to_rotvec(q))

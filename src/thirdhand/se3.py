@@ -172,6 +172,39 @@ def quat_slerp(q0: ArrayLike, q1: ArrayLike, w: ArrayLike) -> FloatArray:
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 
+def rotvec_to_quat(rotvec: ArrayLike) -> FloatArray:
+    """Unit quaternions (..., 4) x y z w of rotation vectors (..., 3), radians."""
+    rv = np.asarray(rotvec, dtype=np.float64)
+    angle = np.linalg.norm(rv, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    # sin(θ/2)/θ, with its limit 1/2 at θ = 0.
+    k = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
+    return np.concatenate([rv * k, np.cos(half)], axis=-1)
+
+
+def quat_to_rotvec(q: ArrayLike) -> FloatArray:
+    """Rotation vectors (..., 3), radians, of unit quaternions (..., 4) x y z w.
+
+    The shorter of the rotations ``q`` and ``−q`` describe: angle in [0, π].
+    """
+    qa = np.asarray(q, dtype=np.float64)
+    qa = np.where(qa[..., 3:4] < 0.0, -qa, qa)
+    s = np.linalg.norm(qa[..., :3], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, qa[..., 3:4])
+    k = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0)
+    return qa[..., :3] * k
+
+
+def quat_log(q: ArrayLike) -> FloatArray:
+    """Logarithm of unit quaternions (..., 4): half the rotation vector, (..., 3), norm ≤ π/2."""
+    return 0.5 * quat_to_rotvec(q)
+
+
+def quat_exp(r: ArrayLike) -> FloatArray:
+    """Exponential of pure quaternions (..., 3) into unit quaternions (..., 4) x y z w."""
+    return rotvec_to_quat(2.0 * np.asarray(r, dtype=np.float64))
+
+
 def quat_from_matrix(m: ArrayLike) -> FloatArray:
     """Quaternions (..., 4) x y z w from rotation matrices (..., 3, 3)."""
     from scipy.spatial.transform import Rotation

@@ -36,26 +36,9 @@ from thirdhand.primitives.dmp import (
 FloatArray = NDArray[np.float64]
 
 
-def quat_log(q: ArrayLike) -> FloatArray:
-    """Logarithm of unit quaternions (..., 4) x y z w: half the rotation vector, (..., 3).
-
-    Uses the shorter of ``q`` and ``−q`` so the result has norm at most π/2.
-    """
-    qa = np.asarray(q, dtype=np.float64)
-    qa = np.where(qa[..., 3:4] < 0.0, -qa, qa)
-    v = qa[..., :3]
-    nv = np.linalg.norm(v, axis=-1, keepdims=True)
-    ang = np.arctan2(nv, qa[..., 3:4])
-    scale = np.where(nv > 1e-12, ang / np.where(nv > 1e-12, nv, 1.0), 1.0)
-    return v * scale
-
-
-def quat_exp(r: ArrayLike) -> FloatArray:
-    """Exponential of pure quaternions (..., 3) into unit quaternions (..., 4) x y z w."""
-    ra = np.asarray(r, dtype=np.float64)
-    n = np.linalg.norm(ra, axis=-1, keepdims=True)
-    sinc = np.where(n > 1e-12, np.sin(n) / np.where(n > 1e-12, n, 1.0), 1.0)
-    return np.concatenate([ra * sinc, np.cos(n)], axis=-1)
+# The quaternion logarithm and exponential (half rotation vectors) of thirdhand.se3.
+quat_log = se3.quat_log
+quat_exp = se3.quat_exp
 
 
 def angular_velocity(s: FloatArray, q: FloatArray) -> FloatArray:

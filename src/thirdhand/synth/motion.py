@@ -35,24 +35,9 @@ def phase(t: FloatArray, t0: float, t1: float) -> FloatArray:
     return np.clip((t - t0) / max(t1 - t0, 1e-12), 0.0, 1.0)
 
 
-def quat_exp(rotvec: ArrayLike) -> FloatArray:
-    """Unit quaternions (..., 4) x y z w of rotation vectors (..., 3), radians."""
-    rv = np.asarray(rotvec, dtype=np.float64)
-    angle = np.linalg.norm(rv, axis=-1, keepdims=True)
-    half = 0.5 * angle
-    # sin(θ/2)/θ, with its limit 1/2 at θ = 0.
-    k = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
-    return np.concatenate([rv * k, np.cos(half)], axis=-1)
-
-
-def quat_log(q: ArrayLike) -> FloatArray:
-    """Rotation vectors (..., 3), radians, angle in [0, π], of unit quaternions (..., 4)."""
-    qa = np.asarray(q, dtype=np.float64)
-    qa = np.where(qa[..., 3:4] < 0.0, -qa, qa)
-    s = np.linalg.norm(qa[..., :3], axis=-1, keepdims=True)
-    angle = 2.0 * np.arctan2(s, qa[..., 3:4])
-    k = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0)
-    return qa[..., :3] * k
+# One rotation algebra for the whole package (thirdhand.se3); these names stay for the scenes.
+quat_exp = se3.rotvec_to_quat
+quat_log = se3.quat_to_rotvec
 
 
 def axis_angle_quat(axis: ArrayLike, angle: float) -> FloatArray:
