@@ -172,3 +172,23 @@ def test_rotvec_exact_at_identity_and_sign_free() -> None:
     np.testing.assert_array_equal(se3.rotvec_to_quat(np.zeros(3)), [0.0, 0.0, 0.0, 1.0])
     q = Rotation.from_rotvec([0.3, -0.2, 0.1]).as_quat()
     np.testing.assert_array_equal(se3.quat_to_rotvec(-q), se3.quat_to_rotvec(q))
+
+
+def test_compiled_companions_match_numpy(rng: np.random.Generator) -> None:
+    from thirdhand.se3_compiled import continuous_quat_rows, relative_pose_rows
+
+    n = 400
+    qa, qb = se3.random_quat(rng, n), se3.random_quat(rng, n)
+    qa[::7] = [0.0, 0.0, 0.0, 1.0]  # identity rows
+    qb[3::11] = -qb[3::11]
+    pa, pb = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    valid = rng.random(n) > 0.2
+    dp, dq = relative_pose_rows(pa, qa, pb, qb, valid)
+    p_ref, q_ref = se3.relative_pose(pa, qa, pb, qb)
+    q_ref = se3.quat_make_continuous(q_ref, valid)
+    np.testing.assert_allclose(dp[valid], p_ref[valid], atol=1e-12)
+    np.testing.assert_allclose(dq[valid], q_ref[valid], atol=1e-12)
+    assert np.all(dp[~valid] == 0.0) and np.all(dq[~valid] == 0.0)
+    qc = continuous_quat_rows(qb, valid)
+    np.testing.assert_allclose(qc[valid], se3.quat_make_continuous(qb, valid)[valid], atol=0)
+    np.testing.assert_array_equal(qc[~valid], qb[~valid])

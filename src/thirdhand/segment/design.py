@@ -51,13 +51,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
+from thirdhand.se3_compiled import continuous_quat_rows
 from thirdhand.segment.contact import body_box, box_gap
 from thirdhand.segment.features import (
     RAW_FEATURE_NAMES,
     BodyStats,
     LatentAxis,
     SegmentationError,
-    _continuous_quat,
     body_stats_multi,
     latent_axis,
     pair_stats_multi,
@@ -266,7 +266,7 @@ class DemoFeatures:
             if self.config.fill_gaps_s > 0:
                 floor = noise_floor(*track)
                 self._floors[name] = floor
-                q = _continuous_quat(
+                q = continuous_quat_rows(
                     np.where(tr.valid[:, None], tr.quat, 0.0).astype(np.float64), tr.valid
                 )
                 p, q, v, n = fill_static_gaps(

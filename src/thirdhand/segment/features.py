@@ -50,6 +50,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.errors import ThirdhandError
+from thirdhand.se3_compiled import continuous_quat_rows, relative_pose_rows
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -280,81 +281,6 @@ def _double_window(  # pragma: no cover - compiled
     return var, n_out, mean_out
 
 
-@numba.njit(cache=True, nogil=True)
-def _continuous_quat(q: FloatArray, valid: BoolArray) -> FloatArray:  # pragma: no cover
-    """Sign-continuous copy of a quaternion track (invalid rows skipped)."""
-    out = q.copy()
-    have = False
-    prev = np.zeros(4)
-    for i in range(q.shape[0]):
-        if not valid[i]:
-            continue
-        if have:
-            dot = 0.0
-            for j in range(4):
-                dot += out[i, j] * prev[j]
-            if dot < 0.0:
-                for j in range(4):
-                    out[i, j] = -out[i, j]
-        for j in range(4):
-            prev[j] = out[i, j]
-        have = True
-    return out
-
-
-@numba.njit(cache=True, nogil=True)
-def _relative_pose(  # pragma: no cover - compiled
-    pa: FloatArray, qa: FloatArray, pb: FloatArray, qb: FloatArray, valid: BoolArray
-) -> tuple[FloatArray, FloatArray]:
-    """B's pose in A's frame per frame, quaternion sign-continuous; zeros where invalid."""
-    n = pa.shape[0]
-    dp = np.zeros((n, 3))
-    dq = np.zeros((n, 4))
-    have = False
-    p0 = 0.0
-    p1 = 0.0
-    p2 = 0.0
-    p3 = 0.0
-    for i in range(n):
-        if not valid[i]:
-            continue
-        # conj(qa) = (-x, -y, -z, w)
-        x1 = -qa[i, 0]
-        y1 = -qa[i, 1]
-        z1 = -qa[i, 2]
-        w1 = qa[i, 3]
-        vx = pb[i, 0] - pa[i, 0]
-        vy = pb[i, 1] - pa[i, 1]
-        vz = pb[i, 2] - pa[i, 2]
-        # v + w t + u x t with t = 2 u x v
-        tx = 2.0 * (y1 * vz - z1 * vy)
-        ty = 2.0 * (z1 * vx - x1 * vz)
-        tz = 2.0 * (x1 * vy - y1 * vx)
-        dp[i, 0] = vx + w1 * tx + (y1 * tz - z1 * ty)
-        dp[i, 1] = vy + w1 * ty + (z1 * tx - x1 * tz)
-        dp[i, 2] = vz + w1 * tz + (x1 * ty - y1 * tx)
-        x2 = qb[i, 0]
-        y2 = qb[i, 1]
-        z2 = qb[i, 2]
-        w2 = qb[i, 3]
-        rx = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
-        ry = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
-        rz = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
-        rw = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
-        if have and rx * p0 + ry * p1 + rz * p2 + rw * p3 < 0.0:
-            rx = -rx
-            ry = -ry
-            rz = -rz
-            rw = -rw
-        dq[i, 0] = rx
-        dq[i, 1] = ry
-        dq[i, 2] = rz
-        dq[i, 3] = rw
-        p0, p1, p2, p3 = rx, ry, rz, rw
-        have = True
-    return dp, dq
-
-
 # ------------------------------------------------------------------ public
 def windowed_variance(
     x: FloatArray, valid: BoolArray, axis: LatentAxis, window: int
@@ -450,7 +376,7 @@ def body_stats_multi(
 ) -> list[BodyStats]:
     """:func:`body_stats` for several windows (latent steps), one per window."""
     v = np.asarray(valid, dtype=np.bool_)
-    q = _continuous_quat(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
+    q = continuous_quat_rows(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
     mp = _moments_multi(np.asarray(pos, np.float64), v, axis, windows)
     mr = _moments_multi(q, v, axis, windows)
     return [BodyStats(var_pos=p[0], var_rot=r[0], count=p[1]) for p, r in zip(mp, mr, strict=True)]
@@ -469,7 +395,7 @@ def pair_stats_multi(
     ``distance=False`` skips the window-mean distance (``BodyStats.distance`` None).
     """
     v = np.asarray(a[2], dtype=np.bool_) & np.asarray(b[2], dtype=np.bool_)
-    dp, dq = _relative_pose(
+    dp, dq = relative_pose_rows(
         np.asarray(a[0], np.float64),
         np.asarray(a[1], np.float64),
         np.asarray(b[0], np.float64),
@@ -513,7 +439,7 @@ def body_stats(
         Latent steps, centred.
     """
     v = np.asarray(valid, dtype=np.bool_)
-    q = _continuous_quat(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
+    q = continuous_quat_rows(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
     vp, n = windowed_variance(np.asarray(pos, np.float64), v, axis, window)
     vr, _ = windowed_variance(q, v, axis, window)
     return BodyStats(var_pos=vp, var_rot=vr, count=n)
@@ -536,7 +462,7 @@ def pair_stats(
         Latent steps, centred.
     """
     v = np.asarray(a[2], dtype=np.bool_) & np.asarray(b[2], dtype=np.bool_)
-    dp, dq = _relative_pose(
+    dp, dq = relative_pose_rows(
         np.asarray(a[0], np.float64),
         np.asarray(a[1], np.float64),
         np.asarray(b[0], np.float64),

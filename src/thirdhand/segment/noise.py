@@ -88,11 +88,11 @@ def noise_floor(pos: FloatArray, quat: FloatArray, valid: BoolArray) -> NoiseFlo
     NoiseFloor
         NaN floors (``n == 0``) when the track never has three valid frames in a row.
     """
-    from thirdhand.segment.features import _continuous_quat
+    from thirdhand.se3_compiled import continuous_quat_rows
 
     v = np.asarray(valid, dtype=np.bool_)
     p = np.where(v[:, None], np.asarray(pos, np.float64), 0.0)
-    q = _continuous_quat(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
+    q = continuous_quat_rows(np.where(v[:, None], quat, 0.0).astype(np.float64), v)
     fp, n = _second_difference_floor(p, v)
     fr, _ = _second_difference_floor(q, v)
     return NoiseFloor(pos=fp, rot=fr, n=n)
