@@ -33,7 +33,8 @@ CONSTRAINT_TYPES: tuple[str, ...] = (
     "cylindrical",
     "screw",
 )
-DOF_NAMES: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
+#: The six degrees of freedom of a constraint, in the order of every (6, 2) range array.
+DOF_NAMES: tuple[str, str, str, str, str, str] = ("tx", "ty", "tz", "rx", "ry", "rz")
 
 #: Largest plausible coordinate of a motion-capture volume, metres. Beyond it the
 #: data are almost surely millimetres read as metres.

@@ -27,6 +27,7 @@ from thirdhand.constraints.select import (
     type_probabilities,
 )
 from thirdhand.constraints.types import MODEL_TYPES, Constraint, ConstraintFitError, NoiseModel
+from thirdhand.demonstration import DOF_NAMES
 
 app = typer.Typer(
     help="Kinematic constraints (fixed, prismatic, revolute, cylindrical, free) of a track.",
@@ -72,7 +73,7 @@ def _print_table(path: Path, where: str, c: Constraint) -> None:
     out.print(
         f"  residual    {1000 * c.rms_pos:.2f} mm{rms_rot} rms, outliers {c.outlier_fraction:.1%}"
     )
-    free = [(n, r) for n, r in zip(("tx", "ty", "tz", "rx", "ry", "rz"), c.ranges, strict=True)]
+    free = [(n, r) for n, r in zip(DOF_NAMES, c.ranges, strict=True)]
     out.print(
         "  range       "
         + (

@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.demonstration import DOF_NAMES as DOF_NAMES  # defined once, re-exported
 from thirdhand.errors import ThirdhandError
 
 FloatArray = NDArray[np.float64]
@@ -17,8 +18,6 @@ FloatArray = NDArray[np.float64]
 #: Every model :func:`thirdhand.constraints.fit_constraint` can choose from
 #: (``screw`` only when asked for).
 MODEL_TYPES: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrical", "screw", "free")
-#: Order of the rows of :attr:`Constraint.ranges`.
-DOF_NAMES: tuple[str, ...] = ("tx", "ty", "tz", "rx", "ry", "rz")
 
 
 class ConstraintFitError(ThirdhandError, ValueError):

@@ -20,7 +20,7 @@ from thirdhand.constraints.detect import (
     DetectOptions,
     detect_constraints,
 )
-from thirdhand.demonstration import Demonstration
+from thirdhand.demonstration import DOF_NAMES, Demonstration
 from thirdhand.plan.assembly import AssemblyPlan, plan_from_demos
 from thirdhand.plan.keyframes import Keyframe, keyframes
 from thirdhand.plan.symbols import Symbol, assign_symbols
@@ -99,9 +99,7 @@ class Learned:
                     },
                     "free_dofs": {
                         n: (float(lo), float(hi))
-                        for n, (lo, hi) in zip(
-                            ("tx", "ty", "tz", "rx", "ry", "rz"), s.ranges, strict=True
-                        )
+                        for n, (lo, hi) in zip(DOF_NAMES, s.ranges, strict=True)
                     },
                     "symbol": s.name,
                     "confidence": min(1.0, max(0.0, s.confidence)),

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from thirdhand import se3
+from thirdhand.demonstration import DOF_NAMES
 from thirdhand.fileops import atomic_write_bytes
 
 
@@ -111,7 +112,7 @@ def _constraint_table(learned: Any) -> str:
         for i in det.instances:
             rng = ", ".join(
                 f"{n} [{lo:.2f}, {hi:.2f}]"
-                for n, (lo, hi) in zip(("tx", "ty", "tz", "rx", "ry", "rz"), i.ranges, strict=True)
+                for n, (lo, hi) in zip(DOF_NAMES, i.ranges, strict=True)
                 if hi > lo
             )
             rows.append(

@@ -15,13 +15,13 @@ from typing import Any
 
 import numpy as np
 
-from thirdhand.demonstration import ConstraintEvent, Demonstration
+from thirdhand.demonstration import DOF_NAMES, ConstraintEvent, Demonstration
 from thirdhand.synth.geometry import MESH_BOUNDS_MM
 from thirdhand.task.meshes import align_bounds
 from thirdhand.task.model import TaskFile
 
 _KINDS = ("part", "tool", "finger", "hand", "head")
-_DOFS = ("tx", "ty", "tz", "rx", "ry", "rz")
+_DOFS = DOF_NAMES
 
 
 def object_geometry(demo: Demonstration) -> dict[str, dict[str, Any]]:

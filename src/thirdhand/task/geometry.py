@@ -14,12 +14,11 @@ import numpy as np
 from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict
 
+from thirdhand.demonstration import DOF_NAMES as DOF_NAMES  # defined once, re-exported
 from thirdhand.se3 import pose_to_matrix
 
 FloatArray = NDArray[np.float64]
 
-#: Order of the six degrees of freedom: translations (m) then rotations (rad).
-DOF_NAMES: tuple[str, str, str, str, str, str] = ("tx", "ty", "tz", "rx", "ry", "rz")
 
 #: A quaternion whose norm is within this of 1 is stored exactly as given (so
 #: float32-exported data round-trip bit for bit).
