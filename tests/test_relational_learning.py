@@ -9,7 +9,12 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from thirdhand.relational.assembly import learn_assembly, load_trajectory, part_names, plan_assembly
+from thirdhand.relational.assembly import (
+    learn_assembly,
+    load_trajectory,
+    part_names,
+    plan_with_reward,
+)
 from thirdhand.relational.boosting import fit_boosted
 from thirdhand.relational.cli import app
 from thirdhand.relational.csi import advantage_targets, csi_targets, fit_rcsi, state_values
@@ -208,9 +213,9 @@ def _chair(order: list[str], source: str = "demo") -> Trajectory:
 
 def test_plans_learn_and_transfer() -> None:
     model = learn_assembly([_chair(o) for o in CHAIR_PLANS], n_trees=20)
-    bench = plan_assembly(model, part_names({"seating": 1, "leg": 4}))
+    bench = plan_with_reward(model, part_names({"seating": 1, "leg": 4}))
     assert bench.complete and len(bench.steps) == 4 and bench.perf > 0.99
-    three = plan_assembly(model, part_names({"seating": 1, "leg": 3, "back": 1}))
+    three = plan_with_reward(model, part_names({"seating": 1, "leg": 3, "back": 1}))
     assert three.complete and three.steps[-1] == "action(seating,back,c)"
     assert sorted(three.steps[:3]) == [f"action(seating,leg{i},c)" for i in (1, 2, 3)]
 

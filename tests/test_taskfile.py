@@ -543,3 +543,15 @@ def test_pose_matrix() -> None:
     pose = Pose(pos=(1.0, 2.0, 3.0), quat=(0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)))
     m = pose.matrix()
     assert np.allclose(m @ [1.0, 0.0, 0.0, 1.0], [1.0, 3.0, 3.0, 1.0])
+
+
+def test_free_dofs_by_name() -> None:
+    import math
+
+    from thirdhand.task.geometry import FreeDofs
+
+    fd = FreeDofs(rx=(-math.pi, math.pi), tz=(0.0, 0.05))
+    assert fd["rx"] == (-math.pi, math.pi) and fd["tz"] == (0.0, 0.05) and fd["ty"] == (0.0, 0.0)
+    assert fd.ranges()[3] == fd["rx"]
+    with pytest.raises(KeyError, match="unknown DOF 'Tx'"):
+        fd["Tx"]

@@ -121,7 +121,7 @@ def learn_reward(tasks: Sequence[TaskFile], *, seed: int = 0) -> AssemblyModel:
     """The relational reward (RCSI) of the tasks' demonstrated plans.
 
     Plan other part sets with it by
-    :func:`thirdhand.relational.assembly.plan_assembly`.
+    :func:`thirdhand.relational.assembly.plan_with_reward`.
     """
     from thirdhand.relational.assembly import learn_assembly
     from thirdhand.relational.domains.plans import trajectory_from_steps

@@ -22,7 +22,7 @@ from thirdhand.errors import ThirdhandError
 
 if TYPE_CHECKING:
     from thirdhand.plan.learn import Learned
-    from thirdhand.relational.assembly import AssemblyModel, AssemblyPlan
+    from thirdhand.relational.assembly import AssemblyModel, RewardPlan
     from thirdhand.segment.model import SegmentModel
     from thirdhand.segment.pipeline import SegmentationResult
     from thirdhand.task.model import TaskFile
@@ -39,12 +39,12 @@ class RewardResult:
     ----------
     model : AssemblyModel
         Plan types and the RCSI model.
-    plans : dict of str to AssemblyPlan
+    plans : dict of str to RewardPlan
         Per target label (e.g. ``"bench"``), the plan for that part set.
     """
 
     model: AssemblyModel
-    plans: dict[str, AssemblyPlan]
+    plans: dict[str, RewardPlan]
 
     def block(self) -> dict[str, Any]:
         """The task file's ``stages.reward`` block (JSON-able)."""
@@ -193,7 +193,7 @@ def learn_task_reward(
     RelationalError
         If the plan is empty.
     """
-    from thirdhand.relational.assembly import learn_assembly, plan_assembly
+    from thirdhand.relational.assembly import learn_assembly, plan_with_reward
     from thirdhand.relational.domains.plans import parts_of
     from thirdhand.relational.logic import RelationalError
 
@@ -204,7 +204,7 @@ def learn_task_reward(
     trajectory = trajectory_from_steps([s.model_dump() for s in task.plan], source="task plan")
     model = learn_assembly([trajectory], seed=seed)
     goal = reward_targets(parts_of(trajectory)) if targets is None else targets
-    plans = {label: plan_assembly(model, list(parts)) for label, parts in goal.items()}
+    plans = {label: plan_with_reward(model, list(parts)) for label, parts in goal.items()}
     return RewardResult(model, plans)
 
 

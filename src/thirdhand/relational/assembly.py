@@ -118,7 +118,7 @@ def part_names(counts: Mapping[str, int]) -> list[str]:
 
 
 @dataclass
-class AssemblyPlan:
+class RewardPlan:
     """A plan made with a learned reward.
 
     Attributes
@@ -138,9 +138,9 @@ class AssemblyPlan:
     perf: float
 
 
-def plan_assembly(
+def plan_with_reward(
     model: AssemblyModel, parts: Sequence[str], *, max_steps: int = 100
-) -> AssemblyPlan:
+) -> RewardPlan:
     """Plan with the learned reward: value iteration over the objects ``parts``."""
     mdp, s = model.plans.ground(parts)
     reward = model.rcsi.reward_of(mdp)
@@ -156,7 +156,7 @@ def plan_assembly(
         s = int(mdp.pair_next[p])
     truth = assembled_reward(mdp)
     states = mdp.sample_states(1000, np.random.default_rng(0))
-    return AssemblyPlan(
+    return RewardPlan(
         list(parts),
         [str(a) for a in steps],
         bool(truth[mdp.ptr[s]] > 0),

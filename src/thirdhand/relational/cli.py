@@ -24,7 +24,7 @@ from thirdhand.relational.assembly import (
     learn_assembly,
     load_trajectory,
     part_names,
-    plan_assembly,
+    plan_with_reward,
     synth_trajectories,
 )
 from thirdhand.relational.experiments import EXPERIMENTS, format_table, run_experiment
@@ -130,7 +130,7 @@ def learn(
         targets[f"chair with {n} legs"] = {"seating": 1, "leg": n, "back": 1}
     plans = {}
     for label, counts in targets.items():
-        plan = plan_assembly(model, part_names(counts))
+        plan = plan_with_reward(model, part_names(counts))
         plans[label] = asdict(plan)
         status = "complete" if plan.complete else "INCOMPLETE"
         out.print(f"[bold]{label}[/bold] ({status}, perf {plan.perf:.3f})")

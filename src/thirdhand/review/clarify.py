@@ -139,7 +139,7 @@ def clarification_queue(task: TaskFile, *, focus: str | None = None) -> list[Que
         for dof in DOF_NAMES:
             if dof in done:
                 continue
-            lo, hi = getattr(c.free_dofs, dof)
+            lo, hi = c.free_dofs[dof]
             out.append(
                 Question(
                     c.id,

@@ -140,7 +140,7 @@ def dof_animation(constraint: Constraint, dof: str, phase: float) -> Pose:
     """
     if dof not in DOF_NAMES:
         raise ValueError(f"unknown DOF {dof!r}; expected one of {', '.join(DOF_NAMES)}")
-    lo, hi = getattr(constraint.free_dofs, dof)
+    lo, hi = constraint.free_dofs[dof]
     return move_along(constraint, dof, dof_amount(lo, hi, dof, phase))
 
 

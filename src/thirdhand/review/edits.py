@@ -292,7 +292,7 @@ def _set_dof_range(task: TaskFile, e: SetDofRange, rec: _Recorder) -> None:
         raise EditError(
             f"constraint {c.id!r} {e.dof}: range [{lo}, {hi}] is wider than a full turn (2π rad)"
         )
-    old = getattr(c.free_dofs, e.dof)
+    old = c.free_dofs[e.dof]
     if (lo, hi) == tuple(old):
         return
     rec(f"constraints[{i}].free_dofs.{e.dof}", list(old), [lo, hi])

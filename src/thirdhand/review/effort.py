@@ -163,7 +163,7 @@ def changed_parameters(
             if _angle_diff(pv_old[name], pv_new[name]) > tol_rot:
                 out.append(f"{c.id}.{name}")
         for dof in DOF_NAMES:
-            if getattr(o.free_dofs, dof) != getattr(c.free_dofs, dof):
+            if o.free_dofs[dof] != c.free_dofs[dof]:
                 out.append(f"{c.id}.range.{dof}")
     if [(s.child, s.constraint) for s in before.plan] != [
         (s.child, s.constraint) for s in after.plan

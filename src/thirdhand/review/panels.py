@@ -357,7 +357,7 @@ class Panels:
             _assign(self.dof_lo, "")
             _assign(self.dof_hi, "")
             return
-        lo, hi = getattr(c.free_dofs, dof)
+        lo, hi = c.free_dofs[dof]
         _assign(self.dof_lo, fmt_value(dof, lo))
         _assign(self.dof_hi, fmt_value(dof, hi))
 

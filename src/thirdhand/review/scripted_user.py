@@ -114,15 +114,11 @@ def nearest_equivalent(reference: Constraint, pos: np.ndarray, quat: np.ndarray)
     Constraint
         ``reference`` with the child's pose replaced by the nearest equivalent one.
     """
-    free = [
-        d
-        for d in DOF_NAMES
-        if getattr(reference.free_dofs, d)[0] != getattr(reference.free_dofs, d)[1]
-    ]
-    amounts = {d: float(np.clip(0.0, *getattr(reference.free_dofs, d))) for d in free}
+    free = [d for d in DOF_NAMES if reference.free_dofs[d][0] != reference.free_dofs[d][1]]
+    amounts = {d: float(np.clip(0.0, *reference.free_dofs[d])) for d in free}
     for _ in range(2 if len(free) > 1 else 1):
         for dof in free:
-            lo, hi = getattr(reference.free_dofs, dof)
+            lo, hi = reference.free_dofs[dof]
             others = {d: a for d, a in amounts.items() if d != dof}
 
             def at(a: float, dof: str = dof, others: dict[str, float] = others) -> Constraint:
@@ -150,7 +146,7 @@ def _angle_diff(a: float, b: float) -> float:
 
 
 def _class(c: Constraint, dof: str) -> str:
-    lo, hi = getattr(c.free_dofs, dof)
+    lo, hi = c.free_dofs[dof]
     return classify_dof(lo, hi, dof)
 
 
@@ -213,7 +209,7 @@ def scripted_corrections(
                 do(SetPoseValue(c.id, name, want[name]))
                 corrected.append(f"{ref.child}.{name}")
         for dof in DOF_NAMES:
-            lo, hi = getattr(ref.free_dofs, dof)
+            lo, hi = ref.free_dofs[dof]
             if _class(c, dof) != classify_dof(lo, hi, dof):
                 do(SetDofRange(c.id, dof, lo, hi))
                 ranges.append(f"{ref.child}.range.{dof}")

@@ -159,9 +159,22 @@ class FreeDofs(BaseModel):
             **{n: (float(lo), float(hi)) for n, (lo, hi) in zip(DOF_NAMES, arr, strict=True)}
         )
 
+    def __getitem__(self, dof: str) -> tuple[float, float]:
+        """The range of one DOF by name: ``fd["rx"]`` (radians; metres for ``t*``).
+
+        Raises
+        ------
+        KeyError
+            If ``dof`` is not one of :data:`DOF_NAMES`.
+        """
+        if dof not in DOF_NAMES:
+            raise KeyError(f"unknown DOF {dof!r} (expected one of {', '.join(DOF_NAMES)})")
+        lo, hi = getattr(self, dof)
+        return (float(lo), float(hi))
+
     def ranges(self) -> list[tuple[float, float]]:
         """The six ranges in :data:`DOF_NAMES` order."""
-        return [getattr(self, n) for n in DOF_NAMES]
+        return [self[n] for n in DOF_NAMES]
 
     def array(self) -> FloatArray:
         """The ranges as an array, shape (6, 2): rows tx ty tz (m) rx ry rz (rad)."""
