@@ -24,7 +24,7 @@ from thirdhand.demonstration import DOF_NAMES, Demonstration
 from thirdhand.plan.assembly import AssemblyPlan, plan_from_demos
 from thirdhand.plan.keyframes import Keyframe, keyframes
 from thirdhand.plan.symbols import Symbol, assign_symbols
-from thirdhand.synth.task import object_geometry
+from thirdhand.task.meshes import object_geometry
 from thirdhand.taskfile import TaskFile
 
 _KINDS = {"part", "tool", "finger", "hand", "head"}

@@ -31,6 +31,9 @@ from numpy.typing import NDArray
 from thirdhand.io.stl import read_stl as read_stl
 from thirdhand.io.stl import stl_bounds as stl_bounds
 
+# Re-exported: the 3rdHand meshes' bounds, known to the task package.
+from thirdhand.task.meshes import MESH_BOUNDS_MM as MESH_BOUNDS_MM
+
 FloatArray = NDArray[np.float64]
 
 
@@ -94,19 +97,6 @@ BENCH_SLOTS: dict[str, tuple[float, float, float]] = {
     "c2": (-0.07, -0.015, 0.07),
     "c3": (0.07, -0.015, -0.07),
     "c4": (-0.07, -0.015, -0.07),
-}
-
-#: Bounding boxes of the 3rdHand mesh files, ``(min, max)`` in the files' millimetres
-#: (read by :func:`stl_bounds`; a test checks them against the files).
-MESH_BOUNDS_MM: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
-    "chair_seating.stl": ((-150.0, -150.0, 0.0), (150.0, 150.0, 20.0)),
-    "chair_leg.stl": ((-40.0, -40.0, 0.0), (40.0, 40.0, 280.0)),
-    "chair_back.stl": ((-193.1, -320.0, 0.0), (193.1, 100.0, 30.0)),
-    "bench_sitting.stl": ((0.4, 1.5, 1.5), (40.4, 301.5, 301.5)),
-    "bench_leg.stl": ((1.8, 0.0, 1.8), (62.6, 240.0, 62.6)),
-    "ToolboxPart1.stl": ((-195.0, -60.0, 0.0), (195.0, 120.1, 17.0)),
-    "ToolboxPart2.stl": ((-100.0, 0.0, 0.0), (160.0, 120.0, 17.0)),
-    "ToolboxPart3.stl": ((-212.5, 0.0, 0.0), (212.5, 120.0, 17.0)),
 }
 
 #: Sensor-to-mesh transforms of the 3rdHand scene files, ``[[x, y, z] mm, [w, x, y, z]]``.

@@ -10,49 +10,14 @@ learned task is corrected towards.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
-
 import numpy as np
 
 from thirdhand.demonstration import DOF_NAMES, ConstraintEvent, Demonstration
-from thirdhand.synth.geometry import MESH_BOUNDS_MM
-from thirdhand.task.meshes import align_bounds
+from thirdhand.task.meshes import object_geometry
 from thirdhand.task.model import TaskFile
 
 _KINDS = ("part", "tool", "finger", "hand", "head")
 _DOFS = DOF_NAMES
-
-
-def object_geometry(demo: Demonstration) -> dict[str, dict[str, Any]]:
-    """Task-object geometry fields per body, from a synthetic demonstration's metadata.
-
-    Returns
-    -------
-    dict of str to dict
-        Per body with known geometry: ``bbox_min``/``bbox_max`` (body frame,
-        metres) and, when the part has a 3rdHand mesh, ``mesh`` (file name, looked
-        up along the mesh search path), ``scale`` (0.001, millimetres) and
-        ``mesh_to_body`` (mesh bounding box aligned onto the body's).
-    """
-    geometry = demo.meta.get("geometry")
-    out: dict[str, dict[str, Any]] = {}
-    if not isinstance(geometry, Mapping):
-        return out
-    for name, g in geometry.items():
-        if not isinstance(g, Mapping) or "bbox_min_m" not in g:
-            continue
-        lo = [float(v) for v in g["bbox_min_m"]]
-        hi = [float(v) for v in g["bbox_max_m"]]
-        fields: dict[str, Any] = {"bbox_min": lo, "bbox_max": hi}
-        mesh = g.get("mesh")
-        if isinstance(mesh, str) and mesh in MESH_BOUNDS_MM:
-            mlo, mhi = (np.asarray(b, float) * 1e-3 for b in MESH_BOUNDS_MM[mesh])
-            fields["mesh"] = mesh
-            fields["scale"] = 1e-3
-            fields["mesh_to_body"] = align_bounds(mlo, mhi, np.asarray(lo), np.asarray(hi))
-        out[str(name)] = fields
-    return out
 
 
 def _keyframe(demo: Demonstration, time: float) -> dict[str, dict[str, list[float]]]:

@@ -14,8 +14,9 @@ the ``THIRDHAND_MESH_PATH`` environment variable, ``os.pathsep``-separated).
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -25,10 +26,27 @@ from thirdhand.se3 import matrix_from_quat, quat_from_matrix
 from thirdhand.task.geometry import Pose
 from thirdhand.task.model import TaskObject
 
+if TYPE_CHECKING:
+    from thirdhand.demonstration import Demonstration
+
 FloatArray = NDArray[np.float64]
 
 #: Environment variable: extra folders (``os.pathsep``-separated) searched for meshes.
 MESH_PATH_ENV = "THIRDHAND_MESH_PATH"
+
+
+#: Bounding boxes of the 3rdHand mesh files, ``(min, max)`` in the files' millimetres
+#: (read by :func:`thirdhand.io.stl.stl_bounds`; a test checks them against the files).
+MESH_BOUNDS_MM: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
+    "chair_seating.stl": ((-150.0, -150.0, 0.0), (150.0, 150.0, 20.0)),
+    "chair_leg.stl": ((-40.0, -40.0, 0.0), (40.0, 40.0, 280.0)),
+    "chair_back.stl": ((-193.1, -320.0, 0.0), (193.1, 100.0, 30.0)),
+    "bench_sitting.stl": ((0.4, 1.5, 1.5), (40.4, 301.5, 301.5)),
+    "bench_leg.stl": ((1.8, 0.0, 1.8), (62.6, 240.0, 62.6)),
+    "ToolboxPart1.stl": ((-195.0, -60.0, 0.0), (195.0, 120.1, 17.0)),
+    "ToolboxPart2.stl": ((-100.0, 0.0, 0.0), (160.0, 120.0, 17.0)),
+    "ToolboxPart3.stl": ((-212.5, 0.0, 0.0), (212.5, 120.0, 17.0)),
+}
 
 
 def mesh_search_path(search: Sequence[str | os.PathLike[str]] = ()) -> list[Path]:
@@ -159,3 +177,36 @@ def object_triangles(
     if obj.bbox_min is not None and obj.bbox_max is not None:
         return box_triangles(obj.bbox_min, obj.bbox_max)
     return None
+
+
+def object_geometry(demo: Demonstration) -> dict[str, dict[str, Any]]:
+    """Task-object geometry fields per body, from a recording's ``meta["geometry"]``.
+
+    Synthetic scenes write it; a native-format recording carries it along.
+
+    Returns
+    -------
+    dict of str to dict
+        Per body with known geometry: ``bbox_min``/``bbox_max`` (body frame,
+        metres) and, when the part has a 3rdHand mesh, ``mesh`` (file name, looked
+        up along the mesh search path), ``scale`` (0.001, millimetres) and
+        ``mesh_to_body`` (mesh bounding box aligned onto the body's).
+    """
+    geometry = demo.meta.get("geometry")
+    out: dict[str, dict[str, Any]] = {}
+    if not isinstance(geometry, Mapping):
+        return out
+    for name, g in geometry.items():
+        if not isinstance(g, Mapping) or "bbox_min_m" not in g:
+            continue
+        lo = [float(v) for v in g["bbox_min_m"]]
+        hi = [float(v) for v in g["bbox_max_m"]]
+        fields: dict[str, Any] = {"bbox_min": lo, "bbox_max": hi}
+        mesh = g.get("mesh")
+        if isinstance(mesh, str) and mesh in MESH_BOUNDS_MM:
+            mlo, mhi = (np.asarray(b, float) * 1e-3 for b in MESH_BOUNDS_MM[mesh])
+            fields["mesh"] = mesh
+            fields["scale"] = 1e-3
+            fields["mesh_to_body"] = align_bounds(mlo, mhi, np.asarray(lo), np.asarray(hi))
+        out[str(name)] = fields
+    return out
