@@ -263,7 +263,7 @@ def learn_task(
         raise ThirdhandError("learn: no demonstration given")
     say = progress or (lambda _stage: None)
     skipped: list[str] = []
-    ph: list[Any] | None = list(phases) if phases is not None else None
+    ph: list[SegmentationResult | None] | None = list(phases) if phases is not None else None
     if ph is None and segment:
         from thirdhand.segment import segment_demonstration
 

@@ -12,7 +12,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from thirdhand.constraints.detect import (
     ConstraintInstance,
@@ -26,6 +26,9 @@ from thirdhand.plan.keyframes import Keyframe, keyframes
 from thirdhand.plan.symbols import Symbol, assign_symbols
 from thirdhand.task.meshes import object_geometry
 from thirdhand.taskfile import TaskFile
+
+if TYPE_CHECKING:
+    from thirdhand.segment.pipeline import SegmentationResult
 
 _KINDS = {"part", "tool", "finger", "hand", "head"}
 
@@ -53,7 +56,7 @@ class Learned:
 
     demos: list[Demonstration]
     names: list[str]
-    phases: list[Any]
+    phases: list[SegmentationResult | None]
     detections: list[DetectionResult]
     symbols: list[Symbol]
     plan: AssemblyPlan
@@ -172,7 +175,7 @@ def learn(
     demos: Sequence[Demonstration],
     *,
     names: Sequence[str] | None = None,
-    phases: Sequence[Any] | None = None,
+    phases: Sequence[SegmentationResult | None] | None = None,
     segment: bool = True,
     options: DetectOptions | None = None,
     inputs: Sequence[str | os.PathLike[str]] = (),
