@@ -358,3 +358,30 @@ def test_world_poses_match_noise_free_keyframes(chair: TaskFile) -> None:
     assert set(world_poses(chair)) == {o.name for o in chair.objects}
     with pytest.raises(IndexError):
         world_poses(chair, 99)
+
+
+def test_implausible_offsets_are_refused_and_edits_described() -> None:
+    import math
+
+    from thirdhand.review.edits import (
+        PLAUSIBLE_OFFSET_M,
+        EditError,
+        MoveStep,
+        SetDofRange,
+        SetPoseValue,
+        apply_edit,
+        describe_edit,
+    )
+    from thirdhand.synth import make_scene
+    from thirdhand.synth.task import truth_task
+
+    task = truth_task(make_scene("chair", seed=0, sensor=None))
+    cid = task.constraints[1].id
+    with pytest.raises(EditError, match="not plausible"):
+        apply_edit(task, SetPoseValue(cid, "y", 1e9))
+    apply_edit(task, SetPoseValue(cid, "y", PLAUSIBLE_OFFSET_M * 0.99))  # within: fine
+    assert describe_edit(SetPoseValue(cid, "x", 0.12)) == f"{cid} x = 12.00 cm"
+    assert describe_edit(SetDofRange(cid, "rx", -math.pi / 4, math.pi / 4)) == (
+        f"{cid} rx range -45.0° to 45.0°"
+    )
+    assert describe_edit(MoveStep(3, 2)) == "step 4 moved to position 3"

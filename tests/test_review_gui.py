@@ -692,3 +692,64 @@ def test_chair_task_transferred_to_the_bench(open_review: Any, chair: Any) -> No
     assert app.colours()["seating"] == PARENT_RGB
     time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
     review.shot("bench-transferred")
+
+
+# ---------------------------------------------------------------------------- issue 22 bugs
+
+
+@pytest.mark.slow
+def test_up_and_down_keep_the_chosen_step(review: Review) -> None:
+    """Bug 1: after Up the Step list jumped back to step 1; a second Up said 'index -1'."""
+    app, page = review.app, review.page
+    before = [s.child for s in app.task.plan]
+    page.get_by_label("Step", exact=True).click()
+    page.get_by_role("option").nth(3).click()  # step 4
+    review.wait_for(lambda: app.chosen_step == 3, "step 4 chosen")
+    review.button("Up").click()
+    review.wait_for(lambda: [s.child for s in app.task.plan][2] == before[3], "the first Up")
+    review.wait_for(lambda: app.panels.step.value.startswith("3."), "the list to follow the step")
+    review.button("Up").click()
+    review.wait_for(lambda: [s.child for s in app.task.plan][1] == before[3], "the second Up")
+    review.button("Up").click()
+    review.wait_for(lambda: app.task.plan[0].child == before[3], "the third Up")
+    assert app.panels.step.value.startswith("1.")
+    # Once first, Up is refused with a plain reason, and nothing changes.
+    plan = [s.child for s in app.task.plan]
+    review.button("Up").click()
+    page.locator("#th-message", has_text="already the first").wait_for(timeout=TIMEOUT_MS)
+    assert [s.child for s in app.task.plan] == plan
+    review.button("Down").click()
+    review.wait_for(lambda: [s.child for s in app.task.plan][1] == before[3], "Down")
+    assert app.panels.step.value.startswith("2.")
+    review.shot("step-follows-up-down")
+
+
+@pytest.mark.slow
+def test_a_success_replaces_the_stale_error(review: Review) -> None:
+    """Bug 2: after a refused 'abc', a good value still showed the error in red."""
+    app, page = review.app, review.page
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    review.type_value("x", "abc")
+    review.button("Apply values").click()
+    page.locator("#th-message", has_text="abc").wait_for(timeout=TIMEOUT_MS)
+    review.type_value("x", "11 cm")
+    review.button("Apply values").click()
+    review.wait_for(lambda: app.constraint.pos[0] == pytest.approx(0.11), "the edit")
+    message = page.locator("#th-message")
+    message.filter(has_text="applied").wait_for(timeout=TIMEOUT_MS)
+    assert "abc" not in message.inner_text() and "11.00 cm" in message.inner_text()
+    assert review.colour_of("th-message") != "rgb(201, 42, 42)"  # not the error red
+
+
+@pytest.mark.slow
+def test_an_implausible_value_is_refused(review: Review) -> None:
+    """Bug 3: '1e9 m' for y was accepted and the part vanished."""
+    app, page = review.app, review.page
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    y0 = app.constraint.pos[1]
+    review.type_value("y", "1e9 m")
+    review.button("Apply values").click()
+    page.locator("#th-message", has_text="not plausible").wait_for(timeout=TIMEOUT_MS)
+    assert app.constraint.pos[1] == y0 and not app.session.dirty

@@ -39,6 +39,7 @@ from thirdhand.review.edits import (
     SetParent,
     SetPose,
     SetPoseValue,
+    describe_edit,
     parse_number,
     pose_values,
 )
@@ -119,6 +120,8 @@ class ReviewApp:
         self.lock = threading.RLock()
         self.selected: str | None = None
         self.step: int | None = None
+        #: The plan step chosen in the Step list (it follows Up/Down), None: the first.
+        self.chosen_step: int | None = None
         self.mode = "task"
         self.message = f"Loaded {self.task_path.name}"
         self.questions: list[Question] = []
@@ -234,6 +237,12 @@ class ReviewApp:
                     auto_close_seconds=None if error else 4.0,
                 )
 
+    def say(self, text: str) -> None:
+        """Show ``text`` in the status line (replacing an earlier error), no notification."""
+        self.message = text
+        if self.panels is not None:
+            self.panels.show_message(text, error=False)
+
     def attempt(self, fn: Any, *args: Any, **kwargs: Any) -> None:
         """Run an action for a widget: a refused one shows its message and changes nothing."""
         try:
@@ -288,6 +297,7 @@ class ReviewApp:
         with self.lock:
             self.motion.halt()
             self.session.apply(edit, operation=operation)
+            self.say(f"applied: {describe_edit(edit)}")
             self.refresh()
 
     def set_values(self, texts: dict[str, str]) -> None:
@@ -333,12 +343,24 @@ class ReviewApp:
             self.refresh()
 
     def move_step(self, index: int, delta: int) -> None:
-        """Move plan step ``index`` up (``delta`` -1) or down (+1); the shown step follows it."""
+        """Move plan step ``index`` up (``delta`` -1) or down (+1); the chosen and shown step
+        follow it.
+
+        Raises
+        ------
+        ThirdhandError
+            The step is already first (up) or last (down).
+        """
         with self.lock:
             new = index + delta
+            n = len(self.task.plan)
+            if not 0 <= new < n:
+                where = "first" if delta < 0 else "last"
+                raise ThirdhandError(f"step {index + 1} is already the {where} of {n}")
             self.apply(MoveStep(index, new), operation="reordering")
             if self.step == index:
                 self.step = new
+            self.chosen_step = new
             self.refresh()
 
     def show_step(self, index: int | None) -> None:

@@ -218,11 +218,22 @@ def pose_values(constraint: Constraint) -> dict[str, float]:
     return dict(zip(POSE_VALUE_NAMES, [*constraint.pos, *_rpy(constraint.quat)], strict=True))
 
 
+#: Largest offset (m) of a child from its parent an edit may set: beyond it a typed
+#: value is a slip (``1e9 m``), and the part would vanish from the view.
+PLAUSIBLE_OFFSET_M = 5.0
+
+
 def _set_pos(task: TaskFile, i: int, pos: Sequence[float], rec: _Recorder) -> None:
     c = task.constraints[i]
     new = tuple(_finite(v, f"constraint {c.id!r} position[{k}]") for k, v in enumerate(pos))
     if len(new) != 3:
         raise EditError(f"constraint {c.id!r}: expected 3 position values, got {len(new)}")
+    for k, v in enumerate(new):
+        if abs(v) > PLAUSIBLE_OFFSET_M and abs(v) > abs(c.pos[k]):
+            raise EditError(
+                f"constraint {c.id!r}: {'xyz'[k]} = {v * 100:.4g} cm is not plausible "
+                f"(a part within {PLAUSIBLE_OFFSET_M:g} m of its parent expected)"
+            )
     for k in range(3):
         if new[k] != c.pos[k]:
             rec(f"constraints[{i}].pos[{k}]", c.pos[k], new[k])
@@ -437,6 +448,32 @@ def _confirm(task: TaskFile, e: Confirm, rec: _Recorder) -> None:
     what = e.dof if e.dof is not None else "constraint"
     if what not in entry:
         entry.append(what)
+
+
+def _shown(name: str, value: float) -> str:
+    """A value as the panels show it: centimetres for a translation, degrees for a rotation."""
+    if name in ("x", "y", "z") or name.startswith("t"):
+        return f"{value * 100:.2f} cm"
+    return f"{math.degrees(value):.1f}°"
+
+
+def describe_edit(edit: Edit) -> str:
+    """One line naming what an edit changes, in the units the panels show (cm, degrees)."""
+    if isinstance(edit, SetPose):
+        return f"new pose of {edit.constraint}"
+    if isinstance(edit, SetPoseValue):
+        return f"{edit.constraint} {edit.name} = {_shown(edit.name, edit.value)}"
+    if isinstance(edit, SetDofRange):
+        if edit.lo == edit.hi == 0.0:
+            return f"{edit.constraint} {edit.dof} locked"
+        lo, hi = _shown(edit.dof, edit.lo), _shown(edit.dof, edit.hi)
+        return f"{edit.constraint} {edit.dof} range {lo} to {hi}"
+    if isinstance(edit, SetParent):
+        return f"{edit.child} now on {edit.parent}"
+    if isinstance(edit, MoveStep):
+        return f"step {edit.index + 1} moved to position {edit.new_index + 1}"
+    what = f" {edit.dof}" if edit.dof is not None else ""
+    return f"{edit.constraint}{what} confirmed"
 
 
 def apply_edit(task: TaskFile, edit: Edit, *, who: str = "user") -> TaskFile:

@@ -110,6 +110,7 @@ class Panels:
             self.down = gui.add_button("Down")
             self.show_kf = gui.add_button("Show keyframe")
             self.show_all = gui.add_button("Show assembled")
+        self.step.on_update(self._step_chosen)
         self.up.on_click(lambda e: app.attempt(lambda: app.move_step(self._step_index(), -1)))
         self.down.on_click(lambda e: app.attempt(lambda: app.move_step(self._step_index(), 1)))
         self.show_kf.on_click(lambda e: app.attempt(lambda: app.show_step(self._step_index())))
@@ -172,6 +173,10 @@ class Panels:
             return
         value = self.object.value
         self.app.attempt(self.app.select, None if value == NONE else value)
+
+    def _step_chosen(self, event: Any) -> None:
+        if _user(event) and self.step.value != "-":
+            self.app.chosen_step = self._step_index()
 
     def _submit_values(self) -> None:
         changed = {n: h.value for n, h in self.values.items() if h.value != self._shown.get(n)}
@@ -341,7 +346,12 @@ class Panels:
         _assign(self.new_parent, app.parent if app.parent is not None else NONE)
         labels = [step_label(i, s) for i, s in enumerate(app.task.plan)] or ["-"]
         self.step.options = labels
-        current = app.step if app.step is not None else _index_of(self.step.value, labels)
+        if app.step is not None:
+            current = app.step
+        elif app.chosen_step is not None:
+            current = app.chosen_step
+        else:
+            current = _index_of(self.step.value, labels)
         _assign(self.step, labels[min(max(current, 0), len(labels) - 1)])
         self.plan.content = _plan_html(app.task.plan, app.step)
         q = app.question
