@@ -753,3 +753,21 @@ def test_an_implausible_value_is_refused(review: Review) -> None:
     review.button("Apply values").click()
     page.locator("#th-message", has_text="not plausible").wait_for(timeout=TIMEOUT_MS)
     assert app.constraint.pos[1] == y0 and not app.session.dirty
+
+
+@pytest.mark.slow
+def test_playback_hides_the_task_glyphs(review: Review) -> None:
+    """Bug 5: the selected part's DOF circle stayed at its task pose during playback."""
+    app = review.app
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    review.wait_for(lambda: len(app.glyphs.glyphs) > 0, "the DOF glyph")
+    slider = app.panels.time
+    app.attempt(app.motion.set_time, (slider.min + slider.max) / 2)
+    review.wait_for(lambda: app.mode == "playback", "playback")
+    assert app.glyphs.glyphs == [] and app.gizmo.handle is None
+    review.button("Play").click()
+    review.wait_for(lambda: app.motion.playing, "playing")
+    assert app.glyphs.glyphs == []
+    review.button("Show task").click()
+    review.wait_for(lambda: app.mode == "task" and len(app.glyphs.glyphs) > 0, "the task view")

@@ -46,7 +46,7 @@ from thirdhand.review.edits import (
 from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
 from thirdhand.review.focus import Focus, find_focus
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
-from thirdhand.review.motion import Motion
+from thirdhand.review.motion import Motion, MotionEvents
 from thirdhand.review.scene3d import DofGlyphView, PartsView, front_view, selection_colours
 from thirdhand.review.session import ConflictError, ReviewSession
 from thirdhand.se3 import pose_compose, pose_invert
@@ -135,6 +135,7 @@ class ReviewApp:
         self.gizmo: DofGizmo | None = None
         self.panels: Any = None
         self.motion = Motion(self, self.demos, segment=segment)
+        self.motion.events = MotionEvents(playback_entered=self._enter_playback)
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -169,6 +170,13 @@ class ReviewApp:
         self.glyphs = DofGlyphView(self.server.scene)
         self.gizmo = DofGizmo(self.server.scene, self.gizmo_moved)
         self.panels = Panels(self)
+        self.motion.events = MotionEvents(
+            playback_entered=self._enter_playback,
+            time_shown=self.panels.show_time,
+            playing_changed=self.panels.show_playing,
+            demo_changed=self.panels.show_demo,
+            animating=self.panels.show_animation,
+        )
         self.server.on_client_connect(self._client_connected)
         with self.lock:
             self.refresh()
@@ -496,6 +504,14 @@ class ReviewApp:
             if c is None:
                 raise ThirdhandError("select an object with a constraint first")
             self.motion.animate(c, list(dofs))
+
+    def _enter_playback(self) -> None:
+        """The view shows the recording: the task's DOF glyphs and gizmo go away."""
+        self.mode = "playback"
+        if self.glyphs is not None:
+            self.glyphs.clear()
+        if self.gizmo is not None:
+            self.gizmo.hide()
 
     def show_task(self) -> None:
         """Leave playback: parts back at their constraint poses."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import viser
@@ -32,6 +33,35 @@ ANIMATION_RATE = 20.0
 PLAYBACK_RATE = 20.0
 #: Radius of a finger's sphere in playback, metres.
 FINGER_RADIUS = 0.008
+
+
+def _ignore(*_args: object) -> None:
+    return None
+
+
+@dataclass
+class MotionEvents:
+    """What :class:`Motion` tells its owner (the app and its panels); each a no-op by default.
+
+    Attributes
+    ----------
+    playback_entered : callable ()
+        The view shows the recording now (not the task).
+    time_shown : callable (float)
+        The playback time, seconds.
+    playing_changed : callable (bool)
+        Playback started (True) or stopped.
+    demo_changed : callable ()
+        Another recording is played back.
+    animating : callable (Constraint, str or None)
+        The DOF being animated (None: the animation is over).
+    """
+
+    playback_entered: Callable[[], None] = _ignore
+    time_shown: Callable[[float], None] = _ignore
+    playing_changed: Callable[[bool], None] = _ignore
+    demo_changed: Callable[[], None] = _ignore
+    animating: Callable[[Constraint, str | None], None] = _ignore
 
 
 class Motion:
@@ -69,6 +99,8 @@ class Motion:
         self._fingers: dict[str, viser.IcosphereHandle] = {}
         self._worker: threading.Thread | None = None
         self._stop = threading.Event()
+        #: Set by the owner: Motion reports through these, it drives no panel.
+        self.events = MotionEvents()
 
     # ---------------------------------------------------------------- workers
     def _start(self, target: Callable[[threading.Event], None]) -> None:
@@ -86,8 +118,7 @@ class Motion:
         self.animating = None
         if self.playing:
             self.playing = False
-            if self.app.panels is not None:
-                self.app.panels.show_playing(False)
+            self.events.playing_changed(False)
 
     def _acquire_unless(self, stop: threading.Event) -> bool:
         """Take the app lock for a worker, unless it is told to stop meanwhile."""
@@ -113,8 +144,7 @@ class Motion:
         n = max(2, int(ANIMATION_SECONDS * ANIMATION_RATE))
         for dof in order:
             self.animating = dof
-            if app.panels is not None:
-                app.panels.show_animation(c, dof)
+            self.events.animating(c, dof)
             for k in range(n):
                 if stop.is_set():
                     return
@@ -123,8 +153,7 @@ class Motion:
                 app.parts.set_pose(c.child, p, q)
                 stop.wait(1.0 / ANIMATION_RATE)
         self.animating = None
-        if app.panels is not None:
-            app.panels.show_animation(c, None)
+        self.events.animating(c, None)
         if self._acquire_unless(stop):
             try:
                 app.refresh()
@@ -142,10 +171,9 @@ class Motion:
         with self.app.lock:
             tl = self._timeline()
             self.time = float(min(max(time_s, tl.start), tl.end))
-            self.app.mode = "playback"
+            self.events.playback_entered()
             self.place()
-            if self.app.panels is not None:
-                self.app.panels.show_time(self.time)
+            self.events.time_shown(self.time)
 
     def set_demo(self, index: int) -> None:
         """Play back recording ``index`` from its start."""
@@ -154,8 +182,7 @@ class Motion:
                 raise ThirdhandError(f"no recording {index}; {len(self.timelines)} loaded")
             self.halt()
             self.demo_index = index
-            if self.app.panels is not None:
-                self.app.panels.show_demo()
+            self.events.demo_changed()
             self.set_time(self.timelines[index].start)
 
     def play(self, playing: bool = True, *, speed: float = 1.0) -> None:
@@ -165,11 +192,10 @@ class Motion:
                 self.halt()
                 return
             self._timeline()
-            self.app.mode = "playback"
+            self.events.playback_entered()
             self._start(lambda stop: self._playback(stop, speed))
             self.playing = True
-            if self.app.panels is not None:
-                self.app.panels.show_playing(True)
+            self.events.playing_changed(True)
 
     def _playback(self, stop: threading.Event, speed: float) -> None:
         tl = self.timelines[self.demo_index]
@@ -183,8 +209,7 @@ class Motion:
                 last = now
                 self.time = tl.start if t >= tl.end else t
                 self.place()
-                if self.app.panels is not None:
-                    self.app.panels.show_time(self.time)
+                self.events.time_shown(self.time)
             finally:
                 self.app.lock.release()
 
