@@ -133,7 +133,7 @@ def test_dof_range_and_type(chair: TaskFile) -> None:
         (SetPoseValue("c1", "w", 0.1), "unknown pose value"),
         (SetPose("c1", quat=(0.0, 0.0, 0.0, 0.0)), "zero norm"),
         (SetPose("c1", pos=(0.0, float("nan"), 0.0)), "finite"),
-        (SetDofRange("c1", "rz", 0.2, -0.2), "min 0.2 > max -0.2"),
+        (SetDofRange("c1", "rz", 0.2, -0.2), "min 11.5° > max -11.5°"),
         (SetDofRange("c1", "rz", float("nan"), 0.1), "finite"),
         (SetDofRange("c1", "Tx", 0.0, 0.1), "unknown DOF"),
         (SetDofRange("c1", "rz", -4.0, 4.0), "wider than a full turn"),

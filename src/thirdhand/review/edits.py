@@ -298,10 +298,18 @@ def _set_dof_range(task: TaskFile, e: SetDofRange, rec: _Recorder) -> None:
     lo = _finite(e.lo, f"constraint {c.id!r} {e.dof} min")
     hi = _finite(e.hi, f"constraint {c.id!r} {e.dof} max")
     if lo > hi:
-        raise EditError(f"constraint {c.id!r} {e.dof}: min {lo} > max {hi}")
+        raise EditError(
+            f"constraint {c.id!r} {e.dof}: min {_shown(e.dof, lo)} > max {_shown(e.dof, hi)}"
+        )
     if e.dof.startswith("r") and hi - lo > MAX_ROTATION_RANGE:
         raise EditError(
-            f"constraint {c.id!r} {e.dof}: range [{lo}, {hi}] is wider than a full turn (2π rad)"
+            f"constraint {c.id!r} {e.dof}: range {_shown(e.dof, lo)} to {_shown(e.dof, hi)} "
+            "is wider than a full turn (360°)"
+        )
+    if e.dof.startswith("t") and max(abs(lo), abs(hi)) > PLAUSIBLE_OFFSET_M:
+        raise EditError(
+            f"constraint {c.id!r} {e.dof}: range {_shown(e.dof, lo)} to {_shown(e.dof, hi)} "
+            f"is not plausible (a part within {PLAUSIBLE_OFFSET_M:g} m of its parent expected)"
         )
     old = c.free_dofs[e.dof]
     if (lo, hi) == tuple(old):

@@ -136,7 +136,11 @@ class Panels:
                     visible=len(app.motion.timelines) > 1,
                 )
                 self.time = gui.add_slider(
-                    "Time (s)", min=tl.start, max=tl.end, step=0.05, initial_value=tl.start
+                    "Time (s)",
+                    min=round(tl.start, 2),
+                    max=round(tl.end, 2),
+                    step=0.05,
+                    initial_value=round(tl.start, 2),
                 )
                 self.play = gui.add_button("Play")
                 self.speed = gui.add_number("Speed", 1.0, min=0.1, max=10.0, step=0.1)
@@ -296,7 +300,7 @@ class Panels:
             return
         app = self.app
         tl = app.motion.timelines[app.motion.demo_index]
-        self.time.min, self.time.max = tl.start, tl.end
+        self.time.min, self.time.max = round(tl.start, 2), round(tl.end, 2)
         self.legend.content = _legend(app.motion.contacts[app.motion.demo_index].source)
 
     def show_time(self, t: float) -> None:
