@@ -771,3 +771,41 @@ def test_playback_hides_the_task_glyphs(review: Review) -> None:
     assert app.glyphs.glyphs == []
     review.button("Show task").click()
     review.wait_for(lambda: app.mode == "task" and len(app.glyphs.glyphs) > 0, "the task view")
+
+
+def test_floor_is_under_every_part_corner(chair: Any) -> None:
+    """Item 7: a floor grid under the assembly, at its lowest part corner (brute force)."""
+    from thirdhand.review.dofs import world_poses
+    from thirdhand.review.scene3d import floor_height
+    from thirdhand.se3 import quat_rotate
+
+    task = truth_task(chair)
+    z = floor_height(task)
+    lowest = np.inf
+    objs = task.objects_by_name()
+    for name, pose in world_poses(task).items():
+        o = objs[name]
+        if o.kind != "part":
+            continue
+        for corner in np.array(np.meshgrid(*zip(o.bbox_min, o.bbox_max, strict=True))).T.reshape(
+            -1, 3
+        ):
+            lowest = min(lowest, float((quat_rotate(pose.quat, corner) + pose.pos)[2]))
+    assert z == pytest.approx(lowest, abs=1e-12)
+
+
+@pytest.mark.slow
+def test_missing_mesh_is_said_and_the_floor_drawn(open_review: Any, chair: Any) -> None:
+    """Item 7: a mesh not found silently became a box."""
+    task = truth_task(chair)
+    leg = next(o for o in task.objects if o.name == "leg1")
+    leg.mesh = "no_such_leg.stl"
+    review = open_review(task)
+    app = review.app
+    assert app.parts.missing_meshes == {"leg1": "no_such_leg.stl"}
+    review.page.locator("#th-message", has_text="no_such_leg.stl (leg1)").wait_for(
+        timeout=TIMEOUT_MS
+    )
+    from thirdhand.review.scene3d import floor_height
+
+    assert app.grid is not None and app.grid.position[2] == pytest.approx(floor_height(task))

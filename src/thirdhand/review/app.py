@@ -47,7 +47,13 @@ from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
 from thirdhand.review.focus import Focus, find_focus
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion, MotionEvents
-from thirdhand.review.scene3d import DofGlyphView, PartsView, front_view, selection_colours
+from thirdhand.review.scene3d import (
+    DofGlyphView,
+    PartsView,
+    floor_height,
+    front_view,
+    selection_colours,
+)
 from thirdhand.review.session import ConflictError, ReviewSession
 from thirdhand.se3 import pose_compose, pose_invert
 from thirdhand.task.constraint import Constraint
@@ -131,6 +137,7 @@ class ReviewApp:
         self.quit_requested = threading.Event()
         self.server: viser.ViserServer | None = None
         self.parts: PartsView | None = None
+        self.grid: viser.GridHandle | None = None
         self.glyphs: DofGlyphView | None = None
         self.gizmo: DofGizmo | None = None
         self.panels: Any = None
@@ -166,6 +173,14 @@ class ReviewApp:
                 "/light", sky_color=(255, 255, 255), ground_color=(120, 120, 130), intensity=1.2
             )
         self.parts = PartsView(self.server.scene, self.task, self.task_path, self.meshes)
+        self.grid = self.server.scene.add_grid(
+            "/floor",
+            width=2.0,
+            height=2.0,
+            cell_size=0.1,
+            section_size=0.5,
+            position=(0.0, 0.0, floor_height(self.task)),
+        )
         self.parts.on_click(self._clicked)
         self.glyphs = DofGlyphView(self.server.scene)
         self.gizmo = DofGizmo(self.server.scene, self.gizmo_moved)
@@ -180,6 +195,9 @@ class ReviewApp:
         self.server.on_client_connect(self._client_connected)
         with self.lock:
             self.refresh()
+            if self.parts.missing_meshes:
+                listed = ", ".join(f"{m} ({n})" for n, m in self.parts.missing_meshes.items())
+                self.say(f"meshes not found, drawn as boxes: {listed} (see --meshes)")
         return self.url
 
     def stop(self) -> None:

@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from thirdhand.se3 import matrix_from_quat
 from thirdhand.task.geometry import DOF_NAMES
-from thirdhand.task.meshes import box_triangles, object_triangles
+from thirdhand.task.meshes import box_triangles, object_triangles, resolve_mesh
 from thirdhand.task.model import TaskFile
 
 FloatArray = NDArray[np.float64]
@@ -257,10 +257,14 @@ class PartsView:
         self.extent: dict[str, float] = {}
         self.centroid: dict[str, FloatArray] = {}
         self.colours: dict[str, Rgb] = {}
+        #: Objects whose named mesh file was not found (drawn as their bounding box or a cube).
+        self.missing_meshes: dict[str, str] = {}
         self._click: list[Callable[[str, str | None], None]] = []
         for name in self.names:
             obj = objs.get(name)
             tri = None if obj is None else object_triangles(obj, task_path, search)
+            if obj is not None and obj.mesh and resolve_mesh(obj, task_path, search) is None:
+                self.missing_meshes[name] = str(obj.mesh)
             if tri is None:
                 h = FALLBACK_HALF_SIZE
                 tri = box_triangles((-h, -h, -h), (h, h, h))
@@ -319,6 +323,32 @@ class PartsView:
         frame = self.frames[name]
         rot = matrix_from_quat(np.asarray(xyzw(frame.wxyz)))
         return rot @ self.centroid[name] + np.asarray(frame.position, dtype=np.float64)
+
+
+def floor_height(task: TaskFile, parts: PartsView | None = None) -> float:
+    """Height (m, world z) of a floor under the assembled task: its lowest part corner.
+
+    The corners are those of each part's bounding box (or, with ``parts``, its
+    drawn mesh) at the assembled pose (:func:`thirdhand.review.dofs.world_poses`);
+    0 when no part has a pose.
+    """
+    from thirdhand.review.dofs import world_poses
+
+    poses = world_poses(task)
+    objs = task.objects_by_name()
+    lowest = np.inf
+    for name, pose in poses.items():
+        obj = objs.get(name)
+        if obj is None or obj.kind not in ("part", "tool", "other"):
+            continue
+        if obj.bbox_min is not None and obj.bbox_max is not None:
+            lo, hi = np.asarray(obj.bbox_min), np.asarray(obj.bbox_max)
+            corners = np.array([[(lo, hi)[b >> k & 1][k] for k in range(3)] for b in range(8)])
+        else:
+            corners = np.zeros((1, 3))
+        world = corners @ matrix_from_quat(np.asarray(pose.quat)).T + np.asarray(pose.pos)
+        lowest = min(lowest, float(world[:, 2].min()))
+    return 0.0 if not np.isfinite(lowest) else lowest
 
 
 def selection_colours(
