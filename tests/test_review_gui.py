@@ -809,3 +809,36 @@ def test_missing_mesh_is_said_and_the_floor_drawn(open_review: Any, chair: Any) 
     from thirdhand.review.scene3d import floor_height
 
     assert app.grid is not None and app.grid.position[2] == pytest.approx(floor_height(task))
+
+
+@pytest.mark.slow
+def test_a_second_tab_only_views(review: Review, chromium_browser: Any) -> None:
+    """Bug 6: tab B's typing and Apply changed tab A's un-applied value; now one editor."""
+    app = review.app
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    cid = app.constraint.id
+    x0 = app.constraint.pos[0]
+    review.type_value("x", "12 cm")  # tab A types, does not apply yet
+    page_b = chromium_browser.new_page(viewport={"width": 1280, "height": 900})
+    try:
+        page_b.goto(app.url)
+        page_b.get_by_role("button", name="Save", exact=True).wait_for(timeout=TIMEOUT_MS)
+        page_b.get_by_text("Another tab is editing this task").first.wait_for(timeout=TIMEOUT_MS)
+        tab_b = Review(app, page_b, review.path)
+        tab_b.text_input("x").fill("99 cm")
+        page_b.get_by_text("Close the other tab").first.wait_for(timeout=TIMEOUT_MS)
+        review.wait_for(lambda: app.panels.values["x"].value == "12 cm", "A's text kept")
+        tab_b.button("Apply values").click()
+        page_b.get_by_text("Close the other tab").nth(1).wait_for(timeout=TIMEOUT_MS)
+        assert app.task.constraint_by_id(cid).pos[0] == x0 and not app.session.dirty
+        tab_b.shot("second-tab-read-only")
+        review.button("Apply values").click()
+        review.wait_for(lambda: app.constraint.pos[0] == pytest.approx(0.12), "A's edit")
+        # Tab A closes: tab B edits now.
+        review.page.close()
+        page_b.get_by_text("You can edit now").wait_for(timeout=TIMEOUT_MS)
+        tab_b.button("Undo").click()
+        review.wait_for(lambda: app.task.constraint_by_id(cid).pos[0] == x0, "B's undo")
+    finally:
+        page_b.close()

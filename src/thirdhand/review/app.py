@@ -138,6 +138,9 @@ class ReviewApp:
         self.server: viser.ViserServer | None = None
         self.parts: PartsView | None = None
         self.grid: viser.GridHandle | None = None
+        #: The tab that may edit (viser client id): the first to connect; the others
+        #: only view, and are told so, until it closes.
+        self.editor: int | None = None
         self.glyphs: DofGlyphView | None = None
         self.gizmo: DofGizmo | None = None
         self.panels: Any = None
@@ -193,6 +196,7 @@ class ReviewApp:
             animating=self.panels.show_animation,
         )
         self.server.on_client_connect(self._client_connected)
+        self.server.on_client_disconnect(self._client_disconnected)
         with self.lock:
             self.refresh()
             if self.parts.missing_meshes:
@@ -211,6 +215,35 @@ class ReviewApp:
         position, look_at = self.camera_pose()
         client.camera.position = position
         client.camera.look_at = look_at
+        with self.lock:
+            if self.editor is None:
+                self.editor = client.client_id
+                return
+        client.add_notification(
+            "Read-only",
+            "Another tab is editing this task; this one only shows it (one editor at a time).",
+            color="yellow",
+            auto_close_seconds=None,
+        )
+
+    def _client_disconnected(self, client: viser.ClientHandle) -> None:
+        """The editing tab closed: the oldest other tab edits now, and is told so."""
+        if self.server is None:
+            return
+        with self.lock:
+            if client.client_id != self.editor:
+                return
+            others = sorted(c for c in self.server.get_clients() if c != client.client_id)
+            self.editor = others[0] if others else None
+            heir = self.server.get_clients().get(self.editor) if self.editor is not None else None
+        if heir is not None:
+            heir.add_notification(
+                "You can edit now", "The editing tab closed.", color="green", auto_close_seconds=6.0
+            )
+
+    def may_edit(self, client_id: int | None) -> bool:
+        """Whether the tab ``client_id`` may change the task (None: the server itself)."""
+        return client_id is None or self.editor is None or client_id == self.editor
 
     def camera_pose(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
         """Initial camera position and target (:func:`scene3d.front_view`), world frame, m."""

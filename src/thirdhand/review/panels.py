@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import html
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import viser
@@ -58,17 +59,20 @@ class Panels:
         self.app = app
         gui = app.server.gui
         self._shown: dict[str, str] = {}
+        #: Per input handle (by id), the value the server or the editing tab set last:
+        #: what a read-only tab's change is undone to.
+        self._last: dict[int, Any] = {}
         self.status = gui.add_html("")
         self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
         self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
         self.save = gui.add_button("Save", icon=viser.Icon.DEVICE_FLOPPY)
         self.reload = gui.add_button("Reload")
         self.quit = gui.add_button("Quit")
-        self.undo.on_click(lambda e: app.attempt(app.undo))
-        self.redo.on_click(lambda e: app.attempt(app.redo))
-        self.save.on_click(lambda e: app.attempt(app.save))
-        self.reload.on_click(lambda e: self._confirm_discard("reload"))
-        self.quit.on_click(lambda e: self._confirm_discard("quit"))
+        self._on(self.undo.on_click, lambda e: app.attempt(app.undo))
+        self._on(self.redo.on_click, lambda e: app.attempt(app.redo))
+        self._on(self.save.on_click, lambda e: app.attempt(app.save))
+        self._on(self.reload.on_click, lambda e: self._confirm_discard("reload"))
+        self._on(self.quit.on_click, lambda e: self._confirm_discard("quit"))
 
         names = list(app.parts.names) if app.parts is not None else []
         with gui.add_folder("Object"):
@@ -76,8 +80,8 @@ class Panels:
             self.selection = gui.add_html("")
             self.info = gui.add_html("")
             self.animate = gui.add_button("Animate DOFs")
-        self.object.on_update(self._object_chosen)
-        self.animate.on_click(lambda e: app.attempt(app.animate_dofs))
+        self._on(self.object.on_update, self._object_chosen)
+        self._on(self.animate.on_click, lambda e: app.attempt(app.animate_dofs))
 
         with gui.add_folder("Correct"):
             # Plain inputs, not a form: the client sends a value and a form's "dirty"
@@ -94,13 +98,16 @@ class Panels:
             self.new_parent = gui.add_dropdown("New parent", [NONE, *names], initial_value=NONE)
             self.set_parent = gui.add_button("Change parent")
             self.gizmo_edits = gui.add_checkbox("Gizmo edits pose", False)
-        self.apply_values.on_click(lambda e: app.attempt(self._submit_values))
-        self.nudge.on_click(self._nudged)
-        self.dof.on_update(lambda e: self._fill_range())
-        self.set_range.on_click(lambda e: app.attempt(self._submit_range))
-        self.set_parent.on_click(lambda e: app.attempt(self._submit_parent))
-        self.gizmo_edits.on_update(
-            lambda e: app.attempt(app.set_gizmo_edits, self.gizmo_edits.value) if _user(e) else None
+        self._on(self.apply_values.on_click, lambda e: app.attempt(self._submit_values))
+        self._on(self.nudge.on_click, self._nudged)
+        self._on(self.dof.on_update, lambda e: self._fill_range())
+        self._on(self.set_range.on_click, lambda e: app.attempt(self._submit_range))
+        self._on(self.set_parent.on_click, lambda e: app.attempt(self._submit_parent))
+        self._on(
+            self.gizmo_edits.on_update,
+            lambda e: (
+                app.attempt(app.set_gizmo_edits, self.gizmo_edits.value) if _user(e) else None
+            ),
         )
 
         with gui.add_folder("Keyframes"):
@@ -110,20 +117,26 @@ class Panels:
             self.down = gui.add_button("Down")
             self.show_kf = gui.add_button("Show keyframe")
             self.show_all = gui.add_button("Show assembled")
-        self.step.on_update(self._step_chosen)
-        self.up.on_click(lambda e: app.attempt(lambda: app.move_step(self._step_index(), -1)))
-        self.down.on_click(lambda e: app.attempt(lambda: app.move_step(self._step_index(), 1)))
-        self.show_kf.on_click(lambda e: app.attempt(lambda: app.show_step(self._step_index())))
-        self.show_all.on_click(lambda e: app.attempt(app.show_step, None))
+        self._on(self.step.on_update, self._step_chosen)
+        self._on(
+            self.up.on_click, lambda e: app.attempt(lambda: app.move_step(self._step_index(), -1))
+        )
+        self._on(
+            self.down.on_click, lambda e: app.attempt(lambda: app.move_step(self._step_index(), 1))
+        )
+        self._on(
+            self.show_kf.on_click, lambda e: app.attempt(lambda: app.show_step(self._step_index()))
+        )
+        self._on(self.show_all.on_click, lambda e: app.attempt(app.show_step, None))
 
         with gui.add_folder("Clarify"):
             self.start_q = gui.add_button("Start clarification")
             self.question = gui.add_html("")
             self.yes = gui.add_button("Yes, right", visible=False, color="green")
             self.no = gui.add_button("No, wrong", visible=False, color="red")
-        self.start_q.on_click(lambda e: app.attempt(app.start_clarification))
-        self.yes.on_click(lambda e: app.attempt(app.answer, True))
-        self.no.on_click(lambda e: app.attempt(app.answer, False))
+        self._on(self.start_q.on_click, lambda e: app.attempt(app.start_clarification))
+        self._on(self.yes.on_click, lambda e: app.attempt(app.answer, True))
+        self._on(self.no.on_click, lambda e: app.attempt(app.answer, False))
 
         self.time = None
         if app.motion.timelines:
@@ -149,27 +162,80 @@ class Panels:
                     _legend(app.motion.contacts[app.motion.demo_index].source)
                 )
             slider = self.time
-            slider.on_update(
-                lambda e: app.attempt(app.motion.set_time, slider.value) if _user(e) else None
+            self._on(
+                slider.on_update,
+                lambda e: app.attempt(app.motion.set_time, slider.value) if _user(e) else None,
             )
-            self.play.on_click(
+            self._on(
+                self.play.on_click,
                 lambda e: app.attempt(
                     app.motion.play, not app.motion.playing, speed=float(self.speed.value)
-                )
+                ),
             )
-            self.back.on_click(lambda e: app.attempt(app.show_task))
-            self.demo.on_update(
+            self._on(self.back.on_click, lambda e: app.attempt(app.show_task))
+            self._on(
+                self.demo.on_update,
                 lambda e: (
                     app.attempt(app.motion.set_demo, demo_labels(app).index(self.demo.value))
                     if _user(e)
                     else None
-                )
+                ),
             )
 
         with gui.add_folder("Effort", expand_by_default=False):
             self.effort = gui.add_html("")
 
+        # Typing in a read-only tab must not change what the editing tab will apply.
+        for text in (*self.values.values(), self.dof_lo, self.dof_hi):
+            text.on_update(self._typing_of(text))
+        for choice in (self.object, self.nudge_what, self.dof, self.new_parent, self.step):
+            self._last[id(choice)] = choice.value
+        if self.time is not None:
+            self._last[id(self.demo)] = self.demo.value
         gui.set_panel_label("thirdhand review")
+
+    # ---------------------------------------------------------------- one editor
+    def _on(self, register: Any, fn: Callable[[Any], Any]) -> None:
+        """Register ``fn`` for a widget event, refused (and undone) from a read-only tab."""
+
+        def gated(event: Any) -> Any:
+            if _user(event) and not self.app.may_edit(event.client_id):
+                self._refuse(event)
+                return None
+            return fn(event)
+
+        register(gated)
+
+    def _refuse(self, event: Any) -> None:
+        """Tell a read-only tab why nothing happened; undo its change of an input."""
+        target = getattr(event, "target", None)
+        if target is not None and id(target) in self._last:
+            target.value = self._last[id(target)]
+        event.client.add_notification(
+            "Read-only",
+            "Another tab is editing this task; this one only shows it (one editor at a time). "
+            "Close the other tab to edit here.",
+            color="yellow",
+            auto_close_seconds=6.0,
+        )
+
+    def _typing_of(self, handle: Any) -> Callable[[Any], None]:
+        """The update callback of a text input: the editor's text is kept, another tab's undone."""
+
+        def typed(event: Any) -> None:
+            if not _user(event):
+                return
+            if self.app.may_edit(event.client_id):
+                self._last[id(handle)] = handle.value
+            else:
+                self._refuse(event)
+
+        return typed
+
+    def _set(self, handle: Any, value: Any) -> None:
+        """Set a widget's value from the server (viser's typing marks ``value`` read-only)."""
+        handle.value = value
+        self._last[id(handle)] = value
 
     # ---------------------------------------------------------------- callbacks
     def _object_chosen(self, event: Any) -> None:
@@ -234,8 +300,8 @@ class Panels:
             modal.close()
             self._do(what, force=True)
 
-        go.on_click(discard)
-        cancel.on_click(lambda _: modal.close())
+        self._on(go.on_click, discard)
+        self._on(cancel.on_click, lambda _: modal.close())
 
     def ask_overwrite(self, side: Any) -> None:
         """After a refused save: offer to overwrite the file changed on disk."""
@@ -253,8 +319,8 @@ class Panels:
             modal.close()
             app.attempt(app.overwrite)
 
-        overwrite.on_click(go)
-        keep.on_click(lambda _: modal.close())
+        self._on(overwrite.on_click, go)
+        self._on(keep.on_click, lambda _: modal.close())
 
     def _do(self, what: str, *, force: bool = False) -> None:
         if what == "reload":
@@ -306,7 +372,7 @@ class Panels:
     def show_time(self, t: float) -> None:
         """Move the time slider (no callback: the event has no client)."""
         if self.time is not None:
-            _assign(self.time, round(t, 2))
+            self._set(self.time, round(t, 2))
 
     def _render_selection(self, animating: str | None = None) -> None:
         app = self.app
@@ -337,17 +403,17 @@ class Panels:
         self._render_selection(app.motion.animating)
         self.undo.disabled = not app.session.history.can_undo
         self.redo.disabled = not app.session.history.can_redo
-        _assign(self.object, app.selected if app.selected is not None else NONE)
+        self._set(self.object, app.selected if app.selected is not None else NONE)
         c = app.constraint
         self.info.content = _constraint_html(c)
         vals = pose_values(c) if c is not None else {}
         for n, h in self.values.items():
             text = fmt_value(n, vals[n]) if n in vals else ""
             self._shown[n] = text
-            _assign(h, text)
+            self._set(h, text)
             h.disabled = c is None
         self._fill_range()
-        _assign(self.new_parent, app.parent if app.parent is not None else NONE)
+        self._set(self.new_parent, app.parent if app.parent is not None else NONE)
         labels = [step_label(i, s) for i, s in enumerate(app.task.plan)] or ["-"]
         self.step.options = labels
         if app.step is not None:
@@ -356,7 +422,7 @@ class Panels:
             current = app.chosen_step
         else:
             current = _index_of(self.step.value, labels)
-        _assign(self.step, labels[min(max(current, 0), len(labels) - 1)])
+        self._set(self.step, labels[min(max(current, 0), len(labels) - 1)])
         self.plan.content = _plan_html(app.task.plan, app.step)
         q = app.question
         why = app.focus.reason if q is not None and q.focused and app.focus is not None else ""
@@ -368,12 +434,12 @@ class Panels:
         c = self.app.constraint
         dof = self.dof.value
         if c is None:
-            _assign(self.dof_lo, "")
-            _assign(self.dof_hi, "")
+            self._set(self.dof_lo, "")
+            self._set(self.dof_hi, "")
             return
         lo, hi = c.free_dofs[dof]
-        _assign(self.dof_lo, fmt_value(dof, lo))
-        _assign(self.dof_hi, fmt_value(dof, hi))
+        self._set(self.dof_lo, fmt_value(dof, lo))
+        self._set(self.dof_hi, fmt_value(dof, hi))
 
 
 def demo_labels(app: ReviewApp) -> list[str]:
@@ -383,11 +449,6 @@ def demo_labels(app: ReviewApp) -> list[str]:
         name = tl.demo.meta.get("name") or tl.demo.meta.get("scene") or "recording"
         out.append(f"{i + 1}: {name} ({tl.end - tl.start:.1f} s)")
     return out
-
-
-def _assign(handle: Any, value: Any) -> None:
-    """Set a widget's value from the server (viser's typing marks ``value`` read-only)."""
-    handle.value = value
 
 
 def _index_of(value: str, labels: list[str]) -> int:
