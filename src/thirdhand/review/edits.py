@@ -231,7 +231,7 @@ def _set_pos(task: TaskFile, i: int, pos: Sequence[float], rec: _Recorder) -> No
     for k, v in enumerate(new):
         if abs(v) > PLAUSIBLE_OFFSET_M and abs(v) > abs(c.pos[k]):
             raise EditError(
-                f"constraint {c.id!r}: {'xyz'[k]} = {v * 100:.4g} cm is not plausible "
+                f"constraint {c.id!r}: {'xyz'[k]} = {v:.4g} m is not plausible "
                 f"(a part within {PLAUSIBLE_OFFSET_M:g} m of its parent expected)"
             )
     for k in range(3):
