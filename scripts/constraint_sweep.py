@@ -50,7 +50,9 @@ def conditions() -> list[Condition]:
             Condition(f"50 samples, {tag}", s, n=50),
             Condition(f"1000 samples, {tag}", s, n=1000),
             Condition(f"10 % outliers, {tag}", s, outliers=0.1),
-            Condition(f"slow error 2x, {tag}", s, drift=2.0),
+            Condition(f"pose bias 2x, {tag}", s, bias=2.0),
+            Condition(f"pose bias 4x, {tag}", s, bias=4.0),
+            Condition(f"time drift 2x, {tag}", s, drift=2.0),
             Condition(f"10° opening, {tag}", s, span=math.radians(10.0)),
         ]
     return out
@@ -108,7 +110,7 @@ def calibration(fit_on: list[Trial], held_out: list[Trial]) -> None:
         f"Calibration of least log loss on the calibration seeds: temperature {temp:.2f}, "
         f"floor {floor:g} (shipped: {CONFIDENCE_TEMPERATURE:g}, {CONFIDENCE_FLOOR:g})\n"
     )
-    plain = [t for t in held_out if t.condition.drift == 0.0]
+    plain = [t for t in held_out if t.condition.drift == 0.0 and t.condition.bias == 0.0]
     for label, trials in (("every condition", held_out), ("without the slow error", plain)):
         for t_name, t, f in (
             ("plain BIC weights", 1.0, 0.0),

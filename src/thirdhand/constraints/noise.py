@@ -178,27 +178,47 @@ def _pos_residuals_kernel(p: FloatArray, f: FloatArray) -> FloatArray:  # pragma
 
 def _rot_residuals(quat: FloatArray, w: int) -> FloatArray:
     """Same for rotations, as rotation vectors relative to each window's centre, radians."""
-    return _rot_residuals_kernel(np.ascontiguousarray(quat), _filter(w))
+    return _rot_residual_pair(quat, w, w)[1]
+
+
+def _rot_residual_pair(quat: FloatArray, short: int, w: int) -> tuple[FloatArray, FloatArray]:
+    """:func:`_rot_residuals` for windows ``short`` and ``w >= short`` in one pass.
+
+    The rotation vectors relative to a centre sample serve both windows around
+    it, so each sample pair's logarithm is taken once.
+    """
+    return _rot_pair_kernel(np.ascontiguousarray(quat), _filter(short), _filter(w))
 
 
 @njit(cache=True, error_model="numpy")
-def _rot_residuals_kernel(q: FloatArray, f: FloatArray) -> FloatArray:  # pragma: no cover
-    """:func:`_rot_residuals` for unit quaternions ``q (n, 4)`` and filter ``f (w,)``."""
-    w = f.shape[0]
-    m = q.shape[0] - w + 1
-    h = w // 2
-    out = np.zeros((m, 3))
-    for i in range(m):
-        c = i + h
+def _rot_pair_kernel(
+    q: FloatArray, fs: FloatArray, fl: FloatArray
+) -> tuple[FloatArray, FloatArray]:  # pragma: no cover
+    """Centre residuals of unit quaternions ``q (n, 4)`` for filters ``fs`` and ``fl``."""
+    n = q.shape[0]
+    hs = fs.shape[0] // 2
+    hl = fl.shape[0] // 2
+    out_s = np.zeros((n - 2 * hs, 3))
+    out_l = np.zeros((n - 2 * hl, 3))
+    for c in range(hs, n - hs):
+        long_c = hl <= c < n - hl
+        h = hl if long_c else hs
         cx, cy, cz, cw = -q[c, 0], -q[c, 1], -q[c, 2], q[c, 3]
-        for j in range(w):
-            k = i + j
+        for d in range(-h, h + 1):
+            k = c + d
             x, y, z, s = g.qmul(cx, cy, cz, cw, q[k, 0], q[k, 1], q[k, 2], q[k, 3])
-            scale = g._log_scale(x, y, z, s) * f[j]
-            out[i, 0] += x * scale
-            out[i, 1] += y * scale
-            out[i, 2] += z * scale
-    return out
+            scale = g._log_scale(x, y, z, s)
+            if -hs <= d <= hs:
+                a = fs[d + hs] * scale
+                out_s[c - hs, 0] += x * a
+                out_s[c - hs, 1] += y * a
+                out_s[c - hs, 2] += z * a
+            if long_c:
+                b = fl[d + hl] * scale
+                out_l[c - hl, 0] += x * b
+                out_l[c - hl, 1] += y * b
+                out_l[c - hl, 2] += z * b
+    return out_s, out_l
 
 
 def _flag_outliers(res: FloatArray, w: int) -> NDArray[np.bool_]:
@@ -260,19 +280,22 @@ def estimate_noise(
         raise ConstraintFitError(f"noise estimate: expected at least 5 samples, got {n}")
     w = min(window, n if n % 2 else n - 1)
     bad = _flag_outliers(_pos_residuals(pos, 5), 5)
+    res_r = None
     if quat is not None:
-        bad |= _flag_outliers(_rot_residuals(quat, 5), 5)
+        res_r5, res_r = _rot_residual_pair(quat, 5, w)
+        bad |= _flag_outliers(res_r5, 5)
     keep = _clean_windows(bad, w)
     if keep.sum() < 3 and w > 5:
         # Outliers too dense for windows of w (a quarter of the samples): windows of 5.
         w = 5
         keep = _clean_windows(bad, w)
+        res_r = res_r5 if quat is not None else None
     if keep.sum() < 3:
         keep = np.ones(n - w + 1, dtype=bool)
     res_p = _pos_residuals(pos, w)
     sigma_rot = math.nan
-    if quat is not None:
-        sigma_rot = min(_robust_level(_rot_residuals(quat, w), keep), MAX_ROT_NOISE)
+    if res_r is not None:
+        sigma_rot = min(_robust_level(res_r, keep), MAX_ROT_NOISE)
     return NoiseEstimate(
         sigma_pos=min(_robust_level(res_p, keep), MAX_POS_NOISE),
         sigma_rot=sigma_rot,

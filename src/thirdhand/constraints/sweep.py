@@ -60,7 +60,12 @@ class Condition:
     outliers : float
         Fraction of gross outliers.
     drift : float
-        Slowly varying error per axis, in units of the white noise.
+        Error varying slowly with time, per axis, in units of the white noise.
+    bias : float
+        Error varying smoothly with the pose (a camera's distortion), per axis,
+        in units of the white noise.
+    colour : float
+        Noise correlated over about 2 samples, per axis, in units of the white noise.
     span : float or None
         Opening angle of the turning joints, radians (default 40-150°).
     """
@@ -70,7 +75,14 @@ class Condition:
     n: int = 200
     outliers: float = 0.0
     drift: float = 0.0
+    bias: float = 0.0
+    colour: float = 0.0
     span: float | None = None
+
+    @property
+    def total_noise(self) -> float:
+        """Standard deviation per axis of the whole position error, metres."""
+        return self.pos_noise * math.sqrt(1.0 + self.drift**2 + self.bias**2 + self.colour**2)
 
 
 @dataclass(frozen=True)
@@ -104,7 +116,7 @@ class Trial:
 
 
 def _motion_ratio(kind: str, clean_pos: FloatArray, pos_noise: float) -> float:
-    """Extent of the noise-free positions over the white position noise (inf for fixed)."""
+    """Extent of the noise-free positions over the position error (inf for fixed)."""
     if kind == "fixed":
         return math.inf
     return float(np.ptp(clean_pos, axis=0).max()) / max(pos_noise, 1e-12)
@@ -139,6 +151,10 @@ def run_sweep(
                     span=cond.span,
                     drift=cond.drift * cond.pos_noise,
                     rot_drift=cond.drift * rot,
+                    bias=cond.bias * cond.pos_noise,
+                    rot_bias=cond.bias * rot,
+                    colour=cond.colour * cond.pos_noise,
+                    rot_colour=cond.colour * rot,
                 )
                 # The same geometry without noise (the noise is drawn after it).
                 clean = random_joint_track(
@@ -157,7 +173,7 @@ def run_sweep(
                     confidence=c.confidence,
                     scores=dict(c.scores),
                     excluded=tuple(note.split()[0] for note in c.notes),
-                    motion_ratio=_motion_ratio(kind, clean, cond.pos_noise),
+                    motion_ratio=_motion_ratio(kind, clean, cond.total_noise),
                     axis_error=err,
                 )
 
