@@ -55,11 +55,12 @@ def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
 
 
 DRAWER_004_REASON = (
-    "drawer_one/004: at the end stop the tracked gripper slides 5 cm sideways along the "
-    "handle (frames 84-90, x constant), stays there 18 frames, and the last row is a "
-    "zero (lost) sample; 20 % of the track off the line in one cluster, which a "
-    "0.7 m-radius arc turning 38° explains better than a line with outliers (the "
-    "confidence says so: below 0.9)"
+    "drawer_one/004 (position only): the grasp creeps sideways along the handle in steps "
+    "during the last 25 cm of the stroke (y moves 30 mm in four steps while x travels) and "
+    "slides 5 cm more at the end stop. Modelling the end-stop slide as a regime of its own "
+    "(scripts/drawer_one_004.py) leaves frames 0-83, which a 1.65 m arc turning 15 degrees "
+    "(3.4 % bow) fits at 1.4 mm rms against 3.5 mm for a line: without orientations a "
+    "creeping grasp and a wide door are the same path (the confidence, 0.57, says so)"
 )
 
 
@@ -96,6 +97,12 @@ def test_drawer_one_004_stroke_is_prismatic(shared_data: Path) -> None:
     off = pos[95:108] - line.origin
     dist = np.linalg.norm(off - np.outer(off @ line.axis, line.axis), axis=1)
     assert np.all(dist > 0.03)
+    # Before the slide the stroke bends by creeping steps: flat stretches of the sideways
+    # coordinate 16 mm apart, each within 2 mm; with the estimated noise the arc wins there.
+    y = pos[:, 1]
+    assert y[64:76].mean() - y[47:58].mean() > 0.012
+    assert max(y[47:58].std(), y[64:76].std()) < 0.002
+    assert fit_constraint(pos[:84]).type == "revolute"
 
 
 def _stapler(shared_data: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:
