@@ -10,8 +10,10 @@ import pytest
 from thirdhand.constraints import ConstraintFitError, NoiseModel, fit_constraint
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.noise import (
+    CEILING_FACTOR,
     FLOOR_FACTOR,
     MAX_POS_NOISE,
+    MIN_POS_CEILING,
     ROT_FLOOR_FACTOR,
     _filter,
     _rot_residual_pair,
@@ -96,6 +98,7 @@ def test_estimate_is_capped_and_turned_into_bounds() -> None:
     nm = est.noise_model()
     assert nm.pos_floor == pytest.approx(FLOOR_FACTOR * est.sigma_pos)
     assert nm.rot_floor == pytest.approx(ROT_FLOOR_FACTOR * est.sigma_rot)
+    assert nm.pos_ceiling == max(MIN_POS_CEILING, CEILING_FACTOR * nm.pos_floor)
     assert est.to_dict()["window"] == 7
 
 
