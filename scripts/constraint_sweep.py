@@ -70,14 +70,17 @@ def accuracy_table(trials: list[Trial]) -> None:
     """Accuracy (motion >= 5x noise) per condition and case, Markdown."""
     cells: dict[tuple[str, str], list[bool]] = defaultdict(list)
     every: dict[str, list[bool]] = defaultdict(list)
+    by_dof: dict[str, list[bool]] = defaultdict(list)
     names = list(dict.fromkeys(t.condition.name for t in trials))
     for t in trials:
         every[t.condition.name].append(t.correct)
+        if t.dof_ratio >= 5.0:
+            by_dof[t.condition.name].append(t.correct)
         if t.motion_ratio >= 5.0:
             cells[(t.condition.name, _label(t.kind, t.oriented))].append(t.correct)
     labels = [_label(k, o) for k, o in CASES]
-    print("| condition | " + " | ".join(labels) + " | ≥ 5× noise | all |")
-    print("|---" * (len(labels) + 3) + "|")
+    print("| condition | " + " | ".join(labels) + " | ≥ 5× noise | ≥ 5× per DOF | all |")
+    print("|---" * (len(labels) + 4) + "|")
     for name in names:
         row = []
         ok_all: list[bool] = []
@@ -86,9 +89,19 @@ def accuracy_table(trials: list[Trial]) -> None:
             ok_all += v
             row.append(f"{100 * np.mean(v):.0f}" if v else "–")
         acc = f"{100 * np.mean(ok_all):.1f} %" if ok_all else "–"
-        print(f"| {name} | " + " | ".join(row) + f" | {acc} | {100 * np.mean(every[name]):.1f} % |")
+        dof = by_dof.get(name, [])
+        acc_dof = f"{100 * np.mean(dof):.1f} % ({len(dof)})" if dof else "–"
+        print(
+            f"| {name} | " + " | ".join(row) + f" | {acc} | {acc_dof} | "
+            f"{100 * np.mean(every[name]):.1f} % |"
+        )
     ok = [t.correct for t in trials if t.motion_ratio >= 5.0]
     print(f"\nOverall, motion ≥ 5× noise: {sum(ok)}/{len(ok)} = {100 * np.mean(ok):.1f} %")
+    ok = [t.correct for t in trials if t.dof_ratio >= 5.0]
+    print(
+        f"Overall, distinguishing motion ≥ 5× noise: {sum(ok)}/{len(ok)} "
+        f"= {100 * np.mean(ok):.1f} %"
+    )
     ok = [t.correct for t in trials]
     print(f"Overall, every track: {sum(ok)}/{len(ok)} = {100 * np.mean(ok):.1f} %\n")
 

@@ -63,10 +63,11 @@ MAX_ROT_NOISE = math.radians(10.0)
 CEILING_FACTOR = 2.0
 #: Smallest position ceiling, metres: room for the systematic error of a tracker
 #: whose white noise is tiny (a robot's kinematic calibration, a mocap volume's).
-#: Chosen on the synthetic sweep (``docs/constraints.md``): 2.5, 5 and 10 mm give
-#: the same accuracy, the old 2.5 cm lets a prismatic or revolute fit absorb a
-#: free part's wander as 2-4 cm of "noise" (free, position-only: 79 % against 88 %).
-MIN_POS_CEILING = 0.005
+#: Chosen on the synthetic sweep's calibration seeds (``docs/constraints.md``):
+#: 5, 7.5, 10 and 15 mm give the same accuracy (93.0-93.1 %), 10 mm by one track;
+#: the old 2.5 cm (92.0 %) lets a prismatic or revolute fit absorb a free part's
+#: wander as 2-4 cm of "noise" (free, position-only: 79 % against 88 %).
+MIN_POS_CEILING = 0.01
 
 
 @dataclass(frozen=True)
@@ -95,7 +96,7 @@ class NoiseEstimate:
 
         Ceilings (the largest error a constrained model may have) are
         :data:`CEILING_FACTOR` times the floor, at least :data:`MIN_POS_CEILING`
-        (5 mm) and the rotation default of :class:`NoiseModel` (6°).
+        (1 cm) and the rotation default of :class:`NoiseModel` (6°).
         """
         base = NoiseModel()
         fp = max(FLOOR_FACTOR * self.sigma_pos, MIN_POS_FLOOR)

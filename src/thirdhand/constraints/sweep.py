@@ -26,7 +26,7 @@ from thirdhand.constraints.select import (
     fit_constraint,
     type_probabilities,
 )
-from thirdhand.constraints.synthetic import random_joint_track
+from thirdhand.constraints.synthetic import JointTrack, random_joint_track
 
 FloatArray = NDArray[np.float64]
 
@@ -99,6 +99,7 @@ class Trial:
     excluded: tuple[str, ...]
     motion_ratio: float
     axis_error: float
+    dof_ratio: float = math.inf
 
     @property
     def correct(self) -> bool:
@@ -122,6 +123,44 @@ def _motion_ratio(kind: str, clean_pos: FloatArray, pos_noise: float) -> float:
     return float(np.ptp(clean_pos, axis=0).max()) / max(pos_noise, 1e-12)
 
 
+def _bow(clean_pos: FloatArray) -> float:
+    """Largest distance of the noise-free positions from the chord of their two ends, metres."""
+    a, b = clean_pos[0], clean_pos[-1]
+    chord = b - a
+    length = float(np.linalg.norm(chord))
+    off = clean_pos - a
+    if length > 0.0:
+        off = off - np.outer(off @ (chord / length), chord / length)
+    return float(np.linalg.norm(off, axis=1).max())
+
+
+def _dof_ratio(
+    kind: str, oriented: bool, track: JointTrack, clean: FloatArray, cond: Condition
+) -> float:
+    """Motion of the degree of freedom that sets the type apart, over its noise.
+
+    Prismatic: the stroke; turning joints: the path's bow away from its chord
+    (what tells a turn from a slide in positions), or with orientations the turn
+    over the rotation noise if larger; cylindrical: the smaller of its slide and
+    its turn; free: the extent; fixed: infinite. Noise is the whole error
+    (:attr:`Condition.total_noise`, and the same for rotations).
+    """
+    if kind == "fixed":
+        return math.inf
+    sp = max(cond.total_noise, 1e-12)
+    sr = max(ROT_PER_POS * cond.total_noise, 1e-12)
+    extent = float(np.ptp(clean, axis=0).max()) / sp
+    if kind == "free":
+        return extent
+    stroke = float(np.ptp(track.ranges[0])) / sp
+    if kind == "prismatic":
+        return stroke
+    turn = _bow(clean) / sp
+    if oriented:
+        turn = max(turn, float(np.ptp(track.ranges[3])) / sr)
+    return min(stroke, turn) if kind == "cylindrical" else turn
+
+
 def run_sweep(
     conditions: Iterable[Condition],
     seeds: Sequence[int],
@@ -134,7 +173,9 @@ def run_sweep(
     ------
     Trial
         ``axis_error`` in degrees for a correctly typed joint with an axis, else NaN;
-        ``motion_ratio`` the track's extent over the white position noise.
+        ``motion_ratio`` the track's extent over the whole position error;
+        ``dof_ratio`` the motion of the type's distinguishing degree of freedom
+        over its noise (:func:`_dof_ratio`).
     """
     for cond in conditions:
         for kind, oriented in cases:
@@ -175,6 +216,7 @@ def run_sweep(
                     excluded=tuple(note.split()[0] for note in c.notes),
                     motion_ratio=_motion_ratio(kind, clean, cond.total_noise),
                     axis_error=err,
+                    dof_ratio=_dof_ratio(kind, oriented, track, clean, cond),
                 )
 
 
