@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.constraints.robust import fit_model
 from thirdhand.constraints.select import (
     CONFIDENCE_FLOOR,
     CONFIDENCE_TEMPERATURE,
@@ -27,6 +28,7 @@ from thirdhand.constraints.select import (
     type_probabilities,
 )
 from thirdhand.constraints.synthetic import JointTrack, random_joint_track
+from thirdhand.constraints.types import NoiseModel
 
 FloatArray = NDArray[np.float64]
 
@@ -139,11 +141,13 @@ def _dof_ratio(
 ) -> float:
     """Motion of the degree of freedom that sets the type apart, over its noise.
 
-    Prismatic: the stroke; turning joints: the path's bow away from its chord
-    (what tells a turn from a slide in positions), or with orientations the turn
-    over the rotation noise if larger; cylindrical: the smaller of its slide and
-    its turn; free: the extent; fixed: infinite. Noise is the whole error
-    (:attr:`Condition.total_noise`, and the same for rotations).
+    The motion the nearest simpler type cannot reproduce. Prismatic: the stroke
+    (against fixed); revolute: the path's bow away from its chord (against
+    prismatic, in positions), or with orientations the turn over the rotation
+    noise if larger; cylindrical: the largest distance of its path from the best
+    circle through it (against revolute: a slide along the axis that a tilted
+    circle follows is no evidence of one); free: the extent; fixed: infinite.
+    Noise is the whole error (:attr:`Condition.total_noise`, the same for rotations).
     """
     if kind == "fixed":
         return math.inf
@@ -155,10 +159,14 @@ def _dof_ratio(
     stroke = float(np.ptp(track.ranges[0])) / sp
     if kind == "prismatic":
         return stroke
+    if kind == "cylindrical":
+        exact = NoiseModel(pos_floor=1e-9, pos_ceiling=1.0, max_outliers=0.0)
+        circle = fit_model("revolute", clean, None, noise=exact)
+        return math.sqrt(float(circle.proj.d2_pos.max())) / sp if circle is not None else stroke
     turn = _bow(clean) / sp
     if oriented:
         turn = max(turn, float(np.ptp(track.ranges[3])) / sr)
-    return min(stroke, turn) if kind == "cylindrical" else turn
+    return turn
 
 
 def run_sweep(
