@@ -113,6 +113,28 @@ def accuracy_table(trials: list[Trial]) -> None:
     print(f"Overall, every track: {sum(ok)}/{len(ok)} = {100 * np.mean(ok):.1f} %\n")
 
 
+def dof_table(trials: list[Trial]) -> None:
+    """Accuracy per condition and case where the distinguishing motion is >= 5x the noise."""
+    cells: dict[tuple[str, str], list[bool]] = defaultdict(list)
+    for t in trials:
+        if t.dof_ratio >= 5.0:
+            cells[(t.condition.name, _label(t.kind, t.oriented))].append(t.correct)
+    labels = [_label(k, o) for k, o in CASES]
+    print("| condition (per DOF) | " + " | ".join(labels) + " |")
+    print("|---" * (len(labels) + 1) + "|")
+    for name in dict.fromkeys(t.condition.name for t in trials):
+        row = []
+        for lab in labels:
+            v = cells.get((name, lab), [])
+            row.append(
+                f"{100 * np.mean(v):.0f} ({len(v)})"
+                if v and len(v) < 10
+                else (f"{100 * np.mean(v):.0f}" if v else "–")
+            )
+        print(f"| {name} | " + " | ".join(row) + " |")
+    print()
+
+
 def axis_table(trials: list[Trial]) -> None:
     """Axis error (degrees) of correctly typed joints, per condition, Markdown."""
     print("| condition | prismatic median / p95 (°) | revolute | cylindrical |")
@@ -164,6 +186,7 @@ def main() -> None:
     held_out = list(run_sweep(conds, range(args.seeds, 2 * args.seeds)))
     print(f"{len(held_out)} tracks ({args.seeds} per cell)\n")
     accuracy_table(held_out)
+    dof_table(held_out)
     axis_table(held_out)
     # The 10° openings are left out of the calibration: position-only, they are
     # called prismatic by design (the turn guard), a choice and not noise.
