@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from thirdhand.constraints.select import (
@@ -12,7 +13,15 @@ from thirdhand.constraints.select import (
     bic_weights,
     type_probabilities,
 )
-from thirdhand.constraints.sweep import Condition, log_loss, reliability, run_sweep
+from thirdhand.constraints.sweep import (
+    Condition,
+    _bow,
+    _dof_ratio,
+    log_loss,
+    reliability,
+    run_sweep,
+)
+from thirdhand.constraints.synthetic import random_joint_track
 
 
 def test_type_probabilities_mix_a_floor_into_tempered_weights() -> None:
@@ -48,3 +57,28 @@ def test_confidence_is_calibrated_on_held_out_synthetic_tracks() -> None:
     # The confidence reported is the calibrated probability of the chosen type.
     for t in trials:
         assert t.confidence == pytest.approx(t.probability()[t.predicted])
+
+
+def test_distinguishing_motion_of_the_sweep() -> None:
+    """The bow of a path from its chord, and the motion-to-noise ratio per degree of freedom."""
+    t = np.linspace(0.0, np.pi, 181)
+    arc = np.stack([np.cos(t), np.sin(t), np.zeros_like(t)], axis=1) * 0.3
+    assert _bow(arc) == pytest.approx(0.3, rel=1e-12)
+    line = np.outer(np.linspace(0.0, 1.0, 50), [0.2, -0.1, 0.4])
+    assert _bow(line) == pytest.approx(0.0, abs=1e-15)
+    cond = Condition("c", 1e-3, colour=2.0, bias=2.0)
+    assert cond.total_noise == pytest.approx(3e-3)
+    track = random_joint_track("prismatic", np.random.default_rng(0), stroke=0.3)
+    assert _dof_ratio("prismatic", False, track, track.pos, cond) == pytest.approx(100.0)
+    # A cylindrical joint's distinguishing motion is its path's distance from the best
+    # circle: far less than its stroke.
+    cyl = random_joint_track("cylindrical", np.random.default_rng(1))
+    r = _dof_ratio("cylindrical", True, cyl, cyl.pos, cond)
+    assert 0.0 < r < np.ptp(cyl.ranges[0]) / cond.total_noise
+
+
+def test_free_wander_is_not_absorbed_by_a_joint() -> None:
+    """Position-only free parts at 1 mm: the 1 cm ceiling keeps a revolute or prismatic fit
+    from calling a ±15 cm wander 2-4 cm of noise (2 of these 10 were joints under 2.5 cm)."""
+    trials = list(run_sweep([Condition("1 mm", 1e-3)], range(10, 20)))
+    assert [t.predicted for t in trials if t.kind == "free" and not t.oriented] == ["free"] * 10

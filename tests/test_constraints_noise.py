@@ -10,12 +10,17 @@ import pytest
 from thirdhand.constraints import ConstraintFitError, NoiseModel, fit_constraint
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.noise import (
+    CEILING_FACTOR,
     FLOOR_FACTOR,
     MAX_POS_NOISE,
+    MIN_POS_CEILING,
     ROT_FLOOR_FACTOR,
+    _filter,
+    _rot_residual_pair,
     estimate_noise,
 )
 from thirdhand.constraints.robust import prepare_track
+from thirdhand.constraints.select import MIN_TURN
 from thirdhand.constraints.synthetic import random_joint_track
 
 KINDS = ("fixed", "prismatic", "revolute", "cylindrical", "free")
@@ -94,6 +99,7 @@ def test_estimate_is_capped_and_turned_into_bounds() -> None:
     nm = est.noise_model()
     assert nm.pos_floor == pytest.approx(FLOOR_FACTOR * est.sigma_pos)
     assert nm.rot_floor == pytest.approx(ROT_FLOOR_FACTOR * est.sigma_rot)
+    assert nm.pos_ceiling == max(MIN_POS_CEILING, CEILING_FACTOR * nm.pos_floor)
     assert est.to_dict()["window"] == 7
 
 
@@ -153,24 +159,31 @@ def test_partial_opening_needs_orientations() -> None:
 
 
 def test_degenerate_radius_is_prismatic() -> None:
-    """A 5 m radius over a 45 cm stroke (a camera-bent drawer): prismatic.
+    """A 2.5 m radius over a 45 cm stroke (a camera-bent drawer): prismatic.
 
-    The arc turns 5.2°: with orientations that resolve it (0.2° noise) it is a
-    revolute; with orientations that do not turn (a drawer) or none, prismatic.
+    The arc turns 10.3° and bows by 2.3 % of its chord: with orientations that
+    resolve the turn (0.2° noise) it is a revolute; with orientations that do not
+    turn (a drawer) or none, prismatic. A 5 m radius (5.2°) is prismatic even with
+    such orientations: under :data:`MIN_TURN` (7°) a turn is within a tracker's
+    systematic orientation error.
     """
     n = 100
     rng = np.random.default_rng(0)
-    theta = np.linspace(0.0, 0.45 / 5.0, n)
-    pos = np.column_stack([5.0 * np.sin(theta), 5.0 * (1.0 - np.cos(theta)), np.zeros(n)])
-    pos = pos + 1e-3 * rng.standard_normal(pos.shape)
-    flat = fit_constraint(pos)
-    assert flat.type == "prismatic"
-    assert flat.notes and "revolute not chosen" in flat.notes[0]
     still = np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))
-    assert fit_constraint(pos, still).type == "prismatic"
-    turning = g.quat_axis_angle(np.array([0.0, 0.0, 1.0]), theta)
-    noise = g.quat_axis_angle(np.array([1.0, 0.0, 0.0]), math.radians(0.2) * rng.standard_normal(n))
-    assert fit_constraint(pos, g.quat_mul(noise, turning)).type == "revolute"
+    for radius, oriented_type in ((2.5, "revolute"), (5.0, "prismatic")):
+        theta = np.linspace(0.0, 0.45 / radius, n)
+        pos = np.column_stack([radius * np.sin(theta), radius * (1.0 - np.cos(theta)), np.zeros(n)])
+        pos = pos + 1e-3 * rng.standard_normal(pos.shape)
+        flat = fit_constraint(pos)
+        assert flat.type == "prismatic"
+        assert flat.notes and "revolute not chosen" in flat.notes[0]
+        assert fit_constraint(pos, still).type == "prismatic"
+        turning = g.quat_axis_angle(np.array([0.0, 0.0, 1.0]), theta)
+        noise = g.quat_axis_angle(
+            np.array([1.0, 0.0, 0.0]), math.radians(0.2) * rng.standard_normal(n)
+        )
+        assert fit_constraint(pos, g.quat_mul(noise, turning)).type == oriented_type
+        assert (theta[-1] >= MIN_TURN) == (oriented_type == "revolute")
 
 
 def test_bad_input_is_a_clear_error_or_a_documented_fit() -> None:
@@ -201,3 +214,47 @@ def test_bad_input_is_a_clear_error_or_a_documented_fit() -> None:
     few[3:] = np.nan
     with pytest.raises(ConstraintFitError, match="47 more have a position but no orientation"):
         fit_constraint(line, few)
+
+
+def test_rotation_residuals_of_two_windows_match_a_brute_force_sum() -> None:
+    """One pass for windows 5 and 7 gives the filtered rotation vectors of each window."""
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(4)
+    q = Rotation.from_rotvec(np.cumsum(0.2 * rng.standard_normal((30, 3)), axis=0)).as_quat()
+    short, long_ = _rot_residual_pair(q, 5, 7)
+    for w, res in ((5, short), (7, long_)):
+        h = w // 2
+        brute = np.array(
+            [
+                _filter(w)
+                @ (
+                    Rotation.from_quat(q[c]).inv() * Rotation.from_quat(q[c - h : c + h + 1])
+                ).as_rotvec()
+                for c in range(h, 30 - h)
+            ]
+        )
+        np.testing.assert_allclose(res, brute, atol=1e-12)
+
+
+def test_pose_bias_is_constant_on_a_still_part_and_bends_a_moving_one() -> None:
+    """A pose-dependent error offsets a fixed track rigidly; a moving track's path bends."""
+    fixed = random_joint_track("fixed", np.random.default_rng(2), bias=0.01, rot_bias=0.02)
+    np.testing.assert_allclose(fixed.pos, np.tile(fixed.pos[0], (fixed.pos.shape[0], 1)))
+    clean = random_joint_track("prismatic", np.random.default_rng(2))
+    bent = random_joint_track("prismatic", np.random.default_rng(2), bias=0.01)
+    dev = bent.pos - clean.pos
+    assert 1e-4 < np.ptp(dev, axis=0).max() < 0.1
+    # The draws of the rest of the track are unchanged by the bias's own generator.
+    np.testing.assert_array_equal(bent.outliers, clean.outliers)
+
+
+def test_coloured_noise_hides_from_a_short_window() -> None:
+    """Noise correlated over 2 samples is under-read by 7-sample fits, less so by 15."""
+    kw = {"pos_noise": 1e-3, "colour": 3e-3, "n": 1000}
+    track = random_joint_track("prismatic", np.random.default_rng(3), **kw)
+    p, _ = prepare_track(track.pos, None)
+    short = estimate_noise(p).sigma_pos
+    long_ = estimate_noise(p, window=15).sigma_pos
+    assert short < 0.6 * math.hypot(1e-3, 3e-3)
+    assert long_ > 1.2 * short

@@ -10,6 +10,7 @@ of a few millimetres read as evidence of a 2 cm slide along the stapler's hinge
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,8 @@ import pytest
 
 from thirdhand import io, se3
 from thirdhand.constraints import NoiseModel, demo_track, fit_constraint, fit_prismatic
+from thirdhand.constraints.noise import estimate_noise
+from thirdhand.constraints.robust import fit_model, prepare_track
 
 CAMERA = NoiseModel.camera()
 
@@ -55,11 +58,13 @@ def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
 
 
 DRAWER_004_REASON = (
-    "drawer_one/004: at the end stop the tracked gripper slides 5 cm sideways along the "
-    "handle (frames 84-90, x constant), stays there 18 frames, and the last row is a "
-    "zero (lost) sample; 20 % of the track off the line in one cluster, which a "
-    "0.7 m-radius arc turning 38° explains better than a line with outliers (the "
-    "confidence says so: below 0.9)"
+    "drawer_one/004 (position only) is a close call: the grasp creeps sideways along the "
+    "handle in steps during the last 25 cm of the stroke and slides 5 cm more at the end "
+    "stop; frames 0-83 alone are a 1.65 m arc turning 15 degrees (1.4 mm rms against 3.5 mm "
+    "for a line), and the whole track is prismatic only when the tracker's error is capped "
+    "at 4-7.5 mm (the end-stop regime then becomes the line's outliers), revolute at 3 mm "
+    "and at 9 mm or more; the synthetic sweep does not tell 5 mm from 15 mm, and the "
+    "shipped 1 cm makes it revolute at 0.61 (scripts/drawer_one_004.py)"
 )
 
 
@@ -82,20 +87,39 @@ def test_drawer_one_is_prismatic(shared_data: Path, index: int) -> None:
     assert 0.43 < np.ptp(c.ranges[0]) < 0.47
 
 
-def test_drawer_one_004_stroke_is_prismatic(shared_data: Path) -> None:
-    """Without the sideways slide at the end stop (frames 84 on), 004 is a drawer too."""
+def test_drawer_one_004_is_a_close_call(shared_data: Path) -> None:
+    """004's grasp slides 5 cm sideways at the end stop (frames 84 on); why it stays revolute.
+
+    With the tracker's error capped at 5 mm the prismatic fit gives the whole terminal
+    regime, and only it, to the outlier class, and wins; with the shipped 1 cm cap the
+    arc wins. Both at a confidence that says the call is close.
+    """
     pos, _ = _track(shared_data / "articulation" / "drawer_one" / "004.log")
-    assert fit_constraint(pos[:84], noise=CAMERA).type == "prismatic"
-    # With the slide, the arc wins, and the confidence says it is unsure.
     c = fit_constraint(pos)
     assert c.type == "revolute"
-    assert c.confidence < 0.9
-    # The slide is real: the tail sits 5 cm off the stroke's line.
+    assert c.confidence < 0.7
+    p, _ = prepare_track(pos, None)
+    capped = dataclasses.replace(estimate_noise(p).noise_model(), pos_ceiling=0.005)
+    c5 = fit_constraint(pos, noise=capped)
+    assert c5.type == "prismatic"
+    assert c5.confidence < 0.7
+    fit = fit_model("prismatic", p, None, noise=capped)
+    assert fit is not None
+    np.testing.assert_array_equal(np.flatnonzero(~fit.inlier), np.arange(84, p.shape[0]))
+    # Without the slide it is a drawer under the camera preset; the slide is real: the
+    # tail sits 5 cm off the stroke's line.
+    assert fit_constraint(pos[:84], noise=CAMERA).type == "prismatic"
     line = fit_prismatic(pos[:84], noise=CAMERA)
     assert line.axis is not None
     off = pos[95:108] - line.origin
     dist = np.linalg.norm(off - np.outer(off @ line.axis, line.axis), axis=1)
     assert np.all(dist > 0.03)
+    # Before the slide the stroke bends by creeping steps: flat stretches of the sideways
+    # coordinate 16 mm apart, each within 2 mm; with the estimated noise the arc wins there.
+    y = pos[:, 1]
+    assert y[64:76].mean() - y[47:58].mean() > 0.012
+    assert max(y[47:58].std(), y[64:76].std()) < 0.002
+    assert fit_constraint(pos[:84]).type == "revolute"
 
 
 def _stapler(shared_data: Path) -> dict[str, tuple[np.ndarray, np.ndarray]]:

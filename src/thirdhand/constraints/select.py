@@ -61,6 +61,15 @@ MIN_SAGITTA_RATIO = 0.03
 #: Orientations confirm a turn they resolve: a range of at least this many
 #: rotation noise floors.
 MIN_TURN_FLOORS = 5.0
+#: ... and at least this turn, radians: a tracker's systematic orientation error
+#: (a tag's viewing angle, a camera's distortion) changes by a few degrees along a
+#: stroke, which reads as a wide, slight turn. Chosen on the synthetic sweep's
+#: calibration seeds (``docs/constraints.md``): 5-9° give the same accuracy, 7° by a
+#: track; without it 96.6 % becomes 95.5 % (a stroke under a pose-dependent error of
+#: 4 times the white level: 97 % against 91 % right). Absolute, not in units of the
+#: rotation noise: a precise tracker (a robot's encoders) may still carry a degree of
+#: calibration error (10 and 15 noise floors instead: 96.0 and 96.1 %).
+MIN_TURN = math.radians(7.0)
 
 
 def bic_weights(scores: dict[str, float], temperature: float = 1.0) -> dict[str, float]:
@@ -129,15 +138,18 @@ def degenerate_joint(
     samples) bows the path by less than :data:`MIN_SAGITTA_RATIO` of its chord is
     a straight stroke within a tracker's systematic error (its radius is far
     beyond the track's extent) — unless orientations resolve the turn: ``φ`` at
-    least :data:`MIN_TURN_FLOORS` standard errors ``σ √(12 / n_eff)`` of a linear
-    trend of ``n_eff`` effective samples of rotation noise ``σ`` (the floor).
+    least :data:`MIN_TURN` and :data:`MIN_TURN_FLOORS` standard errors
+    ``σ √(12 / n_eff)`` of a linear trend of ``n_eff`` effective samples of
+    rotation noise ``σ`` (the floor).
     """
     name = fit.kernel.name
     if name not in ("revolute", "cylindrical", "screw"):
         return None
     lat = fit.proj.latent[fit.inlier, 0] if np.any(fit.inlier) else fit.proj.latent[:, 0]
     phi = float(np.ptp(lat))
-    if oriented and phi >= MIN_TURN_FLOORS * rot_floor * math.sqrt(12.0 / max(n_eff, 12.0)):
+    if oriented and phi >= max(
+        MIN_TURN, MIN_TURN_FLOORS * rot_floor * math.sqrt(12.0 / max(n_eff, 12.0))
+    ):
         return None
     ratio = 0.5 * math.tan(0.25 * min(phi, 2.0 * math.pi))
     if ratio >= MIN_SAGITTA_RATIO:

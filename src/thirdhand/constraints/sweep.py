@@ -20,13 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.constraints.robust import fit_model
 from thirdhand.constraints.select import (
     CONFIDENCE_FLOOR,
     CONFIDENCE_TEMPERATURE,
     fit_constraint,
     type_probabilities,
 )
-from thirdhand.constraints.synthetic import random_joint_track
+from thirdhand.constraints.synthetic import JointTrack, random_joint_track
+from thirdhand.constraints.types import NoiseModel
 
 FloatArray = NDArray[np.float64]
 
@@ -60,7 +62,12 @@ class Condition:
     outliers : float
         Fraction of gross outliers.
     drift : float
-        Slowly varying error per axis, in units of the white noise.
+        Error varying slowly with time, per axis, in units of the white noise.
+    bias : float
+        Error varying smoothly with the pose (a camera's distortion), per axis,
+        in units of the white noise.
+    colour : float
+        Noise correlated over about 2 samples, per axis, in units of the white noise.
     span : float or None
         Opening angle of the turning joints, radians (default 40-150°).
     """
@@ -70,7 +77,14 @@ class Condition:
     n: int = 200
     outliers: float = 0.0
     drift: float = 0.0
+    bias: float = 0.0
+    colour: float = 0.0
     span: float | None = None
+
+    @property
+    def total_noise(self) -> float:
+        """Standard deviation per axis of the whole position error, metres."""
+        return self.pos_noise * math.sqrt(1.0 + self.drift**2 + self.bias**2 + self.colour**2)
 
 
 @dataclass(frozen=True)
@@ -87,6 +101,7 @@ class Trial:
     excluded: tuple[str, ...]
     motion_ratio: float
     axis_error: float
+    dof_ratio: float = math.inf
 
     @property
     def correct(self) -> bool:
@@ -104,10 +119,54 @@ class Trial:
 
 
 def _motion_ratio(kind: str, clean_pos: FloatArray, pos_noise: float) -> float:
-    """Extent of the noise-free positions over the white position noise (inf for fixed)."""
+    """Extent of the noise-free positions over the position error (inf for fixed)."""
     if kind == "fixed":
         return math.inf
     return float(np.ptp(clean_pos, axis=0).max()) / max(pos_noise, 1e-12)
+
+
+def _bow(clean_pos: FloatArray) -> float:
+    """Largest distance of the noise-free positions from the chord of their two ends, metres."""
+    a, b = clean_pos[0], clean_pos[-1]
+    chord = b - a
+    length = float(np.linalg.norm(chord))
+    off = clean_pos - a
+    if length > 0.0:
+        off = off - np.outer(off @ (chord / length), chord / length)
+    return float(np.linalg.norm(off, axis=1).max())
+
+
+def _dof_ratio(
+    kind: str, oriented: bool, track: JointTrack, clean: FloatArray, cond: Condition
+) -> float:
+    """Motion of the degree of freedom that sets the type apart, over its noise.
+
+    The motion the nearest simpler type cannot reproduce. Prismatic: the stroke
+    (against fixed); revolute: the path's bow away from its chord (against
+    prismatic, in positions), or with orientations the turn over the rotation
+    noise if larger; cylindrical: the largest distance of its path from the best
+    circle through it (against revolute: a slide along the axis that a tilted
+    circle follows is no evidence of one); free: the extent; fixed: infinite.
+    Noise is the whole error (:attr:`Condition.total_noise`, the same for rotations).
+    """
+    if kind == "fixed":
+        return math.inf
+    sp = max(cond.total_noise, 1e-12)
+    sr = max(ROT_PER_POS * cond.total_noise, 1e-12)
+    extent = float(np.ptp(clean, axis=0).max()) / sp
+    if kind == "free":
+        return extent
+    stroke = float(np.ptp(track.ranges[0])) / sp
+    if kind == "prismatic":
+        return stroke
+    if kind == "cylindrical":
+        exact = NoiseModel(pos_floor=1e-9, pos_ceiling=1.0, max_outliers=0.0)
+        circle = fit_model("revolute", clean, None, noise=exact)
+        return math.sqrt(float(circle.proj.d2_pos.max())) / sp if circle is not None else stroke
+    turn = _bow(clean) / sp
+    if oriented:
+        turn = max(turn, float(np.ptp(track.ranges[3])) / sr)
+    return turn
 
 
 def run_sweep(
@@ -122,7 +181,9 @@ def run_sweep(
     ------
     Trial
         ``axis_error`` in degrees for a correctly typed joint with an axis, else NaN;
-        ``motion_ratio`` the track's extent over the white position noise.
+        ``motion_ratio`` the track's extent over the whole position error;
+        ``dof_ratio`` the motion of the type's distinguishing degree of freedom
+        over its noise (:func:`_dof_ratio`).
     """
     for cond in conditions:
         for kind, oriented in cases:
@@ -139,6 +200,10 @@ def run_sweep(
                     span=cond.span,
                     drift=cond.drift * cond.pos_noise,
                     rot_drift=cond.drift * rot,
+                    bias=cond.bias * cond.pos_noise,
+                    rot_bias=cond.bias * rot,
+                    colour=cond.colour * cond.pos_noise,
+                    rot_colour=cond.colour * rot,
                 )
                 # The same geometry without noise (the noise is drawn after it).
                 clean = random_joint_track(
@@ -157,8 +222,9 @@ def run_sweep(
                     confidence=c.confidence,
                     scores=dict(c.scores),
                     excluded=tuple(note.split()[0] for note in c.notes),
-                    motion_ratio=_motion_ratio(kind, clean, cond.pos_noise),
+                    motion_ratio=_motion_ratio(kind, clean, cond.total_noise),
                     axis_error=err,
+                    dof_ratio=_dof_ratio(kind, oriented, track, clean, cond),
                 )
 
 
