@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -62,16 +62,24 @@ from thirdhand.constraints.detect_steps import (
     step_edges,
     step_poses,
 )
-from thirdhand.constraints.detect_types import ConstraintInstance, DetectionResult, DetectOptions
+from thirdhand.constraints.detect_types import (
+    ConstraintInstance,
+    DetectionResult,
+    DetectOptions,
+    PairTracks,
+)
 from thirdhand.constraints.hmm import fit_hmm
 from thirdhand.constraints.types import ConstraintFitError
 from thirdhand.demonstration import Demonstration
+
+if TYPE_CHECKING:
+    from thirdhand.segment.pipeline import SegmentationResult
 
 
 def detect_constraints(
     demo: Demonstration,
     *,
-    phases: Any = None,
+    phases: SegmentationResult | None = None,
     parts: Sequence[str] | None = None,
     options: DetectOptions | None = None,
     demo_name: str | None = None,
@@ -111,7 +119,7 @@ def detect_constraints(
         raise ConstraintFitError(
             f"constraint detection needs at least two parts, got {len(names)} ({', '.join(names)})"
         )
-    if phases is not None and len(getattr(phases, "edges", ())) >= 2:
+    if phases is not None and len(phases.edges) >= 2:
         edges = np.asarray(phases.edges, dtype=np.float64)
     else:
         edges = step_edges(demo.t, opt.step)
@@ -129,10 +137,11 @@ def detect_constraints(
         q[bad] = np.nan
         rel_p[k], rel_q[k] = p, q
         th_p[k], th_q[k] = _last_valid_pose(p, q)
+    tracks = PairTracks(times, pairs, world, rel_p, rel_q, phases)
     posterior, params, th_p, th_q = fit_hmm(rel_p, rel_q, th_p, th_q, n_iter=opt.n_iter)
     layers = [(k, posterior[k], th_p[k]) for k in range(len(pairs))]
     step = float(np.median(np.diff(edges)))
-    layers += _further_poses(posterior, rel_p, rel_q, pairs, world, params, opt, step)
+    layers += _further_poses(tracks, posterior, params, opt, step)
     t_end = float(demo.t[-1])
     candidates: list[_Run] = []
     for k, post, theta in layers:
@@ -147,16 +156,14 @@ def detect_constraints(
             )
             if times[hi - 1] - times[lo] < opt.min_duration and not reaches_end:
                 continue
-            if _supported(k, lo, hi, a, b, pairs, world, rel_p, rel_q, times, phases, opt):
+            if _supported(tracks, k, lo, hi, opt):
                 conf = float(np.nanmean(post[lo:hi]))
                 start = _joint_start(rel_p[k], rel_q[k], lo, hi, params) if joint else None
                 lo_j = lo if start is None else start
                 candidates.append(_Run(float(edges[lo_j]), k, lo_j, hi, conf, joint, held))
     candidates.sort(key=lambda c: (c.start, c.k))
     motion = {n: _path_length(*world[n]) for n in names}
-    instances, root = _assign_parents(
-        candidates, pairs, th_p, rel_p, rel_q, times, t_end, motion, opt
-    )
+    instances, root = _assign_parents(tracks, candidates, th_p, t_end, motion, opt)
     for inst in instances:
         inst.demo = demo_name
     for k, post, _ in layers[len(pairs) :]:

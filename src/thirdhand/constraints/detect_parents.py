@@ -7,16 +7,18 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.constraints.detect_dofs import _free_spin, _joint_dofs
 from thirdhand.constraints.detect_runs import _Run, _run_pose
-from thirdhand.constraints.detect_types import ConstraintInstance, DetectOptions, FloatArray
+from thirdhand.constraints.detect_types import (
+    ConstraintInstance,
+    DetectOptions,
+    FloatArray,
+    PairTracks,
+)
 
 
 def _assign_parents(
+    tracks: PairTracks,
     candidates: list[_Run],
-    pairs: list[tuple[str, str]],
     th_p: FloatArray,
-    rel_p: FloatArray,
-    rel_q: FloatArray,
-    times: FloatArray,
     t_end: float,
     motion: dict[str, float],
     opt: DetectOptions,
@@ -30,6 +32,7 @@ def _assign_parents(
     must not make a leg the base); among equals, the one that travelled least in
     the world (the base stays put while parts are brought to it).
     """
+    pairs, times = tracks.pairs, tracks.times
     n_steps = times.size
     direct: list[_Run] = []
     degree: dict[str, int] = {}
@@ -105,7 +108,7 @@ def _assign_parents(
         a, b = pairs[c.k]
         child = b if parent_of.get(b) == a else a
         parent = a if child == b else b
-        out.append(_instance(c, parent, child, pairs, th_p, rel_p, rel_q, times, t_end, opt))
+        out.append(_instance(tracks, c, parent, child, th_p, t_end, opt))
     return out, root
 
 
@@ -136,25 +139,23 @@ def _orient(edges: list[tuple[str, str]], root: str) -> dict[str, str]:
 
 
 def _instance(
+    tracks: PairTracks,
     c: _Run,
     parent: str,
     child: str,
-    pairs: list[tuple[str, str]],
     th_p: FloatArray,
-    rel_p: FloatArray,
-    rel_q: FloatArray,
-    times: FloatArray,
     t_end: float,
     opt: DetectOptions,
 ) -> ConstraintInstance:
     k, lo, hi = c.k, c.lo, c.hi
-    a, _ = pairs[k]
+    rel_p, rel_q, times = tracks.rel_p, tracks.rel_q, tracks.times
+    a, _ = tracks.pairs[k]
     p_run, q_run = rel_p[k], rel_q[k]
     pos, quat = _run_pose(p_run[lo:hi], q_run[lo:hi], th_p[k], c.held[lo:hi])
     if parent != a:
         pos, quat = se3.pose_invert(pos, quat)
         p_run, q_run = se3.pose_invert(rel_p[k], rel_q[k])
-    step = float(times[1] - times[0]) if times.size > 1 else 0.1
+    step = tracks.step
     start = float(times[lo] - 0.5 * step)
     end = None if hi >= times.size - 1 else float(times[hi - 1] + 0.5 * step)
     frame_p = np.zeros(3)

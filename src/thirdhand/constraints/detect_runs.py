@@ -5,15 +5,18 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from thirdhand import se3
 from thirdhand.constraints.detect_dofs import _on_joint
 from thirdhand.constraints.detect_steps import _motion, _runs
-from thirdhand.constraints.detect_types import BoolArray, DetectOptions, FloatArray
+from thirdhand.constraints.detect_types import BoolArray, DetectOptions, FloatArray, PairTracks
 from thirdhand.constraints.hmm import HMMParams, fit_hmm
+
+if TYPE_CHECKING:
+    from thirdhand.segment.pipeline import SegmentationResult
 
 
 def _merge_same_pose(
@@ -64,9 +67,9 @@ def _merge_same_pose(
     return out
 
 
-def _held(phases: Any, body: str, t0: float, t1: float) -> bool:
+def _held(phases: SegmentationResult, body: str, t0: float, t1: float) -> bool:
     """Whether a hand of the segmentation holds ``body`` at some time in ``[t0, t1]``."""
-    for h in getattr(phases, "hands", []):
+    for h in phases.hands:
         if h.object != body:
             continue
         for s, e in h.intervals:
@@ -76,11 +79,8 @@ def _held(phases: Any, body: str, t0: float, t1: float) -> bool:
 
 
 def _further_poses(
+    tracks: PairTracks,
     posterior: FloatArray,
-    rel_p: FloatArray,
-    rel_q: FloatArray,
-    pairs: list[tuple[str, str]],
-    world: dict[str, tuple[FloatArray, FloatArray]],
     params: HMMParams,
     opt: DetectOptions,
     step: float,
@@ -99,6 +99,7 @@ def _further_poses(
     -------
     list of (pair index, posterior (n_steps,), pose position (3,))
     """
+    rel_p, rel_q, pairs, world = tracks.rel_p, tracks.rel_q, tracks.pairs, tracks.world
     out: list[tuple[int, FloatArray, FloatArray]] = []
     explained = posterior > 0.5
     step_p = 4.0 * math.sqrt(2.0) * params.sigma_pos
@@ -162,27 +163,15 @@ class _Run:
     held: BoolArray
 
 
-def _supported(
-    k: int,
-    lo: int,
-    hi: int,
-    a: str,
-    b: str,
-    pairs: list[tuple[str, str]],
-    world: dict[str, tuple[FloatArray, FloatArray]],
-    rel_p: FloatArray,
-    rel_q: FloatArray,
-    times: FloatArray,
-    phases: Any,
-    opt: DetectOptions,
-) -> bool:
-    """Whether a constrained run has co-motion or approach evidence (module notes)."""
+def _supported(tracks: PairTracks, k: int, lo: int, hi: int, opt: DetectOptions) -> bool:
+    """Whether pair ``k``'s constrained run ``[lo, hi)`` has co-motion or approach evidence."""
+    a, b = tracks.pairs[k]
+    rel_p, rel_q, times, phases = tracks.rel_p, tracks.rel_q, tracks.times, tracks.phases
     for body in (a, b):
-        dp, dr = _motion(*world[body], lo, hi)
+        dp, dr = _motion(*tracks.world[body], lo, hi)
         if dp > opt.co_motion[0] or dr > opt.co_motion[1]:
             return True
-    step = float(times[1] - times[0]) if times.size > 1 else 0.1
-    w = max(1, round(opt.approach_window / step))
+    w = max(1, round(opt.approach_window / tracks.step))
     before = max(0, lo - w)
     if before == lo:
         return False
@@ -194,7 +183,7 @@ def _supported(
     if dist < opt.contact_distance:
         return True
     # Farther apart: only when the segmentation saw a hand bring one of them there.
-    if phases is not None and getattr(phases, "hands", None):
+    if phases is not None and phases.hands:
         t0, t1 = times[before], times[min(hi, lo + w) - 1]
         return _held(phases, a, t0, t1) or _held(phases, b, t0, t1)
     return False

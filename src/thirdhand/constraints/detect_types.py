@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -14,6 +14,10 @@ from thirdhand.constraints.types import DOF_NAMES, ConstraintFitError
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+
+
+if TYPE_CHECKING:
+    from thirdhand.segment.pipeline import SegmentationResult
 
 
 @dataclass
@@ -120,6 +124,37 @@ class DetectionResult:
             if {x, y} == {a, b}:
                 return self.posterior[k]
         raise ConstraintFitError(f"pair ({a!r}, {b!r}) was not tracked")
+
+
+@dataclass(frozen=True)
+class PairTracks:
+    """The step-sampled tracks constraint detection works on (one record, not 12 arguments).
+
+    Attributes
+    ----------
+    times : ndarray, shape (n_steps,)
+        Step centres, seconds.
+    pairs : list of (str, str)
+        The part pairs, in the order of the first axis of ``rel_p`` and ``rel_q``.
+    world : dict of str to (ndarray (n_steps, 3), ndarray (n_steps, 4))
+        Per part, its step pose in the world frame (metres; x y z w), NaN where unseen.
+    rel_p, rel_q : ndarray, shapes (n_pairs, n_steps, 3) and (n_pairs, n_steps, 4)
+        Per pair ``(a, b)``, ``b``'s pose in ``a``'s frame, NaN where either is unseen.
+    phases : SegmentationResult, optional
+        The recording's interaction phases (hands holding parts).
+    """
+
+    times: FloatArray
+    pairs: list[tuple[str, str]]
+    world: dict[str, tuple[FloatArray, FloatArray]]
+    rel_p: FloatArray
+    rel_q: FloatArray
+    phases: SegmentationResult | None = None
+
+    @property
+    def step(self) -> float:
+        """The step length, seconds (0.1 for a single step)."""
+        return float(self.times[1] - self.times[0]) if self.times.size > 1 else 0.1
 
 
 @dataclass(frozen=True)
