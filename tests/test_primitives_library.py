@@ -93,7 +93,7 @@ def test_library_bad_input() -> None:
         PrimitiveLibrary(2, threshold=0.1).fit([(t, y)])
     with pytest.raises(PrimitiveError, match="no demonstration"):
         PrimitiveLibrary(2, threshold=0.1).fit([])
-    with pytest.raises(PrimitiveError, match="at least 4 samples, got 2"):
+    with pytest.raises(PrimitiveError, match=r"at least 5 samples .*window.*got 2"):
         PrimitiveLibrary(2, threshold=0.1).fit([(t[:2], y[:2])])
 
 

@@ -5,7 +5,9 @@ Component ``k`` is a ProMP ``w ~ N(μ_k, Σ_k)`` with shared observation noise
 likelihood ``N(q | Φ μ_k, Φ Σ_k Φᵀ + σ² I)`` — a density over the segment's own
 samples, so segmentations with different numbers of segments explain the same
 data and compare fairly. For tracks of two or more dimensions the removed
-rotation angle is an extra Gaussian variable per component.
+rotation angle is an extra Gaussian variable per component. Level channels
+(:attr:`SegmentStats.lev_sum`), when given, add a per-sample diagonal Gaussian
+``N(l_t | m_k, diag v_k)`` on each segment's samples.
 
 Everything is computed from :class:`~thirdhand.primitives.segment_features.SegmentStats`
 in the eigenbasis of ``L_kᵀ Φᵀ Φ L_k`` (``Σ_k = L_k L_kᵀ``), where every
@@ -51,6 +53,8 @@ class ProMPMixture:
         Observation variance σ², units².
     angle_mean_, angle_var_ : ndarray, shape (K,)
         Radians, radians².
+    level_mean_, level_var_ : ndarray, shape (K, L)
+        Per-sample Gaussian of the level channels (units, units²).
     """
 
     def __init__(
@@ -95,6 +99,13 @@ class ProMPMixture:
         avar = float(p @ (st.angle - p @ st.angle) ** 2)
         self._angle_floor = max(self.reg * avar, 1e-6)
         self.angle_var_ = np.full(k, avar + self._angle_floor)
+        n_l = max(float(p @ st.lev_n), 1e-12)
+        lm = (p @ st.lev_sum) / n_l
+        lv = np.maximum((p @ st.lev_sq) / n_l - lm**2, 0.0)
+        self._level_floor = np.maximum(1e-3 * lv, 1e-12)
+        denom = np.maximum(st.lev_n[idx], 1.0)[:, None]
+        self.level_mean_ = st.lev_sum[idx] / denom
+        self.level_var_ = np.repeat((lv + self._level_floor)[None], k, axis=0)
 
     # ------------------------------------------------------------ core
     def _posterior(
@@ -129,6 +140,12 @@ class ProMPMixture:
                     (st.angle - self.angle_mean_[k]) ** 2 / self.angle_var_[k]
                     + np.log(self.angle_var_[k])
                     + LOG_2PI
+                )
+            if st.n_levels:
+                m, v = self.level_mean_[k], self.level_var_[k]
+                quad = (st.lev_sq - 2.0 * st.lev_sum * m + st.lev_n[:, None] * m**2) / v
+                out[:, k] += -0.5 * np.sum(
+                    quad + st.lev_n[:, None] * (np.log(v) + LOG_2PI)[None], axis=1
                 )
         with np.errstate(divide="ignore"):
             return out + np.log(self.weights_)[None]
@@ -167,6 +184,12 @@ class ProMPMixture:
                         am = rk @ st.angle / nk[k]
                         self.angle_mean_[k] = am
                         self.angle_var_[k] = rk @ (st.angle - am) ** 2 / nk[k] + self._angle_floor
+                    if st.n_levels:
+                        nl = max(float(rk @ st.lev_n), 1e-12)
+                        lm = rk @ st.lev_sum / nl
+                        lv = (rk @ st.lev_sq) / nl - lm**2
+                        self.level_mean_[k] = lm
+                        self.level_var_[k] = np.maximum(lv, 0.0) + self._level_floor
                 a_diag = np.einsum("fi,fg,gi->i", basis, st.gram, basis)
                 e_sq = (
                     st.sq
