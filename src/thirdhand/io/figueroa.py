@@ -103,7 +103,7 @@ def _load(path: Path) -> dict[str, Any]:
         return dict(scipy.io.loadmat(path, squeeze_me=True, struct_as_record=False))
     except NotImplementedError:  # MATLAB v7.3: HDF5
         pass
-    except (ValueError, TypeError, OSError) as exc:
+    except Exception as exc:  # scipy raises anything from MatReadError to IndexError on junk
         raise FormatError(path, f"not a readable MATLAB .mat file: {exc}") from None
     try:
         import h5py

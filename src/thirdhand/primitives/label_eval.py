@@ -195,6 +195,8 @@ def fit_library(
         try:
             lib = make(k)
         except PrimitiveError:
+            if best is None:
+                raise
             break
         scores[k] = bic(lib, n_obs)
         if best is None or scores[k] <= min(scores.values()):
