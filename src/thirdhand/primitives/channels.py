@@ -8,7 +8,9 @@ Two kinds of input per arm, chosen by name:
   ``force`` (N), ``torque`` (N m);
 - **level** channels, modelled per sample by each skill's Gaussian (absolute
   values, not translated): ``force`` and ``torque`` (magnitudes, N and N m),
-  ``speed`` (m/s) and ``angular`` (rad/s), smoothed over ``window`` samples.
+  ``speed`` (m/s), ``angular`` (rad/s) and ``velocity`` (the three signed
+  components, m/s, base frame: a move down and a move up differ sample by
+  sample), smoothed over ``window`` samples.
 
 Each channel is divided by a fixed unit (:data:`SHAPE_UNITS`, :data:`LEVEL_UNITS`)
 so that a centimetre, a tenth of a radian and a newton weigh about the same in
@@ -32,7 +34,7 @@ FloatArray = NDArray[np.float64]
 #: Unit of each shape channel (its values are divided by it).
 SHAPE_UNITS = {"pos": 0.02, "rot": 0.1, "force": 2.0, "torque": 0.2}
 #: Unit of each level channel.
-LEVEL_UNITS = {"force": 2.0, "torque": 0.2, "speed": 0.02, "angular": 0.1}
+LEVEL_UNITS = {"force": 2.0, "torque": 0.2, "speed": 0.02, "angular": 0.1, "velocity": 0.02}
 
 
 def _check(names: Sequence[str], allowed: dict[str, float], what: str) -> None:
@@ -61,11 +63,14 @@ def _level(arm: ArmTrack, name: str, dt: float, window: int) -> FloatArray:
         x = np.linalg.norm(arm.torque, axis=1)
     elif name == "speed":
         x = np.linalg.norm(np.gradient(arm.pos, dt, axis=0), axis=1)
+    elif name == "velocity":
+        x = np.gradient(arm.pos, dt, axis=0)
     else:
         r = Rotation.from_quat(arm.quat)
         step = (r[1:] * r[:-1].inv()).magnitude() / dt
         x = np.concatenate([step[:1], step])
-    return np.asarray(uniform_filter1d(x, size=max(window, 1), mode="nearest"), dtype=np.float64)
+    out = uniform_filter1d(x, size=max(window, 1), axis=0, mode="nearest")
+    return np.asarray(out, dtype=np.float64).reshape(x.shape[0], -1)
 
 
 def stream_channels(
@@ -91,7 +96,7 @@ def stream_channels(
     Returns
     -------
     shape : ndarray, shape (n, 3 · len(shape) · arms), in channel units
-    levels : ndarray, shape (n, len(levels) · arms), in channel units
+    levels : ndarray, shape (n, L), in channel units (3 columns for ``velocity``, else 1, per arm)
     """
     if not shape:
         raise PrimitiveError("at least one shape channel is needed (pos, rot, force, torque)")
@@ -103,8 +108,6 @@ def stream_channels(
             raise PrimitiveError(f"{stream.name}: no arm {a} (it has {len(stream.arms)})")
     dt = float(np.median(np.diff(stream.t)))
     ys = [_shape(stream.arms[a], n) / SHAPE_UNITS[n] for a in use for n in shape]
-    ls = [
-        _level(stream.arms[a], n, dt, window)[:, None] / LEVEL_UNITS[n] for a in use for n in levels
-    ]
+    ls = [_level(stream.arms[a], n, dt, window) / LEVEL_UNITS[n] for a in use for n in levels]
     lev = np.hstack(ls) if ls else np.zeros((stream.n_samples, 0))
     return np.hstack(ys), lev

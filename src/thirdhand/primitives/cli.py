@@ -252,6 +252,10 @@ def evaluate(
     trim_rest: Annotated[
         bool, typer.Option(help="Leave rest at the ends of a recording out of the skills.")
     ] = False,
+    phases: Annotated[
+        int | None,
+        typer.Option(help="Group runs of skills into this many phases (default: no grouping)."),
+    ] = None,
     rate: Annotated[
         float | None, typer.Option(help="Sampling rate of files without dt, Hz (default 100).")
     ] = None,
@@ -276,6 +280,8 @@ def evaluate(
         options.finite("--tolerance", tolerance, low=0.0)
         options.finite("--grid", grid, low=0.0)
         options.integer("--subsample", subsample, low=1, high=1000)
+        if phases is not None:
+            options.integer("--phases", phases, low=1, high=100)
         options.seed(seed)
         if threshold is not None:
             options.finite("--threshold", threshold, low=0.0, low_open=True)
@@ -300,6 +306,7 @@ def evaluate(
             grid=grid or None,
             threshold=threshold,
             trim_rest=trim_rest,
+            n_phases=phases,
             seed=seed,
         )
         results = {}
@@ -317,7 +324,8 @@ def evaluate(
     for fname, (streams, res) in results.items():
         out.print(
             f"{fname}: {len(streams)} recordings, K = {res.streams[0].n_skills}, frame accuracy "
-            f"{res.accuracy:.3f}, boundaries P {res.boundaries.precision:.2f} "
+            f"{res.accuracy:.3f} (one map for all: {res.global_accuracy:.3f}), "
+            f"boundaries P {res.boundaries.precision:.2f} "
             f"R {res.boundaries.recall:.2f} F1 {res.boundaries.f1:.2f} "
             f"({res.boundaries.n_matched}/{res.boundaries.n_true} true within {tolerance:g} s, "
             f"{res.boundaries.n_pred} predicted); map skill->label {res.mapping}"
@@ -340,7 +348,9 @@ def evaluate(
             {
                 "file": fname,
                 "accuracy": res.accuracy,
+                "global_accuracy": res.global_accuracy,
                 "boundaries": _bscore(res.boundaries),
+                "raw_boundaries": _bscore(res.raw_boundaries),
                 "mapping": {str(k): v for k, v in res.mapping.items()},
                 "bic": {str(k): v for k, v in res.bic.items()},
                 "rate_assumed": any(s.rate_assumed for s in streams),
@@ -349,6 +359,7 @@ def evaluate(
                         "name": r.name,
                         "samples": r.n_samples,
                         "accuracy": r.accuracy,
+                        "global_accuracy": r.global_accuracy,
                         "boundaries": _bscore(r.boundaries),
                         "true_boundaries_s": s.boundaries.tolist(),
                         "n_candidates": r.n_candidates,

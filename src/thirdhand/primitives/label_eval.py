@@ -3,14 +3,19 @@
 For each recording of a file the library is fitted on the others (on the
 recording itself when the file holds only one, reported as in-sample), the
 recording is parsed, consecutive segments of the same skill are merged into one
-phase (:meth:`~thirdhand.primitives.library.Parse.merged`) and the phases are
-compared with the labels (:mod:`~thirdhand.primitives.evaluation`): frame
-accuracy under the best skill → label map over all held-out parses, boundary
-precision / recall / F1 within a tolerance.
+run (:meth:`~thirdhand.primitives.library.Parse.merged`), optionally runs are
+grouped into phases (:class:`~thirdhand.primitives.phases.PhaseGrouper`, learned
+on the training recordings' parses), and the result is compared with the labels
+(:mod:`~thirdhand.primitives.evaluation`): boundary precision / recall / F1
+within a tolerance, and frame accuracy under the best one-to-one map from
+predicted to human labels — one map per held-out recording, since each is
+parsed by its own library whose skill numbers mean nothing to another fold's
+(the single map over all recordings is reported beside it).
 """
 
 from __future__ import annotations
 
+import itertools
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -29,6 +34,7 @@ from thirdhand.primitives.evaluation import (
     match_boundaries,
 )
 from thirdhand.primitives.library import PrimitiveLibrary
+from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
 from thirdhand.primitives.segment_features import smoothed_speed
 
 IntArray = NDArray[np.int64]
@@ -57,6 +63,8 @@ class ParserConfig:
     window : int
         Speed smoothing, samples (after subsampling).
     trim_rest : bool
+    n_phases : int or None
+        Group runs of skills into this many phases (None: every run of a skill is a phase).
     n_init : int
     seed : int
     """
@@ -71,6 +79,7 @@ class ParserConfig:
     threshold: float | None = None
     window: int = 5
     trim_rest: bool = False
+    n_phases: int | None = None
     n_init: int = 4
     seed: int = 0
 
@@ -86,8 +95,13 @@ class StreamResult:
     skills : ndarray of int, shape (n_samples,)
         Skill per sample after merging.
     boundaries : BoundaryScore
+        Changes of skill (consecutive segments of one skill merged).
+    raw_boundaries : BoundaryScore
+        Every kept cut, unmerged (the seed parser's output).
     accuracy : float
-        Under the file's best map (filled in after all recordings are parsed).
+        Under this recording's best map.
+    global_accuracy : float
+        Under the file's single best map (filled in after all recordings are parsed).
     n_candidates, n_segments, n_phases : int
     n_skills : int
         ``K`` used for this recording's library.
@@ -99,7 +113,9 @@ class StreamResult:
     n_samples: int
     skills: IntArray
     boundaries: BoundaryScore
+    raw_boundaries: BoundaryScore
     accuracy: float
+    global_accuracy: float
     n_candidates: int
     n_segments: int
     n_phases: int
@@ -116,9 +132,13 @@ class FileResult:
     ----------
     streams : list of StreamResult
     accuracy : float
+        Frame accuracy over all samples, each recording under its own best map.
+    global_accuracy : float
         Frame accuracy over all samples under ``mapping``.
     boundaries : BoundaryScore
         Summed over the recordings.
+    raw_boundaries : BoundaryScore
+        Every kept cut, summed over the recordings.
     mapping : dict
         Skill → human label.
     bic : dict
@@ -127,7 +147,9 @@ class FileResult:
 
     streams: list[StreamResult]
     accuracy: float
+    global_accuracy: float
     boundaries: BoundaryScore
+    raw_boundaries: BoundaryScore
     mapping: dict[int, int]
     bic: dict[int, float] = field(default_factory=dict)
 
@@ -222,6 +244,8 @@ def evaluate_streams(
         last_bic = scores or last_bic
         raw = lib.parse(t, y, levels=lev, name=s.name)
         parse = raw.merged()
+        if cfg.n_phases is not None:
+            parse = _phase_grouper(lib, train, cfg).group(y, parse)
         fit_s = time.perf_counter() - t0
         sub = parse.frame_labels()
         idx = np.clip(np.searchsorted(t, s.t, side="right") - 1, 0, t.size - 1)
@@ -232,6 +256,8 @@ def evaluate_streams(
                 s.n_samples,
                 skills,
                 match_boundaries(s.boundaries, change_times(s.t, skills), tolerance=tolerance),
+                match_boundaries(s.boundaries, t[raw.cuts], tolerance=tolerance),
+                float(best_label_map([skills], [s.labels])[1] / s.n_samples),
                 float("nan"),
                 int(raw.candidates.size),
                 int(raw.labels.size),
@@ -245,8 +271,81 @@ def evaluate_streams(
     final = []
     for r, s in zip(results, streams, strict=True):
         acc = float(np.mean(apply_map(r.skills, mapping) == s.labels))
-        final.append(StreamResult(**{**r.__dict__, "accuracy": acc}))
-    total = final[0].boundaries
+        final.append(StreamResult(**{**r.__dict__, "global_accuracy": acc}))
+    per_map = sum(r.accuracy * r.n_samples for r in final) / n_all
+    total, raw_total = final[0].boundaries, final[0].raw_boundaries
     for r in final[1:]:
-        total = total + r.boundaries
-    return FileResult(final, n_ok / n_all, total, mapping, last_bic)
+        total, raw_total = total + r.boundaries, raw_total + r.raw_boundaries
+    return FileResult(final, per_map, n_ok / n_all, total, raw_total, mapping, last_bic)
+
+
+def _phase_grouper(
+    lib: PrimitiveLibrary,
+    train: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    cfg: ParserConfig,
+) -> PhaseGrouper:
+    assert cfg.n_phases is not None
+    descs, lens = [], []
+    for t, y, lev in train:
+        d, w = run_descriptors(y, lib.parse(t, y, levels=lev).merged(), lib.n_skills)
+        descs.append(d)
+        lens.append(w)
+    return PhaseGrouper(cfg.n_phases, n_skills=lib.n_skills, seed=cfg.seed).fit(descs, lens)
+
+
+def cluster_segments(
+    features: Sequence[np.ndarray],
+    bounds: Sequence[np.ndarray],
+    n_clusters: int,
+    *,
+    seed: int = 0,
+) -> list[IntArray]:
+    """Per-sample cluster labels of segments, for methods that only give change points.
+
+    Each segment is represented by the mean of its samples' features (each
+    column standardised over all recordings) and the segments of all recordings
+    are grouped by k-means (k-means++ seeding, best of 10, weighted by length),
+    so that a change-point method gets a frame accuracy under the same
+    Hungarian map as the parser.
+
+    Parameters
+    ----------
+    features : sequence of ndarray, shape (n_i, d)
+    bounds : sequence of ndarray of int
+        Per recording, ``[0, cut_1, …, n_i − 1]``.
+    n_clusters : int
+
+    Returns
+    -------
+    list of ndarray of int, shape (n_i,)
+    """
+    from scipy.cluster.vq import kmeans2
+
+    allx = np.vstack(features)
+    mu, sd = allx.mean(axis=0), allx.std(axis=0)
+    sd[sd == 0] = 1.0
+    means, lens = [], []
+    for x, b in zip(features, bounds, strict=True):
+        z = (x - mu) / sd
+        for a, e in itertools.pairwise(b):
+            means.append(z[a : max(e, a + 1)].mean(axis=0))
+            lens.append(max(int(e - a), 1))
+    pts = np.array(means)
+    w = np.array(lens, dtype=np.float64)
+    k = min(n_clusters, len(pts))
+    best: tuple[float, IntArray] | None = None
+    for r in range(10):
+        cent, lab = kmeans2(pts, k, minit="++", seed=seed + r)
+        cost = float(w @ ((pts - cent[lab]) ** 2).sum(axis=1))
+        if best is None or cost < best[0]:
+            best = (cost, lab.astype(np.int64))
+    assert best is not None
+    out, h = [], 0
+    for x, b in zip(features, bounds, strict=True):
+        lab = np.empty(x.shape[0], dtype=np.int64)
+        for a, e in itertools.pairwise(b):
+            lab[a:e] = best[1][h]
+            h += 1
+        lab[-1] = best[1][h - 1]
+        out.append(lab)
+    return out

@@ -133,6 +133,8 @@ class PrimitiveLibrary:
         of the skills: it joins the first and the last segment. A person standing
         still before reaching is not performing a skill, and annotators count that
         wait as part of the reach.
+    skill_noise : bool
+        One observation noise per skill (see :class:`ProMPMixture`).
     seed : int
         Seeds the restarts.
 
@@ -167,8 +169,10 @@ class PrimitiveLibrary:
         n_reseed: int = 10,
         grid: float | None = None,
         trim_rest: bool = False,
+        skill_noise: bool = False,
         seed: int = 0,
     ) -> None:
+        self.skill_noise = skill_noise
         self.grid = grid
         self.trim_rest = trim_rest
         self.noise_floor = noise_floor
@@ -203,7 +207,7 @@ class PrimitiveLibrary:
                 f"and the shortest segment of {self.min_length}), got {n_given}"
             )
         ta, ya = check_trajectory(t, y, name=name, min_samples=need)
-        if levels is None:
+        if levels is None or np.asarray(levels).shape == (ta.size, 0):
             la = np.zeros((ta.size, 0))
         else:
             _, la = check_trajectory(ta, levels, name=f"{name} levels", min_samples=need)
@@ -308,6 +312,7 @@ class PrimitiveLibrary:
                 noise_floor=self.noise_floor,
                 covariance=self.covariance,
                 use_angle=self.dims_ >= 2,
+                skill_noise=self.skill_noise,
             )
             mix.init_kmeanspp(x, prior_u, rng)
             u = prior_u
@@ -344,6 +349,7 @@ class PrimitiveLibrary:
         k = int(dead[0])
         mix.means_[k] = x.ridge[worst]
         mix.covs_[k] = np.mean(mix.covs_, axis=0)
+        mix.skill_noise_[k] = mix.noise_
         mix.weights_[k] = 1.0 / mix.n_components
         mix.weights_ /= mix.weights_.sum()
         if mix.use_angle:

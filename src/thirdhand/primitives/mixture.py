@@ -43,6 +43,9 @@ class ProMPMixture:
         direction apart).
     use_angle : bool
         Model the removed rotation angle (2-D and 3-D tracks).
+    skill_noise : bool
+        One observation variance per component instead of a shared one: a precise
+        skill (a reach) then keeps its shape term sharp beside a sloppy one (circles).
 
     Attributes
     ----------
@@ -50,7 +53,9 @@ class ProMPMixture:
     means_ : ndarray, shape (K, F)
     covs_ : ndarray, shape (K, F, F)
     noise_ : float
-        Observation variance σ², units².
+        Observation variance σ², units² (shared; the mean of ``skill_noise_``).
+    skill_noise_ : ndarray, shape (K,)
+        Per-component observation variance (all equal to ``noise_`` unless ``skill_noise``).
     angle_mean_, angle_var_ : ndarray, shape (K,)
         Radians, radians².
     level_mean_, level_var_ : ndarray, shape (K, L)
@@ -65,7 +70,9 @@ class ProMPMixture:
         noise_floor: float = 1e-4,
         covariance: str = "full",
         use_angle: bool = False,
+        skill_noise: bool = False,
     ) -> None:
+        self.skill_noise = skill_noise
         self.noise_floor = noise_floor
         self.covariance = covariance
         self.n_components = n_components
@@ -94,6 +101,7 @@ class ProMPMixture:
         data_var = max(float(p @ (st.sq / np.maximum(st.n_obs, 1.0))), 1e-300)
         self._noise_floor = max(self.noise_floor * data_var, 1e-14)
         self.noise_ = max(1e-2 * data_var, self._noise_floor)
+        self.skill_noise_ = np.full(k, self.noise_)
         ang = st.angle[idx]
         self.angle_mean_ = ang.copy()
         avar = float(p @ (st.angle - p @ st.angle) ** 2)
@@ -117,7 +125,7 @@ class ProMPMixture:
         lam, v = np.linalg.eigh(chol.T @ st.gram @ chol)
         lam = np.maximum(lam, 0.0)
         basis = chol @ v
-        s2 = self.noise_
+        s2 = float(self.skill_noise_[k])
         mu = self.means_[k]
         a_mu = st.gram @ mu
         g = (st.proj - st.scale[:, None] * a_mu[None]) / s2
@@ -167,7 +175,7 @@ class ProMPMixture:
             r = np.exp(lj - lp[:, None]) * w[:, None]
             nk = r.sum(axis=0)
             self.weights_ = np.maximum(nk, 1e-12) / nk.sum()
-            resid, n_tot = 0.0, 0.0
+            resid, n_tot = np.zeros(self.n_components), np.zeros(self.n_components)
             for k in range(self.n_components):
                 _, mean, dvar, basis = self._posterior(st, k)
                 rk = r[:, k]
@@ -196,9 +204,16 @@ class ProMPMixture:
                     - 2.0 * np.sum(mean * st.proj, axis=1)
                     + st.scale * (np.einsum("hf,fg,hg->h", mean, st.gram, mean) + dvar @ a_diag)
                 )
-                resid += float(rk @ e_sq)
-                n_tot += float(rk @ st.n_obs)
-            self.noise_ = max(resid / max(n_tot, 1e-12), self._noise_floor)
+                resid[k] = float(rk @ e_sq)
+                n_tot[k] = float(rk @ st.n_obs)
+            self.noise_ = max(resid.sum() / max(n_tot.sum(), 1e-12), self._noise_floor)
+            if self.skill_noise:
+                per = resid / np.maximum(n_tot, 1e-12)
+                self.skill_noise_ = np.where(
+                    n_tot > 1e-9, np.maximum(per, self._noise_floor), self.noise_
+                )
+            else:
+                self.skill_noise_ = np.full(self.n_components, self.noise_)
             if abs(ll - prev) <= tol * max(abs(ll), 1.0):
                 break
             prev = ll
