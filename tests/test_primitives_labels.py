@@ -306,3 +306,49 @@ def test_evaluate_bad_files_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
     _write_proc(tmp_path / "tiny.mat", [(x[:, :12], y[:12])])
     rc, _, se = call(capsys, "primitives", "evaluate", str(tmp_path / "tiny.mat"))
     assert rc == 1 and "window" in se and se.count("\n") == 1
+
+
+# ------------------------------------------------------------------ phases
+def test_phase_grouper_splits_one_skill_by_where_it_goes() -> None:
+    from thirdhand.primitives.library import Parse
+    from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
+
+    # free move down (skill 0), contact (skill 1), free move up (skill 0)
+    y = np.concatenate([np.linspace(10, 0, 30), np.zeros(40), np.linspace(0, 10, 30)])[:, None]
+    parse = Parse(np.array([0, 29, 69, 99]), np.array([0, 1, 0]), 0.0, np.array([29, 69]))
+    desc, length = run_descriptors(y, parse, 2)
+    np.testing.assert_allclose(desc[:, :2], [[1, 0], [0, 1], [1, 0]])
+    np.testing.assert_allclose(desc[:, 2], [-10, 0, 10])
+    np.testing.assert_array_equal(length, [29, 40, 30])
+    g = PhaseGrouper(3, n_skills=2).fit([desc, desc], [length, length])
+    phases = g.predict(desc)
+    assert len(set(phases.tolist())) == 3  # the two free moves are different phases
+    grouped = g.group(y, parse)
+    assert grouped.labels.size == 3
+    two = PhaseGrouper(2, n_skills=2).fit([desc], [length]).group(y, parse)
+    assert two.labels.size in (2, 3)
+    with pytest.raises(PrimitiveError, match=r"3 runs of skills .* for 5 phases"):
+        PhaseGrouper(5, n_skills=2).fit([desc], [length])
+
+
+def test_evaluate_streams_with_phases_on_wiping_like_data() -> None:
+    from thirdhand.primitives.label_eval import ParserConfig, evaluate_streams
+
+    streams = []
+    for s in range(3):
+        x, y = _wiping_like(s)
+        streams.append(_stream_from(x, y, f"demo{s}"))
+    cfg = ParserConfig(levels=("force",), n_skills=2, n_phases=3, n_init=2)
+    res = evaluate_streams(streams, cfg, tolerance=0.5)
+    # contact on/off are the label changes: both found in every held-out recording
+    assert res.boundaries.recall == 1.0
+    assert res.accuracy > 0.9
+    assert all(r.n_skills == 2 for r in res.streams)
+
+
+def _stream_from(x: np.ndarray, labels: np.ndarray, name: str):  # type: ignore[no-untyped-def]
+    from thirdhand.io.figueroa import ArmTrack, LabelledStream
+
+    b = x.T
+    arm = ArmTrack(b[:, :3], b[:, [4, 5, 6, 3]], b[:, 7:10], b[:, 10:13])
+    return LabelledStream(name, np.arange(b.shape[0]) * 0.01, (arm,), labels.astype(np.int64))

@@ -33,7 +33,11 @@ from thirdhand.primitives.segment_features import (
     segment_stats,
     smoothed_speed,
 )
-from thirdhand.primitives.segmentation_dp import best_segmentation, segment_marginals
+from thirdhand.primitives.segmentation_dp import (
+    best_labelled_segmentation,
+    best_segmentation,
+    segment_marginals,
+)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -135,6 +139,10 @@ class PrimitiveLibrary:
         wait as part of the reach.
     skill_noise : bool
         One observation noise per skill (see :class:`ProMPMixture`).
+    switch_penalty : float
+        Log-probability cost of a change of skill between consecutive segments in
+        :meth:`parse` (a semi-Markov chain over skills that prefers to stay: a
+        prior on how long a phase lasts); 0 scores every segment on its own.
     seed : int
         Seeds the restarts.
 
@@ -170,8 +178,10 @@ class PrimitiveLibrary:
         grid: float | None = None,
         trim_rest: bool = False,
         skill_noise: bool = False,
+        switch_penalty: float = 0.0,
         seed: int = 0,
     ) -> None:
+        self.switch_penalty = switch_penalty
         self.skill_noise = skill_noise
         self.grid = grid
         self.trim_rest = trim_rest
@@ -394,12 +404,18 @@ class PrimitiveLibrary:
             )
         lj = self.mixture_.log_joint(tr.features)
         n = tr.nodes.size
-        mat = np.full((n, n), -np.inf)
-        mat[tr.ia, tr.ib] = np.where(tr.allowed, lj.max(axis=1), -np.inf)
-        path, score = best_segmentation(mat)
-        lab = np.full((n, n), -1, dtype=np.int64)
-        lab[tr.ia, tr.ib] = np.argmax(lj, axis=1)
-        labels = np.array([lab[a, b] for a, b in itertools.pairwise(path)], dtype=np.int64)
+        if self.switch_penalty > 0:
+            cube = np.full((n, n, lj.shape[1]), -np.inf)
+            cube[tr.ia, tr.ib] = np.where(tr.allowed[:, None], lj, -np.inf)
+            path, labels_list, score = best_labelled_segmentation(cube, self.switch_penalty)
+            labels = np.array(labels_list, dtype=np.int64)
+        else:
+            mat = np.full((n, n), -np.inf)
+            mat[tr.ia, tr.ib] = np.where(tr.allowed, lj.max(axis=1), -np.inf)
+            path, score = best_segmentation(mat)
+            lab = np.full((n, n), -1, dtype=np.int64)
+            lab[tr.ia, tr.ib] = np.argmax(lj, axis=1)
+            labels = np.array([lab[a, b] for a, b in itertools.pairwise(path)], dtype=np.int64)
         bounds = tr.nodes[path] + tr.offset
         bounds[0], bounds[-1] = 0, tr.n_full - 1
         return Parse(bounds, labels, score, tr.nodes[1:-1] + tr.offset)
