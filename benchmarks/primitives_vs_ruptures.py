@@ -55,7 +55,11 @@ DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "figueroa"
 CONFIGS = {
     "circular_wiping.mat": ParserConfig(shape=("pos",), levels=("force",), n_skills=2, n_phases=3),
     "peeling_noobj.mat": ParserConfig(
-        shape=("pos",), levels=("force", "angular"), arms=(0, 1), n_skills=4
+        shape=("pos",),
+        levels=("force", "torque", "speed", "angular"),
+        arms=(0, 1),
+        n_skills=4,
+        switch_penalty=30.0,
     ),
 }
 
@@ -177,7 +181,8 @@ def main() -> None:
         print(
             f"== {path.name}: {len(streams)} recordings, {n_true} true boundaries, "
             f"tolerance {args.tolerance:g} s, channels shape={','.join(cfg.shape)} "
-            f"levels={','.join(cfg.levels) or '-'} arms={cfg.arms or 'all'}, K={cfg.n_skills}"
+            f"levels={','.join(cfg.levels) or '-'} arms={cfg.arms or 'all'}, K={cfg.n_skills}, "
+            f"phases={cfg.n_phases or '-'}, switch penalty {cfg.switch_penalty:g}"
         )
         head = f"{'acc':>6} {'acc1':>6} {'P':>5} {'R':>5} {'F1':>5} {'pred':>5}"
         head += f" {'time s':>8} {'x parser':>8}"

@@ -256,6 +256,9 @@ def evaluate(
         int | None,
         typer.Option(help="Group runs of skills into this many phases (default: no grouping)."),
     ] = None,
+    switch_penalty: Annotated[
+        float, typer.Option(help="Cost of a change of skill in the parse, nats.")
+    ] = 0.0,
     rate: Annotated[
         float | None, typer.Option(help="Sampling rate of files without dt, Hz (default 100).")
     ] = None,
@@ -282,6 +285,7 @@ def evaluate(
         options.integer("--subsample", subsample, low=1, high=1000)
         if phases is not None:
             options.integer("--phases", phases, low=1, high=100)
+        options.finite("--switch-penalty", switch_penalty, low=0.0)
         options.seed(seed)
         if threshold is not None:
             options.finite("--threshold", threshold, low=0.0, low_open=True)
@@ -307,6 +311,7 @@ def evaluate(
             threshold=threshold,
             trim_rest=trim_rest,
             n_phases=phases,
+            switch_penalty=switch_penalty,
             seed=seed,
         )
         results = {}

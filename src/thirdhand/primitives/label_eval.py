@@ -65,6 +65,8 @@ class ParserConfig:
     trim_rest : bool
     n_phases : int or None
         Group runs of skills into this many phases (None: every run of a skill is a phase).
+    switch_penalty : float
+        Cost of a change of skill in the parse, nats (see :class:`PrimitiveLibrary`).
     n_init : int
     seed : int
     """
@@ -80,6 +82,7 @@ class ParserConfig:
     window: int = 5
     trim_rest: bool = False
     n_phases: int | None = None
+    switch_penalty: float = 0.0
     n_init: int = 4
     seed: int = 0
 
@@ -204,6 +207,7 @@ def fit_library(
             window=cfg.window,
             grid=cfg.grid,
             trim_rest=cfg.trim_rest,
+            switch_penalty=cfg.switch_penalty,
             n_init=cfg.n_init,
             seed=cfg.seed,
         ).fit(list(tracks))
