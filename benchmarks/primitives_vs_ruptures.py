@@ -5,8 +5,8 @@ recordings), in one run and on the same channels and subsampling:
 
 - **parser**: :func:`thirdhand.primitives.label_eval.evaluate_streams`, leave
   one recording out, consecutive segments of one skill merged;
-- **seed parser**: positions only, speed-minimum cuts only, every kept cut a
-  boundary (the configuration of the seed, as a new user ran it);
+- **seed parser**: positions only, speed-minimum cuts only, K = number of
+  human labels, every kept cut a boundary (the seed, as a new user ran it);
 - **ZCV only**: every candidate cut (speed minimum) is a boundary;
 - **PELT (l2)** and **KernelCPD (rbf)** from ``ruptures`` on standardised
   channels, penalty ``β = 3 · d · log n`` (l2) and ``β = log n`` (rbf, whose
@@ -151,7 +151,16 @@ def main() -> None:
         res = evaluate_streams(streams, cfg, tolerance=args.tolerance)
         t_parser = time.perf_counter() - t0
         rows.append(("parser", res.accuracy, res.global_accuracy, res.boundaries, t_parser))
-        seed_cfg = replace(cfg, shape=("pos",), levels=(), grid=None, n_phases=None)
+        n_labels = len(np.unique(np.concatenate([s.labels for s in streams])))
+        seed_cfg = replace(
+            cfg,
+            shape=("pos",),
+            levels=(),
+            grid=None,
+            n_phases=None,
+            n_skills=n_labels,
+            switch_penalty=0.0,
+        )
         t0 = time.perf_counter()
         seed = evaluate_streams(streams, seed_cfg, tolerance=args.tolerance)
         rows.append(

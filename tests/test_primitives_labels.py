@@ -352,3 +352,28 @@ def _stream_from(x: np.ndarray, labels: np.ndarray, name: str):  # type: ignore[
     b = x.T
     arm = ArmTrack(b[:, :3], b[:, [4, 5, 6, 3]], b[:, 7:10], b[:, 10:13])
     return LabelledStream(name, np.arange(b.shape[0]) * 0.01, (arm,), labels.astype(np.int64))
+
+
+def test_stream_channels_units_and_layout() -> None:
+    from thirdhand.primitives.channels import LEVEL_UNITS, SHAPE_UNITS, stream_channels
+
+    n = 50
+    ang = np.linspace(0.0, 0.5, n)
+    quat = Rotation.from_rotvec(np.outer(ang, [0.0, 0.0, 1.0])).as_quat()
+    x = np.hstack(
+        [np.outer(np.arange(n) * 0.01, [1.0, 0, 0]), quat[:, [3, 0, 1, 2]], np.zeros((n, 6))]
+    ).T
+    x[9] = 4.0  # force z
+    s = _stream_from(x, np.ones(n, dtype=np.int64), "s")
+    y, lev = stream_channels(
+        s, shape=("pos", "rot"), levels=("force", "speed", "velocity"), window=1
+    )
+    assert y.shape == (n, 6) and lev.shape == (n, 5)
+    np.testing.assert_allclose(y[:, 5], ang / SHAPE_UNITS["rot"], atol=1e-9)  # log map about z
+    np.testing.assert_allclose(lev[:, 0], 4.0 / LEVEL_UNITS["force"])
+    np.testing.assert_allclose(lev[:, 1], 1.0 / LEVEL_UNITS["speed"], rtol=1e-9)  # 1 m/s
+    np.testing.assert_allclose(lev[:, 2:], [[1.0 / LEVEL_UNITS["velocity"], 0, 0]] * n, atol=1e-9)
+    with pytest.raises(PrimitiveError, match="unknown level channel 'jerk'"):
+        stream_channels(s, levels=("jerk",))
+    with pytest.raises(PrimitiveError, match="at least one shape channel"):
+        stream_channels(s, shape=())
