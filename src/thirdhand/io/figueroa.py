@@ -140,9 +140,7 @@ def _cells(value: Any) -> list[Any]:
     """A MATLAB cell/struct array squeezed by loadmat as a list of its elements."""
     if isinstance(value, np.ndarray) and value.dtype == object:
         return list(value.ravel())
-    if isinstance(value, np.ndarray) and value.ndim == 1 and value.dtype != object:
-        return [value]
-    return [value]
+    return [value]  # a single element (one demonstration) is not wrapped by loadmat
 
 
 def _arms(x: Any, path: Path, where: str) -> tuple[ArmTrack, ...]:
