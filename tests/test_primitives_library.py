@@ -93,7 +93,7 @@ def test_library_bad_input() -> None:
         PrimitiveLibrary(2, threshold=0.1).fit([(t, y)])
     with pytest.raises(PrimitiveError, match="no demonstration"):
         PrimitiveLibrary(2, threshold=0.1).fit([])
-    with pytest.raises(PrimitiveError, match="at least 4 samples, got 2"):
+    with pytest.raises(PrimitiveError, match=r"at least 5 samples .*window.*got 2"):
         PrimitiveLibrary(2, threshold=0.1).fit([(t[:2], y[:2])])
 
 
@@ -122,3 +122,30 @@ def test_library_e_step_equals_enumeration_on_a_real_track() -> None:
     # each node's outgoing marginals sum to the probability that the node is a cut
     cut_prob = u.sum(axis=1)[1:-1]
     np.testing.assert_allclose(cut_prob, u.sum(axis=0)[1:-1], atol=1e-10)
+
+
+@pytest.mark.parametrize("lam", [0.0, 1.5, 50.0])
+def test_labelled_viterbi_with_switch_penalty_equals_enumeration(
+    lam: float, rng: np.random.Generator
+) -> None:
+    from thirdhand.primitives.segmentation_dp import best_labelled_segmentation
+
+    m, k = 6, 3
+    scores = rng.normal(0.0, 2.0, (m + 2, m + 2, k))
+    best = -np.inf
+    for mask in itertools.product((False, True), repeat=m):
+        nodes = [0, *[i + 1 for i in range(m) if mask[i]], m + 1]
+        for labs in itertools.product(range(k), repeat=len(nodes) - 1):
+            v = sum(
+                scores[a, b, c] for (a, b), c in zip(itertools.pairwise(nodes), labs, strict=True)
+            )
+            v -= lam * sum(x != y for x, y in itertools.pairwise(labs))
+            best = max(best, v)
+    nodes, labels, score = best_labelled_segmentation(scores, lam)
+    assert score == pytest.approx(best, abs=1e-9)
+    again = sum(
+        scores[a, b, c] for (a, b), c in zip(itertools.pairwise(nodes), labels, strict=True)
+    )
+    again -= lam * sum(x != y for x, y in itertools.pairwise(labels))
+    assert again == pytest.approx(score, abs=1e-9)
+    assert nodes[0] == 0 and nodes[-1] == m + 1 and len(labels) == len(nodes) - 1

@@ -217,3 +217,182 @@ def library(
         )
     if plot is not None:
         out.print(f"wrote {plot}")
+
+
+def _names(value: str) -> tuple[str, ...]:
+    return tuple(v.strip() for v in value.split(",") if v.strip())
+
+
+@app.command()
+def evaluate(
+    files: Annotated[
+        list[Path], typer.Argument(help="Labelled .mat files (proc_data/True_states or Data_*).")
+    ],
+    skills: Annotated[
+        int | None, typer.Option(help="Number of skills K (default: chosen by BIC over 2-6).")
+    ] = None,
+    shape: Annotated[
+        str, typer.Option(help="Shape channels per arm: pos, rot, force, torque (comma list).")
+    ] = "pos",
+    levels: Annotated[
+        str,
+        typer.Option(help="Level channels per arm: force, torque, speed, angular ('' for none)."),
+    ] = "force",
+    arms: Annotated[
+        str | None, typer.Option(help="Arms to use, e.g. 0 or 0,1 (default all).")
+    ] = None,
+    tolerance: Annotated[float, typer.Option(help="Boundary tolerance, seconds.")] = 1.0,
+    grid: Annotated[
+        float, typer.Option(help="Extra candidate cut every GRID seconds (0: speed minima only).")
+    ] = 0.5,
+    subsample: Annotated[int, typer.Option(help="Keep every n-th sample for the parse.")] = 5,
+    threshold: Annotated[
+        float | None, typer.Option(help="Speed threshold of the cuts (default 5% of peak).")
+    ] = None,
+    trim_rest: Annotated[
+        bool, typer.Option(help="Leave rest at the ends of a recording out of the skills.")
+    ] = False,
+    phases: Annotated[
+        int | None,
+        typer.Option(help="Group runs of skills into this many phases (default: no grouping)."),
+    ] = None,
+    switch_penalty: Annotated[
+        float, typer.Option(help="Cost of a change of skill in the parse, nats.")
+    ] = 0.0,
+    rate: Annotated[
+        float | None, typer.Option(help="Sampling rate of files without dt, Hz (default 100).")
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the EM restarts.")] = 0,
+    json_out: Annotated[Path | None, typer.Option("--json", help="Write the results here.")] = None,
+    force: Annotated[
+        bool, typer.Option(help="Replace an existing --json file (kept as a numbered .bak).")
+    ] = False,
+) -> None:
+    """Parse each labelled recording with a library fitted on the others; score it.
+
+    Frame accuracy under the best skill-to-label map (Hungarian), boundary
+    precision/recall/F1 within --tolerance, per recording and per file.
+    """
+    from thirdhand.fileops import write_text
+    from thirdhand.io.figueroa import read_labelled_mat
+    from thirdhand.primitives.label_eval import ParserConfig, evaluate_streams
+
+    try:
+        if skills is not None:
+            options.integer("--skills", skills, low=1, high=100)
+        options.finite("--tolerance", tolerance, low=0.0)
+        options.finite("--grid", grid, low=0.0)
+        options.integer("--subsample", subsample, low=1, high=1000)
+        if phases is not None:
+            options.integer("--phases", phases, low=1, high=100)
+        options.finite("--switch-penalty", switch_penalty, low=0.0)
+        options.seed(seed)
+        if threshold is not None:
+            options.finite("--threshold", threshold, low=0.0, low_open=True)
+        if rate is not None:
+            options.finite("--rate", rate, low=0.0, low_open=True)
+        arm_ids: tuple[int, ...] | None = None
+        if arms is not None:
+            try:
+                arm_ids = tuple(int(a) for a in _names(arms))
+            except ValueError:
+                raise ThirdhandError(
+                    f"--arms must be comma-separated integers, got {arms!r}"
+                ) from None
+        if json_out is not None:
+            check_output(json_out, force=force, inputs=files)
+        cfg = ParserConfig(
+            shape=_names(shape),
+            levels=_names(levels),
+            arms=arm_ids,
+            n_skills=skills,
+            subsample=subsample,
+            grid=grid or None,
+            threshold=threshold,
+            trim_rest=trim_rest,
+            n_phases=phases,
+            switch_penalty=switch_penalty,
+            seed=seed,
+        )
+        results = {}
+        for f in files:
+            streams = read_labelled_mat(f, rate_hz=rate)
+            results[str(f)] = (streams, evaluate_streams(streams, cfg, tolerance=tolerance))
+    except ThirdhandError as exc:
+        raise _fail(exc) from None
+    doc: dict[str, Any] = {
+        "format": "thirdhand.primitives-evaluation/1",
+        "tolerance_s": tolerance,
+        "config": {k: v for k, v in cfg.__dict__.items()},
+        "files": [],
+    }
+    for fname, (streams, res) in results.items():
+        out.print(
+            f"{fname}: {len(streams)} recordings, K = {res.streams[0].n_skills}, frame accuracy "
+            f"{res.accuracy:.3f} (one map for all: {res.global_accuracy:.3f}), "
+            f"boundaries P {res.boundaries.precision:.2f} "
+            f"R {res.boundaries.recall:.2f} F1 {res.boundaries.f1:.2f} "
+            f"({res.boundaries.n_matched}/{res.boundaries.n_true} true within {tolerance:g} s, "
+            f"{res.boundaries.n_pred} predicted); map skill->label {res.mapping}"
+        )
+        out.print(
+            f"  {'recording':<30} {'samples':>7} {'acc':>6} {'P':>5} {'R':>5} {'F1':>5} "
+            f"{'true':>4} {'pred':>4} {'cands':>5} {'phases':>6} {'fit s':>6}"
+        )
+        for r in res.streams:
+            b = r.boundaries
+            note = " (in-sample)" if r.in_sample else ""
+            out.print(
+                f"  {r.name[:30]:<30} {r.n_samples:>7} {r.accuracy:>6.3f} {b.precision:>5.2f} "
+                f"{b.recall:>5.2f} {b.f1:>5.2f} {b.n_true:>4} {b.n_pred:>4} {r.n_candidates:>5} "
+                f"{r.n_phases:>6} {r.fit_s:>6.1f}{note}"
+            )
+        if res.bic:
+            out.print("  BIC: " + ", ".join(f"K={k}: {v:.0f}" for k, v in res.bic.items()))
+        doc["files"].append(
+            {
+                "file": fname,
+                "accuracy": res.accuracy,
+                "global_accuracy": res.global_accuracy,
+                "boundaries": _bscore(res.boundaries),
+                "raw_boundaries": _bscore(res.raw_boundaries),
+                "mapping": {str(k): v for k, v in res.mapping.items()},
+                "bic": {str(k): v for k, v in res.bic.items()},
+                "rate_assumed": any(s.rate_assumed for s in streams),
+                "recordings": [
+                    {
+                        "name": r.name,
+                        "samples": r.n_samples,
+                        "accuracy": r.accuracy,
+                        "global_accuracy": r.global_accuracy,
+                        "boundaries": _bscore(r.boundaries),
+                        "true_boundaries_s": s.boundaries.tolist(),
+                        "n_candidates": r.n_candidates,
+                        "n_segments": r.n_segments,
+                        "n_phases": r.n_phases,
+                        "n_skills": r.n_skills,
+                        "in_sample": r.in_sample,
+                        "fit_s": r.fit_s,
+                    }
+                    for r, s in zip(res.streams, streams, strict=True)
+                ],
+            }
+        )
+    if json_out is not None:
+        try:
+            write_text(json_out, json.dumps(doc, indent=1))
+        except ThirdhandError as exc:
+            raise _fail(exc) from None
+        out.print(f"wrote {json_out}")
+
+
+def _bscore(b: Any) -> dict[str, Any]:
+    return {
+        "precision": b.precision,
+        "recall": b.recall,
+        "f1": b.f1,
+        "n_true": b.n_true,
+        "n_pred": b.n_pred,
+        "n_matched": b.n_matched,
+        "tolerance_s": b.tolerance,
+    }

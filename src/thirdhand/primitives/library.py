@@ -27,8 +27,17 @@ from scipy.special import logsumexp
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory
 from thirdhand.primitives.mixture import ProMPMixture
 from thirdhand.primitives.promp import ProMP
-from thirdhand.primitives.segment_features import SegmentStats, candidate_cuts, segment_stats
-from thirdhand.primitives.segmentation_dp import best_segmentation, segment_marginals
+from thirdhand.primitives.segment_features import (
+    SegmentStats,
+    candidate_cuts,
+    segment_stats,
+    smoothed_speed,
+)
+from thirdhand.primitives.segmentation_dp import (
+    best_labelled_segmentation,
+    best_segmentation,
+    segment_marginals,
+)
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -60,15 +69,34 @@ class Parse:
         """Kept cuts (sample indices), without the ends."""
         return self.bounds[1:-1]
 
+    def merged(self) -> Parse:
+        """Consecutive segments of the same skill as one: a phase of repeated strokes.
+
+        The score is kept (the same segmentation, read one level up).
+        """
+        if self.labels.size == 0:
+            return self
+        keep = np.concatenate([[True], self.labels[1:] != self.labels[:-1]])
+        bounds = np.concatenate([self.bounds[:-1][keep], self.bounds[-1:]])
+        return Parse(bounds, self.labels[keep], self.log_prob, self.candidates)
+
+    def frame_labels(self) -> IntArray:
+        """Skill of every sample, shape (bounds[-1] + 1,) (a cut starts its segment)."""
+        out = np.repeat(self.labels, np.diff(self.bounds))
+        return np.concatenate([out, self.labels[-1:]])
+
 
 @dataclass
 class _Track:
     y: FloatArray
+    levels: FloatArray
     nodes: IntArray
     ia: IntArray
     ib: IntArray
     allowed: NDArray[np.bool_]
     features: SegmentStats
+    offset: int
+    n_full: int
 
 
 class PrimitiveLibrary:
@@ -101,6 +129,20 @@ class PrimitiveLibrary:
     n_reseed : int
         A skill that explains (almost) no segment is moved onto the worst explained
         probable segment, at most this many times per restart.
+    grid : float, optional
+        Also place a candidate cut every ``grid`` seconds: motions that never stop
+        (circles, a wiping phase) give the speed threshold no cut at all.
+    trim_rest : bool
+        Leave the rest (speed under ``threshold``) at the start and end of a track out
+        of the skills: it joins the first and the last segment. A person standing
+        still before reaching is not performing a skill, and annotators count that
+        wait as part of the reach.
+    skill_noise : bool
+        One observation noise per skill (see :class:`ProMPMixture`).
+    switch_penalty : float
+        Log-probability cost of a change of skill between consecutive segments in
+        :meth:`parse` (a semi-Markov chain over skills that prefers to stay: a
+        prior on how long a phase lasts); 0 scores every segment on its own.
     seed : int
         Seeds the restarts.
 
@@ -133,8 +175,16 @@ class PrimitiveLibrary:
         noise_floor: float = 1e-4,
         covariance: str = "diag",
         n_reseed: int = 10,
+        grid: float | None = None,
+        trim_rest: bool = False,
+        skill_noise: bool = False,
+        switch_penalty: float = 0.0,
         seed: int = 0,
     ) -> None:
+        self.switch_penalty = switch_penalty
+        self.skill_noise = skill_noise
+        self.grid = grid
+        self.trim_rest = trim_rest
         self.noise_floor = noise_floor
         self.covariance = covariance
         self.n_reseed = n_reseed
@@ -152,25 +202,60 @@ class PrimitiveLibrary:
 
     # ----------------------------------------------------------------- data
     def _prepare(
-        self, t: ArrayLike, y: ArrayLike, name: str, cuts: IntArray | None = None
+        self,
+        t: ArrayLike,
+        y: ArrayLike,
+        name: str,
+        cuts: IntArray | None = None,
+        levels: ArrayLike | None = None,
     ) -> _Track:
-        ta, ya = check_trajectory(t, y, name=name, min_samples=max(self.min_length, 3))
+        need = max(self.min_length, 3, self.window)
+        n_given = int(np.asarray(t).size)
+        if n_given < need:
+            raise PrimitiveError(
+                f"{name}: expected at least {need} samples (one speed window of {self.window} "
+                f"and the shortest segment of {self.min_length}), got {n_given}"
+            )
+        ta, ya = check_trajectory(t, y, name=name, min_samples=need)
+        if levels is None or np.asarray(levels).shape == (ta.size, 0):
+            la = np.zeros((ta.size, 0))
+        else:
+            _, la = check_trajectory(ta, levels, name=f"{name} levels", min_samples=need)
         dt = np.diff(ta)
         if dt.max() > 1.01 * dt.min():
-            grid = np.linspace(ta[0], ta[-1], ta.size)
-            ya = np.stack([np.interp(grid, ta, col) for col in ya.T], axis=1)
+            even = np.linspace(ta[0], ta[-1], ta.size)
+            ya = np.stack([np.interp(even, ta, col) for col in ya.T], axis=1)
+            la = np.stack([np.interp(even, ta, col) for col in la.T], axis=1).reshape(ta.size, -1)
         step = float((ta[-1] - ta[0]) / (ta.size - 1))
+        n_full, lo = ya.shape[0], 0
+        if self.trim_rest:
+            moving = np.flatnonzero(smoothed_speed(ya, step, self.window) >= self.threshold)
+            if moving.size and moving[-1] - moving[0] + 1 >= need:
+                lo, hi = int(moving[0]), int(moving[-1])
+                ya, la = ya[lo : hi + 1], la[lo : hi + 1]
+                if cuts is not None:
+                    cuts = cuts[(cuts > lo) & (cuts < hi)] - lo
         if cuts is None:
             cuts = candidate_cuts(
                 ya, dt=step, threshold=self.threshold, window=self.window, min_gap=self.min_length
             )
+            if self.grid is not None:
+                every = max(round(self.grid / step), self.min_length)
+                cuts = _union_cuts(cuts, np.arange(every, ya.shape[0] - 1, every), self.min_length)
         nodes = np.concatenate([[0], cuts, [ya.shape[0] - 1]]).astype(np.int64)
         ia, ib = np.triu_indices(nodes.size, k=1)
         allowed = (nodes[ib] - nodes[ia] + 1) >= self.min_length
         feats = segment_stats(
-            ya, nodes[ia], nodes[ib], n_samples=self.n_samples, n_weights=self.n_weights
+            ya,
+            nodes[ia],
+            nodes[ib],
+            n_samples=self.n_samples,
+            n_weights=self.n_weights,
+            levels=la,
         )
-        return _Track(ya, nodes, ia.astype(np.int64), ib.astype(np.int64), allowed, feats)
+        return _Track(
+            ya, la, nodes, ia.astype(np.int64), ib.astype(np.int64), allowed, feats, lo, n_full
+        )
 
     def _scores(self, tr: _Track, mixture: ProMPMixture) -> tuple[FloatArray, FloatArray]:
         lj = mixture.log_joint(tr.features)
@@ -193,8 +278,12 @@ class PrimitiveLibrary:
         return np.concatenate(us), total, mats
 
     # ------------------------------------------------------------------ fit
-    def fit(self, tracks: Sequence[tuple[ArrayLike, ArrayLike]]) -> PrimitiveLibrary:
+    def fit(self, tracks: Sequence[tuple[ArrayLike, ...]]) -> PrimitiveLibrary:
         """Learn from demonstrations ``[(t, y), …]``: ``t (n,)`` seconds, ``y (n, dims)``.
+
+        A third element ``levels (n, L)`` per track adds level channels (see
+        :class:`~thirdhand.primitives.segment_features.SegmentStats`); all tracks
+        must then have the same ``L``.
 
         Raises
         ------
@@ -204,17 +293,24 @@ class PrimitiveLibrary:
         """
         if not tracks:
             raise PrimitiveError("primitive library: no demonstration given")
-        prepared = [self._prepare(t, y, f"track {i}") for i, (t, y) in enumerate(tracks)]
-        dims = {tr.y.shape[1] for tr in prepared}
+        if self.n_skills < 1:
+            raise PrimitiveError(f"primitive library: at least 1 skill, got {self.n_skills}")
+        prepared = [
+            self._prepare(tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None)
+            for i, tr in enumerate(tracks)
+        ]
+        dims = {(tr.y.shape[1], tr.levels.shape[1]) for tr in prepared}
         if len(dims) != 1:
             raise PrimitiveError(
-                f"primitive library: tracks have different dimensions {sorted(dims)}"
+                f"primitive library: tracks have different (dimensions, levels) {sorted(dims)}"
             )
-        self.dims_ = dims.pop()
+        self.dims_, self.n_levels_ = dims.pop()
         x = SegmentStats.concat([tr.features for tr in prepared])
-        if len(x.scale) < self.n_skills:
+        n_possible = int(sum(tr.allowed.sum() for tr in prepared))
+        if n_possible < self.n_skills:
             raise PrimitiveError(
-                f"primitive library: {len(x.scale)} possible segments for {self.n_skills} skills"
+                f"primitive library: {n_possible} possible segments for {self.n_skills} skills "
+                "(fewer candidate cuts than skills: lower the threshold or use --skills)"
             )
         prior_u = np.concatenate([segment_marginals(_flat(tr))[0][tr.ia, tr.ib] for tr in prepared])
         best: tuple[float, ProMPMixture, list[float]] | None = None
@@ -226,6 +322,7 @@ class PrimitiveLibrary:
                 noise_floor=self.noise_floor,
                 covariance=self.covariance,
                 use_angle=self.dims_ >= 2,
+                skill_noise=self.skill_noise,
             )
             mix.init_kmeanspp(x, prior_u, rng)
             u = prior_u
@@ -246,7 +343,7 @@ class PrimitiveLibrary:
         self.log_likelihood_, self.mixture_, self.history_ = best
         _, _, mats = self._e_step(prepared, self.mixture_)
         self.marginals_ = mats
-        self.candidates_ = [tr.nodes[1:-1] for tr in prepared]
+        self.candidates_ = [tr.nodes[1:-1] + tr.offset for tr in prepared]
         return self
 
     @staticmethod
@@ -262,15 +359,25 @@ class PrimitiveLibrary:
         k = int(dead[0])
         mix.means_[k] = x.ridge[worst]
         mix.covs_[k] = np.mean(mix.covs_, axis=0)
+        mix.skill_noise_[k] = mix.noise_
         mix.weights_[k] = 1.0 / mix.n_components
         mix.weights_ /= mix.weights_.sum()
         if mix.use_angle:
             mix.angle_mean_[k] = x.angle[worst]
+        if x.n_levels:
+            mix.level_mean_[k] = x.lev_sum[worst] / max(float(x.lev_n[worst]), 1.0)
+            mix.level_var_[k] = np.mean(mix.level_var_, axis=0)
         return True
 
     # ---------------------------------------------------------------- parse
     def parse(
-        self, t: ArrayLike, y: ArrayLike, *, cuts: ArrayLike | None = None, name: str = "track"
+        self,
+        t: ArrayLike,
+        y: ArrayLike,
+        *,
+        levels: ArrayLike | None = None,
+        cuts: ArrayLike | None = None,
+        name: str = "track",
     ) -> Parse:
         """Most likely segmentation and skill labels of a (new) demonstration.
 
@@ -278,23 +385,40 @@ class PrimitiveLibrary:
         ----------
         t : array_like, shape (n,)
         y : array_like, shape (n, dims)
+        levels : array_like, shape (n, L), optional
+            Level channels, as in :meth:`fit`.
         cuts : array_like of int, optional
             Candidate cuts to use instead of the speed threshold.
         """
-        tr = self._prepare(t, y, name, None if cuts is None else np.asarray(cuts, dtype=np.int64))
-        if tr.y.shape[1] != self.dims_:
+        tr = self._prepare(
+            t,
+            y,
+            name,
+            None if cuts is None else np.asarray(cuts, dtype=np.int64),
+            levels=levels,
+        )
+        if (tr.y.shape[1], tr.levels.shape[1]) != (self.dims_, self.n_levels_):
             raise PrimitiveError(
-                f"{name}: {tr.y.shape[1]} dimensions, the library has {self.dims_}"
+                f"{name}: {tr.y.shape[1]} dimensions and {tr.levels.shape[1]} levels, "
+                f"the library has {self.dims_} and {self.n_levels_}"
             )
         lj = self.mixture_.log_joint(tr.features)
         n = tr.nodes.size
-        mat = np.full((n, n), -np.inf)
-        mat[tr.ia, tr.ib] = np.where(tr.allowed, lj.max(axis=1), -np.inf)
-        path, score = best_segmentation(mat)
-        lab = np.full((n, n), -1, dtype=np.int64)
-        lab[tr.ia, tr.ib] = np.argmax(lj, axis=1)
-        labels = np.array([lab[a, b] for a, b in itertools.pairwise(path)], dtype=np.int64)
-        return Parse(tr.nodes[path], labels, score, tr.nodes[1:-1])
+        if self.switch_penalty > 0:
+            cube = np.full((n, n, lj.shape[1]), -np.inf)
+            cube[tr.ia, tr.ib] = np.where(tr.allowed[:, None], lj, -np.inf)
+            path, labels_list, score = best_labelled_segmentation(cube, self.switch_penalty)
+            labels = np.array(labels_list, dtype=np.int64)
+        else:
+            mat = np.full((n, n), -np.inf)
+            mat[tr.ia, tr.ib] = np.where(tr.allowed, lj.max(axis=1), -np.inf)
+            path, score = best_segmentation(mat)
+            lab = np.full((n, n), -1, dtype=np.int64)
+            lab[tr.ia, tr.ib] = np.argmax(lj, axis=1)
+            labels = np.array([lab[a, b] for a, b in itertools.pairwise(path)], dtype=np.int64)
+        bounds = tr.nodes[path] + tr.offset
+        bounds[0], bounds[-1] = 0, tr.n_full - 1
+        return Parse(bounds, labels, score, tr.nodes[1:-1] + tr.offset)
 
     def skills(self, *, duration: float = 1.0) -> list[ProMP]:
         """Each component as a ProMP over the normalised segment (the angle feature dropped)."""
@@ -303,6 +427,16 @@ class PrimitiveLibrary:
             ProMP.from_params(m[:nw], c[:nw, :nw], dims=self.dims_, duration=duration)
             for m, c in zip(self.mixture_.means_, self.mixture_.covs_, strict=True)
         ]
+
+
+def _union_cuts(a: IntArray, b: IntArray, min_gap: int) -> IntArray:
+    """Sorted union of two cut lists, dropping a cut closer than ``min_gap`` to the previous."""
+    both = np.unique(np.concatenate([a, b]).astype(np.int64))
+    out: list[int] = []
+    for c in both:
+        if not out or c - out[-1] >= min_gap:
+            out.append(int(c))
+    return np.array(out, dtype=np.int64)
 
 
 def _flat(tr: _Track) -> FloatArray:

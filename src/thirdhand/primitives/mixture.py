@@ -5,7 +5,9 @@ Component ``k`` is a ProMP ``w ~ N(μ_k, Σ_k)`` with shared observation noise
 likelihood ``N(q | Φ μ_k, Φ Σ_k Φᵀ + σ² I)`` — a density over the segment's own
 samples, so segmentations with different numbers of segments explain the same
 data and compare fairly. For tracks of two or more dimensions the removed
-rotation angle is an extra Gaussian variable per component.
+rotation angle is an extra Gaussian variable per component. Level channels
+(:attr:`SegmentStats.lev_sum`), when given, add a per-sample diagonal Gaussian
+``N(l_t | m_k, diag v_k)`` on each segment's samples.
 
 Everything is computed from :class:`~thirdhand.primitives.segment_features.SegmentStats`
 in the eigenbasis of ``L_kᵀ Φᵀ Φ L_k`` (``Σ_k = L_k L_kᵀ``), where every
@@ -41,6 +43,9 @@ class ProMPMixture:
         direction apart).
     use_angle : bool
         Model the removed rotation angle (2-D and 3-D tracks).
+    skill_noise : bool
+        One observation variance per component instead of a shared one: a precise
+        skill (a reach) then keeps its shape term sharp beside a sloppy one (circles).
 
     Attributes
     ----------
@@ -48,9 +53,13 @@ class ProMPMixture:
     means_ : ndarray, shape (K, F)
     covs_ : ndarray, shape (K, F, F)
     noise_ : float
-        Observation variance σ², units².
+        Observation variance σ², units² (shared; the mean of ``skill_noise_``).
+    skill_noise_ : ndarray, shape (K,)
+        Per-component observation variance (all equal to ``noise_`` unless ``skill_noise``).
     angle_mean_, angle_var_ : ndarray, shape (K,)
         Radians, radians².
+    level_mean_, level_var_ : ndarray, shape (K, L)
+        Per-sample Gaussian of the level channels (units, units²).
     """
 
     def __init__(
@@ -61,7 +70,9 @@ class ProMPMixture:
         noise_floor: float = 1e-4,
         covariance: str = "full",
         use_angle: bool = False,
+        skill_noise: bool = False,
     ) -> None:
+        self.skill_noise = skill_noise
         self.noise_floor = noise_floor
         self.covariance = covariance
         self.n_components = n_components
@@ -90,11 +101,19 @@ class ProMPMixture:
         data_var = max(float(p @ (st.sq / np.maximum(st.n_obs, 1.0))), 1e-300)
         self._noise_floor = max(self.noise_floor * data_var, 1e-14)
         self.noise_ = max(1e-2 * data_var, self._noise_floor)
+        self.skill_noise_ = np.full(k, self.noise_)
         ang = st.angle[idx]
         self.angle_mean_ = ang.copy()
         avar = float(p @ (st.angle - p @ st.angle) ** 2)
         self._angle_floor = max(self.reg * avar, 1e-6)
         self.angle_var_ = np.full(k, avar + self._angle_floor)
+        n_l = max(float(p @ st.lev_n), 1e-12)
+        lm = (p @ st.lev_sum) / n_l
+        lv = np.maximum((p @ st.lev_sq) / n_l - lm**2, 0.0)
+        self._level_floor = np.maximum(1e-3 * lv, 1e-12)
+        denom = np.maximum(st.lev_n[idx], 1.0)[:, None]
+        self.level_mean_ = st.lev_sum[idx] / denom
+        self.level_var_ = np.repeat((lv + self._level_floor)[None], k, axis=0)
 
     # ------------------------------------------------------------ core
     def _posterior(
@@ -106,7 +125,7 @@ class ProMPMixture:
         lam, v = np.linalg.eigh(chol.T @ st.gram @ chol)
         lam = np.maximum(lam, 0.0)
         basis = chol @ v
-        s2 = self.noise_
+        s2 = float(self.skill_noise_[k])
         mu = self.means_[k]
         a_mu = st.gram @ mu
         g = (st.proj - st.scale[:, None] * a_mu[None]) / s2
@@ -130,6 +149,12 @@ class ProMPMixture:
                     + np.log(self.angle_var_[k])
                     + LOG_2PI
                 )
+            if st.n_levels:
+                m, v = self.level_mean_[k], self.level_var_[k]
+                quad = (st.lev_sq - 2.0 * st.lev_sum * m + st.lev_n[:, None] * m**2) / v
+                out[:, k] += -0.5 * np.sum(
+                    quad + st.lev_n[:, None] * (np.log(v) + LOG_2PI)[None], axis=1
+                )
         with np.errstate(divide="ignore"):
             return out + np.log(self.weights_)[None]
 
@@ -150,7 +175,7 @@ class ProMPMixture:
             r = np.exp(lj - lp[:, None]) * w[:, None]
             nk = r.sum(axis=0)
             self.weights_ = np.maximum(nk, 1e-12) / nk.sum()
-            resid, n_tot = 0.0, 0.0
+            resid, n_tot = np.zeros(self.n_components), np.zeros(self.n_components)
             for k in range(self.n_components):
                 _, mean, dvar, basis = self._posterior(st, k)
                 rk = r[:, k]
@@ -167,15 +192,28 @@ class ProMPMixture:
                         am = rk @ st.angle / nk[k]
                         self.angle_mean_[k] = am
                         self.angle_var_[k] = rk @ (st.angle - am) ** 2 / nk[k] + self._angle_floor
+                    if st.n_levels:
+                        nl = max(float(rk @ st.lev_n), 1e-12)
+                        lm = rk @ st.lev_sum / nl
+                        lv = (rk @ st.lev_sq) / nl - lm**2
+                        self.level_mean_[k] = lm
+                        self.level_var_[k] = np.maximum(lv, 0.0) + self._level_floor
                 a_diag = np.einsum("fi,fg,gi->i", basis, st.gram, basis)
                 e_sq = (
                     st.sq
                     - 2.0 * np.sum(mean * st.proj, axis=1)
                     + st.scale * (np.einsum("hf,fg,hg->h", mean, st.gram, mean) + dvar @ a_diag)
                 )
-                resid += float(rk @ e_sq)
-                n_tot += float(rk @ st.n_obs)
-            self.noise_ = max(resid / max(n_tot, 1e-12), self._noise_floor)
+                resid[k] = float(rk @ e_sq)
+                n_tot[k] = float(rk @ st.n_obs)
+            self.noise_ = max(resid.sum() / max(n_tot.sum(), 1e-12), self._noise_floor)
+            if self.skill_noise:
+                per = resid / np.maximum(n_tot, 1e-12)
+                self.skill_noise_ = np.where(
+                    n_tot > 1e-9, np.maximum(per, self._noise_floor), self.noise_
+                )
+            else:
+                self.skill_noise_ = np.full(self.n_components, self.noise_)
             if abs(ll - prev) <= tol * max(abs(ll), 1.0):
                 break
             prev = ll

@@ -147,6 +147,13 @@ class SegmentStats:
         Ridge weights (for initialisation and plots).
     angle : ndarray, shape (h,)
         Rotation about z removed, radians (zeros for 1-D tracks).
+    lev_n : ndarray, shape (h,)
+        Samples of the level channels in the segment (its first sample excluded, as
+        for the shape): each skill has a per-sample Gaussian on the absolute
+        levels (a contact force, an arm's angular speed), beside its shape.
+    lev_sum, lev_sq : ndarray, shape (h, L)
+        Per level channel, the sum and the sum of squares over those samples
+        (``L = 0`` without level channels).
     """
 
     gram: FloatArray
@@ -156,6 +163,14 @@ class SegmentStats:
     n_obs: FloatArray
     ridge: FloatArray
     angle: FloatArray
+    lev_n: FloatArray
+    lev_sum: FloatArray
+    lev_sq: FloatArray
+
+    @property
+    def n_levels(self) -> int:
+        """Number of level channels ``L``."""
+        return int(self.lev_sum.shape[1])
 
     def take(self, idx: NDArray[np.int64] | NDArray[np.bool_]) -> SegmentStats:
         """A subset of the segments."""
@@ -167,6 +182,9 @@ class SegmentStats:
             self.n_obs[idx],
             self.ridge[idx],
             self.angle[idx],
+            self.lev_n[idx],
+            self.lev_sum[idx],
+            self.lev_sq[idx],
         )
 
     @staticmethod
@@ -176,7 +194,17 @@ class SegmentStats:
             parts[0].gram,
             *(
                 np.concatenate([getattr(p, f) for p in parts])
-                for f in ("scale", "proj", "sq", "n_obs", "ridge", "angle")
+                for f in (
+                    "scale",
+                    "proj",
+                    "sq",
+                    "n_obs",
+                    "ridge",
+                    "angle",
+                    "lev_n",
+                    "lev_sum",
+                    "lev_sq",
+                )
             ),
         )
 
@@ -189,6 +217,7 @@ def segment_stats(
     n_samples: int = 30,
     n_weights: int = 8,
     regularization: float = 1e-6,
+    levels: FloatArray | None = None,
 ) -> SegmentStats:
     """Statistics of segments ``y[a:b+1]`` after temporal scaling, translation and rotation.
 
@@ -201,6 +230,9 @@ def segment_stats(
         Common length ``L`` of the temporal scaling.
     n_weights : int
         RBFs per dimension (``F = dims × n_weights``).
+    levels : ndarray, shape (n, L), optional
+        Level channels on the same samples, summed exactly (cumulative sums) over
+        samples ``a+1 … b`` of each segment.
     """
     if np.any(ends <= starts):
         raise PrimitiveError("segment features: every segment needs at least two samples")
@@ -218,4 +250,12 @@ def segment_stats(
     sq = c * np.einsum("hnd,hnd->h", sr, sr)
     gram = np.asarray(np.kron(np.eye(dims), fr.T @ fr), dtype=np.float64)
     n_obs = ((ends - starts) * dims).astype(np.float64)
-    return SegmentStats(gram, c, proj, sq, n_obs, ridge, ang)
+    lev = np.zeros((y.shape[0], 0)) if levels is None else np.asarray(levels, dtype=np.float64)
+    if lev.ndim != 2 or lev.shape[0] != y.shape[0]:
+        raise PrimitiveError(f"segment features: levels must be ({y.shape[0]}, L), got {lev.shape}")
+    c1 = np.vstack([np.zeros((1, lev.shape[1])), np.cumsum(lev, axis=0)])
+    c2 = np.vstack([np.zeros((1, lev.shape[1])), np.cumsum(lev**2, axis=0)])
+    lev_sum = c1[ends + 1] - c1[starts + 1]
+    lev_sq = c2[ends + 1] - c2[starts + 1]
+    lev_n = (ends - starts).astype(np.float64)
+    return SegmentStats(gram, c, proj, sq, n_obs, ridge, ang, lev_n, lev_sum, lev_sq)

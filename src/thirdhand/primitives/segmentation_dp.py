@@ -95,6 +95,79 @@ def best_segmentation(scores: FloatArray) -> tuple[list[int], float]:
     return path[::-1], float(best[-1])
 
 
+def best_labelled_segmentation(
+    scores: FloatArray, switch_penalty: float
+) -> tuple[list[int], list[int], float]:
+    """Most likely segmentation and skill labels when a change of skill costs ``switch_penalty``.
+
+    A semi-Markov Viterbi over (node, skill of the segment ending there):
+    ``best[b, k] = max_a max_k' best[a, k'] − λ [k' ≠ k] + scores[a, b, k]``,
+    ``O(M² K)``.
+
+    Parameters
+    ----------
+    scores : ndarray, shape (M+2, M+2, K)
+        ``scores[a, b, k]`` = log-likelihood of segment ``(a, b)`` as skill ``k``.
+    switch_penalty : float
+        ``λ ≥ 0``, nats.
+
+    Returns
+    -------
+    nodes : list of int
+    labels : list of int
+        Skill of each segment.
+    score : float
+    """
+    if scores.ndim != 3:
+        raise PrimitiveError(f"labelled segment scores must be (M+2, M+2, K), got {scores.shape}")
+    n = _check_scores(scores[:, :, 0])
+    k_n = scores.shape[2]
+    lam = float(switch_penalty)
+    if not np.isfinite(lam) or lam < 0:
+        raise PrimitiveError(f"switch penalty must be a non-negative number, got {lam}")
+    best = np.full((n, k_n), -np.inf)
+    back_a = np.zeros((n, k_n), dtype=np.int64)
+    back_k = np.zeros((n, k_n), dtype=np.int64)
+    for b in range(1, n):
+        if b == 1:
+            prev = np.zeros((1, k_n))
+            prev_k = np.zeros((1, k_n), dtype=np.int64)
+        else:
+            inner = best[1:b]
+            top = np.argmax(inner, axis=1)
+            stay = inner
+            move = inner[np.arange(b - 1), top][:, None] - lam
+            take_move = move > stay
+            prev = np.vstack([np.zeros((1, k_n)), np.where(take_move, move, stay)])
+            prev_k = np.vstack(
+                [
+                    np.zeros((1, k_n), dtype=np.int64),
+                    np.where(take_move, top[:, None], np.arange(k_n)[None, :]),
+                ]
+            )
+        cand = prev + scores[:b, b, :]
+        a = np.argmax(cand, axis=0)
+        best[b] = cand[a, np.arange(k_n)]
+        back_a[b] = a
+        back_k[b] = prev_k[a, np.arange(k_n)]
+    k = int(np.argmax(best[-1]))
+    total = float(best[-1, k])
+    if not np.isfinite(total):
+        raise PrimitiveError("no segmentation has a finite score (every path is forbidden)")
+    nodes, labels = [n - 1], [k]
+    b = n - 1
+    while True:
+        a = int(back_a[b, k])
+        if a == 0:
+            break
+        k_prev = int(back_k[b, k])
+        nodes.append(a)
+        labels.append(k_prev)
+        b, k = a, k_prev
+    nodes.append(0)
+    return nodes[::-1], labels[::-1], total
+
+
 def brute_force_marginals(scores: FloatArray) -> tuple[FloatArray, float]:
     """Same as :func:`segment_marginals` by enumerating all ``2^M`` segmentations (M ≤ 16)."""
     n = _check_scores(scores)

@@ -1,0 +1,355 @@
+"""The primitive-library parser against a human's phase labels, leave one recording out.
+
+For each recording of a file the library is fitted on the others (on the
+recording itself when the file holds only one, reported as in-sample), the
+recording is parsed, consecutive segments of the same skill are merged into one
+run (:meth:`~thirdhand.primitives.library.Parse.merged`), optionally runs are
+grouped into phases (:class:`~thirdhand.primitives.phases.PhaseGrouper`, learned
+on the training recordings' parses), and the result is compared with the labels
+(:mod:`~thirdhand.primitives.evaluation`): boundary precision / recall / F1
+within a tolerance, and frame accuracy under the best one-to-one map from
+predicted to human labels — one map per held-out recording, since each is
+parsed by its own library whose skill numbers mean nothing to another fold's
+(the single map over all recordings is reported beside it).
+"""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.io.figueroa import LabelledStream
+from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.channels import stream_channels
+from thirdhand.primitives.evaluation import (
+    BoundaryScore,
+    apply_map,
+    best_label_map,
+    change_times,
+    match_boundaries,
+)
+from thirdhand.primitives.library import PrimitiveLibrary
+from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
+from thirdhand.primitives.segment_features import smoothed_speed
+
+IntArray = NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class ParserConfig:
+    """Settings of the parser on labelled recordings.
+
+    Attributes
+    ----------
+    shape, levels : tuple of str
+        Channels (:func:`~thirdhand.primitives.channels.stream_channels`).
+    arms : tuple of int or None
+        Arms used (None: all).
+    n_skills : int or None
+        ``K``; None selects it by BIC over ``k_range`` on the training recordings.
+    k_range : tuple of int
+    subsample : int
+        Keep every n-th sample (the parse is mapped back to every sample).
+    grid : float or None
+        Extra candidate cuts every ``grid`` seconds.
+    threshold : float or None
+        Speed threshold of the candidate cuts, channel units/s; default 5 % of
+        the median peak smoothed speed of the training recordings.
+    window : int
+        Speed smoothing, samples (after subsampling).
+    trim_rest : bool
+    n_phases : int or None
+        Group runs of skills into this many phases (None: every run of a skill is a phase).
+    switch_penalty : float
+        Cost of a change of skill in the parse, nats (see :class:`PrimitiveLibrary`).
+    n_init : int
+    seed : int
+    """
+
+    shape: tuple[str, ...] = ("pos",)
+    levels: tuple[str, ...] = ("force",)
+    arms: tuple[int, ...] | None = None
+    n_skills: int | None = 3
+    k_range: tuple[int, ...] = (2, 3, 4, 5, 6)
+    subsample: int = 5
+    grid: float | None = 0.5
+    threshold: float | None = None
+    window: int = 5
+    trim_rest: bool = False
+    n_phases: int | None = None
+    switch_penalty: float = 0.0
+    n_init: int = 4
+    seed: int = 0
+
+
+@dataclass(frozen=True)
+class StreamResult:
+    """One held-out recording.
+
+    Attributes
+    ----------
+    name : str
+    n_samples : int
+    skills : ndarray of int, shape (n_samples,)
+        Skill per sample after merging.
+    boundaries : BoundaryScore
+        Changes of skill (consecutive segments of one skill merged).
+    raw_boundaries : BoundaryScore
+        Every kept cut, unmerged (the seed parser's output).
+    accuracy : float
+        Under this recording's best map.
+    global_accuracy : float
+        Under the file's single best map (filled in after all recordings are parsed).
+    n_candidates, n_segments, n_phases : int
+    n_skills : int
+        ``K`` used for this recording's library.
+    in_sample : bool
+    fit_s : float
+    """
+
+    name: str
+    n_samples: int
+    skills: IntArray
+    boundaries: BoundaryScore
+    raw_boundaries: BoundaryScore
+    accuracy: float
+    global_accuracy: float
+    n_candidates: int
+    n_segments: int
+    n_phases: int
+    n_skills: int
+    in_sample: bool
+    fit_s: float
+
+
+@dataclass(frozen=True)
+class FileResult:
+    """All recordings of one file.
+
+    Attributes
+    ----------
+    streams : list of StreamResult
+    accuracy : float
+        Frame accuracy over all samples, each recording under its own best map.
+    global_accuracy : float
+        Frame accuracy over all samples under ``mapping``.
+    boundaries : BoundaryScore
+        Summed over the recordings.
+    raw_boundaries : BoundaryScore
+        Every kept cut, summed over the recordings.
+    mapping : dict
+        Skill → human label.
+    bic : dict
+        K → BIC of the last library fitted with K chosen by BIC (empty with a fixed K).
+    """
+
+    streams: list[StreamResult]
+    accuracy: float
+    global_accuracy: float
+    boundaries: BoundaryScore
+    raw_boundaries: BoundaryScore
+    mapping: dict[int, int]
+    bic: dict[int, float] = field(default_factory=dict)
+
+
+def n_parameters(lib: PrimitiveLibrary) -> int:
+    """Free parameters of a fitted library (for BIC)."""
+    mix = lib.mixture_
+    f = mix.means_.shape[1]
+    per = f + (f if lib.covariance == "diag" else f * (f + 1) // 2)
+    per += 2 if mix.use_angle else 0
+    per += 2 * lib.n_levels_
+    return mix.n_components * per + (mix.n_components - 1) + 1
+
+
+def bic(lib: PrimitiveLibrary, n_obs: int) -> float:
+    """``−2 log L + p log n``, ``n`` scalar observations."""
+    return -2.0 * lib.log_likelihood_ + n_parameters(lib) * float(np.log(max(n_obs, 2)))
+
+
+def _tracks(
+    streams: Sequence[LabelledStream], cfg: ParserConfig
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    out = []
+    for s in streams:
+        y, lev = stream_channels(
+            s, shape=cfg.shape, levels=cfg.levels, arms=cfg.arms, window=cfg.window * cfg.subsample
+        )
+        k = cfg.subsample
+        out.append((s.t[::k], y[::k], lev[::k]))
+    return out
+
+
+def _threshold(tracks: Sequence[tuple[np.ndarray, ...]], cfg: ParserConfig) -> float:
+    if cfg.threshold is not None:
+        return cfg.threshold
+    peaks = [
+        smoothed_speed(y, float(np.median(np.diff(t))), cfg.window).max() for t, y, _ in tracks
+    ]
+    return 0.05 * float(np.median(peaks))
+
+
+def fit_library(
+    tracks: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], cfg: ParserConfig
+) -> tuple[PrimitiveLibrary, dict[int, float]]:
+    """Fit with ``cfg.n_skills``, or with the K of lowest BIC over ``cfg.k_range``."""
+    thr = _threshold(tracks, cfg)
+
+    def make(k: int) -> PrimitiveLibrary:
+        return PrimitiveLibrary(
+            k,
+            threshold=thr,
+            window=cfg.window,
+            grid=cfg.grid,
+            trim_rest=cfg.trim_rest,
+            switch_penalty=cfg.switch_penalty,
+            n_init=cfg.n_init,
+            seed=cfg.seed,
+        ).fit(list(tracks))
+
+    if cfg.n_skills is not None:
+        return make(cfg.n_skills), {}
+    n_obs = sum(y.size + lev.size for _, y, lev in tracks)
+    scores: dict[int, float] = {}
+    best: PrimitiveLibrary | None = None
+    for k in cfg.k_range:
+        try:
+            lib = make(k)
+        except PrimitiveError:
+            if best is None:
+                raise
+            break
+        scores[k] = bic(lib, n_obs)
+        if best is None or scores[k] <= min(scores.values()):
+            best = lib
+    if best is None:
+        raise PrimitiveError(f"no K in {list(cfg.k_range)} could be fitted")
+    return best, scores
+
+
+def evaluate_streams(
+    streams: Sequence[LabelledStream], cfg: ParserConfig, *, tolerance: float = 1.0
+) -> FileResult:
+    """Leave-one-recording-out parse of every recording, scored against its labels."""
+    if not streams:
+        raise PrimitiveError("no labelled recording to evaluate")
+    tracks = _tracks(streams, cfg)
+    results: list[StreamResult] = []
+    last_bic: dict[int, float] = {}
+    for i, (s, (t, y, lev)) in enumerate(zip(streams, tracks, strict=True)):
+        train = [tr for j, tr in enumerate(tracks) if j != i] or [tracks[i]]
+        t0 = time.perf_counter()
+        lib, scores = fit_library(train, cfg)
+        last_bic = scores or last_bic
+        raw = lib.parse(t, y, levels=lev, name=s.name)
+        parse = raw.merged()
+        if cfg.n_phases is not None:
+            parse = _phase_grouper(lib, train, cfg).group(y, parse)
+        fit_s = time.perf_counter() - t0
+        sub = parse.frame_labels()
+        idx = np.clip(np.searchsorted(t, s.t, side="right") - 1, 0, t.size - 1)
+        skills = sub[idx]
+        results.append(
+            StreamResult(
+                s.name,
+                s.n_samples,
+                skills,
+                match_boundaries(s.boundaries, change_times(s.t, skills), tolerance=tolerance),
+                match_boundaries(s.boundaries, t[raw.cuts], tolerance=tolerance),
+                float(best_label_map([skills], [s.labels])[1] / s.n_samples),
+                float("nan"),
+                int(raw.candidates.size),
+                int(raw.labels.size),
+                int(parse.labels.size),
+                int(lib.n_skills),
+                len(streams) == 1,
+                fit_s,
+            )
+        )
+    mapping, n_ok, n_all = best_label_map([r.skills for r in results], [s.labels for s in streams])
+    final = []
+    for r, s in zip(results, streams, strict=True):
+        acc = float(np.mean(apply_map(r.skills, mapping) == s.labels))
+        final.append(StreamResult(**{**r.__dict__, "global_accuracy": acc}))
+    per_map = sum(r.accuracy * r.n_samples for r in final) / n_all
+    total, raw_total = final[0].boundaries, final[0].raw_boundaries
+    for r in final[1:]:
+        total, raw_total = total + r.boundaries, raw_total + r.raw_boundaries
+    return FileResult(final, per_map, n_ok / n_all, total, raw_total, mapping, last_bic)
+
+
+def _phase_grouper(
+    lib: PrimitiveLibrary,
+    train: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    cfg: ParserConfig,
+) -> PhaseGrouper:
+    assert cfg.n_phases is not None
+    descs, lens = [], []
+    for t, y, lev in train:
+        d, w = run_descriptors(y, lib.parse(t, y, levels=lev).merged(), lib.n_skills)
+        descs.append(d)
+        lens.append(w)
+    return PhaseGrouper(cfg.n_phases, n_skills=lib.n_skills, seed=cfg.seed).fit(descs, lens)
+
+
+def cluster_segments(
+    features: Sequence[np.ndarray],
+    bounds: Sequence[np.ndarray],
+    n_clusters: int,
+    *,
+    seed: int = 0,
+) -> list[IntArray]:
+    """Per-sample cluster labels of segments, for methods that only give change points.
+
+    Each segment is represented by the mean of its samples' features (each
+    column standardised over all recordings) and the segments of all recordings
+    are grouped by k-means (k-means++ seeding, best of 10, weighted by length),
+    so that a change-point method gets a frame accuracy under the same
+    Hungarian map as the parser.
+
+    Parameters
+    ----------
+    features : sequence of ndarray, shape (n_i, d)
+    bounds : sequence of ndarray of int
+        Per recording, ``[0, cut_1, …, n_i − 1]``.
+    n_clusters : int
+
+    Returns
+    -------
+    list of ndarray of int, shape (n_i,)
+    """
+    from scipy.cluster.vq import kmeans2
+
+    allx = np.vstack(features)
+    mu, sd = allx.mean(axis=0), allx.std(axis=0)
+    sd[sd == 0] = 1.0
+    means, lens = [], []
+    for x, b in zip(features, bounds, strict=True):
+        z = (x - mu) / sd
+        for a, e in itertools.pairwise(b):
+            means.append(z[a : max(e, a + 1)].mean(axis=0))
+            lens.append(max(int(e - a), 1))
+    pts = np.array(means)
+    w = np.array(lens, dtype=np.float64)
+    k = min(n_clusters, len(pts))
+    best: tuple[float, IntArray] | None = None
+    for r in range(10):
+        cent, lab = kmeans2(pts, k, minit="++", seed=seed + r)
+        cost = float(w @ ((pts - cent[lab]) ** 2).sum(axis=1))
+        if best is None or cost < best[0]:
+            best = (cost, lab.astype(np.int64))
+    assert best is not None
+    out, h = [], 0
+    for x, b in zip(features, bounds, strict=True):
+        lab = np.empty(x.shape[0], dtype=np.int64)
+        for a, e in itertools.pairwise(b):
+            lab[a:e] = best[1][h]
+            h += 1
+        lab[-1] = best[1][h - 1]
+        out.append(lab)
+    return out
