@@ -237,6 +237,11 @@ COMMANDS: dict[str, tuple[str, str, str]] = {
         "execute_command",
         "Execute a task's plan on a simulated robot arm with a motion planner.",
     ),
+    "merge": (
+        "thirdhand.merge.cli",
+        "merge_command",
+        "Merge recordings of one session by several capture systems (clock and frame aligned).",
+    ),
     "headpose": (
         "thirdhand.perception.cli",
         "headpose_command",
