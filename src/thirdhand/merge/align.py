@@ -54,7 +54,7 @@ RANSAC_THRESHOLD_M = 0.02
 TRIM_FACTOR = 4.0
 TRIM_FLOOR_M = 1e-4
 #: Most pairs used by the joint refinement (evenly thinned beyond).
-MAX_REFINE_PAIRS = 6000
+MAX_REFINE_PAIRS = 20000
 #: Longest interval between two reference samples a pair may be interpolated across, s.
 PAIR_MAX_GAP_S = 0.1
 
