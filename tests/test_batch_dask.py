@@ -152,3 +152,15 @@ def test_bad_scheduler_addresses(bad: str) -> None:
 def test_serial_and_process_maps_keep_order() -> None:
     assert list(parallel_map(_square, range(6))) == [0, 1, 4, 9, 16, 25]
     assert list(parallel_map(_square, range(6), jobs=2)) == [0, 1, 4, 9, 16, 25]
+
+
+def test_learn_segmentation_units_on_the_cluster_equal_serial(cluster: str) -> None:
+    """``learn --scheduler``'s unit (segment one recording) gives the serial phases exactly."""
+    from thirdhand.plan.cli import _segment_one
+    from thirdhand.segment import segment_demonstration
+    from thirdhand.synth import make_scene
+
+    demos = [make_scene("drawer", seed=s, sensor=None).slice(0.0, 4.0) for s in (1, 2)]
+    serial = [segment_demonstration(d).to_dict() for d in demos]
+    remote = list(parallel_map(_segment_one, [(d, None) for d in demos], scheduler=cluster))
+    assert [r.to_dict() for r in remote] == serial  # type: ignore[attr-defined]

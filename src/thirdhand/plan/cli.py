@@ -44,6 +44,14 @@ def _load(path: Path) -> Demonstration:
     return io.load(path)
 
 
+def _segment_one(job: tuple[Demonstration, object]) -> object:
+    """One independent unit of ``learn --jobs/--scheduler``: segment one demonstration."""
+    from thirdhand.segment import segment_demonstration
+
+    demo, model = job
+    return segment_demonstration(demo, model)  # type: ignore[arg-type]
+
+
 @app.command("learn")
 def learn_command(
     demos: Annotated[
@@ -71,6 +79,16 @@ def learn_command(
         bool,
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
     ] = False,
+    jobs: Annotated[
+        int, typer.Option(help="Segment the recordings in this many processes.")
+    ] = 1,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Segment the recordings as Dask tasks: tcp://HOST:PORT or 'local' "
+            "(docs/cluster.md; needs the dask extra)."
+        ),
+    ] = None,
 ) -> None:
     """Learn constraints, symbols and the assembly plan; write the task file.
 
@@ -80,6 +98,11 @@ def learn_command(
     from thirdhand.plan.learn import learn
     from thirdhand.taskfile import save_task
 
+    options.integer("--jobs", jobs, low=1, high=1024)
+    if scheduler is not None:
+        from thirdhand.batch import check_scheduler
+
+        check_scheduler(scheduler)
     check_output(output, force=force, inputs=demos)
     if report is not None:
         if report.exists() and not report.is_dir():
@@ -94,10 +117,16 @@ def learn_command(
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
     phases = None
-    if seg_model is not None:
-        from thirdhand.segment import segment_demonstration
+    if not no_segment and (seg_model is not None or jobs > 1 or scheduler is not None):
+        from thirdhand.batch import parallel_map
 
-        phases = [segment_demonstration(d, seg_model) for d in loaded]
+        # One unit per recording; the segmentation is deterministic, so the task
+        # file is the same serially, in processes and on a cluster.
+        phases = list(
+            parallel_map(
+                _segment_one, [(d, seg_model) for d in loaded], jobs=jobs, scheduler=scheduler
+            )
+        )
     result = learn(
         loaded,
         names=[p.name for p in demos],
