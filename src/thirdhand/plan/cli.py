@@ -79,9 +79,7 @@ def learn_command(
         bool,
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
     ] = False,
-    jobs: Annotated[
-        int, typer.Option(help="Segment the recordings in this many processes.")
-    ] = 1,
+    jobs: Annotated[int, typer.Option(help="Segment the recordings in this many processes.")] = 1,
     scheduler: Annotated[
         str | None,
         typer.Option(
