@@ -164,3 +164,8 @@ def test_learn_segmentation_units_on_the_cluster_equal_serial(cluster: str) -> N
     serial = [segment_demonstration(d).to_dict() for d in demos]
     remote = list(parallel_map(_segment_one, [(d, None) for d in demos], scheduler=cluster))
     assert [r.to_dict() for r in remote] == serial  # type: ignore[attr-defined]
+
+
+def test_local_cluster_of_two_workers() -> None:
+    """``--scheduler local``: a LocalCluster of --jobs processes, started and closed here."""
+    assert list(parallel_map(abs, [-1, -2, 3, -4], scheduler="local", jobs=2)) == [1, 2, 3, 4]

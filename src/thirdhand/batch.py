@@ -81,7 +81,7 @@ def _client(address: str, jobs: int, option: str) -> tuple[Any, Any]:
     if target is None:
         n = jobs if jobs > 1 else (os.cpu_count() or 1)
         cluster = LocalCluster(
-            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
         )
         return Client(cluster), cluster
     host, port = target
