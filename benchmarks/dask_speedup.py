@@ -82,7 +82,11 @@ def main() -> None:
             for p in reversed(procs):
                 p.terminate()
             for p in procs:
-                p.wait(timeout=30)
+                try:
+                    p.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
     print(f"cluster start-up ({args.workers} workers): {t_up:.1f} s")
     print(f"--scheduler ({args.workers} Dask workers): {t_dask:.1f} s")
     # Compared as JSON text: a standard error of one run is NaN, and NaN != NaN.
