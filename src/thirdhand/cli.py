@@ -89,6 +89,11 @@ LAZY: dict[str, LazyCommand] = {
         "execute_command",
         "Execute a task's plan on a simulated robot arm with a motion planner.",
     ),
+    "merge": LazyCommand(
+        "thirdhand.merge.cli",
+        "merge_command",
+        "Merge recordings of one session by several capture systems (clock and frame aligned).",
+    ),
     "review": LazyCommand(
         "thirdhand.review.cli",
         "review_command",
@@ -313,15 +318,94 @@ def convert(
     force: Annotated[
         bool, typer.Option(help="Replace an existing output (kept as a numbered .bak).")
     ] = False,
+    task: Annotated[
+        Path | None, typer.Option(help=".rrd: a task file whose constraints and plan to show.")
+    ] = None,
+    demo: Annotated[
+        Path | None, typer.Option("--demo", help=".rrd from a TASK: the recording to show.")
+    ] = None,
+    phases: Annotated[
+        Path | None, typer.Option(help=".rrd: a phases file (thirdhand segment --json).")
+    ] = None,
+    execution: Annotated[
+        Path | None, typer.Option(help=".rrd: an executed run, OUT.json of execute --record.")
+    ] = None,
 ) -> None:
-    """Convert a recording between formats (labels and metadata carried along)."""
+    """Convert a recording between formats, or write a Rerun recording (``out.rrd``).
+
+    ``convert REC|TASK out.rrd`` writes the bodies' poses on a timeline, the
+    interaction phases, keyframes, learned constraints and an execution replay
+    (needs the ``rerun`` extra); see ``thirdhand.export.rrd``.
+    """
     from thirdhand import io
 
+    extras = {"--task": task, "--demo": demo, "--phases": phases, "--execution": execution}
+    if target.suffix.lower() == ".rrd":
+        _convert_rrd(source, target, force=force, **{k[2:]: v for k, v in extras.items()})
+        return
+    given = [k for k, v in extras.items() if v is not None]
+    if given:
+        _fail(f"{', '.join(given)}: only for a .rrd target")
     check_output(target, force=force, inputs=[source])
-    demo = io.load(source)
+    recording = io.load(source)
     check_output(target, force=force, inputs=[source])
-    io.save(demo, target, format=to)
-    out.print(f"wrote {target}: {demo}")
+    io.save(recording, target, format=to)
+    out.print(f"wrote {target}: {recording}")
+
+
+def _convert_rrd(
+    source: Path,
+    target: Path,
+    *,
+    force: bool,
+    task: Path | None,
+    demo: Path | None,
+    phases: Path | None,
+    execution: Path | None,
+) -> None:
+    from thirdhand import io
+    from thirdhand.export.rrd import missing_extra
+
+    message = missing_extra()
+    if message:
+        _fail(message)
+    from thirdhand.export.rrd import write_rrd
+    from thirdhand.taskfile import load_task
+
+    inputs = [p for p in (source, task, demo, phases, execution) if p is not None]
+    check_output(target, force=force, inputs=inputs)
+    if not target.parent.is_dir():
+        _fail(f"{target}: the folder {target.parent} does not exist")
+    task_path = task
+    if source.suffix.lower() == ".json" and source.is_file():
+        if task is not None:
+            _fail(f"{source} is a task file already; --task is for a recording source")
+        task_path = source
+        recording = demo
+    else:
+        if demo is not None:
+            _fail("--demo is for a TASK source; the source is the recording")
+        recording = source
+    task_file = load_task(task_path) if task_path is not None else None
+    if recording is None and task_file is not None:
+        for inp in task_file.provenance.inputs:
+            for cand in (Path(inp.path), source.parent / inp.path):
+                if cand.exists() and cand.suffix.lower() != ".json":
+                    recording = cand
+                    break
+            if recording is not None:
+                break
+    demo_obj = io.load(recording) if recording is not None else None
+    counts = write_rrd(
+        target,
+        demo_obj,
+        task=task_file,
+        task_path=task_path,
+        phases=phases,
+        execution=execution,
+    )
+    shown = ", ".join(f"{v} {k.replace('_', ' ')}" for k, v in counts.items() if v)
+    out.print(f"wrote {target}: {shown or 'nothing to show'}")
 
 
 @app.command()

@@ -7,7 +7,7 @@ The integrator mounts :data:`learn_command` as ``thirdhand learn`` and
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
@@ -18,6 +18,10 @@ from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.fileops import check_output
 from thirdhand.progress import stage_status
+
+if TYPE_CHECKING:
+    from thirdhand.segment.model import SegmentModel
+    from thirdhand.segment.pipeline import SegmentationResult
 
 out = Console(highlight=False, soft_wrap=True)
 
@@ -43,6 +47,14 @@ def _load(path: Path) -> Demonstration:
 
         return rosbag.read(sorted(path.glob("*.bag")))
     return io.load(path)
+
+
+def _segment_one(job: tuple[Demonstration, SegmentModel | None]) -> SegmentationResult:
+    """One independent unit of ``learn --jobs/--scheduler``: segment one demonstration."""
+    from thirdhand.segment import segment_demonstration
+
+    demo, model = job
+    return segment_demonstration(demo, model)
 
 
 @app.command("learn")
@@ -79,6 +91,14 @@ def learn_command(
         bool,
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
     ] = False,
+    jobs: Annotated[int, typer.Option(help="Segment the recordings in this many processes.")] = 1,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Segment the recordings as Dask tasks: tcp://HOST:PORT or 'local' "
+            "(docs/cluster.md; needs the dask extra)."
+        ),
+    ] = None,
 ) -> None:
     """Learn a task from recordings: every stage that needs no robot, into one task file.
 
@@ -92,6 +112,11 @@ def learn_command(
     from thirdhand.taskfile import save_task
 
     options.seed(seed)
+    options.integer("--jobs", jobs, low=1, high=1024)
+    if scheduler is not None:
+        from thirdhand.batch import check_scheduler
+
+        check_scheduler(scheduler)
     check_output(output, force=force, inputs=demos)
     if report is not None:
         if report.exists() and not report.is_dir():
@@ -105,10 +130,22 @@ def learn_command(
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
+    phases = None
+    if not no_segment and (jobs > 1 or scheduler is not None):
+        from thirdhand.batch import parallel_map
+
+        # One unit per recording; the segmentation is deterministic, so the task
+        # file is the same serially, in processes and on a cluster.
+        phases = list(
+            parallel_map(
+                _segment_one, [(d, seg_model) for d in loaded], jobs=jobs, scheduler=scheduler
+            )
+        )
     with stage_status() as say:
         result = learn_task(
             loaded,
             names=[p.name for p in demos],
+            phases=phases,
             segment=not no_segment,
             segment_model=seg_model,
             primitives=not no_primitives,

@@ -1,10 +1,12 @@
 """``thirdhand irl``: relational inverse reinforcement learning (RCSI, BLMRIL).
 
 ``thirdhand irl experiment {datasize,noise,transfer,dynamics,chair} [--runs N] [--jobs J]
-[--checkpoint FILE]`` reproduces a table of Munzer et al. (IJCAI 2015), ours beside the paper's, and
-writes it as JSON. ``thirdhand irl learn TASK.json...`` learns a relational
-reward from the plans of task files (or of synthetic chairs with ``--synth``) and
-plans a bench and chairs with other numbers of legs with it.
+[--scheduler tcp://HOST:PORT] [--checkpoint FILE]`` reproduces a table of Munzer et al.
+(IJCAI 2015), ours beside the paper's, and writes it as JSON (``--scheduler``: the
+trials as Dask tasks, the same table; see ``docs/cluster.md``).
+``thirdhand irl learn TASK.json...`` learns a relational reward from the plans of
+task files (or of synthetic chairs with ``--synth``) and plans a bench and chairs
+with other numbers of legs with it.
 """
 
 from __future__ import annotations
@@ -55,6 +57,13 @@ def experiment(
     name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENTS)}.")],
     runs: Annotated[int, typer.Option(help="Repetitions per row.", min=2)] = 100,
     jobs: Annotated[int, typer.Option(help="Worker processes.", min=1)] = 1,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Run the trials as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or "
+            "'local' (a local cluster of --jobs workers). Needs the dask extra."
+        ),
+    ] = None,
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Output JSON (default irl_<name>.json).")
     ] = None,
@@ -78,11 +87,21 @@ def experiment(
     check_output(path, force=force, inputs=[checkpoint] if checkpoint else [])
     options.integer("--runs", runs, low=2, high=100000)
     options.integer("--jobs", jobs, low=1, high=1024)
+    if scheduler is not None:
+        from thirdhand.batch import check_scheduler
+
+        check_scheduler(scheduler)
     start = time.perf_counter()
     if tabulate and checkpoint is None:
         raise RelationalError("irl experiment: --tabulate needs --checkpoint")
     result = run_experiment(
-        name, runs=runs, jobs=jobs, out=path, checkpoint=checkpoint, tabulate_only=tabulate
+        name,
+        runs=runs,
+        jobs=jobs,
+        out=path,
+        checkpoint=checkpoint,
+        tabulate_only=tabulate,
+        scheduler=scheduler,
     )
     out.print(format_table(result))
     out.print(f"{time.perf_counter() - start:.1f} s; written {path}")

@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +18,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.batch import parallel_map
 from thirdhand.relational.boosting import fit_boosted
 from thirdhand.relational.csi import fit_rcsi
 from thirdhand.relational.data import expert_pairs, random_pairs
@@ -124,18 +124,22 @@ def run_trial(trial: Trial) -> dict[str, dict[str, float]]:
     return out
 
 
-def run_trials(trials: Sequence[Trial], *, jobs: int = 1) -> list[dict[str, dict[str, float]]]:
-    """Run trials, in ``jobs`` processes when more than one."""
-    return list(iter_trials(trials, jobs=jobs))
+def run_trials(
+    trials: Sequence[Trial], *, jobs: int = 1, scheduler: str | None = None
+) -> list[dict[str, dict[str, float]]]:
+    """Run trials, in ``jobs`` processes when more than one, or on a Dask ``scheduler``."""
+    return list(iter_trials(trials, jobs=jobs, scheduler=scheduler))
 
 
-def iter_trials(trials: Sequence[Trial], *, jobs: int = 1) -> Iterator[dict[str, dict[str, float]]]:
-    """Results of ``trials`` in order, as each is done (``jobs`` processes when more than one)."""
-    if jobs <= 1:
-        yield from (run_trial(t) for t in trials)
-        return
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        yield from pool.map(run_trial, trials)
+def iter_trials(
+    trials: Sequence[Trial], *, jobs: int = 1, scheduler: str | None = None
+) -> Iterator[dict[str, dict[str, float]]]:
+    """Results of ``trials`` in order, as each is done (see :func:`thirdhand.batch.parallel_map`).
+
+    Every trial is seeded by its own ``seed``, so the results are the same
+    serially, in processes and on a cluster.
+    """
+    return parallel_map(run_trial, trials, jobs=jobs, scheduler=scheduler)
 
 
 def load_checkpoint(path: str | os.PathLike[str] | None, name: str) -> dict[tuple[str, int], Any]:
@@ -184,6 +188,7 @@ def _grid(
     checkpoint: str | os.PathLike[str] | None = None,
     *,
     tabulate_only: bool = False,
+    scheduler: str | None = None,
 ) -> dict[str, Any]:
     """Run ``runs`` seeds of each row's trial; columns are (title, method, eval domain).
 
@@ -207,7 +212,7 @@ def _grid(
             if text and not text.endswith(b"\n"):  # a truncated last record
                 with open(checkpoint, "a") as fh:
                     fh.write("\n")
-        results = iter_trials([t for _, t in todo], jobs=jobs)
+        results = iter_trials([t for _, t in todo], jobs=jobs, scheduler=scheduler)
         for (label, t), res in zip(todo, results, strict=True):
             done[(label, t.seed)] = res
             if checkpoint is not None:
@@ -369,6 +374,7 @@ def large(
     *,
     sizes: Sequence[int] = (10, 15),
     n_states: int = 10,
+    scheduler: str | None = None,
     **grid: Any,
 ) -> dict[str, Any]:
     """Beyond the paper: rewards learned on 5 blocks, evaluated on 10 and 15 blocks by search.
@@ -377,18 +383,14 @@ def large(
     configurations times orderings, ~10^9 for 15); perf is measured on
     ``n_states`` states drawn from P_state per run, with depth-1 lookahead on
     the learned reward, values from the rollouts. ``grid`` (checkpoint options)
-    is accepted and ignored.
+    is accepted and ignored; ``scheduler`` runs the trials on a Dask cluster.
     """
     rows = []
     cols: list[str] = []
     for reward in ("stack", "unstack"):
         for n in sizes:
             args = [(reward, n, n_states, 1000 * k + 17) for k in range(runs)]
-            if jobs <= 1:
-                res = [_large_trial(a) for a in args]
-            else:
-                with ProcessPoolExecutor(max_workers=jobs) as pool:
-                    res = list(pool.map(_large_trial, args))
+            res = list(parallel_map(_large_trial, args, jobs=jobs, scheduler=scheduler))
             row = Row(f"{reward}, {n} blocks")
             for key in res[0]:
                 title = key.replace(f" on {n} ", " on N ")
@@ -455,6 +457,7 @@ def run_experiment(
     out: str | os.PathLike[str] | None = None,
     checkpoint: str | os.PathLike[str] | None = None,
     tabulate_only: bool = False,
+    scheduler: str | None = None,
 ) -> dict[str, Any]:
     """Run one experiment, write its JSON to ``out`` when given, return the result.
 
@@ -466,7 +469,9 @@ def run_experiment(
         raise RelationalError(
             f"unknown experiment {name!r}, expected one of {', '.join(EXPERIMENTS)}"
         )
-    result = EXPERIMENTS[name](runs, jobs, checkpoint=checkpoint, tabulate_only=tabulate_only)
+    result = EXPERIMENTS[name](
+        runs, jobs, checkpoint=checkpoint, tabulate_only=tabulate_only, scheduler=scheduler
+    )
     if out is not None:
         from thirdhand.fileops import write_text
 

@@ -1,0 +1,163 @@
+"""Independent units of work run serially, in local processes, or as Dask tasks on a cluster.
+
+``parallel_map(fn, items, jobs=N, scheduler=ADDRESS)`` yields ``fn(item)`` for
+every item, in the items' order, whatever ran them:
+
+- ``scheduler=None, jobs=1``: in this process;
+- ``scheduler=None, jobs=N``: ``N`` local worker processes;
+- ``scheduler="local"``: a Dask ``LocalCluster`` of ``jobs`` single-threaded
+  worker processes (``jobs=1``: one per core);
+- ``scheduler="tcp://HOST:PORT"``: an existing Dask cluster (``dask scheduler``
+  and ``dask worker`` processes; see ``docs/cluster.md``). The workers must run
+  the same thirdhand and Python packages.
+
+``fn`` must be a module-level function and every unit must be seeded by its own
+item, so the results do not depend on where or in which order units run. Dask is
+imported only here, and only when a scheduler is asked for (the ``dask`` extra).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import socket
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any, TypeVar
+from urllib.parse import urlsplit
+
+from thirdhand.errors import OptionError, ThirdhandError
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+#: Seconds to wait for a scheduler to accept a connection before giving up.
+CONNECT_TIMEOUT_S = 5.0
+
+
+class BatchError(ThirdhandError, RuntimeError):
+    """A unit of work failed on a Dask worker (the message names the unit and the error)."""
+
+
+def check_scheduler(address: str, option: str = "--scheduler") -> tuple[str, int] | None:
+    """``(host, port)`` of a ``tcp://HOST:PORT`` (or ``HOST:PORT``) address; None for ``local``.
+
+    Raises
+    ------
+    OptionError
+        Any other form.
+    """
+    if address == "local":
+        return None
+    text = address if "://" in address else f"tcp://{address}"
+    parts = urlsplit(text)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if parts.scheme != "tcp" or not parts.hostname or port is None or not 0 < port < 65536:
+        raise OptionError(
+            f"{option} {address!r}: expected tcp://HOST:PORT (a 'dask scheduler' address) "
+            "or 'local'"
+        )
+    return parts.hostname, port
+
+
+async def _handshake(url: str) -> None:
+    """Open and close one Dask comm to ``url`` (raises on a refused, silent or foreign peer)."""
+    from distributed.comm import connect
+
+    comm = await connect(url, timeout=CONNECT_TIMEOUT_S)
+    await comm.close()
+
+
+def _client(address: str, jobs: int, option: str) -> tuple[Any, Any]:
+    """A connected ``distributed.Client`` and the LocalCluster it owns (or None)."""
+    target = check_scheduler(address, option)
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise OptionError(f"{option} needs the dask extra: pip install 'thirdhand[dask]'") from None
+    if target is None:
+        n = jobs if jobs > 1 else (os.cpu_count() or 1)
+        cluster = LocalCluster(
+            n_workers=n, threads_per_worker=1, processes=True, dashboard_address=":0"
+        )
+        return Client(cluster), cluster
+    host, port = target
+    try:  # a plain TCP probe first: a refused or silent port fails fast, never hangs
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
+    except OSError as exc:
+        raise OptionError(
+            f"{option} {address}: no Dask scheduler answers there "
+            f"({exc.strerror or type(exc).__name__}); start one with 'dask scheduler' "
+            "and workers with 'dask worker ADDRESS' (docs/cluster.md)"
+        ) from None
+    url = address if "://" in address else f"tcp://{address}"
+    try:  # then Dask's own handshake, bounded: Client() alone waits forever on a silent peer
+        asyncio.run(asyncio.wait_for(_handshake(url), 2 * CONNECT_TIMEOUT_S))
+    except (OSError, TimeoutError) as exc:
+        raise OptionError(
+            f"{option} {address}: no Dask scheduler answers there within "
+            f"{CONNECT_TIMEOUT_S:g} s ({' '.join(str(exc).split()) or 'no handshake'})"
+        ) from None
+    try:
+        client = Client(
+            url,
+            timeout=CONNECT_TIMEOUT_S,
+            set_as_default=False,
+        )
+    except (OSError, TimeoutError) as exc:
+        raise OptionError(
+            f"{option} {address}: no Dask scheduler answers there within "
+            f"{CONNECT_TIMEOUT_S:g} s ({' '.join(str(exc).split())})"
+        ) from None
+    return client, None
+
+
+def parallel_map(
+    fn: Callable[[T], R],
+    items: Iterable[T],
+    *,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    option: str = "--scheduler",
+) -> Iterator[R]:
+    """``fn(item)`` for every item, in order (see the module documentation).
+
+    Raises
+    ------
+    OptionError
+        A bad or unreachable scheduler address, or the dask extra missing.
+    BatchError
+        A unit failed on a worker.
+    """
+    work = list(items)
+    if scheduler is None:
+        if jobs <= 1 or len(work) <= 1:
+            yield from map(fn, work)
+            return
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            yield from pool.map(fn, work)
+        return
+    client, cluster = _client(scheduler, jobs, option)
+    futures: list[Any] = []
+    try:
+        futures = client.map(fn, work, pure=False)
+        for k, fut in enumerate(futures):
+            try:
+                result = fut.result()
+            except (KeyboardInterrupt, SystemExit):
+                raise
+            except Exception as exc:
+                raise BatchError(
+                    f"unit {k} of {len(work)} failed on a Dask worker: "
+                    f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+                ) from None
+            yield result
+    finally:
+        if futures:
+            client.cancel(futures)
+        client.close()
+        if cluster is not None:
+            cluster.close()

@@ -1,0 +1,1 @@
+"""Exports for other tools: :mod:`~thirdhand.export.rrd` writes Rerun recordings."""

@@ -1,0 +1,403 @@
+"""Rerun recordings (``.rrd``): a demonstration and what was learned from it on one timeline.
+
+Open the file with ``rerun out.rrd`` (the viewer of the ``rerun-sdk`` package,
+the optional extra ``thirdhand[rerun]``). Entities and timelines written:
+
+- ``world/bodies/<body>`` (timeline ``time``): the pose at every tracked frame
+  (``Transform3D``) and axes; a gap holds no sample.
+- ``world/bodies/<body>/mesh`` (static): the part's mesh, or its bounding box,
+  when the task knows it.
+- ``world/paths/<body>`` (static): the body's path, split at gaps.
+- ``phases/labels/<a>--<b>`` (``time``): ground-truth interaction, 0/1 per frame.
+- ``phases/segmented/<a>--<b>/{probability,label}`` (``time``): a
+  ``thirdhand.phases/1`` file's pairs (a null probability is no sample).
+- ``keyframes`` (``time``): one text marker per plan step.
+- ``world/bodies/<parent>/constraints/<id>`` (static): the learned constraint,
+  the child's pose in the parent; under it ``frame`` (the constraint frame, with
+  axes), ``frame/free/translation`` (an arrow per free translation spanning its
+  range), ``frame/free/rotation`` (an arc per free rotation over its range) and
+  ``frame/label``.
+- ``execution/joints/<joint>`` (timeline ``execution_time``): the robot's joint
+  trajectory, radians.
+- ``execution/bodies/<body>`` (``execution_time``): the replay's poses
+  (``OUT.parquet`` beside ``OUT.json``).
+
+Body names are escaped into one entity-path part each (``/human/rh/thumb``
+becomes ``\\/human\\/rh\\/thumb``). Times are seconds on the demonstration's
+axis (``execution_time``: seconds of the executed run).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.errors import FormatError, OutputError
+
+if TYPE_CHECKING:
+    from thirdhand.taskfile import TaskFile
+
+FloatArray = NDArray[np.float64]
+
+#: Length of the axes drawn at every body, metres.
+AXIS_LENGTH = 0.05
+#: Radius of the arcs drawn for free rotations, metres.
+ARC_RADIUS = 0.04
+#: Timeline of the demonstration and of an executed run.
+TIMELINE = "time"
+EXECUTION_TIMELINE = "execution_time"
+
+
+def body_path(name: str, root: str = "world/bodies") -> str:
+    """The entity path of a body (its name escaped into one path part)."""
+    import rerun as rr
+
+    return f"{root}/{rr.escape_entity_path_part(name)}"
+
+
+def _runs(valid: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """``[start, end)`` index ranges of consecutive True values."""
+    d = np.diff(np.concatenate([[0], valid.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True))
+
+
+def _log_bodies(rec: Any, demo: Demonstration, root: str, timeline: str, paths: bool) -> None:
+    import rerun as rr
+
+    for name in demo.body_names:
+        v = demo.valid(name)
+        entity = body_path(name, root)
+        rec.log(entity, rr.TransformAxes3D(AXIS_LENGTH), static=True)
+        if not v.any():
+            continue
+        rec.send_columns(
+            entity,
+            indexes=[rr.TimeColumn(timeline, duration=demo.t[v])],
+            columns=rr.Transform3D.columns(
+                translation=demo.pos(name)[v], quaternion=demo.quat(name)[v]
+            ),
+        )
+        if paths:
+            p = demo.pos(name)
+            strips = [p[a:b] for a, b in _runs(v) if b - a >= 2]
+            if strips:
+                rec.log(body_path(name, "world/paths"), rr.LineStrips3D(strips), static=True)
+
+
+def _log_label_phases(rec: Any, demo: Demonstration) -> int:
+    import rerun as rr
+
+    n = 0
+    for a, b in demo.labels.interaction_pairs():
+        on = np.zeros(demo.n_frames)
+        for i in demo.labels.interactions:
+            if (i.a, i.b) == (a, b):
+                on[(demo.t >= i.start) & (demo.t <= i.end)] = 1.0
+        rec.send_columns(
+            f"phases/labels/{_pair(a, b)}",
+            indexes=[rr.TimeColumn(TIMELINE, duration=demo.t)],
+            columns=rr.Scalars.columns(scalars=on),
+        )
+        n += 1
+    return n
+
+
+def _pair(a: str, b: str) -> str:
+    import rerun as rr
+
+    return rr.escape_entity_path_part(f"{a}--{b}")
+
+
+def read_phases(path: Path) -> dict[str, Any]:
+    """A ``thirdhand.phases/1`` file (``thirdhand segment --json``), checked."""
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FormatError(path, f"not a readable phases JSON file: {exc}") from None
+    if not isinstance(doc, dict) or doc.get("format") != "thirdhand.phases/1":
+        raise FormatError(path, "expected a thirdhand.phases/1 file (thirdhand segment --json)")
+    t = doc.get("time")
+    if not isinstance(t, list) or not isinstance(doc.get("pairs"), list):
+        raise FormatError(path, "a phases file needs a 'time' list and a 'pairs' list")
+    for k, pair in enumerate(doc["pairs"]):
+        label = pair.get("label") if isinstance(pair, dict) else None
+        if not isinstance(label, list) or len(label) != len(t):
+            raise FormatError(
+                path, f"pair {k}: 'label' must have one value per time", where="pairs"
+            )
+    return doc
+
+
+def _log_segmented_phases(rec: Any, doc: dict[str, Any]) -> int:
+    import rerun as rr
+
+    t = np.asarray(doc["time"], dtype=np.float64)
+    for pair in doc["pairs"]:
+        base = f"phases/segmented/{_pair(str(pair['a']), str(pair['b']))}"
+        label = np.asarray(pair["label"], dtype=np.float64)
+        rec.send_columns(
+            f"{base}/label",
+            indexes=[rr.TimeColumn(TIMELINE, duration=t)],
+            columns=rr.Scalars.columns(scalars=label),
+        )
+        prob = pair.get("probability")
+        if isinstance(prob, list) and len(prob) == t.size:
+            pv = np.asarray([np.nan if x is None else x for x in prob], dtype=np.float64)
+            ok = np.isfinite(pv)
+            if ok.any():
+                rec.send_columns(
+                    f"{base}/probability",
+                    indexes=[rr.TimeColumn(TIMELINE, duration=t[ok])],
+                    columns=rr.Scalars.columns(scalars=pv[ok]),
+                )
+    return len(doc["pairs"])
+
+
+def _arc(axis: int, lo: float, hi: float) -> FloatArray:
+    """Points of an arc about coordinate ``axis`` from angle ``lo`` to ``hi`` (radians)."""
+    n = max(4, int(np.ceil(abs(hi - lo) / np.radians(5))) + 1)
+    a = np.linspace(lo, hi, n)
+    u, w = [(1, 2), (2, 0), (0, 1)][axis]
+    pts = np.zeros((n, 3))
+    pts[:, u] = ARC_RADIUS * np.cos(a)
+    pts[:, w] = ARC_RADIUS * np.sin(a)
+    return pts
+
+
+def _log_constraints(rec: Any, task: TaskFile, bodies: Sequence[str]) -> int:
+    import rerun as rr
+
+    colours = np.array([[230, 60, 60], [60, 200, 60], [60, 90, 230]], dtype=np.uint8)
+    n = 0
+    for c in task.constraints:
+        parent = body_path(c.parent) if c.parent in bodies else "world"
+        entity = f"{parent}/constraints/{rr.escape_entity_path_part(c.id)}"
+        # child pose in the parent, then the constraint frame in the child
+        rec.log(
+            entity,
+            rr.Transform3D(translation=c.pos, quaternion=rr.Quaternion(xyzw=c.quat)),
+            static=True,
+        )
+        frame = f"{entity}/frame"
+        rec.log(
+            frame,
+            rr.Transform3D(translation=c.frame.pos, quaternion=rr.Quaternion(xyzw=c.frame.quat)),
+            rr.TransformAxes3D(AXIS_LENGTH),
+            static=True,
+        )
+        ranges = c.free_dof_array()
+        origins, vectors, arrow_colours, labels = [], [], [], []
+        strips, strip_colours = [], []
+        for k in range(3):
+            lo, hi = ranges[k]
+            if hi > lo:
+                start = np.zeros(3)
+                start[k] = lo
+                vec = np.zeros(3)
+                vec[k] = hi - lo
+                origins.append(start)
+                vectors.append(vec)
+                arrow_colours.append(colours[k])
+                labels.append(f"t{'xyz'[k]} [{lo:.3g}, {hi:.3g}] m")
+        for k in range(3):
+            lo, hi = ranges[3 + k]
+            if hi > lo:
+                strips.append(_arc(k, lo, hi))
+                strip_colours.append(colours[k])
+        if origins:
+            rec.log(
+                f"{frame}/free/translation",
+                rr.Arrows3D(origins=origins, vectors=vectors, colors=arrow_colours, labels=labels),
+                static=True,
+            )
+        if strips:
+            rec.log(
+                f"{frame}/free/rotation",
+                rr.LineStrips3D(strips, colors=strip_colours),
+                static=True,
+            )
+        rec.log(
+            f"{frame}/label",
+            rr.TextDocument(
+                f"{c.id}: {c.type} {c.parent} -> {c.child}"
+                + (f" ({c.symbol})" if c.symbol else "")
+                + f", confidence {c.confidence:.2f}"
+            ),
+            static=True,
+        )
+        n += 1
+    return n
+
+
+def _log_keyframes(rec: Any, task: TaskFile) -> int:
+    import rerun as rr
+
+    steps = [(i, s) for i, s in enumerate(task.plan) if s.time is not None]
+    for i, s in steps:
+        rec.set_time(TIMELINE, duration=float(s.time))  # type: ignore[arg-type]
+        sym = f", {s.symbol}" if s.symbol else ""
+        rec.log("keyframes", rr.TextLog(f"step {i + 1}: {s.action}({s.parent}, {s.child}{sym})"))
+    rec.reset_time()
+    return len(steps)
+
+
+def _log_meshes(rec: Any, task: TaskFile, task_path: Path | None, bodies: Sequence[str]) -> int:
+    import rerun as rr
+
+    from thirdhand.task.meshes import object_triangles
+
+    n = 0
+    for obj in task.objects:
+        if obj.name not in bodies:
+            continue
+        tri = object_triangles(obj, task_path)
+        if tri is None:
+            continue
+        verts = np.asarray(tri, dtype=np.float32).reshape(-1, 3)
+        rec.log(
+            f"{body_path(obj.name)}/mesh",
+            rr.Mesh3D(
+                vertex_positions=verts,
+                triangle_indices=np.arange(verts.shape[0], dtype=np.uint32).reshape(-1, 3),
+                albedo_factor=[0.75, 0.7, 0.6, 0.6],
+            ),
+            static=True,
+        )
+        n += 1
+    return n
+
+
+def read_execution(path: Path) -> dict[str, Any]:
+    """An executed run's ``OUT.json`` (``thirdhand execute --record OUT``), checked."""
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FormatError(path, f"not a readable execution JSON file: {exc}") from None
+    if not isinstance(doc, dict) or "t" not in doc or "q" not in doc:
+        raise FormatError(path, "expected an execution file with 't' and 'q' (thirdhand execute)")
+    t = np.asarray(doc["t"], dtype=np.float64)
+    q = np.asarray(doc["q"], dtype=np.float64)
+    if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.size:
+        raise FormatError(path, f"'q' must have one row per time: {q.shape} for {t.size} times")
+    return doc
+
+
+def _log_execution(rec: Any, doc: dict[str, Any], path: Path) -> int:
+    import rerun as rr
+
+    t = np.asarray(doc["t"], dtype=np.float64)
+    q = np.asarray(doc["q"], dtype=np.float64)
+    names = doc.get("joint_names") or doc.get("joints") or [f"q{i}" for i in range(q.shape[1])]
+    for j, name in enumerate(names[: q.shape[1]]):
+        rec.send_columns(
+            f"execution/joints/{rr.escape_entity_path_part(str(name))}",
+            indexes=[rr.TimeColumn(EXECUTION_TIMELINE, duration=t)],
+            columns=rr.Scalars.columns(scalars=q[:, j]),
+        )
+    replay = path.with_suffix(".parquet")
+    if replay.is_file():
+        from thirdhand import io
+
+        _log_bodies(rec, io.load(replay), "execution/bodies", EXECUTION_TIMELINE, paths=False)
+    return q.shape[1]
+
+
+def write_rrd(
+    path: str | os.PathLike[str],
+    demo: Demonstration | None,
+    *,
+    task: TaskFile | None = None,
+    task_path: Path | None = None,
+    phases: Path | None = None,
+    execution: Path | None = None,
+    name: str = "thirdhand",
+) -> dict[str, int]:
+    """Write a Rerun recording (see the module documentation).
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.rrd`` file; its folder must exist. Written atomically.
+    demo : Demonstration or None
+        The recording; None writes only the task (and execution).
+    task : TaskFile, optional
+        Learned constraints, plan (keyframes) and object meshes.
+    task_path : Path, optional
+        The task file, for meshes named relative to it.
+    phases : Path, optional
+        A ``thirdhand.phases/1`` file.
+    execution : Path, optional
+        ``OUT.json`` of ``thirdhand execute --record OUT``.
+    name : str
+        The recording's application id.
+
+    Returns
+    -------
+    dict
+        Counts of what was written: ``bodies``, ``label_pairs``, ``segmented_pairs``,
+        ``keyframes``, ``constraints``, ``meshes``, ``joints``.
+
+    Raises
+    ------
+    OutputError
+        The target's folder does not exist, or the file cannot be written.
+    """
+    import rerun as rr
+
+    from thirdhand.fileops import atomic_output
+
+    p = Path(path)
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise OutputError(f"{p}: the folder {folder} does not exist")
+    phases_doc = read_phases(phases) if phases is not None else None
+    exec_doc = read_execution(execution) if execution is not None else None
+    counts = dict.fromkeys(
+        (
+            "bodies",
+            "label_pairs",
+            "segmented_pairs",
+            "keyframes",
+            "constraints",
+            "meshes",
+            "joints",
+        ),
+        0,
+    )
+    with atomic_output(p) as tmp:
+        rec = rr.RecordingStream(name, recording_id=f"{name}-{p.stem}")
+        rec.save(str(tmp))
+        rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+        bodies: list[str] = []
+        if demo is not None:
+            bodies = demo.body_names
+            _log_bodies(rec, demo, "world/bodies", TIMELINE, paths=True)
+            counts["bodies"] = len(bodies)
+            counts["label_pairs"] = _log_label_phases(rec, demo)
+        if phases_doc is not None:
+            counts["segmented_pairs"] = _log_segmented_phases(rec, phases_doc)
+        if task is not None:
+            counts["keyframes"] = _log_keyframes(rec, task)
+            counts["constraints"] = _log_constraints(rec, task, bodies)
+            counts["meshes"] = _log_meshes(rec, task, task_path, bodies)
+        if exec_doc is not None and execution is not None:
+            counts["joints"] = _log_execution(rec, exec_doc, execution)
+        rec.flush()
+        rec.disconnect()
+    return counts
+
+
+def missing_extra() -> str | None:
+    """A one-line message when the ``rerun`` extra is not installed, else None."""
+    try:
+        import rerun  # noqa: F401
+    except ImportError:
+        return "writing .rrd needs the rerun extra: pip install 'thirdhand[rerun]'"
+    return None

@@ -1,0 +1,171 @@
+"""Batch work on Dask: a real scheduler and two workers started here, same table as serial.
+
+The scheduler and workers are separate processes (``python -m dask scheduler`` /
+``dask worker``) on the loopback interface, as a user would start them; the
+trials are seeded by their own settings, so the Dask run's table must equal the
+serial one exactly.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from cli_helpers import call
+from thirdhand.batch import CONNECT_TIMEOUT_S, check_scheduler, parallel_map
+from thirdhand.errors import OptionError
+
+distributed = pytest.importorskip("distributed")
+
+#: Seeds per row of the compared ``irl experiment noise`` tables: 8 rows x 2 seeds =
+#: 16 trials of ~5 s each, run twice (serial, then on the cluster).
+RUNS = 2
+
+
+def _square(x: int) -> int:
+    return x * x
+
+
+def _fail_on_three(x: int) -> int:
+    if x == 3:
+        raise ValueError("three is bad")
+    return x
+
+
+@pytest.fixture(scope="module")
+def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+    """Address of a ``dask scheduler`` with two single-threaded ``dask worker`` processes."""
+    tmp = tmp_path_factory.mktemp("dask")
+    info = tmp / "scheduler.json"
+    # The workers (and the scheduler, which unpickles the graph) import this test
+    # module's helpers by name, as they would import thirdhand's own functions.
+    path = os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONPATH": path}
+    common = ["--no-dashboard"]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
+             "--scheduler-file", str(info), *common],
+            env=env, cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        )
+    ]  # fmt: skip
+    try:
+        deadline = time.monotonic() + 120
+        while not info.exists() or not info.read_text().strip():
+            if time.monotonic() > deadline or procs[0].poll() is not None:
+                pytest.fail("the dask scheduler did not start")
+            time.sleep(0.2)
+        address = json.loads(info.read_text())["address"]
+        for _ in range(2):
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
+                     "--nworkers", "1", "--no-nanny", "--host", "127.0.0.1", *common],
+                    env=env, cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                )
+            )  # fmt: skip
+        with distributed.Client(address, timeout=30) as client:
+            client.wait_for_workers(2, timeout=120)
+        yield address
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                p.kill()
+
+
+def test_parallel_map_in_order_on_the_cluster(cluster: str) -> None:
+    assert list(parallel_map(_square, range(20), scheduler=cluster)) == [x * x for x in range(20)]
+
+
+def test_a_failing_unit_is_one_error(cluster: str) -> None:
+    from thirdhand.batch import BatchError
+
+    with pytest.raises(BatchError, match="unit 3 of 5 failed on a Dask worker: ValueError"):
+        list(parallel_map(_fail_on_three, range(5), scheduler=cluster))
+
+
+@pytest.mark.slow
+def test_irl_noise_table_on_two_workers_equals_serial(
+    cluster: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    serial, dask = tmp_path / "serial.json", tmp_path / "dask.json"
+    args = ["irl", "experiment", "noise", "--runs", str(RUNS)]
+    rc, out_serial, err = call(capsys, *args, "--json", str(serial))
+    assert rc == 0, err
+    rc, out_dask, err = call(capsys, *args, "--json", str(dask), "--scheduler", cluster)
+    assert rc == 0, err
+    a, b = json.loads(serial.read_text()), json.loads(dask.read_text())
+    assert a == b  # every mean and standard error, bit for bit
+    assert a["runs"] == RUNS and len(a["rows"]) == 8
+    table = [line for line in out_serial.splitlines() if "noise" in line and "%" in line]
+    assert table and table == [
+        line for line in out_dask.splitlines() if "noise" in line and "%" in line
+    ]
+
+
+def test_unreachable_scheduler_is_one_error_nothing_written(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with socket.socket() as s:  # a free port: bound, then closed, nobody listens
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    target = tmp_path / "t.json"
+    rc, _, err = call(
+        capsys, "irl", "experiment", "noise", "--runs", "2", "--json", str(target),
+        "--scheduler", f"tcp://127.0.0.1:{port}",
+    )  # fmt: skip
+    assert rc == 1
+    assert err.count("\n") == 1 and "no Dask scheduler answers" in err
+    assert not target.exists()
+
+
+def test_silent_port_times_out_instead_of_hanging() -> None:
+    """A port that accepts TCP but never speaks Dask: one error after the connect timeout."""
+    with socket.socket() as server:
+        server.bind(("127.0.0.1", 0))
+        server.listen(8)
+        port = server.getsockname()[1]
+        start = time.monotonic()
+        with pytest.raises(OptionError, match="no Dask scheduler answers there within"):
+            list(parallel_map(_square, [1, 2], scheduler=f"tcp://127.0.0.1:{port}"))
+        assert time.monotonic() - start < 20 * CONNECT_TIMEOUT_S  # bounded, not a hang
+
+
+@pytest.mark.parametrize("bad", ["foo:bar", "http://x:1", "tcp://:80", "tcp://h:0", "h:70000"])
+def test_bad_scheduler_addresses(bad: str) -> None:
+    with pytest.raises(OptionError, match="expected tcp://HOST:PORT"):
+        check_scheduler(bad)
+
+
+def test_serial_and_process_maps_keep_order() -> None:
+    assert list(parallel_map(_square, range(6))) == [0, 1, 4, 9, 16, 25]
+    assert list(parallel_map(_square, range(6), jobs=2)) == [0, 1, 4, 9, 16, 25]
+
+
+def test_learn_segmentation_units_on_the_cluster_equal_serial(cluster: str) -> None:
+    """``learn --scheduler``'s unit (segment one recording) gives the serial phases exactly."""
+    from thirdhand.plan.cli import _segment_one
+    from thirdhand.segment import segment_demonstration
+    from thirdhand.synth import make_scene
+
+    demos = [make_scene("drawer", seed=s, sensor=None).slice(0.0, 4.0) for s in (1, 2)]
+    serial = [segment_demonstration(d).to_dict() for d in demos]
+    remote = list(parallel_map(_segment_one, [(d, None) for d in demos], scheduler=cluster))
+    assert [r.to_dict() for r in remote] == serial  # type: ignore[attr-defined]
+
+
+def test_local_cluster_of_two_workers() -> None:
+    """``--scheduler local``: a LocalCluster of --jobs processes, started and closed here."""
+    assert list(parallel_map(abs, [-1, -2, 3, -4], scheduler="local", jobs=2)) == [1, 2, 3, 4]

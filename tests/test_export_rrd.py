@@ -1,0 +1,224 @@
+"""``thirdhand convert REC|TASK out.rrd``: the Rerun recording read back with the SDK."""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from cli_helpers import call
+from thirdhand import io
+from thirdhand.synth import make_scene
+from thirdhand.taskfile import TaskFile, save_task
+
+rr = pytest.importorskip("rerun")
+from rerun.chunk import RrdReader  # noqa: E402
+
+
+def _read(path: Path) -> tuple[dict[str, dict[str, int]], dict[str, set[str]]]:
+    """Rows per entity per timeline, and the static component columns per entity."""
+    rows: dict[str, dict[str, int]] = defaultdict(lambda: defaultdict(int))
+    static: dict[str, set[str]] = defaultdict(set)
+    for chunk in RrdReader(path).stream():
+        names = chunk.to_record_batch().schema.names
+        if chunk.is_static:
+            static[chunk.entity_path].update(n for n in names if ":" in n)
+        for tl in chunk.timeline_names:
+            rows[chunk.entity_path][tl] += chunk.num_rows
+    return rows, static
+
+
+def _entity(name: str, root: str = "/world/bodies") -> str:
+    return f"{root}/{rr.escape_entity_path_part(name)}"
+
+
+@pytest.fixture(scope="module")
+def scene(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    tmp = tmp_path_factory.mktemp("rrd")
+    demo = make_scene("drawer", seed=2, sensor=None)
+    # a 0.5 s tracking gap in the first body
+    first = demo.body_names[0]
+    gap = (demo.t > 1.0) & (demo.t < 1.5)
+    v = demo.valid(first) & ~gap
+    tracks = {n: (demo.pos(n), demo.quat(n), demo.valid(n)) for n in demo.body_names}
+    tracks[first] = (np.where(v[:, None], demo.pos(first), np.nan), demo.quat(first), v)
+    demo = demo.replace(tracks=tracks)
+    rec = tmp / "drawer.parquet"
+    io.save(demo, rec)
+    cons = [
+        {
+            "id": f"c{i}",
+            "parent": c.parent,
+            "child": c.child,
+            "type": c.type,
+            "pos": list(c.pos),
+            "quat": list(c.quat),
+            "free_dofs": dict(
+                zip(("tx", "ty", "tz", "rx", "ry", "rz"), map(list, c.free_dofs), strict=True)
+            ),
+            "time": c.time,
+        }
+        for i, c in enumerate(demo.labels.constraints)
+    ]
+    plan = [
+        {"parent": c["parent"], "child": c["child"], "constraint": c["id"], "time": c["time"]}
+        for c in cons
+    ]
+    objects = [
+        {"name": n, "bbox_min": [-0.05, -0.05, -0.01], "bbox_max": [0.05, 0.05, 0.01]}
+        for n in demo.bodies_of_kind("part")
+    ]
+    task = TaskFile.new(objects=objects, constraints=cons, plan=plan, inputs=[rec])
+    task_path = tmp / "task.json"
+    save_task(task, task_path)
+    # a phases file for one pair, and an execution record with its replay
+    a, b = demo.labels.interaction_pairs()[0]
+    tp = np.arange(0.0, demo.duration, 0.05)
+    phases = tmp / "phases.json"
+    phases.write_text(
+        json.dumps(
+            {
+                "format": "thirdhand.phases/1",
+                "time": tp.tolist(),
+                "pairs": [
+                    {
+                        "a": a,
+                        "b": b,
+                        "probability": [None] + [0.5] * (tp.size - 1),
+                        "label": [0] * tp.size,
+                        "intervals": [],
+                    }
+                ],
+            }
+        )
+    )
+    te = np.arange(0.0, 3.0, 0.02)
+    execution = tmp / "run.json"
+    execution.write_text(
+        json.dumps(
+            {
+                "t": te.tolist(),
+                "q": np.stack([np.sin(te + k) for k in range(7)], 1).tolist(),
+                "joint_names": [f"panda_joint{k + 1}" for k in range(7)],
+            }
+        )
+    )
+    io.save(demo.select([first]).slice(0.0, 2.0), tmp / "run.parquet")
+    return {
+        "dir": tmp,
+        "rec": rec,
+        "task": task_path,
+        "phases": phases,
+        "execution": execution,
+        "n_cons": len(cons),
+    }
+
+
+def test_recording_with_task_phases_execution(
+    scene: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = scene["dir"] / "all.rrd"
+    rc, text, err = call(
+        capsys,
+        "convert",
+        str(scene["rec"]),
+        str(out),
+        "--task",
+        str(scene["task"]),
+        "--phases",
+        str(scene["phases"]),
+        "--execution",
+        str(scene["execution"]),
+    )
+    assert rc == 0, err
+    demo = io.load(scene["rec"])
+    rows, static = _read(out)
+    for name in demo.body_names:
+        e = _entity(name)
+        # one pose per tracked frame: gaps hold no sample
+        assert rows[e]["time"] == int(demo.valid(name).sum())
+        assert "Transform3D:translation" not in static[e]
+    first = demo.body_names[0]
+    assert rows[_entity(first)]["time"] == demo.n_frames - int(
+        ((demo.t > 1.0) & (demo.t < 1.5)).sum()
+    )
+    # paths split at the gap
+    assert "LineStrips3D:strips" in static[_entity(first, "/world/paths")]
+    for a, b in demo.labels.interaction_pairs():
+        e = "/phases/labels/" + rr.escape_entity_path_part(f"{a}--{b}")
+        assert rows[e]["time"] == demo.n_frames
+    a, b = demo.labels.interaction_pairs()[0]
+    seg = "/phases/segmented/" + rr.escape_entity_path_part(f"{a}--{b}")
+    n_phase = len(json.loads(scene["phases"].read_text())["time"])
+    assert rows[f"{seg}/label"]["time"] == n_phase
+    assert rows[f"{seg}/probability"]["time"] == n_phase - 1  # the null is no sample
+    n_cons = scene["n_cons"]
+    assert rows["/keyframes"]["time"] == n_cons
+    cons = [e for e in static if "/constraints/" in e and e.endswith("/frame")]
+    assert len(cons) == n_cons
+    glyphs = [e for e in static if e.endswith("/free/translation") or e.endswith("/free/rotation")]
+    assert glyphs  # the drawer's prismatic DOF at least
+    assert any(e.endswith("/free/translation") for e in glyphs)
+    meshes = [e for e in static if e.endswith("/mesh")]
+    assert len(meshes) == len(demo.bodies_of_kind("part"))
+    for k in range(7):
+        assert rows[f"/execution/joints/panda_joint{k + 1}"]["execution_time"] == 150
+    assert rows[_entity(first, "/execution/bodies")]["execution_time"] > 0
+    assert f"{len(demo)} bodies" in text and f"{n_cons} constraints" in text
+
+
+def test_task_source_finds_its_recording(
+    scene: dict[str, Any], capsys: pytest.CaptureFixture[str]
+) -> None:
+    out = scene["dir"] / "task.rrd"
+    rc, text, err = call(capsys, "convert", str(scene["task"]), str(out))
+    assert rc == 0, err
+    rows, _ = _read(out)
+    demo = io.load(scene["rec"])
+    assert all(rows[_entity(n)]["time"] == int(demo.valid(n).sum()) for n in demo.body_names)
+    assert "constraints" in text
+
+
+def test_rrd_in_missing_folder_is_one_error(
+    scene: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "no" / "such" / "out.rrd"
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target))
+    assert rc == 1
+    assert err.count("\n") == 1 and "does not exist" in err and "no/such" in err
+    assert not (tmp_path / "no").exists()
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--task", "x.json"], "only for a .rrd target"),
+        (["--phases", "x.json"], "only for a .rrd target"),
+    ],
+)
+def test_rrd_options_on_other_targets(
+    scene: dict[str, Any],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    args: list[str],
+    message: str,
+) -> None:
+    target = tmp_path / "out.csv"
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), *args)
+    assert rc == 1 and message in err and err.count("\n") == 1
+    assert not target.exists()
+
+
+def test_bad_phases_file_one_error_nothing_written(
+    scene: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    bad = tmp_path / "p.json"
+    bad.write_text('{"format": "other"}')
+    target = tmp_path / "out.rrd"
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--phases", str(bad))
+    assert rc == 1 and "thirdhand.phases/1" in err and err.count("\n") == 1
+    assert not target.exists()
