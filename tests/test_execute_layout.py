@@ -1,0 +1,77 @@
+"""The work cell's layout: the fixture against the swept children, placement by reach."""
+
+from __future__ import annotations
+
+import coal
+import numpy as np
+import pytest
+
+from thirdhand.execute.collision_check import coal_transform
+from thirdhand.execute.goals import sweep_dofs, vary
+from thirdhand.execute.layout import _pose_in_base, make_workcell
+from thirdhand.execute.meshes import box, mesh_from_triangles
+from thirdhand.task.constraint import Constraint
+from thirdhand.task.meshes import object_triangles
+
+
+def _learned_chair(seed: int):
+    from thirdhand.plan.learn import learn
+    from thirdhand.synth import make_scene
+
+    return learn([make_scene("chair", seed=seed)]).task()
+
+
+def test_sweep_covers_a_full_turn_in_ten_degree_steps() -> None:
+    c = Constraint.model_validate(
+        {
+            "id": "c1",
+            "parent": "seat",
+            "child": "leg",
+            "type": "revolute",
+            "free_dofs": {"rx": [-np.pi, np.pi], "tz": [0.0, 0.02]},
+        }
+    )
+    d = sweep_dofs(c)
+    np.testing.assert_array_equal(d[0], 0.0)  # the demonstrated pose first
+    spins = np.unique(np.round(d[1:, 3], 9))
+    assert len(spins) == 37 and np.diff(spins).max() == pytest.approx(np.pi / 18)
+    np.testing.assert_allclose(np.unique(np.round(d[1:, 2], 9)), np.linspace(0, 0.02, 5))
+    np.testing.assert_array_equal(d[:, [0, 1, 4, 5]], 0.0)
+    assert len(d) == 1 + 37 * 5
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [4, 6])
+def test_box_fixture_clears_every_leg_spin(seed) -> None:
+    # Bounding boxes for parts (no meshes). Before, the block was sized from the corners
+    # at the demonstrated spin: 0.21 m wide, and two lower legs of seeds 4 and 6
+    # intersected it at all 36 spins (every place configuration collided).
+    task = _learned_chair(seed)
+    cell = make_workcell(task, "panda")
+    assert len(cell.fixtures) == 1
+    _, centre, size = cell.fixtures[0]
+    block = box(size)
+    tf = coal_transform(centre)
+    # it still holds the base: under the base's centre, on the table, up to its underside
+    objs = {o.name: o for o in task.objects}
+    seat = np.asarray(object_triangles(objs[cell.base])).reshape(-1, 3)
+    seat_w = seat @ cell.base_pose[:3, :3].T + cell.base_pose[:3, 3]
+    assert centre[2, 3] - size[2] / 2 == pytest.approx(cell.table_z)
+    assert centre[2, 3] + size[2] / 2 == pytest.approx(seat_w[:, 2].min())
+    assert np.all(size[:2] >= 0.02 - 1e-9)
+    mid = (seat_w.min(axis=0) + seat_w.max(axis=0)) / 2
+    assert np.all(np.abs(centre[:2, 3] - mid[:2]) <= size[:2] / 2)
+    # every child at spins between the swept ones (5° off the 10° grid) clears block and table
+    n_checked = 0
+    for c in task.constraints:
+        geom = mesh_from_triangles(object_triangles(objs[c.child]))
+        parent = cell.base_pose @ _pose_in_base(task, cell.base, c.parent)
+        d = sweep_dofs(c, turn_step=np.pi / 36)
+        tri = np.asarray(object_triangles(objs[c.child])).reshape(-1, 3)
+        req = coal.CollisionRequest()
+        for p in parent @ vary(c, d):
+            res = coal.CollisionResult()
+            assert not coal.collide(geom, coal_transform(p), block, tf, req, res)
+            assert (tri @ p[:3, :3].T + p[:3, 3])[:, 2].min() > cell.table_z
+            n_checked += 1
+    assert n_checked >= 4 * 73
