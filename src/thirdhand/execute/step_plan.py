@@ -68,6 +68,11 @@ class ExecutionOptions:
     max_parts : int
         Interchangeable parts tried per slot (1: the slot's own part first, then
         only when it is already used).
+    placement : {"geometry", "reach"}
+        How :meth:`Executor.for_task` stands the base: the geometric choice
+        (:func:`~thirdhand.execute.layout.assembly_base_pose`) or, of the first
+        geometric candidates, the one whose goals the arm reaches best
+        (:func:`~thirdhand.execute.placement.choose_placement`).
     """
 
     sample_free_dofs: bool = True
@@ -92,6 +97,7 @@ class ExecutionOptions:
     order: str = "auto"
     reorder: bool = True
     max_parts: int = 2
+    placement: str = "geometry"
 
 
 @dataclass
