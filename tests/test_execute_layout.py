@@ -75,3 +75,35 @@ def test_box_fixture_clears_every_leg_spin(seed) -> None:
             assert (tri @ p[:3, :3].T + p[:3, 3])[:, 2].min() > cell.table_z
             n_checked += 1
     assert n_checked >= 4 * 73
+
+
+@pytest.mark.slow
+def test_placement_chosen_by_reachability() -> None:
+    # The chair built 0.75 m out to the side (0.72, 0.2): the geometric choice (lowest,
+    # nearest) leaves two legs a single reachable spin of four; a near-equal candidate
+    # reaches at least two spins of every leg.
+    from thirdhand.execute.placement import choose_placement, score_placement
+    from thirdhand.execute.robot import Robot
+    from thirdhand.synth import make_scene
+    from thirdhand.synth.task import truth_task
+
+    task = truth_task(make_scene("chair", seed=0))
+    xy = (0.72, 0.2)
+    cell = make_workcell(task, "panda", assembly_xy=xy)
+    arm = Robot.load("panda", base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0])))
+    chosen, scores = choose_placement(arm, task, cell, xy)
+    assert len(scores) == 3 and sorted(s.rank for s in scores) == [0, 1, 2]
+    assert [s.key for s in scores] == sorted(s.key for s in scores)
+    best = scores[0]
+    np.testing.assert_array_equal(chosen.base_pose, best.base_pose)
+    geometric = next(s for s in scores if s.rank == 0)
+    np.testing.assert_array_equal(geometric.base_pose, cell.base_pose)
+    assert best.rank != 0
+    # every child reachable, and the worst child better off than with the geometric choice
+    assert all(a > 0 for a, _ in best.reached.values())
+    worst = min(a / b for a, b in best.reached.values())
+    assert worst > min(a / b for a, b in geometric.reached.values())
+    # re-checked with other IK starts, the chosen pose still reaches every child
+    again = score_placement(arm, task, chosen, n_restarts=4, seed=7)
+    assert all(a > 0 for a, _ in again.reached.values())
+    assert len(chosen.fixtures) == 1
