@@ -40,6 +40,7 @@ def main() -> None:
     ap.add_argument("--step-time", type=float, default=30.0)
     ap.add_argument("--plan-time", type=float, default=3.0)
     ap.add_argument("--placement", choices=["geometry", "reach"], default="geometry")
+    ap.add_argument("--start-grasps", type=int, default=0)
     args = ap.parse_args()
     kinds = []
     if args.meshes:
@@ -47,7 +48,10 @@ def main() -> None:
     if args.boxes or not args.meshes:
         kinds.append(("boxes", []))
     opts = ExecutionOptions(
-        step_time_limit=args.step_time, plan_time_limit=args.plan_time, placement=args.placement
+        step_time_limit=args.step_time,
+        plan_time_limit=args.plan_time,
+        placement=args.placement,
+        start_grasps=args.start_grasps,
     )
     rows: dict[tuple[str, str, str], list[tuple[bool, int, list[float]]]] = {}
     for scene in args.scene or ["chair", "bench"]:

@@ -8,7 +8,7 @@ import pytest
 
 from thirdhand.execute.collision_check import coal_transform
 from thirdhand.execute.goals import sweep_dofs, vary
-from thirdhand.execute.layout import _pose_in_base, make_workcell
+from thirdhand.execute.layout import _pose_in_base, make_workcell, start_layout
 from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.meshes import object_triangles
@@ -107,3 +107,52 @@ def test_placement_chosen_by_reachability() -> None:
     again = score_placement(arm, task, chosen, n_restarts=4, seed=7)
     assert all(a > 0 for a, _ in again.reached.values())
     assert len(chosen.fixtures) == 1
+
+
+def _reachable_grasps(arm, scene, task, name, pose, seed) -> int:
+    from thirdhand.execute.placement import spread_grasps
+    from thirdhand.execute.step_search import first_valid_ik
+
+    gs = [
+        g
+        for g in spread_grasps(task, name, 24)
+        if -float((pose[:3, :3] @ g.pose[:3, 2])[2]) >= -0.1
+    ]
+    sols = first_valid_ik(
+        arm, scene, np.stack([pose @ g.pose for g in gs]), arm.home, seed=seed, n_restarts=24
+    )
+    return sum(q is not None for q in sols)
+
+
+@pytest.mark.slow
+def test_far_start_spot_on_baxter_is_laid_within_reach() -> None:
+    # Issue 16, cause 3: the learned bench of seed 4 on Baxter laid leg1 0.75 m from the
+    # shoulder where the right arm reached 1 of its 24 grasps (the step failed). With the
+    # reach check every part lying beyond 0.55 m keeps at least 4 reachable grasps
+    # (re-counted here with other and twice as many IK starts).
+    from thirdhand.execute.placement import reach_check
+    from thirdhand.execute.robot import Robot
+    from thirdhand.execute.scene import CollisionScene
+    from thirdhand.plan.learn import learn
+    from thirdhand.synth import make_scene
+
+    task = learn([make_scene("bench", seed=4)]).task()
+    cell = make_workcell(task, "baxter")
+    arm = Robot.load("baxter", base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0])))
+    scene = CollisionScene(arm)
+    scene.add_table(height=cell.table_z, size=cell.table_size, center=cell.table_center)
+
+    def far(lay):
+        return {
+            n: p
+            for n, p in lay.items()
+            if n != cell.base and np.hypot(*(p[:2, 3] - np.asarray(cell.arm_xy))) >= 0.55
+        }
+
+    plain = start_layout(task, cell, 4)
+    counts = {n: _reachable_grasps(arm, scene, task, n, p, 99) for n, p in far(plain).items()}
+    assert min(counts.values()) < 4, counts  # the cause, reproduced
+    checked = start_layout(task, cell, 4, accept=reach_check(arm, task, cell, 4, seed=4))
+    assert set(checked) == set(plain)
+    counts = {n: _reachable_grasps(arm, scene, task, n, p, 99) for n, p in far(checked).items()}
+    assert counts and min(counts.values()) >= 4, counts

@@ -154,7 +154,12 @@ class Executor:
             cell, _ = choose_placement(
                 arm, task, cell, xy, seed=seed, task_path=task_path, search=search
             )
-        start = start_layout(task, cell, seed, task_path=task_path, search=search)
+        accept = None
+        if opts.start_grasps > 0:
+            from thirdhand.execute.placement import reach_check
+
+            accept = reach_check(arm, task, cell, opts.start_grasps, seed=seed)
+        start = start_layout(task, cell, seed, task_path=task_path, search=search, accept=accept)
         return cls(arm, task, cell, start, options, task_path=task_path, search=search, demo=demo)
 
     def __init__(

@@ -37,7 +37,7 @@ robot's base.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import coal
@@ -619,6 +619,7 @@ def start_layout(
     search: Sequence[str | os.PathLike[str]] = (),
     max_tries: int = 2000,
     restarts: int = 20,
+    accept: Callable[[str, FloatArray], bool] | None = None,
 ) -> dict[str, FloatArray]:
     """A seeded start layout: every part's world pose, the base at its assembly pose.
 
@@ -638,6 +639,10 @@ def start_layout(
         Rejection-sampling budget per part.
     restarts : int
         Whole layouts tried (the same generator continued) when a part finds no spot.
+    accept : callable, optional
+        ``accept(name, T_world_part)``: whether a free spot will do (e.g. the arm reaches
+        enough grasps there, :func:`thirdhand.execute.placement.reach_check`); a refused
+        spot counts as a draw.
 
     Returns
     -------
@@ -688,7 +693,11 @@ def start_layout(
                 t[2, 3] = cell.table_z - vw[:, 2].min()
                 fp = _footprint(_transform(t, v), margin / 2)
                 inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
-                if inside and not any(_overlap(fp, o) for o in free):
+                if (
+                    inside
+                    and not any(_overlap(fp, o) for o in free)
+                    and (accept is None or accept(name, t))
+                ):
                     free.append(fp)
                     poses[name] = t
                     break

@@ -16,7 +16,7 @@ then the mean fraction; equal scores keep the geometric order.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -31,6 +31,7 @@ from thirdhand.execute.layout import (
     base_pose_candidates,
 )
 from thirdhand.execute.robot import Robot
+from thirdhand.execute.scene import CollisionScene
 from thirdhand.execute.step_search import drop_twins, first_valid_ik
 from thirdhand.execute.world import SimWorld
 from thirdhand.task.model import TaskFile
@@ -207,3 +208,43 @@ def choose_placement(
         scored.append((score, trial))
     scored.sort(key=lambda s: s[0].key)
     return scored[0][1], [s for s, _ in scored]
+
+
+def reach_check(
+    robot: Robot,
+    task: TaskFile,
+    cell: Workcell,
+    min_grasps: int,
+    *,
+    near: float = 0.55,
+    n_grasps: int = 24,
+    n_restarts: int = 12,
+    seed: int = 0,
+) -> Callable[[str, FloatArray], bool]:
+    """``accept(name, T_world_part)`` for :func:`~thirdhand.execute.layout.start_layout`.
+
+    A spot nearer than ``near`` (m, horizontally from ``cell.arm_xy``) is taken as it is;
+    a farther one only when at least ``min_grasps`` of the part's shape grasps that do not
+    come from below there (:func:`spread_grasps`, ``n_grasps``) have an IK solution clear
+    of the table (the arm alone, home and ``n_restarts`` random starts).
+    """
+    scene = CollisionScene(robot)
+    scene.add_table(height=cell.table_z, size=cell.table_size, center=cell.table_center)
+    grasps = {c.child: spread_grasps(task, c.child, n_grasps) for c in task.constraints}
+    calls = [0]
+
+    def accept(name: str, pose: FloatArray) -> bool:
+        if np.hypot(*(pose[:2, 3] - np.asarray(cell.arm_xy))) < near:
+            return True
+        rot = pose[:3, :3]
+        gs = [g for g in grasps.get(name, []) if -float((rot @ g.pose[:3, 2])[2]) >= -0.1]
+        if len(gs) < min_grasps:
+            return False
+        calls[0] += 1
+        targets = np.stack([pose @ g.pose for g in gs])
+        sols = first_valid_ik(
+            robot, scene, targets, robot.home, seed=seed + calls[0], n_restarts=n_restarts
+        )
+        return sum(q is not None for q in sols) >= min_grasps
+
+    return accept

@@ -73,6 +73,10 @@ class ExecutionOptions:
         (:func:`~thirdhand.execute.layout.assembly_base_pose`) or, of the first
         geometric candidates, the one whose goals the arm reaches best
         (:func:`~thirdhand.execute.placement.choose_placement`).
+    start_grasps : int
+        :meth:`Executor.for_task`: a start spot farther than 0.55 m from the arm is taken
+        only if at least this many of the part's grasps have an IK solution there (0: any
+        spot in the band; :func:`~thirdhand.execute.placement.reach_check`).
     """
 
     sample_free_dofs: bool = True
@@ -98,6 +102,7 @@ class ExecutionOptions:
     reorder: bool = True
     max_parts: int = 2
     placement: str = "geometry"
+    start_grasps: int = 0
 
 
 @dataclass
