@@ -1,7 +1,8 @@
 """The execution sweep: learned synthetic tasks × seeds × robot × meshes/boxes, offline.
 
 Usage: ``python scripts/execute_sweep.py [--scene chair --scene bench] [--seeds 1-12]
-[--robot panda --robot baxter] [--meshes DIR] [--boxes] [--step-time 30]``.
+[--robot panda --robot baxter] [--meshes DIR] [--boxes] [--step-time 30]
+[--placement geometry|reach]``.
 
 Each run learns the task from the synthetic demonstration of ``scene`` with that seed
 (:func:`thirdhand.plan.learn.learn`, one demonstration), lays the parts out with the
@@ -38,13 +39,20 @@ def main() -> None:
     ap.add_argument("--boxes", action="store_true", help="Also run with bounding boxes only.")
     ap.add_argument("--step-time", type=float, default=30.0)
     ap.add_argument("--plan-time", type=float, default=3.0)
+    ap.add_argument("--placement", choices=["geometry", "reach"], default="geometry")
+    ap.add_argument("--start-grasps", type=int, default=0)
     args = ap.parse_args()
     kinds = []
     if args.meshes:
         kinds.append(("meshes", [args.meshes]))
     if args.boxes or not args.meshes:
         kinds.append(("boxes", []))
-    opts = ExecutionOptions(step_time_limit=args.step_time, plan_time_limit=args.plan_time)
+    opts = ExecutionOptions(
+        step_time_limit=args.step_time,
+        plan_time_limit=args.plan_time,
+        placement=args.placement,
+        start_grasps=args.start_grasps,
+    )
     rows: dict[tuple[str, str, str], list[tuple[bool, int, list[float]]]] = {}
     for scene in args.scene or ["chair", "bench"]:
         for seed in args.seeds:

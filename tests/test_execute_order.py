@@ -149,8 +149,10 @@ def test_a_failing_part_is_replaced_by_an_identical_one(chair) -> None:
     ex, res = run(1)
     by_slot = {r.constraint: r for r in res.steps}
     assert not by_slot[leg_slot.id].success
-    ex, res = run(2)  # planned again with it first, the slot takes another leg
-    assert res.events and res.events[0].startswith(f"re-plan: {leg_slot.id} failed")
+    ex, res = run(2)  # the slot takes another leg (re-planned with it first if none was free)
+    # whether a re-plan is needed depends on where the layout puts the slot in the order
+    assert all(e.startswith(f"re-plan: {leg_slot.id} failed") for e in res.events)
+    assert (leg_slot.id, "leg1", 0) in ex.calls  # its own part was tried first and failed
     by_slot = {r.constraint: r for r in res.steps}
     assert all(r.success for r in res.steps), [r.status for r in res.steps]
     assert by_slot[leg_slot.id].child != "leg1"

@@ -62,6 +62,20 @@ def execute_command(
         tuple[float, float] | None,
         typer.Option(help="World x y (m) where the assembly is built (default: the robot's)."),
     ] = None,
+    placement: Annotated[
+        str,
+        typer.Option(
+            help="How the base stands: geometry (lowest, nearest) or reach (of the first "
+            "geometric candidates, the one whose goals the arm reaches best)."
+        ),
+    ] = "geometry",
+    start_grasps: Annotated[
+        int,
+        typer.Option(
+            help="Lay a part farther than 0.55 m from the arm only where at least this many "
+            "of its grasps are reachable (0: anywhere in the robot's band)."
+        ),
+    ] = 0,
 ) -> None:
     """Execute a task's plan on a simulated robot arm with a motion planner."""
     from thirdhand import io, options
@@ -86,12 +100,18 @@ def execute_command(
         raise ThirdhandError(f"--order {order}: expected one of {', '.join(ORDERS)}")
     options.integer("--max-grasps", max_grasps, low=1, high=10_000)
     options.integer("--goals", goals, low=1, high=10_000)
+    options.integer("--start-grasps", start_grasps, low=0, high=1000)
+    from thirdhand.execute.executor import PLACEMENTS
+
+    if placement not in PLACEMENTS:
+        raise ThirdhandError(f"--placement {placement}: expected one of {', '.join(PLACEMENTS)}")
     if assembly_at is not None:
         for v in assembly_at:
             options.finite("--assembly-at", v, low=-10.0, high=10.0)
     opts = ExecutionOptions(
         sample_free_dofs=free_dofs, step_time_limit=step_time, plan_time_limit=plan_time,
-        order=order, max_grasps=max_grasps, n_goal_samples=goals,
+        order=order, max_grasps=max_grasps, n_goal_samples=goals, placement=placement,
+        start_grasps=start_grasps,
     )  # fmt: skip
     d = io.load(demo) if demo is not None else None
     ex = Executor.for_task(

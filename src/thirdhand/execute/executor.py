@@ -41,10 +41,11 @@ from numpy.typing import NDArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import invert
-from thirdhand.execute.layout import Workcell, make_workcell, start_layout
+from thirdhand.execute.layout import ASSEMBLY_XY, Workcell, make_workcell, start_layout
 from thirdhand.execute.planner import plan_motion
 from thirdhand.execute.primitive_motion import find_primitive
 from thirdhand.execute.robot import Robot
+from thirdhand.execute.scene import SceneError
 from thirdhand.execute.step_order import (
     identical_parts,
     plan_binds_order,
@@ -70,6 +71,9 @@ from thirdhand.execute.world import (
 )
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile, TaskStep
+
+#: How :meth:`Executor.for_task` stands the base (``ExecutionOptions.placement``).
+PLACEMENTS = ("geometry", "reach")
 
 FloatArray = NDArray[np.float64]
 
@@ -138,7 +142,24 @@ class Executor:
         arm = Robot.load(
             robot_name, base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0]))
         )
-        start = start_layout(task, cell, seed, task_path=task_path, search=search)
+        opts = options or ExecutionOptions()
+        if opts.placement not in PLACEMENTS:
+            raise SceneError(
+                f"placement {opts.placement!r}: expected one of {', '.join(PLACEMENTS)}"
+            )
+        if opts.placement == "reach":
+            from thirdhand.execute.placement import choose_placement
+
+            xy = ASSEMBLY_XY[robot_name] if assembly_xy is None else assembly_xy
+            cell, _ = choose_placement(
+                arm, task, cell, xy, seed=seed, task_path=task_path, search=search
+            )
+        accept = None
+        if opts.start_grasps > 0:
+            from thirdhand.execute.placement import reach_check
+
+            accept = reach_check(arm, task, cell, opts.start_grasps, seed=seed)
+        start = start_layout(task, cell, seed, task_path=task_path, search=search, accept=accept)
         return cls(arm, task, cell, start, options, task_path=task_path, search=search, demo=demo)
 
     def __init__(

@@ -178,6 +178,60 @@ def sample_goals(
     return np.asarray(parent_world, dtype=np.float64) @ vary(constraint, dofs), dofs
 
 
+def sweep_dofs(
+    constraint: Constraint,
+    *,
+    turn_step: float = np.pi / 18,
+    shift_steps: int = 5,
+    max_poses: int = 512,
+) -> FloatArray:
+    """Displacements covering the constraint's free DOFs on a grid (for sweeping shapes).
+
+    Each free rotation is cut into steps of at most ``turn_step`` (a full turn: 36
+    displacements 10° apart, the ends included), each free translation into
+    ``shift_steps`` (its ends included); the grid is their product. When it would hold
+    more than ``max_poses`` rows, the corners of the ranges and stratified draws
+    (:func:`sample_dofs`) fill ``max_poses`` rows instead.
+
+    Parameters
+    ----------
+    constraint : Constraint
+    turn_step : float
+        Largest step between swept turns, radians.
+    shift_steps : int
+        Displacements along each free translation (>= 2).
+    max_poses : int
+        Largest number of displacements returned.
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        ``(tx, ty, tz, rx, ry, rz)`` in the constraint frame; the zero displacement (or the
+        ranges' nearest point to it) first. A constraint with no free DOF gives one zero row.
+    """
+    ranges = constraint.free_dof_array()
+    nominal = np.clip(0.0, ranges[:, 0], ranges[:, 1])
+    axes: list[FloatArray] = []
+    for k in range(6):
+        lo, hi = float(ranges[k, 0]), float(ranges[k, 1])
+        if hi <= lo:
+            axes.append(np.array([nominal[k]]))
+        elif k >= 3:
+            axes.append(np.linspace(lo, hi, max(int(np.ceil((hi - lo) / turn_step)) + 1, 2)))
+        else:
+            axes.append(np.linspace(lo, hi, max(shift_steps, 2)))
+    size = int(np.prod([len(a) for a in axes]))
+    if size <= max_poses:
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 6)
+    else:
+        corners = np.stack(
+            np.meshgrid(*[a[[0, -1]] if len(a) > 1 else a for a in axes], indexing="ij"), axis=-1
+        ).reshape(-1, 6)[:max_poses]
+        draws = sample_dofs(constraint, max(max_poses - len(corners), 0), 0, stratified=True)
+        grid = np.vstack([corners, draws])
+    return np.asarray(np.vstack([nominal[None, :], grid]), dtype=np.float64)
+
+
 def _wrap(a: FloatArray) -> FloatArray:
     return np.asarray((a + np.pi) % (2.0 * np.pi) - np.pi, dtype=np.float64)
 

@@ -37,14 +37,17 @@ robot's base.
 from __future__ import annotations
 
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+import coal
 import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.errors import ThirdhandError
-from thirdhand.execute.goals import goal_pose
+from thirdhand.execute.collision_check import coal_transform
+from thirdhand.execute.goals import goal_pose, sweep_dofs, vary
+from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.meshes import object_triangles
 from thirdhand.task.model import TaskFile, TaskObject
@@ -213,6 +216,253 @@ def _rotation_up(axis: int, sign: float, yaw: float) -> FloatArray:
     return np.asarray(rz @ r_world_base, dtype=np.float64)
 
 
+def _hull(v: FloatArray) -> FloatArray:
+    """The convex hull's vertices of a point cloud (the cloud itself when flat)."""
+    if len(v) <= 8:
+        return v
+    from scipy.spatial import ConvexHull, QhullError
+
+    try:
+        return np.asarray(v[ConvexHull(v).vertices], dtype=np.float64)
+    except (QhullError, ValueError):
+        return v
+
+
+def swept_poses(task: TaskFile, base: str) -> dict[str, FloatArray]:
+    """Every child's poses in the base frame, turned and shifted through its free DOFs.
+
+    The parent of each constraint stands at its nominal pose (:func:`_pose_in_base`);
+    the child's displacements are :func:`thirdhand.execute.goals.sweep_dofs` (a leg free
+    to spin: 37 turns 10° apart, the demonstrated one first).
+
+    Returns
+    -------
+    dict of str to ndarray, shape (n, 4, 4)
+        ``T_base_child`` per child of a constraint; the base itself: one identity.
+    """
+    out: dict[str, FloatArray] = {base: np.eye(4)[None]}
+    for c in task.constraints:
+        parent = _pose_in_base(task, base, c.parent)
+        out[c.child] = np.asarray(parent @ vary(c, sweep_dofs(c)), dtype=np.float64)
+    return out
+
+
+def _swept_vertices(
+    poses: dict[str, FloatArray], vertices: dict[str, FloatArray]
+) -> dict[str, FloatArray]:
+    """The hull vertices of each part at each of its swept poses, base frame, (n·m, 3)."""
+    out = {}
+    for n, ts in poses.items():
+        if n in vertices:
+            v = _hull(vertices[n])
+            out[n] = np.vstack([_transform(t, v) for t in ts])
+    return out
+
+
+def _part_geometry(
+    obj: TaskObject,
+    task_path: str | os.PathLike[str] | None,
+    search: Sequence[str | os.PathLike[str]],
+) -> coal.CollisionGeometry:
+    tri = object_triangles(obj, task_path, search)
+    if tri is None:
+        raise LayoutError(f"object {obj.name!r}: no mesh and no bounding box to lay it out")
+    return mesh_from_triangles(tri)
+
+
+def _fixture_clear(
+    lo: FloatArray,
+    hi: FloatArray,
+    parts: list[tuple[coal.CollisionGeometry, FloatArray]],
+    margin: float,
+) -> bool:
+    """Whether the box ``[lo, hi]`` (world) keeps ``margin`` from every part pose."""
+    geom = box(np.maximum(hi - lo, 1e-6))
+    t = np.eye(4)
+    t[:3, 3] = (lo + hi) / 2.0
+    tf = coal_transform(t)
+    req = coal.CollisionRequest()
+    req.security_margin = margin
+    for g, poses in parts:
+        for p in poses:
+            res = coal.CollisionResult()
+            if coal.collide(g, coal_transform(p), geom, tf, req, res):
+                return False
+    return True
+
+
+def fixture_box(
+    base_pose: FloatArray,
+    base_vertices: FloatArray,
+    parts: list[tuple[coal.CollisionGeometry, FloatArray]],
+    *,
+    table_z: float,
+    height: float,
+    margin: float = 0.005,
+    min_width: float = 0.02,
+    iterations: int = 12,
+) -> tuple[FloatArray, FloatArray]:
+    """The fixture block under the base, narrowed until every swept child pose clears it.
+
+    The block starts as the base's footprint from the table up to its underside; along
+    the base's longer horizontal side each end is pulled in (bisection, each end on
+    its own) until no child at any of its swept poses comes within ``margin`` of it
+    (coal), keeping at least ``min_width`` around the base's centre; if that is not
+    clear either, the shorter side is narrowed the same way.
+
+    Parameters
+    ----------
+    base_pose : ndarray, shape (4, 4)
+        ``T_world_base``.
+    base_vertices : ndarray, shape (n, 3)
+        The base's vertices, base frame.
+    parts : list of (coal geometry, ndarray (m, 4, 4))
+        Each child's geometry and its swept world poses.
+    table_z, height : float
+        Table top and the block's height, metres.
+    margin, min_width : float
+        Gap kept to the children and the narrowest block, metres.
+    iterations : int
+        Bisection steps per end.
+
+    Returns
+    -------
+    centre : ndarray, shape (4, 4)
+        The block's centre pose (world, axis-aligned).
+    size : ndarray, shape (3,)
+        Its full sides, metres.
+    """
+    base_w = _transform(base_pose, base_vertices)
+    lo = base_w.min(axis=0).copy()
+    hi = base_w.max(axis=0).copy()
+    lo[2], hi[2] = table_z, table_z + height
+    mid = (lo + hi) / 2.0
+    long_side = int(np.argmax((hi - lo)[:2]))
+    for a in (long_side, 1 - long_side):
+        if _fixture_clear(lo, hi, parts, margin):
+            break
+        half = min_width / 2.0
+        lo_min, hi_min = lo.copy(), hi.copy()
+        lo_min[a], hi_min[a] = max(lo[a], mid[a] - half), min(hi[a], mid[a] + half)
+        if not _fixture_clear(lo_min, hi_min, parts, margin):
+            lo, hi = lo_min, hi_min  # as narrow as allowed; try the other side too
+            continue
+        # the high end with the low end narrow, then the low end with the high end found
+        good, bad = hi_min[a], hi[a]
+        for _ in range(iterations):
+            trial = hi_min.copy()
+            trial[a] = (good + bad) / 2.0
+            if _fixture_clear(lo_min, trial, parts, margin):
+                good = trial[a]
+            else:
+                bad = trial[a]
+        hi_new = hi_min.copy()
+        hi_new[a] = good
+        good, bad = lo_min[a], lo[a]
+        for _ in range(iterations):
+            trial = lo_min.copy()
+            trial[a] = (good + bad) / 2.0
+            if _fixture_clear(trial, hi_new, parts, margin):
+                good = trial[a]
+            else:
+                bad = trial[a]
+        lo_new = lo_min.copy()
+        lo_new[a] = good
+        lo, hi = lo_new, hi_new
+        break
+    centre = np.eye(4)
+    centre[:3, 3] = (lo + hi) / 2.0
+    return centre, np.asarray(hi - lo, dtype=np.float64)
+
+
+def base_pose_candidates(
+    task: TaskFile,
+    *,
+    base: str | None = None,
+    assembly_xy: tuple[float, float] = (0.5, 0.0),
+    table_z: float = TABLE_Z,
+    robot_xy: tuple[float, float] = (0.0, 0.0),
+    clearance: float = 0.08,
+    inner_radius: float = 0.0,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> list[tuple[tuple[float, float, float, float], FloatArray, float]]:
+    """The 24 axis-aligned assembly poses of the base, best first by geometry.
+
+    Each child is swept through its free DOFs (:func:`swept_poses`), so the
+    demonstrated spin of a leg does not matter. Keys, compared in order (mm): how far
+    the finished assembly comes inside ``inner_radius`` of the robot, its height, the
+    fixture's height, its farthest reach from the robot.
+
+    Returns
+    -------
+    list of (key, base_pose (4, 4), fixture height)
+        Sorted by key; the fixture height is 0 when the base rests on the table.
+    """
+    base = base_part(task) if base is None else base
+    objs = {o.name: o for o in task.objects}
+    verts = {
+        n: part_vertices(objs[n], task_path, search)
+        for n in {base} | {c.child for c in task.constraints}
+    }
+    placed = _swept_vertices(swept_poses(task, base), verts)
+    every = np.vstack(list(placed.values()))
+    out = []
+    for axis, sign in ((1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0), (0, 1.0), (0, -1.0)):
+        for yaw in (0.0, np.pi / 2, np.pi, 3 * np.pi / 2):
+            rot = _rotation_up(axis, sign, yaw)
+            world = every @ rot.T
+            base_w = placed[base] @ rot.T
+            height = float(world[:, 2].max() - world[:, 2].min())
+            fixture = max(float(base_w[:, 2].min() - world[:, 2].min()), 0.0)
+            if fixture > 0.0:
+                fixture += clearance
+            centre = (base_w.min(axis=0) + base_w.max(axis=0)) / 2.0
+            xy = world[:, :2] - centre[:2] + np.asarray(assembly_xy) - np.asarray(robot_xy)
+            dist = np.linalg.norm(xy, axis=1)
+            reach = float(dist.max())
+            intrusion = max(inner_radius - float(dist.min()), 0.0)
+            key = (round(intrusion, 3), round(height, 3), round(fixture, 3), round(reach, 3))
+            t = np.eye(4)
+            t[:3, :3] = rot
+            t[:2, 3] = np.asarray(assembly_xy) - centre[:2]
+            t[2, 3] = table_z + fixture - float(base_w[:, 2].min())
+            out.append((key, t, fixture))
+    out.sort(key=lambda k: k[0])
+    return out
+
+
+def base_fixtures(
+    task: TaskFile,
+    pose: FloatArray,
+    fixture: float,
+    *,
+    base: str | None = None,
+    table_z: float = TABLE_Z,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> list[tuple[str, FloatArray, FloatArray]]:
+    """The fixture holding the base at ``pose`` (``fixture`` m high; none when 0)."""
+    if fixture <= 0.0:
+        return []
+    base = base_part(task) if base is None else base
+    objs = {o.name: o for o in task.objects}
+    sweeps = swept_poses(task, base)
+    parts = [
+        (_part_geometry(objs[n], task_path, search), pose @ ts)
+        for n, ts in sweeps.items()
+        if n != base
+    ]
+    centre, size = fixture_box(
+        pose,
+        part_vertices(objs[base], task_path, search),
+        parts,
+        table_z=table_z,
+        height=fixture,
+    )
+    return [("fixture", centre, size)]
+
+
 def assembly_base_pose(
     task: TaskFile,
     *,
@@ -239,7 +489,8 @@ def assembly_base_pose(
     robot_xy : tuple of 2 floats
         World x, y of the robot; the turn about the vertical keeps the assembly near it.
     clearance : float
-        Gap between the table and the lowest attached part when a fixture is needed, metres.
+        Gap between the table and the lowest point any attached part reaches through
+        its free DOFs when a fixture is needed, metres.
     inner_radius : float
         Horizontal distance from ``robot_xy`` that the finished assembly should keep,
         metres (:attr:`Workcell.reach`'s near edge): the orientations whose parts come
@@ -254,60 +505,23 @@ def assembly_base_pose(
     base_pose : ndarray, shape (4, 4)
         ``T_world_base``.
     fixtures : list of (name, pose (4, 4), size (3,))
-        Empty when the base rests on the table.
+        Empty when the base rests on the table; otherwise one block, narrowed until every
+        child swept through its free DOFs clears it (:func:`fixture_box`).
     """
-    base = base_part(task) if base is None else base
-    objs = {o.name: o for o in task.objects}
-    verts = {
-        n: part_vertices(objs[n], task_path, search)
-        for n in {base} | {c.child for c in task.constraints}
-    }
-    placed = assembled_vertices(task, base, verts)
-    every = np.vstack(list(placed.values()))
-    best: tuple[tuple[float, float, float, float], FloatArray, float] | None = None
-    for axis, sign in ((1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0), (0, 1.0), (0, -1.0)):
-        for yaw in (0.0, np.pi / 2, np.pi, 3 * np.pi / 2):
-            rot = _rotation_up(axis, sign, yaw)
-            world = every @ rot.T
-            base_w = placed[base] @ rot.T
-            height = float(world[:, 2].max() - world[:, 2].min())
-            fixture = max(float(base_w[:, 2].min() - world[:, 2].min()), 0.0)
-            if fixture > 0.0:
-                fixture += clearance
-            centre = (base_w.min(axis=0) + base_w.max(axis=0)) / 2.0
-            xy = world[:, :2] - centre[:2] + np.asarray(assembly_xy) - np.asarray(robot_xy)
-            dist = np.linalg.norm(xy, axis=1)
-            reach = float(dist.max())
-            intrusion = max(inner_radius - float(dist.min()), 0.0)
-            key = (round(intrusion, 3), round(height, 3), round(fixture, 3), round(reach, 3))
-            if best is None or key < best[0]:
-                t = np.eye(4)
-                t[:3, :3] = rot
-                t[:2, 3] = np.asarray(assembly_xy) - centre[:2]
-                t[2, 3] = table_z + fixture - float(base_w[:, 2].min())
-                best = (key, t, fixture)
-    assert best is not None
-    _, pose, fixture = best
-    fixtures: list[tuple[str, FloatArray, FloatArray]] = []
-    if fixture > 0.0:
-        base_w = _transform(pose, placed[base])
-        lo, hi = base_w.min(axis=0), base_w.max(axis=0)
-        mid = (lo + hi) / 2.0
-        half = (hi - lo) / 2.0
-        # narrow the block along the base's long side until no part reaching
-        # below the base stands in it
-        a = int(np.argmax(half[:2]))
-        b = 1 - a
-        low = np.vstack([_transform(pose, v) for n, v in placed.items() if n != base])
-        low = low[low[:, 2] < lo[2] - 1e-9]
-        inside = np.abs(low[:, b] - mid[b]) < half[b]
-        if inside.any():
-            half[a] = min(half[a], float(np.abs(low[inside, a] - mid[a]).min()) - 0.01)
-        size = np.array([2 * half[0], 2 * half[1], fixture])
-        centre = np.eye(4)
-        centre[:3, 3] = [mid[0], mid[1], table_z + fixture / 2.0]
-        fixtures.append(("fixture", centre, size))
-    return pose, fixtures
+    _, pose, fixture = base_pose_candidates(
+        task,
+        base=base,
+        assembly_xy=assembly_xy,
+        table_z=table_z,
+        robot_xy=robot_xy,
+        clearance=clearance,
+        inner_radius=inner_radius,
+        task_path=task_path,
+        search=search,
+    )[0]
+    return pose, base_fixtures(
+        task, pose, fixture, base=base, table_z=table_z, task_path=task_path, search=search
+    )
 
 
 def make_workcell(
@@ -405,6 +619,7 @@ def start_layout(
     search: Sequence[str | os.PathLike[str]] = (),
     max_tries: int = 2000,
     restarts: int = 20,
+    accept: Callable[[str, FloatArray], bool] | None = None,
 ) -> dict[str, FloatArray]:
     """A seeded start layout: every part's world pose, the base at its assembly pose.
 
@@ -424,6 +639,10 @@ def start_layout(
         Rejection-sampling budget per part.
     restarts : int
         Whole layouts tried (the same generator continued) when a part finds no spot.
+    accept : callable, optional
+        ``accept(name, T_world_part)``: whether a free spot will do (e.g. the arm reaches
+        enough grasps there, :func:`thirdhand.execute.placement.reach_check`); a refused
+        spot counts as a draw.
 
     Returns
     -------
@@ -474,7 +693,11 @@ def start_layout(
                 t[2, 3] = cell.table_z - vw[:, 2].min()
                 fp = _footprint(_transform(t, v), margin / 2)
                 inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
-                if inside and not any(_overlap(fp, o) for o in free):
+                if (
+                    inside
+                    and not any(_overlap(fp, o) for o in free)
+                    and (accept is None or accept(name, t))
+                ):
                     free.append(fp)
                     poses[name] = t
                     break

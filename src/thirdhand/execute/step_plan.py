@@ -68,6 +68,15 @@ class ExecutionOptions:
     max_parts : int
         Interchangeable parts tried per slot (1: the slot's own part first, then
         only when it is already used).
+    placement : {"geometry", "reach"}
+        How :meth:`Executor.for_task` stands the base: the geometric choice
+        (:func:`~thirdhand.execute.layout.assembly_base_pose`) or, of the first
+        geometric candidates, the one whose goals the arm reaches best
+        (:func:`~thirdhand.execute.placement.choose_placement`).
+    start_grasps : int
+        :meth:`Executor.for_task`: a start spot farther than 0.55 m from the arm is taken
+        only if at least this many of the part's grasps have an IK solution there (0: any
+        spot in the band; :func:`~thirdhand.execute.placement.reach_check`).
     """
 
     sample_free_dofs: bool = True
@@ -92,6 +101,8 @@ class ExecutionOptions:
     order: str = "auto"
     reorder: bool = True
     max_parts: int = 2
+    placement: str = "geometry"
+    start_grasps: int = 0
 
 
 @dataclass
