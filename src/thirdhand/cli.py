@@ -171,6 +171,19 @@ class _LazyGroup(TyperGroup):
         # Listing (help): a stand-in with the one line, no import.
         return TyperCommand(cmd_name, help=LAZY[cmd_name].help, callback=None)
 
+    def format_commands(self, ctx: Any, formatter: Any) -> None:
+        """The command list with each command's whole first paragraph (wrapped, not cut)."""
+        rows = []
+        for name in self.list_commands(ctx):
+            command = self.get_command(ctx, name)
+            if command is None or command.hidden:
+                continue
+            text = command.short_help or (command.help or "").split("\n\n")[0]
+            rows.append((name, " ".join(text.split())))
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
+
     def resolve_command(self, ctx: Any, args: list[str]) -> Any:
         if args and args[0] in LAZY and args[0] not in self.commands:
             return args[0], load_command(args[0]), args[1:]
@@ -179,6 +192,9 @@ class _LazyGroup(TyperGroup):
 
 app = typer.Typer(
     cls=_LazyGroup,
+    # Plain help for the root: typer's rich help imports markdown rendering (~0.1 s),
+    # the largest part of `thirdhand --help` after numpy (benchmarks/cli_startup.py).
+    rich_markup_mode=None,
     name="thirdhand",
     help="Teach a robot an assembly task from human demonstrations.",
     no_args_is_help=True,
