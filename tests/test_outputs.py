@@ -445,9 +445,24 @@ raise SystemExit(main(["--version"]))
 """
 
 
+def _default_sigint() -> None:
+    """A child starts as from a shell, whatever the test process's own SIGINT disposition.
+
+    (A full suite run once left the xdist worker with SIGINT ignored — some library
+    in the process does it — and an ignored disposition is inherited.)
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_during_start_up_is_one_line() -> None:
     code = START_UP_CTRL_C
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=_default_sigint,
+    )
     assert proc.returncode == 130, proc.stderr
     assert one_error_line(proc.stderr) == "thirdhand: error: interrupted"
 
@@ -455,7 +470,13 @@ def test_ctrl_c_during_start_up_is_one_line() -> None:
 def test_importing_the_cli_leaves_ctrl_c_alone() -> None:
     code = "import signal, thirdhand.cli\n"
     code += "print(signal.getsignal(signal.SIGINT) is signal.default_int_handler)"
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [sys.executable, "-c", code],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        preexec_fn=_default_sigint,
+    )
     assert proc.stdout.strip() == "True", proc.stderr
 
 

@@ -19,7 +19,7 @@ from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
 from thirdhand.review.playback import HandContacts, Timeline, hand_contacts, playback_colours
-from thirdhand.review.scene3d import FINGER_RGB, LOCKED_RGB, SELECTED_RGB
+from thirdhand.review.scene3d import FINGER_RGB
 from thirdhand.se3 import pose_compose
 from thirdhand.task.constraint import Constraint
 
@@ -144,8 +144,6 @@ class Motion:
         n = max(2, int(ANIMATION_SECONDS * ANIMATION_RATE))
         for dof in order:
             self.animating = dof
-            locked = dofs_mod.classify_dof(*c.free_dofs[dof], dof) == "locked"
-            app.parts.set_colours({c.child: LOCKED_RGB if locked else SELECTED_RGB})
             self.events.animating(c, dof)
             for k in range(n):
                 if stop.is_set():

@@ -354,7 +354,7 @@ class Panels:
     def show_animation(self, c: Constraint, dof: str | None) -> None:
         """Name the DOF being animated, and whether it is locked (None: animation over)."""
         if dof is not None and dofs_mod.classify_dof(*c.free_dofs[dof], dof) == "locked":
-            dof = f"{dof} (locked: a small swing shows its axis, the part is red)"
+            dof = f"{dof} (locked: a small swing shows its axis)"
         self._render_selection(animating=dof)
 
     def show_playing(self, playing: bool) -> None:

@@ -38,8 +38,6 @@ SELECTED_RGB: Rgb = (255, 140, 0)
 PARENT_RGB: Rgb = (30, 110, 235)
 #: Every other part.
 DEFAULT_RGB: Rgb = (200, 200, 200)
-#: The selected part while the DOF animation swings it along a locked DOF.
-LOCKED_RGB: Rgb = (200, 40, 40)
 #: Fingers and hands in playback.
 FINGER_RGB: Rgb = (240, 200, 160)
 #: Axis colours of the DOF glyphs: x red, y green, z blue (darker blue than the parent's).
