@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from thirdhand.constraints import fit_constraint
-from thirdhand.constraints.synthetic import random_joint_track
+from thirdhand.datasets.joint_tracks import random_joint_track
 
 CASES = (
     ("fixed", True),

@@ -33,9 +33,9 @@ from pathlib import Path
 import numpy as np
 import pycrfsuite
 
+from thirdhand.datasets.pick_place import random_pick_place_demo
 from thirdhand.segment.crf import PairCRF
 from thirdhand.segment.design import FeatureConfig
-from thirdhand.segment.toy import random_pick_place_demo
 from thirdhand.segment.training import labelled_sequences
 
 

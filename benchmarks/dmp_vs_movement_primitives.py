@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from thirdhand.datasets.primitive_shapes import lasa_shapes
 from thirdhand.primitives import DMP
-from thirdhand.primitives.datasets import lasa_shapes
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "lasa"
 

@@ -14,7 +14,7 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from thirdhand.primitives.experiments import dp_check, library_scaling
+from thirdhand.experiments.primitive_library import dp_check, library_scaling
 
 
 def main() -> None:

@@ -19,9 +19,9 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np
 
+from thirdhand.datasets.pick_place import random_pick_place_demo
 from thirdhand.segment.model import default_model
 from thirdhand.segment.pipeline import segment_demonstration
-from thirdhand.segment.toy import random_pick_place_demo
 
 
 def main() -> None:

@@ -32,7 +32,7 @@ from collections import defaultdict
 import numpy as np
 
 from thirdhand.constraints.select import CONFIDENCE_FLOOR, CONFIDENCE_TEMPERATURE
-from thirdhand.constraints.sweep import (
+from thirdhand.experiments.constraint_sweep import (
     CASES,
     Condition,
     Trial,

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import argparse
 
-from thirdhand.plan.experiments import (
+from thirdhand.experiments.plan_accuracy import (
     Row,
     constraint_error_table,
     corrections_table,

@@ -15,7 +15,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
-from thirdhand.primitives.experiments import (
+from thirdhand.experiments.primitive_library import (
     dp_check,
     lasa_join_experiment,
     library_scaling,
@@ -138,7 +138,7 @@ def main() -> None:
         from thirdhand.primitives.plot import plot_library
 
         args.plots.mkdir(parents=True, exist_ok=True)
-        from thirdhand.primitives.datasets import sine_tracks
+        from thirdhand.datasets.primitive_shapes import sine_tracks
 
         plot_library(
             se["library"],

@@ -93,12 +93,14 @@ def test_no_verb_is_shadowed_by_a_stage_package() -> None:
 
 
 def test_stages_do_not_import_the_synthetic_world() -> None:
+    # Nor the experiments and data sets kept at the edges of the package.
     code = (
         "import sys, thirdhand.task, thirdhand.task.meshes, thirdhand.taskfile\n"
         "import thirdhand.plan.learn, thirdhand.segment, thirdhand.constraints\n"
         "import thirdhand.primitives, thirdhand.execute, thirdhand.review\n"
         "import thirdhand.task_learning\n"
-        "print([m for m in sys.modules if m.startswith('thirdhand.synth')])\n"
+        "edges = ('thirdhand.synth', 'thirdhand.experiments', 'thirdhand.datasets')\n"
+        "print([m for m in sys.modules if m.startswith(edges)])\n"
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert run.stdout.strip() == "[]", run.stdout + run.stderr

@@ -13,7 +13,8 @@ from thirdhand.constraints.select import (
     bic_weights,
     type_probabilities,
 )
-from thirdhand.constraints.sweep import (
+from thirdhand.datasets.joint_tracks import random_joint_track
+from thirdhand.experiments.constraint_sweep import (
     Condition,
     _bow,
     _dof_ratio,
@@ -21,7 +22,6 @@ from thirdhand.constraints.sweep import (
     reliability,
     run_sweep,
 )
-from thirdhand.constraints.synthetic import random_joint_track
 
 
 def test_type_probabilities_mix_a_floor_into_tempered_weights() -> None:

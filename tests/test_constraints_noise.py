@@ -7,6 +7,7 @@ import math
 import numpy as np
 import pytest
 
+from thirdhand import se3
 from thirdhand.constraints import ConstraintFitError, NoiseModel, fit_constraint
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.noise import (
@@ -21,7 +22,7 @@ from thirdhand.constraints.noise import (
 )
 from thirdhand.constraints.robust import prepare_track
 from thirdhand.constraints.select import MIN_TURN
-from thirdhand.constraints.synthetic import random_joint_track
+from thirdhand.datasets.joint_tracks import random_joint_track
 
 KINDS = ("fixed", "prismatic", "revolute", "cylindrical", "free")
 
@@ -80,7 +81,7 @@ def test_rotation_estimate_does_not_wrap_through_pi() -> None:
     q = g.quat_axis_angle(np.array([0.0, 0.0, 1.0]), theta)
     sigma = math.radians(0.5)
     noise = Rotation.from_rotvec(sigma * rng.standard_normal((n, 3))).as_quat()
-    q = g.quat_mul(np.ascontiguousarray(noise), q)
+    q = se3.quat_multiply(np.ascontiguousarray(noise), q)
     e = estimate_noise(np.zeros((n, 3)), q)
     assert e.sigma_rot == pytest.approx(sigma, rel=0.15)
 
@@ -182,7 +183,7 @@ def test_degenerate_radius_is_prismatic() -> None:
         noise = g.quat_axis_angle(
             np.array([1.0, 0.0, 0.0]), math.radians(0.2) * rng.standard_normal(n)
         )
-        assert fit_constraint(pos, g.quat_mul(noise, turning)).type == oriented_type
+        assert fit_constraint(pos, se3.quat_multiply(noise, turning)).type == oriented_type
         assert (theta[-1] >= MIN_TURN) == (oriented_type == "revolute")
 
 

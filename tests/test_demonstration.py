@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
+import math
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -16,7 +19,7 @@ from thirdhand import (
     PlanStep,
     se3,
 )
-from thirdhand.demonstration import labels_from_dict, labels_to_dict
+from thirdhand.demonstration import FreeDofs, labels_from_dict, labels_to_dict
 
 
 def _demo(n: int = 100, rate: float = 100.0, seed: int = 0) -> Demonstration:
@@ -230,8 +233,32 @@ def test_labels_dict_round_trip() -> None:
 def test_constraint_event_checks() -> None:
     with pytest.raises(DemonstrationError, match="type must be one of"):
         ConstraintEvent(0.0, "a", "b", "glued")
-    with pytest.raises(DemonstrationError, match="min > max"):
+    with pytest.raises(DemonstrationError, match=r"a->b: free DOFs: DOF tx: range .* min > max"):
         ConstraintEvent(0.0, "a", "b", "fixed", free_dofs=((1, 0),) + ((0, 0),) * 5)
+    with pytest.raises(DemonstrationError, match=r"shape \(6, 2\)"):
+        ConstraintEvent(0.0, "a", "b", "fixed", free_dofs=((0, 0),) * 5)
+    with pytest.raises(DemonstrationError, match=r"DOF rz: range .* not finite"):
+        ConstraintEvent(0.0, "a", "b", "fixed", free_dofs=((0, 0),) * 5 + ((0, math.inf),))
+    # Pairs are converted to the one free-DOF value, equal to one built by name.
+    pairs = ((0, 0),) * 3 + ((-1, 1),) + ((0, 0),) * 2
+    ev = ConstraintEvent(0.0, "a", "b", "revolute", free_dofs=pairs)  # type: ignore[arg-type]
+    assert ev.free_dofs == FreeDofs(rx=(-1.0, 1.0)) and ev.free_dofs.free() == ["rx"]
+    assert hash(ev) == hash(dataclasses.replace(ev))
+
+
+def test_free_dofs_value() -> None:
+    fd = FreeDofs(tz=(0.0, 0.05), rx=(-math.pi, math.pi), ry=(0.2, 0.2))
+    expected = [[0.0, 0.05], [-math.pi, math.pi], [0.2, 0.2]]
+    np.testing.assert_array_equal(fd.array()[[2, 3, 4]], expected)
+    assert FreeDofs.from_array(fd.array()) == fd
+    assert fd.free() == ["tz", "rx"]  # ry has no width: locked at 0.2 rad
+    assert dataclasses.replace(fd, tz=(0.0, 0.0)).free() == ["rx"]
+    with pytest.raises(ValueError, match="DOF ty: expected a range"):
+        FreeDofs(ty=(1.0,))  # type: ignore[arg-type]
+    with pytest.raises(KeyError, match="unknown DOF 'Tx'"):
+        fd["Tx"]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fd.tx = (0.0, 1.0)  # type: ignore[misc]
 
 
 def test_continuous_quaternions() -> None:

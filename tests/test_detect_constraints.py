@@ -13,7 +13,7 @@ from thirdhand.constraints.detect import detect_constraints
 from thirdhand.constraints.hmm import HMMParams, forward_backward
 from thirdhand.constraints.types import ConstraintFitError
 from thirdhand.errors import ThirdhandError
-from thirdhand.plan.experiments import corrections, pose_errors
+from thirdhand.metrics import corrections, pose_errors
 from thirdhand.synth import SensorModel, make_scene
 
 
@@ -53,7 +53,7 @@ def test_noise_free_scene_is_recovered_exactly(scene: str) -> None:
         assert abs(inst.start - ev.time) < 0.15
         np.testing.assert_allclose(inst.pos, ev.pos, atol=1e-4)
         assert float(se3.quat_angle(inst.quat, np.asarray(ev.quat))) < math.radians(0.05)
-        np.testing.assert_allclose(inst.ranges, np.asarray(ev.free_dofs), atol=1e-12)
+        np.testing.assert_allclose(inst.ranges, ev.free_dofs.array(), atol=1e-12)
     assert corrections(det.instances, truth)[0] == 0
 
 
@@ -105,10 +105,10 @@ def test_lid_on_its_hinge_is_revolute_with_its_opening_range() -> None:
     det = detect_constraints(demo)
     (inst,) = det.instances
     assert (inst.parent, inst.child, inst.type) == ("box", "lid", "revolute")
-    assert inst.free_dofs == ["rx"]
+    assert inst.free_dofs.free() == ["rx"]
     assert inst.ranges[3, 0] == pytest.approx(0.0, abs=1e-6)
     # The range is the opening seen in the demonstration (at most the true 110°).
-    assert math.radians(60.0) < inst.ranges[3, 1] <= ev.free_dofs[3][1] + 1e-6
+    assert math.radians(60.0) < inst.ranges[3, 1] <= ev.free_dofs["rx"][1] + 1e-6
     assert abs(inst.start - ev.time) < 0.3
     np.testing.assert_allclose(inst.pos, ev.pos, atol=1e-3)
 
@@ -118,7 +118,7 @@ def test_drawer_slides_in_its_rails() -> None:
     (ev,) = demo.labels.constraints
     (inst,) = detect_constraints(demo).instances
     assert (inst.parent, inst.child, inst.type) == ("frame", "drawer", "prismatic")
-    assert inst.free_dofs == ["tx"]
+    assert inst.free_dofs.free() == ["tx"]
     assert inst.ranges[0, 1] > 0.1
     np.testing.assert_allclose(inst.pos, ev.pos, atol=3e-3)
     # The drawer comes in along its rails: the slide starts at or before the rails.

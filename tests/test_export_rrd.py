@@ -57,9 +57,7 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
             "type": c.type,
             "pos": list(c.pos),
             "quat": list(c.quat),
-            "free_dofs": dict(
-                zip(("tx", "ty", "tz", "rx", "ry", "rz"), map(list, c.free_dofs), strict=True)
-            ),
+            "free_dofs": {n: list(c.free_dofs[n]) for n in ("tx", "ty", "tz", "rx", "ry", "rz")},
             "time": c.time,
         }
         for i, c in enumerate(demo.labels.constraints)

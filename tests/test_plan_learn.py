@@ -99,7 +99,7 @@ def test_toolbox_excerpt_runs_despite_missing_frames(shared_data: Path, tmp_path
 
 
 def test_experiment_tables_with_few_runs() -> None:
-    from thirdhand.plan.experiments import corrections_table, plan_success_table
+    from thirdhand.experiments.plan_accuracy import corrections_table, plan_success_table
 
     rows = plan_success_table(scene="bench", runs=1, max_demos=2, scale=None)
     assert [r.ours for r in rows] == ["1.000 (1/1)", "1.000 (1/1)"]

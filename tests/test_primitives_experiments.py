@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 from typer.testing import CliRunner
 
+from thirdhand.datasets.primitive_shapes import concatenate_shapes, lasa_shapes, sine_tracks
+from thirdhand.experiments.primitive_library import lasa_join_experiment, orientation_comparison
 from thirdhand.primitives.cli import app
-from thirdhand.primitives.datasets import concatenate_shapes, lasa_shapes, sine_tracks
-from thirdhand.primitives.experiments import lasa_join_experiment, orientation_comparison
 
 runner = CliRunner()
 

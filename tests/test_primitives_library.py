@@ -7,8 +7,8 @@ import itertools
 import numpy as np
 import pytest
 
+from thirdhand.datasets.primitive_shapes import sine_tracks
 from thirdhand.primitives import PrimitiveError, PrimitiveLibrary
-from thirdhand.primitives.datasets import sine_tracks
 from thirdhand.primitives.segment_features import candidate_cuts, normalise_segments
 from thirdhand.primitives.segmentation_dp import (
     best_segmentation,
@@ -98,7 +98,7 @@ def test_library_bad_input() -> None:
 
 
 def test_two_hundred_candidate_cuts_parse_exactly() -> None:
-    from thirdhand.primitives.experiments import library_scaling
+    from thirdhand.experiments.primitive_library import library_scaling
 
     r = library_scaling()
     assert r["n_candidates"] >= 200

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -334,9 +335,7 @@ def test_dof_animation(chair: TaskFile) -> None:
         np.subtract(leg.pos, quat_rotate(leg.quat, [0, 0, 0.02])),
     )
     # A limited range reaches its ends.
-    lim = leg.model_copy(
-        update={"free_dofs": leg.free_dofs.model_copy(update={"ty": (-0.01, 0.03)})}
-    )
+    lim = leg.model_copy(update={"free_dofs": dataclasses.replace(leg.free_dofs, ty=(-0.01, 0.03))})
     assert np.allclose(
         np.subtract(dof_animation(lim, "ty", 0.25).pos, leg.pos),
         quat_rotate(leg.quat, [0, 0.03, 0]),

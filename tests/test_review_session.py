@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -138,8 +139,8 @@ def test_clarification_queue_order(chair: TaskFile) -> None:
     t = chair.model_copy(deep=True)
     t.constraints[2].confidence = 0.1  # c2: the least confident constraint
     # c3's ry: 6 degrees, right at the noise boundary (5 degrees)
-    t.constraints[1].free_dofs = t.constraints[1].free_dofs.model_copy(
-        update={"ry": (-math.radians(3.0), math.radians(3.0))}
+    t.constraints[1].free_dofs = dataclasses.replace(
+        t.constraints[1].free_dofs, ry=(-math.radians(3.0), math.radians(3.0))
     )
     q = clarification_queue(t)
     assert (q[0].constraint, q[0].dof) == ("c2", None)

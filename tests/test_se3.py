@@ -192,3 +192,37 @@ def test_compiled_companions_match_numpy(rng: np.random.Generator) -> None:
     qc = continuous_quat_rows(qb, valid)
     np.testing.assert_allclose(qc[valid], se3.quat_make_continuous(qb, valid)[valid], atol=0)
     np.testing.assert_array_equal(qc[~valid], qb[~valid])
+
+
+@settings(max_examples=200, deadline=None)
+@given(special, special)
+def test_compiled_rotation_kernels_match_numpy(q1: np.ndarray, q2: np.ndarray) -> None:
+    from thirdhand import se3_compiled as sc
+
+    a = np.ascontiguousarray(q1, dtype=np.float64)
+    b = np.ascontiguousarray(q2, dtype=np.float64)
+    np.testing.assert_allclose(sc.qmul(*a, *b), se3.quat_multiply(a, b), atol=1e-15)
+    v = np.array([0.3, -1.2, 0.7])
+    np.testing.assert_allclose(sc.rotate_one(a, v), se3.quat_rotate(a, v), atol=1e-14)
+    np.testing.assert_allclose(a[:3] * sc.rotvec_scale(*a), se3.quat_to_rotvec(a), atol=1e-14)
+    m = np.ascontiguousarray(se3.matrix_from_quat(a))
+    assert float(se3.quat_angle(sc.quat_from_frame(m), a)) < 1e-9
+    # align_x: the x axis lands on the target, by the smallest turn. Within 1e-12 of
+    # cos = -1 the kernel takes the exact half turn: off by at most sqrt(2e-12) rad.
+    axis = se3.quat_rotate(b, np.array([1.0, 0.0, 0.0]))
+    turned = sc.align_x(a, np.ascontiguousarray(axis))
+    half_turn_slack = float(np.sqrt(2e-12)) + 1e-12
+    np.testing.assert_allclose(
+        se3.quat_rotate(turned, np.array([1.0, 0.0, 0.0])), axis, atol=half_turn_slack
+    )
+    x_a = se3.quat_rotate(a, np.array([1.0, 0.0, 0.0]))
+    expected_turn = np.arccos(np.clip(x_a @ axis, -1.0, 1.0))
+    assert abs(float(se3.quat_angle(turned, a)) - expected_turn) < 1e-6
+    # frame_from_axes: x is the given axis, y the hint's perpendicular part
+    hint = se3.quat_rotate(a, np.array([0.0, 1.0, 0.0]))
+    f = sc.frame_from_axes(np.ascontiguousarray(axis), np.ascontiguousarray(hint))
+    np.testing.assert_allclose(se3.quat_rotate(f, np.array([1.0, 0.0, 0.0])), axis, atol=1e-9)
+    y = se3.quat_rotate(f, np.array([0.0, 1.0, 0.0]))
+    perp = hint - (hint @ axis) * axis
+    if np.linalg.norm(perp) > 1e-6:
+        np.testing.assert_allclose(y, perp / np.linalg.norm(perp), atol=1e-6)

@@ -10,13 +10,13 @@ import pytest
 
 from thirdhand import io
 from thirdhand.cli import main
+from thirdhand.datasets.pick_place import random_pick_place_demo
 from thirdhand.demonstration import Demonstration, InteractionInterval
 from thirdhand.segment.calibrate import calibrate, labelled_pairs
 from thirdhand.segment.evaluate import frame_f1
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.model import SegmentModel, load_model
 from thirdhand.segment.pipeline import segment_demonstration
-from thirdhand.segment.toy import random_pick_place_demo
 from thirdhand.segment.training import fit_model
 
 NOISY = {"noise_pos": 5e-4, "noise_rot": 5e-3, "missing": 0.1}

@@ -10,6 +10,7 @@ import pytest
 from typer.testing import CliRunner
 
 from thirdhand import io
+from thirdhand.datasets.pick_place import random_pick_place_demo
 from thirdhand.demonstration import BodyInfo, Demonstration, DemonstrationError
 from thirdhand.errors import ThirdhandError
 from thirdhand.segment.cli import app
@@ -18,7 +19,6 @@ from thirdhand.segment.evaluate import frame_f1
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.model import ModelFileError, SegmentModel, load_model
 from thirdhand.segment.pipeline import segment_demonstration
-from thirdhand.segment.toy import random_pick_place_demo
 from thirdhand.segment.training import fit_model, labelled_sequences, table_one
 
 NOISY = {"noise_pos": 5e-4, "noise_rot": 5e-3, "missing": 0.2}

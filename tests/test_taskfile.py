@@ -251,8 +251,8 @@ INVALID = [
         _set("plan.0.keyframe.leg1.quat", [1, 1, 0, 0]),
         "plan[0].keyframe.leg1.quat: quaternion norm",
     ),
-    (_set("constraints.1.free_dofs.tz", [0.1, -0.1]), "constraints[1].free_dofs.tz: range"),
-    (_set("constraints.1.free_dofs.Tz", [0.0, 0.0]), "constraints[1].free_dofs.Tz: Extra inputs"),
+    (_set("constraints.1.free_dofs.tz", [0.1, -0.1]), "constraints[1].free_dofs: DOF tz: range"),
+    (_set("constraints.1.free_dofs.Tz", [0.0, 0.0]), "constraints[1].free_dofs.Tz: Unexpected"),
     (
         _set("constraints.0.confidence", 1.5),
         "constraints[0].confidence: expected a value in [0, 1]",
@@ -445,7 +445,7 @@ def test_constraint_rows_round_trip() -> None:
         ([0.0] * 10, r"expected a row of 19 \(or 7\) numbers, got 10"),
         ([0.0] * 6 + ["1"], r"row\[6\] is '1', expected a number"),
         ([0.0] * 7, "quat: quaternion has zero norm"),
-        ([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.5, 0.1, *([0.0] * 10)], "free_dofs.tx: range"),
+        ([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.5, 0.1, *([0.0] * 10)], "free_dofs: DOF tx: range"),
     ],
 )
 def test_bad_constraint_rows(row: list[Any], expected: str) -> None:

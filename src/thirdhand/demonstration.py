@@ -87,6 +87,100 @@ class BodyInfo:
             )
 
 
+#: A locked DOF's range.
+_LOCKED: tuple[float, float] = (0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class FreeDofs:
+    """Ranges of the six degrees of freedom in a constraint frame; ``(0, 0)`` = locked.
+
+    The one free-DOF value of the package: ground-truth labels
+    (:class:`ConstraintEvent`), detection
+    (:class:`~thirdhand.constraints.detect_types.ConstraintInstance`), the task
+    file (:class:`thirdhand.task.Constraint`), the review GUI and execution all
+    hold one. Immutable; change one range with
+    ``dataclasses.replace(fd, rz=(lo, hi))``.
+
+    Attributes
+    ----------
+    tx, ty, tz : tuple of 2 floats
+        ``(min, max)`` translation along x, y, z of the constraint frame, metres.
+    rx, ry, rz : tuple of 2 floats
+        ``(min, max)`` rotation about x, y, z of the constraint frame, radians.
+
+    Raises
+    ------
+    ValueError
+        If a range is not two finite numbers with min <= max.
+
+    Notes
+    -----
+    In a task file it is the object ``{"rx": [-3.14, 3.14], ...}`` (omitted DOFs
+    locked). Unlike the task file's other objects, unknown keys are an error here
+    (the ``__pydantic_config__`` below): a misspelt DOF name (``"Tx"``) silently
+    read as locked would change what the robot may do. A plain dataclass rather
+    than a pydantic model so that reading a recording does not import pydantic.
+    """
+
+    __pydantic_config__ = {"extra": "forbid", "allow_inf_nan": False}  # noqa: RUF012
+
+    tx: tuple[float, float] = _LOCKED
+    ty: tuple[float, float] = _LOCKED
+    tz: tuple[float, float] = _LOCKED
+    rx: tuple[float, float] = _LOCKED
+    ry: tuple[float, float] = _LOCKED
+    rz: tuple[float, float] = _LOCKED
+
+    def __post_init__(self) -> None:
+        for name in DOF_NAMES:
+            r = getattr(self, name)
+            try:
+                lo, hi = (float(v) for v in r)
+            except (TypeError, ValueError):
+                raise ValueError(
+                    f"DOF {name}: expected a range (min, max) of two numbers, got {r!r}"
+                ) from None
+            if not (np.isfinite(lo) and np.isfinite(hi)):
+                raise ValueError(f"DOF {name}: range [{lo}, {hi}] is not finite")
+            if not lo <= hi:
+                raise ValueError(f"DOF {name}: range [{lo}, {hi}] has min > max")
+            object.__setattr__(self, name, (lo, hi))
+
+    @classmethod
+    def from_array(cls, ranges: ArrayLike) -> FreeDofs:
+        """Build from ``ranges``, array_like shape (6, 2): rows tx ty tz (m) rx ry rz (rad)."""
+        arr = np.asarray(ranges, dtype=np.float64)
+        if arr.shape != (6, 2):
+            raise ValueError(f"expected DOF ranges of shape (6, 2), got {arr.shape}")
+        return cls(*((float(lo), float(hi)) for lo, hi in arr))
+
+    def __getitem__(self, dof: str) -> tuple[float, float]:
+        """The range of one DOF by name: ``fd["rx"]`` (radians; metres for ``t*``).
+
+        Raises
+        ------
+        KeyError
+            If ``dof`` is not one of :data:`DOF_NAMES`.
+        """
+        if dof not in DOF_NAMES:
+            raise KeyError(f"unknown DOF {dof!r} (expected one of {', '.join(DOF_NAMES)})")
+        r: tuple[float, float] = getattr(self, dof)
+        return r
+
+    def ranges(self) -> list[tuple[float, float]]:
+        """The six ranges in :data:`DOF_NAMES` order."""
+        return [self[n] for n in DOF_NAMES]
+
+    def array(self) -> FloatArray:
+        """The ranges as an array, shape (6, 2): rows tx ty tz (m) rx ry rz (rad)."""
+        return np.asarray(self.ranges(), dtype=np.float64)
+
+    def free(self) -> list[str]:
+        """Names of the DOFs whose range has width (min < max), in :data:`DOF_NAMES` order."""
+        return [n for n in DOF_NAMES if self[n][0] != self[n][1]]
+
+
 @dataclass(frozen=True)
 class InteractionInterval:
     """Ground truth: bodies ``a`` and ``b`` interact over ``[start, end]`` seconds."""
@@ -113,9 +207,10 @@ class ConstraintEvent:
         Child origin in the parent frame, metres, at the moment the constraint is made.
     quat : tuple of 4 floats
         Child orientation in the parent frame, x y z w.
-    free_dofs : tuple of 6 (min, max) pairs
+    free_dofs : FreeDofs
         Range of tx, ty, tz (metres) and rx, ry, rz (radians) in the constraint
         frame (the child's frame at the constraint pose); ``(0, 0)`` is a locked DOF.
+        Six ``(min, max)`` pairs are accepted too and converted.
     symbol : str or None
         The constraint's symbol (e.g. a slot ``"c2"``), when known.
     removed : bool
@@ -128,7 +223,7 @@ class ConstraintEvent:
     type: str
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     quat: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
-    free_dofs: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 6
+    free_dofs: FreeDofs = FreeDofs()
     symbol: str | None = None
     removed: bool = False
 
@@ -138,22 +233,24 @@ class ConstraintEvent:
                 f"constraint {self.parent}->{self.child}: type must be one of "
                 f"{', '.join(CONSTRAINT_TYPES)}, got {self.type!r}"
             )
-        if len(self.pos) != 3 or len(self.quat) != 4 or len(self.free_dofs) != 6:
+        if len(self.pos) != 3 or len(self.quat) != 4:
             raise DemonstrationError(
-                f"constraint {self.parent}->{self.child}: expected pos of 3, quat of 4 and "
-                f"6 DOF ranges, got {len(self.pos)}, {len(self.quat)}, {len(self.free_dofs)}"
+                f"constraint {self.parent}->{self.child}: expected pos of 3 and quat of 4, "
+                f"got {len(self.pos)}, {len(self.quat)}"
             )
-        for name, (lo, hi) in zip(DOF_NAMES, self.free_dofs, strict=True):
-            if not lo <= hi:
+        if not isinstance(self.free_dofs, FreeDofs):
+            try:
+                fd = FreeDofs.from_array(self.free_dofs)
+            except ValueError as exc:
                 raise DemonstrationError(
-                    f"constraint {self.parent}->{self.child}: DOF {name} range [{lo}, {hi}] "
-                    "has min > max"
-                )
+                    f"constraint {self.parent}->{self.child}: free DOFs: {exc}"
+                ) from None
+            object.__setattr__(self, "free_dofs", fd)
 
     @property
     def free_dof_array(self) -> FloatArray:
         """Free-DOF ranges as an array, shape (6, 2)."""
-        return np.asarray(self.free_dofs, dtype=np.float64)
+        return self.free_dofs.array()
 
 
 @dataclass(frozen=True)
@@ -633,6 +730,7 @@ __all__ = [
     "BodyTrack",
     "ConstraintEvent",
     "Demonstration",
+    "FreeDofs",
     "InteractionInterval",
     "Labels",
     "PlanStep",
@@ -666,7 +764,7 @@ def labels_to_dict(labels: Labels) -> dict[str, Any]:
     return {
         "interactions": [dataclasses.asdict(i) for i in labels.interactions],
         "constraints": [
-            {**dataclasses.asdict(c), "free_dofs": [list(r) for r in c.free_dofs]}
+            {**dataclasses.asdict(c), "free_dofs": [list(r) for r in c.free_dofs.ranges()]}
             for c in labels.constraints
         ],
         "plan": [dataclasses.asdict(s) for s in labels.plan],
@@ -688,7 +786,7 @@ def labels_from_dict(d: Mapping[str, Any]) -> Labels:
                 type=str(c["type"]),
                 pos=tuple(float(x) for x in c["pos"]),  # type: ignore[arg-type]
                 quat=tuple(float(x) for x in c["quat"]),  # type: ignore[arg-type]
-                free_dofs=tuple((float(lo), float(hi)) for lo, hi in c["free_dofs"]),
+                free_dofs=FreeDofs.from_array(c["free_dofs"]),
                 symbol=c.get("symbol"),
                 removed=bool(c.get("removed", False)),
             )

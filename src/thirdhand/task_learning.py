@@ -17,7 +17,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from thirdhand.demonstration import ConstraintEvent, Demonstration
+from thirdhand.demonstration import ConstraintEvent, Demonstration, FreeDofs
 from thirdhand.errors import ThirdhandError
 
 if TYPE_CHECKING:
@@ -112,7 +112,7 @@ def learned_events(learned: Learned) -> list[tuple[ConstraintEvent, ...]]:
                     type=s.type,
                     pos=(float(s.pos[0]), float(s.pos[1]), float(s.pos[2])),
                     quat=(float(s.quat[0]), float(s.quat[1]), float(s.quat[2]), float(s.quat[3])),
-                    free_dofs=tuple((float(lo), float(hi)) for lo, hi in s.ranges),
+                    free_dofs=FreeDofs.from_array(s.ranges),
                     symbol=s.name,
                 )
             )

@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from thirdhand.constraints.hmm import HMMParams
 from thirdhand.constraints.types import DOF_NAMES, ConstraintFitError
+from thirdhand.demonstration import FreeDofs
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -69,9 +70,9 @@ class ConstraintInstance:
     symbol: str | None = None
 
     @property
-    def free_dofs(self) -> list[str]:
-        """Names of the DOFs whose range is not ``[0, 0]``."""
-        return [n for n, (lo, hi) in zip(DOF_NAMES, self.ranges, strict=True) if lo != hi]
+    def free_dofs(self) -> FreeDofs:
+        """The ranges as the package's free-DOF value (``.free()``: the free DOFs' names)."""
+        return FreeDofs.from_array(self.ranges)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able form."""

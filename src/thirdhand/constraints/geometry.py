@@ -19,6 +19,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from thirdhand.se3_compiled import qmul
+
 FloatArray = NDArray[np.float64]
 _TWO_PI = 2.0 * math.pi
 
@@ -139,107 +141,6 @@ def cross3(a: FloatArray, b: FloatArray) -> FloatArray:
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
 
 
-@njit(cache=True, error_model="numpy")
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:  # pragma: no cover - compiled
-    """Cross product of two 3-vectors, compiled."""
-    return np.array(
-        [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-    )
-
-
-@njit(cache=True, error_model="numpy")
-def qmul(
-    ax: float, ay: float, az: float, aw: float, bx: float, by: float, bz: float, bw: float
-) -> tuple[float, float, float, float]:  # pragma: no cover - compiled
-    """Hamilton product ``a ⊗ b`` of x y z w quaternions given by components."""
-    return (
-        aw * bx + bw * ax + (ay * bz - az * by),
-        aw * by + bw * ay + (az * bx - ax * bz),
-        aw * bz + bw * az + (ax * by - ay * bx),
-        aw * bw - (ax * bx + ay * by + az * bz),
-    )
-
-
-@njit(cache=True, error_model="numpy")
-def quat_from_frame(m: FloatArray) -> FloatArray:  # pragma: no cover - compiled
-    """Unit quaternion x y z w of a rotation matrix ``m (3, 3)`` (Shepperd's method)."""
-    tr = m[0, 0] + m[1, 1] + m[2, 2]
-    choice = 3
-    best = tr
-    for i in range(3):
-        if m[i, i] > best:
-            best = m[i, i]
-            choice = i
-    q = np.empty(4)
-    if choice == 3:
-        q[0] = m[2, 1] - m[1, 2]
-        q[1] = m[0, 2] - m[2, 0]
-        q[2] = m[1, 0] - m[0, 1]
-        q[3] = 1.0 + tr
-    else:
-        i = choice
-        j = (i + 1) % 3
-        k = (j + 1) % 3
-        q[i] = 1.0 - tr + 2.0 * m[i, i]
-        q[j] = m[j, i] + m[i, j]
-        q[k] = m[k, i] + m[i, k]
-        q[3] = m[k, j] - m[j, k]
-    return q / math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-
-
-@njit(cache=True, error_model="numpy")
-def frame_from_axes(x: FloatArray, y_hint: FloatArray) -> FloatArray:  # pragma: no cover
-    """Quaternion (4,) of a frame whose x axis is unit ``x (3,)`` and whose y axis is
-    nearest ``y_hint (3,)`` (any perpendicular when ``y_hint`` is along ``x``)."""
-    y = y_hint - (y_hint[0] * x[0] + y_hint[1] * x[1] + y_hint[2] * x[2]) * x
-    if math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2]) < 1e-9:
-        # Any perpendicular: the parent axis least aligned with x.
-        k = int(np.argmin(np.abs(x)))
-        y = -x[k] * x
-        y[k] += 1.0
-    y = y / math.sqrt(y[0] * y[0] + y[1] * y[1] + y[2] * y[2])
-    z = _cross(x, y)
-    m = np.empty((3, 3))
-    m[:, 0] = x
-    m[:, 1] = y
-    m[:, 2] = z
-    return quat_from_frame(m)
-
-
-@njit(cache=True, error_model="numpy")
-def _rotate_one(q: FloatArray, v: FloatArray) -> FloatArray:  # pragma: no cover - compiled
-    """Rotate ``v (3,)`` by unit quaternion ``q (4,)``."""
-    u = q[:3].copy()
-    t = 2.0 * _cross(u, v)
-    return v + q[3] * t + _cross(u, t)
-
-
-@njit(cache=True, error_model="numpy")
-def align_x(q: FloatArray, axis: FloatArray) -> FloatArray:  # pragma: no cover - compiled
-    """Turn orientation ``q (4,)`` by the smallest rotation taking its x axis to unit
-    ``axis (3,)``; shape (4,)."""
-    x = _rotate_one(q, np.array([1.0, 0.0, 0.0]))
-    cos = x[0] * axis[0] + x[1] * axis[1] + x[2] * axis[2]
-    turn = np.empty(4)
-    if cos < -1.0 + 1e-12:
-        turn[:3] = _rotate_one(q, np.array([0.0, 1.0, 0.0]))
-        turn[3] = 0.0
-    else:
-        turn[:3] = _cross(x, axis)
-        turn[3] = 1.0 + cos
-    turn /= math.sqrt(turn[0] ** 2 + turn[1] ** 2 + turn[2] ** 2 + turn[3] ** 2)
-    return np.array(qmul(turn[0], turn[1], turn[2], turn[3], q[0], q[1], q[2], q[3]))
-
-
-def quat_mul(a: FloatArray, b: FloatArray) -> FloatArray:
-    """Hamilton product ``a ⊗ b`` of x y z w quaternions, broadcasting, shape (..., 4)."""
-    av, aw = a[..., :3], a[..., 3:]
-    bv, bw = b[..., :3], b[..., 3:]
-    vec = aw * bv + bw * av + cross3(av, bv)
-    sc = aw * bw - np.sum(av * bv, axis=-1, keepdims=True)
-    return np.concatenate([vec, sc], axis=-1)
-
-
 def quat_right_matrix(p: FloatArray) -> FloatArray:
     """Matrix (4, 4) with ``q @ M = q ⊗ p`` for quaternion rows ``q``: one matmul per track."""
     x, y, z, w = (float(c) for c in p)
@@ -251,37 +152,6 @@ def quat_right_matrix(p: FloatArray) -> FloatArray:
             [x, y, z, w],
         ]
     )
-
-
-def quat_conj(q: FloatArray) -> FloatArray:
-    """Conjugate of x y z w quaternions, shape (..., 4)."""
-    return q * np.array([-1.0, -1.0, -1.0, 1.0])
-
-
-def quat_log(q: FloatArray) -> FloatArray:
-    """Rotation vectors (n, 3), radians, of unit quaternions (n, 4), angle in [0, π]."""
-    return _quat_log_rows(np.ascontiguousarray(q, dtype=np.float64))
-
-
-@njit(cache=True, error_model="numpy")
-def _log_scale(x: float, y: float, z: float, w: float) -> float:
-    """Factor taking the vector part of a unit quaternion to its rotation vector."""
-    norm = math.sqrt(x * x + y * y + z * z)
-    # angle / sin(angle / 2) -> 2 as the angle goes to 0; the sign of w picks the
-    # shorter of the two rotations q and -q describe.
-    scale = 2.0 if norm < 1e-12 else 2.0 * math.atan2(norm, abs(w)) / norm
-    return -scale if w < 0.0 else scale
-
-
-@njit(cache=True, error_model="numpy")
-def _quat_log_rows(q: FloatArray) -> FloatArray:  # pragma: no cover - compiled
-    out = np.empty((q.shape[0], 3))
-    for i in range(q.shape[0]):
-        k = _log_scale(q[i, 0], q[i, 1], q[i, 2], q[i, 3])
-        out[i, 0] = q[i, 0] * k
-        out[i, 1] = q[i, 1] * k
-        out[i, 2] = q[i, 2] * k
-    return out
 
 
 def quat_axis_angle(axis: FloatArray, angle: FloatArray) -> FloatArray:

@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from thirdhand import se3_compiled as sc
 from thirdhand.constraints import geometry as g
 
 FloatArray = NDArray[np.float64]
@@ -89,7 +90,7 @@ def _put_log(
     out: FloatArray, d2: FloatArray, i: int, x: float, y: float, z: float, w: float
 ) -> None:  # pragma: no cover - compiled
     """Row ``i`` of ``out`` (rotation vector of ``(x, y, z, w)``) and its squared norm."""
-    k = g._log_scale(x, y, z, w)
+    k = sc.rotvec_scale(x, y, z, w)
     out[i, 0] = x * k
     out[i, 1] = y * k
     out[i, 2] = z * k
@@ -128,7 +129,7 @@ def _offset_project(
         e_pos[i, 2] = v2
         d2p[i] = v0 * v0 + v1 * v1 + v2 * v2
     for i in range(m):
-        x, y, z, w = g.qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
+        x, y, z, w = sc.qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
         _put_log(e_rot, d2r, i, x, y, z, w)
     return e_pos, e_rot, d2p, d2r, lat
 
@@ -168,11 +169,11 @@ def _revolute_project(
     e1 = np.zeros(3)
     if r > 1e-12:
         e1[0], e1[1], e1[2] = lev0 / r, lev1 / r, lev2 / r
-    e2 = g._cross(a, e1)
+    e2 = sc.cross_one(a, e1)
     # Rodrigues: R(θ) u = cos θ (u - par) + sin θ (a × u) + par.
     par = np.array([la * a[0], la * a[1], la * a[2]])
     perp = np.array([lever[0] - par[0], lever[1] - par[1], lever[2] - par[2]])
-    axu = g._cross(a, lever)
+    axu = sc.cross_one(a, lever)
     theta_pos = np.empty(n)
     height = np.empty(n)
     for i in range(n):
@@ -243,8 +244,8 @@ def _revolute_project(
     if m:
         cx, cy, cz, cw = -q0[0], -q0[1], -q0[2], q0[3]
         for i in range(n):
-            x0, x1, x2, x3 = g.qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
-            y0, y1, y2, y3 = g.qmul(x0, x1, x2, x3, -a[0], -a[1], -a[2], 0.0)
+            x0, x1, x2, x3 = sc.qmul(q[i, 0], q[i, 1], q[i, 2], q[i, 3], cx, cy, cz, cw)
+            y0, y1, y2, y3 = sc.qmul(x0, x1, x2, x3, -a[0], -a[1], -a[2], 0.0)
             ch = half_c[i]
             sh = half_s[i]
             _put_log(

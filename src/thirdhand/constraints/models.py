@@ -16,6 +16,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
+from thirdhand import se3_compiled as sc
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import MIN_SAMPLES, ModelFit, fit_model, prepare_track
@@ -40,12 +41,12 @@ __all__ = [
 
 def _frame_from_axes(x: FloatArray, y_hint: FloatArray) -> FloatArray:
     """Quaternion of a frame whose x axis is ``x`` and whose y axis is nearest ``y_hint``."""
-    return g.frame_from_axes(np.ascontiguousarray(x), np.ascontiguousarray(y_hint))
+    return sc.frame_from_axes(np.ascontiguousarray(x), np.ascontiguousarray(y_hint))
 
 
 def _align_x(q: FloatArray, axis: FloatArray) -> FloatArray:
     """Turn orientation ``q`` by the smallest rotation that takes its x axis to ``axis``."""
-    return g.align_x(np.ascontiguousarray(q), np.ascontiguousarray(axis))
+    return sc.align_x(np.ascontiguousarray(q), np.ascontiguousarray(axis))
 
 
 def to_constraint(
@@ -84,11 +85,11 @@ def to_constraint(
         frame_q = q_end if q_end is not None else np.array([0.0, 0.0, 0.0, 1.0])
         frame_p = p_end
         if name == "free":
-            local = se3.quat_rotate(g.quat_conj(frame_q), pos[idx] - p_end)
+            local = se3.quat_rotate(se3.quat_conjugate(frame_q), pos[idx] - p_end)
             ranges[:3, 0] = local.min(axis=0)
             ranges[:3, 1] = local.max(axis=0)
             if oriented and quat is not None:
-                rv = g.quat_log(g.quat_mul(g.quat_conj(frame_q), quat[idx]))
+                rv = se3.quat_to_rotvec(se3.quat_multiply(se3.quat_conjugate(frame_q), quat[idx]))
                 ranges[3:, 0] = rv.min(axis=0)
                 ranges[3:, 1] = rv.max(axis=0)
             else:
@@ -123,7 +124,9 @@ def to_constraint(
         ranges[3] = [rel[:, 0].min(), rel[:, 0].max()]
         if oriented:
             assert geom.quat is not None
-            q_end = g.quat_mul(g.quat_axis_angle(geom.axis, np.array([theta_end])), geom.quat)[0]
+            q_end = se3.quat_multiply(
+                g.quat_axis_angle(geom.axis, np.array([theta_end])), geom.quat
+            )[0]
     w_in = fit.inlier.astype(np.float64)
     rms_pos = math.sqrt(float(w_in @ proj.d2_pos) / w_in.sum())
     rms_rot = None

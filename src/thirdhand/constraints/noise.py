@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from thirdhand.constraints import geometry as g
+from thirdhand import se3_compiled as sc
 from thirdhand.constraints.types import ConstraintFitError, NoiseModel
 
 FloatArray = NDArray[np.float64]
@@ -217,8 +217,8 @@ def _rot_pair_kernel(
         cx, cy, cz, cw = -q[c, 0], -q[c, 1], -q[c, 2], q[c, 3]
         for d in range(-h, h + 1):
             k = c + d
-            x, y, z, s = g.qmul(cx, cy, cz, cw, q[k, 0], q[k, 1], q[k, 2], q[k, 3])
-            scale = g._log_scale(x, y, z, s)
+            x, y, z, s = sc.qmul(cx, cy, cz, cw, q[k, 0], q[k, 1], q[k, 2], q[k, 3])
+            scale = sc.rotvec_scale(x, y, z, s)
             if -hs <= d <= hs:
                 a = fs[d + hs] * scale
                 out_s[c - hs, 0] += x * a

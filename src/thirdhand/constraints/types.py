@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 
 from thirdhand import se3
 from thirdhand.demonstration import DOF_NAMES as DOF_NAMES  # defined once, re-exported
+from thirdhand.demonstration import FreeDofs
 from thirdhand.errors import ThirdhandError
 
 FloatArray = NDArray[np.float64]
@@ -182,9 +183,9 @@ class Constraint:
     notes: tuple[str, ...] = ()
 
     @property
-    def free_dofs(self) -> list[str]:
-        """Names of the DOFs whose range is not ``[0, 0]``."""
-        return [n for n, (lo, hi) in zip(DOF_NAMES, self.ranges, strict=True) if lo != hi]
+    def free_dofs(self) -> FreeDofs:
+        """The ranges as the package's free-DOF value (``.free()``: the free DOFs' names)."""
+        return FreeDofs.from_array(self.ranges)
 
     def frame_in_child(self) -> tuple[FloatArray, FloatArray]:
         """The constraint frame as a pose in the child's frame at the final pose.
@@ -225,7 +226,7 @@ class Constraint:
             "pos": _floats(self.pos),
             "quat": _floats(self.quat),
             "ranges": {n: _floats(r) for n, r in zip(DOF_NAMES, self.ranges, strict=True)},
-            "free_dofs": self.free_dofs,
+            "free_dofs": self.free_dofs.free(),
             "radius": num(self.radius),
             "pitch": num(self.pitch),
             "rms_pos": num(self.rms_pos),

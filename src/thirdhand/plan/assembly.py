@@ -217,7 +217,7 @@ def truth_slot(
             continue
         dp = float(np.linalg.norm(symbol.pos - np.asarray(ev.pos)))
         q = np.asarray(ev.quat, dtype=np.float64)
-        spin = [k for k in range(3) if ev.free_dofs[3 + k][1] > ev.free_dofs[3 + k][0]]
+        spin = [k for k, n in enumerate(("rx", "ry", "rz")) if n in ev.free_dofs.free()]
         if len(spin) == 1:
             e = np.zeros(3)
             e[spin[0]] = 1.0

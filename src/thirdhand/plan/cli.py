@@ -190,7 +190,7 @@ def experiment_constraints(
     seeds: Annotated[int, typer.Option(help="Seeds per scene and noise level.")] = 5,
 ) -> None:
     """Constraint pose error on the synthetic chair and bench across noise levels."""
-    from thirdhand.plan.experiments import constraint_error_table
+    from thirdhand.experiments.plan_accuracy import constraint_error_table
 
     _table("Constraint pose error", constraint_error_table(seeds=range(seeds)))
 
@@ -204,7 +204,7 @@ def experiment_plan(
     ] = 1.0,
 ) -> None:
     """Plan success with 1–4 demonstrations."""
-    from thirdhand.plan.experiments import plan_success_table
+    from thirdhand.experiments.plan_accuracy import plan_success_table
 
     rows = plan_success_table(scene=scene, runs=runs, scale=noise if noise > 0 else None)
     _table(f"Plan success ({scene}, noise x{noise:g})", rows)
@@ -218,7 +218,7 @@ def experiment_corrections(
     ] = 1.0,
 ) -> None:
     """Constraint parameters a user would still correct (chair of 30, bench of 24)."""
-    from thirdhand.plan.experiments import corrections_table
+    from thirdhand.experiments.plan_accuracy import corrections_table
 
     rows = corrections_table(seeds=range(seeds), scale=noise if noise > 0 else None)
     _table(f"Parameters to correct (noise x{noise:g})", rows)

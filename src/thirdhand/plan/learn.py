@@ -241,7 +241,7 @@ def plan_figures(result: Learned) -> tuple[dict[str, Any], str]:
     }
     truth = result.demos[0].labels.constraints
     if truth:
-        from thirdhand.plan.experiments import pose_errors
+        from thirdhand.metrics import pose_errors
 
         errs = pose_errors(result.instances[0], truth)
         if errs:

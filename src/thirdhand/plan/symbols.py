@@ -140,7 +140,7 @@ def assign_symbols(
         types = [m.type for m in c]
         typ = max(sorted(set(types)), key=types.count)
         same = [m for m in c if m.type == typ]
-        with_free = [m for m in same if m.free_dofs] or same
+        with_free = [m for m in same if m.free_dofs.free()] or same
         ranges = np.stack([m.ranges for m in same])
         name = f"c{i}"
         for m in c:

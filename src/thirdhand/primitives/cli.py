@@ -115,7 +115,7 @@ def _read_tracks(path: Path, body: str | None) -> list[tuple[np.ndarray, np.ndar
     """Tracks from a LASA ``.mat`` (all demos), a CSV/NPY (time, values…) or a recording."""
     suffix = path.suffix.lower()
     if suffix == ".mat":
-        from thirdhand.primitives.datasets import lasa_shapes
+        from thirdhand.datasets.primitive_shapes import lasa_shapes
 
         return lasa_shapes(path.parent, path.stem)
     if suffix in (".csv", ".txt", ".npy"):

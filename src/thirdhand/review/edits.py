@@ -23,6 +23,7 @@ dependencies that the move keeps valid are kept (transitively reduced).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from collections.abc import Sequence
@@ -316,7 +317,7 @@ def _set_dof_range(task: TaskFile, e: SetDofRange, rec: _Recorder) -> None:
         return
     rec(f"constraints[{i}].free_dofs.{e.dof}", list(old), [lo, hi])
     rec.changed.add(i)
-    dofs = c.free_dofs.model_copy(update={e.dof: (lo, hi)})
+    dofs = dataclasses.replace(c.free_dofs, **{e.dof: (lo, hi)})
     c.free_dofs = dofs
     inferred = infer_constraint_type(dofs)
     if not (c.type == "screw" and inferred == "cylindrical") and inferred != c.type:

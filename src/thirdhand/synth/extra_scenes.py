@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from thirdhand import se3
-from thirdhand.demonstration import BodyInfo
+from thirdhand.demonstration import BodyInfo, FreeDofs
 from thirdhand.synth import geometry as geo
 from thirdhand.synth.human import Hand, grasp_from_axes
 from thirdhand.synth.motion import ScrewPath, axis_angle_quat
@@ -235,7 +235,7 @@ def script_drawer(sim: Sim, layout: Layout, rng: np.random.Generator) -> float:
     t_r = t + rng.uniform(0.5, 0.7)
     t = sim.carry("drawer", t, t_r - t, compose(sim.pose("frame", t_r), at_rails))
     sim.timeline.put("drawer", t, _hold(at_rails), "frame")
-    free = ((0.0, travel),) + ((0.0, 0.0),) * 5
+    free = FreeDofs(tx=(0.0, travel))
     sim.establish("frame", "drawer", t, "prismatic", symbol="c1", free_dofs=free, pose=closed)
     d = travel
     targets = [0.0] + [x for _ in range(2) for x in (rng.uniform(0.5, 0.9) * travel, 0.0)]
@@ -294,7 +294,7 @@ def script_lid(sim: Sim, layout: Layout, rng: np.random.Generator) -> float:
     t_p = t + rng.uniform(0.5, 0.7)
     t = sim.carry("lid", t, t_p - t, compose(sim.pose("box", t_p), on_pins))
     sim.timeline.put("lid", t, _hold(on_pins), "box")
-    free = ((0.0, 0.0),) * 3 + ((0.0, max_open),) + ((0.0, 0.0),) * 2
+    free = FreeDofs(rx=(0.0, max_open))
     sim.establish("box", "lid", t, "revolute", symbol="c1", free_dofs=free, pose=closed)
     a = angle
     targets = [0.0] + [x for _ in range(2) for x in (rng.uniform(0.6, 1.0) * max_open, 0.0)]

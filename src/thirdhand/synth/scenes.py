@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
-from thirdhand.demonstration import BodyInfo
+from thirdhand.demonstration import BodyInfo, FreeDofs
 from thirdhand.synth import geometry as geo
 from thirdhand.synth.human import Grasp, Hand, grasp_from_axes, make_hand
 from thirdhand.synth.motion import Hold, ScrewPath, Sway, Tremor, axis_angle_quat
@@ -29,7 +29,7 @@ TABLE_Z = 0.75
 X = np.array([1.0, 0.0, 0.0])
 Y = np.array([0.0, 1.0, 0.0])
 Z = np.array([0.0, 0.0, 1.0])
-FREE_SPIN = ((0.0, 0.0),) * 3 + ((-np.pi, np.pi),) + ((0.0, 0.0),) * 2
+FREE_SPIN = FreeDofs(rx=(-np.pi, np.pi))
 
 
 def frame_quat(x: ArrayLike, y: ArrayLike) -> FloatArray:

@@ -34,7 +34,13 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
-from thirdhand.demonstration import BodyInfo, ConstraintEvent, InteractionInterval, PlanStep
+from thirdhand.demonstration import (
+    BodyInfo,
+    ConstraintEvent,
+    FreeDofs,
+    InteractionInterval,
+    PlanStep,
+)
 from thirdhand.synth.engine import Timeline
 from thirdhand.synth.human import (
     PREGRASP_OPENING,
@@ -371,7 +377,7 @@ class Sim:
         kind: str,
         *,
         symbol: str,
-        free_dofs: tuple[tuple[float, float], ...] = ((0.0, 0.0),) * 6,
+        free_dofs: FreeDofs | None = None,
         pose: Pose | None = None,
         plan: bool = True,
     ) -> None:
@@ -388,7 +394,7 @@ class Sim:
                 type=kind,
                 pos=(float(p[0]), float(p[1]), float(p[2])),
                 quat=(float(q[0]), float(q[1]), float(q[2]), float(q[3])),
-                free_dofs=free_dofs,
+                free_dofs=FreeDofs() if free_dofs is None else free_dofs,
                 symbol=symbol,
             )
         )

@@ -92,7 +92,7 @@ def truth_task(demo: Demonstration, *, name: str = "truth") -> TaskFile:
                 "type": ev.type,
                 "pos": list(ev.pos),
                 "quat": list(ev.quat),
-                "free_dofs": dict(zip(_DOFS, ev.free_dofs, strict=True)),
+                "free_dofs": ev.free_dofs,
                 "symbol": ev.symbol or cid,
                 "time": ev.time,
                 "demo": name,

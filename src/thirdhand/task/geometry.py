@@ -8,13 +8,15 @@ trip through an older one, except :class:`FreeDofs`, whose six names are fixed.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any
+from typing import Annotated
 
 import numpy as np
 from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict
 
-from thirdhand.demonstration import DOF_NAMES as DOF_NAMES  # defined once, re-exported
+# Defined once, in the core types, and re-exported here for the task-file models.
+from thirdhand.demonstration import DOF_NAMES as DOF_NAMES
+from thirdhand.demonstration import FreeDofs as FreeDofs
 from thirdhand.se3 import pose_to_matrix
 
 FloatArray = NDArray[np.float64]
@@ -51,12 +53,6 @@ def _unit_quat(q: tuple[float, float, float, float]) -> tuple[float, float, floa
     return (x, y, z, w)
 
 
-def _range(r: tuple[float, float]) -> tuple[float, float]:
-    if not r[0] <= r[1]:
-        raise ValueError(f"range [{r[0]}, {r[1]}] has min > max")
-    return r
-
-
 def _unit_interval(v: float) -> float:
     if not 0.0 <= v <= 1.0:
         raise ValueError(f"expected a value in [0, 1], got {v}")
@@ -88,8 +84,6 @@ def _plausible(v: tuple[float, float, float]) -> tuple[float, float, float]:
 Vec3 = Annotated[tuple[float, float, float], AfterValidator(_plausible)]
 #: Unit quaternion x y z w: zero rejected, near-unit normalised.
 Quat = Annotated[tuple[float, float, float, float], AfterValidator(_unit_quat)]
-#: A closed interval ``[min, max]`` with min <= max.
-Range = Annotated[tuple[float, float], AfterValidator(_range)]
 #: A number in [0, 1].
 UnitInterval = Annotated[float, AfterValidator(_unit_interval)]
 #: A number > 0.
@@ -97,7 +91,6 @@ Positive = Annotated[float, AfterValidator(_positive)]
 
 IDENTITY_QUAT: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 1.0)
 ORIGIN: tuple[float, float, float] = (0.0, 0.0, 0.0)
-LOCKED: tuple[float, float] = (0.0, 0.0)
 
 
 class Pose(TaskModel):
@@ -122,64 +115,3 @@ class Pose(TaskModel):
     def matrix(self) -> FloatArray:
         """Homogeneous transform, shape (4, 4), mapping B coordinates into A."""
         return pose_to_matrix(self.pos, self.quat)
-
-
-class FreeDofs(BaseModel):
-    """Ranges of the six degrees of freedom in the constraint frame; ``[0, 0]`` = locked.
-
-    Attributes
-    ----------
-    tx, ty, tz : tuple of 2 floats
-        ``[min, max]`` translation along x, y, z of the constraint frame, metres.
-    rx, ry, rz : tuple of 2 floats
-        ``[min, max]`` rotation about x, y, z of the constraint frame, radians.
-
-    Notes
-    -----
-    Unlike the other models, unknown keys are an error here: a misspelt DOF name
-    (``"Tx"``) silently read as locked would change what the robot may do.
-    """
-
-    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
-
-    tx: Range = LOCKED
-    ty: Range = LOCKED
-    tz: Range = LOCKED
-    rx: Range = LOCKED
-    ry: Range = LOCKED
-    rz: Range = LOCKED
-
-    @classmethod
-    def from_array(cls, ranges: Any) -> FreeDofs:
-        """Build from ``ranges``, array_like shape (6, 2): rows tx ty tz (m) rx ry rz (rad)."""
-        arr = np.asarray(ranges, dtype=np.float64)
-        if arr.shape != (6, 2):
-            raise ValueError(f"expected DOF ranges of shape (6, 2), got {arr.shape}")
-        return cls(
-            **{n: (float(lo), float(hi)) for n, (lo, hi) in zip(DOF_NAMES, arr, strict=True)}
-        )
-
-    def __getitem__(self, dof: str) -> tuple[float, float]:
-        """The range of one DOF by name: ``fd["rx"]`` (radians; metres for ``t*``).
-
-        Raises
-        ------
-        KeyError
-            If ``dof`` is not one of :data:`DOF_NAMES`.
-        """
-        if dof not in DOF_NAMES:
-            raise KeyError(f"unknown DOF {dof!r} (expected one of {', '.join(DOF_NAMES)})")
-        lo, hi = getattr(self, dof)
-        return (float(lo), float(hi))
-
-    def ranges(self) -> list[tuple[float, float]]:
-        """The six ranges in :data:`DOF_NAMES` order."""
-        return [self[n] for n in DOF_NAMES]
-
-    def array(self) -> FloatArray:
-        """The ranges as an array, shape (6, 2): rows tx ty tz (m) rx ry rz (rad)."""
-        return np.asarray(self.ranges(), dtype=np.float64)
-
-    def free(self) -> list[str]:
-        """Names of the DOFs whose range is not ``[0, 0]``, in :data:`DOF_NAMES` order."""
-        return [n for n, (lo, hi) in zip(DOF_NAMES, self.ranges(), strict=True) if lo != hi]

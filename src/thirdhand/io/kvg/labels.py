@@ -11,7 +11,14 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from thirdhand.demonstration import BodyInfo, ConstraintEvent, InteractionInterval, Labels, PlanStep
+from thirdhand.demonstration import (
+    BodyInfo,
+    ConstraintEvent,
+    FreeDofs,
+    InteractionInterval,
+    Labels,
+    PlanStep,
+)
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.io.kvg.annotations import Annotation, last_span_end, parse_annotations
 from thirdhand.io.kvg.graph import Value
@@ -123,7 +130,7 @@ def _constraint(
             type=str(extra.get("type", "fixed")),
             pos=tuple(_floats(extra.get("pos", (0.0, 0.0, 0.0)), 3, "pos")),  # type: ignore[arg-type]
             quat=tuple(_floats(extra.get("quat", (0.0, 0.0, 0.0, 1.0)), 4, "quat")),  # type: ignore[arg-type]
-            free_dofs=tuple((dofs[2 * k], dofs[2 * k + 1]) for k in range(6)),
+            free_dofs=FreeDofs(*((float(dofs[2 * k]), float(dofs[2 * k + 1])) for k in range(6))),
             symbol=None if sym is None else str(sym),
         )
     except (ThirdhandError, ValueError) as exc:

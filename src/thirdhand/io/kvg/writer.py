@@ -9,7 +9,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import ArrayLike
 
-from thirdhand.demonstration import BodyInfo, ConstraintEvent, Labels
+from thirdhand.demonstration import BodyInfo, ConstraintEvent, FreeDofs, Labels
 from thirdhand.errors import FormatError
 from thirdhand.io.kvg.graph import Value
 from thirdhand.io.kvg.syntax import _BARE_WORD, format_value
@@ -59,8 +59,8 @@ def _constraint_extras(c: ConstraintEvent) -> dict[str, Value]:
         extra["pos"] = tuple(float(x) for x in c.pos)
     if c.quat != (0.0, 0.0, 0.0, 1.0):
         extra["quat"] = tuple(float(x) for x in c.quat)
-    if c.free_dofs != ((0.0, 0.0),) * 6:
-        extra["free_dofs"] = tuple(float(x) for r in c.free_dofs for x in r)
+    if c.free_dofs != FreeDofs():
+        extra["free_dofs"] = tuple(x for r in c.free_dofs.ranges() for x in r)
     return extra
 
 

@@ -27,8 +27,8 @@ from thirdhand.constraints.select import (
     fit_constraint,
     type_probabilities,
 )
-from thirdhand.constraints.synthetic import JointTrack, random_joint_track
 from thirdhand.constraints.types import NoiseModel
+from thirdhand.datasets.joint_tracks import JointTrack, random_joint_track
 
 FloatArray = NDArray[np.float64]
 

@@ -127,7 +127,7 @@ def random_joint_track(
             wave = np.sin(2 * np.pi * f * t + ph)
             pos = pos + 0.15 * wave[:, :3]
             rv = np.radians(60.0) * wave[:, 3:]
-            quat = g.quat_mul(se3.quat_from_matrix(_rotvec_matrix(rv)), q_rest)
+            quat = se3.quat_multiply(se3.quat_from_matrix(_rotvec_matrix(rv)), q_rest)
         origin = pos[-1].copy()
     else:
         axis = _unit(rng)
@@ -159,29 +159,31 @@ def random_joint_track(
             ranges[0] = np.sort(pitch * ranges[3])
         rot = g.quat_axis_angle(axis, theta)
         pos = centre + g.rotate_about(axis, theta, lever) + disp[:, None] * axis
-        quat = g.quat_mul(rot, q_rest)
+        quat = se3.quat_multiply(rot, q_rest)
         origin = centre + ((pos[-1] - centre) @ axis) * axis
     if bias > 0.0 or rot_bias > 0.0:
         # Drawn from a generator of its own so the other draws stay as they were.
         field = _pose_field(np.random.default_rng(rng.integers(2**63)), pos, quat, q_rest)
         pos = pos + bias * field[:, :3]
         if rot_bias > 0.0:
-            quat = g.quat_mul(se3.quat_from_matrix(_rotvec_matrix(rot_bias * field[:, 3:])), quat)
+            quat = se3.quat_multiply(
+                se3.quat_from_matrix(_rotvec_matrix(rot_bias * field[:, 3:])), quat
+            )
     if colour > 0.0 or rot_colour > 0.0:
         sub = np.random.default_rng(rng.integers(2**63))
         pos = pos + colour * _smooth_noise(sub, n, colour_width)
         if rot_colour > 0.0:
             jitter = _rotvec_matrix(rot_colour * _smooth_noise(sub, n, colour_width))
-            quat = g.quat_mul(se3.quat_from_matrix(jitter), quat)
+            quat = se3.quat_multiply(se3.quat_from_matrix(jitter), quat)
     pos = pos + pos_noise * rng.standard_normal(pos.shape)
     if drift > 0.0:
         pos = pos + drift * _slow_error(rng, n)
     if rot_drift > 0.0:
         slow = se3.quat_from_matrix(_rotvec_matrix(rot_drift * _slow_error(rng, n)))
-        quat = g.quat_mul(slow, quat)
+        quat = se3.quat_multiply(slow, quat)
     if rot_noise > 0.0:
         noise = se3.quat_from_matrix(_rotvec_matrix(rot_noise * rng.standard_normal((n, 3))))
-        quat = g.quat_mul(noise, quat)
+        quat = se3.quat_multiply(noise, quat)
     bad = np.zeros(n, dtype=bool)
     if outliers > 0.0:
         # Keep the two ends clean so the truth's end pose and ranges stay valid.
@@ -226,7 +228,9 @@ def _pose_field(
     orientation (rad)]``, wavelengths 0.5-1.5 (m or rad), random directions and
     phases, amplitudes ``sqrt(2 / 4)``: over the whole space its variance is 1.
     """
-    rv = g.quat_log(g.quat_mul(quat, np.tile(g.quat_conj(q_rest), (pos.shape[0], 1))))
+    rv = se3.quat_to_rotvec(
+        se3.quat_multiply(quat, np.tile(se3.quat_conjugate(q_rest), (pos.shape[0], 1)))
+    )
     feat = np.concatenate([pos, rv], axis=1)
     waves = 4
     dirs = rng.standard_normal((6, waves, 6))
