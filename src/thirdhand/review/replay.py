@@ -1,0 +1,193 @@
+"""An execution record in the review GUI: the robot's run replayed on the task's scene.
+
+``thirdhand execute TASK --record OUT`` writes ``OUT.parquet`` (a
+:class:`~thirdhand.demonstration.Demonstration` of the task's parts and the
+robot's tool frame, :data:`~thirdhand.execute.record.TOOL_BODY`, world frame,
+metres) and ``OUT.json`` (the joint trajectory and the per-step reports).
+:func:`load_replay` reads both and checks they belong to the task under review;
+:func:`robot_contacts` says which part the robot holds when (the part that moves:
+in a record only the held part moves), so playback colours it as held.
+
+The robot's links are not drawn (their meshes would take the software-WebGL
+view from ~1 frame/s down further): the tool frame is drawn as axes, and the
+held part at its recorded pose.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thirdhand.demonstration import Demonstration
+from thirdhand.errors import ThirdhandError
+from thirdhand.execute.record import TOOL_BODY, record_paths
+from thirdhand.review.playback import HandContacts
+from thirdhand.task.model import TaskFile
+
+#: ``meta["source"]`` of a record written by ``thirdhand execute --record``.
+RECORD_SOURCE = "thirdhand.execute"
+#: A part is held while it moves more than this between two samples, metres or radians.
+MOVING = 1e-6
+
+
+class ReplayError(ThirdhandError, ValueError):
+    """An execution record that cannot be replayed over this task."""
+
+
+@dataclass(frozen=True)
+class Replay:
+    """An execution record ready to play back.
+
+    Attributes
+    ----------
+    path : Path
+        The replay file (``.parquet``).
+    demo : Demonstration
+        Parts and the tool frame over time (``meta["name"]`` set to ``"execution: <file>"``).
+    steps : list of dict
+        The per-step reports of the trajectory file (``index``, ``child``,
+        ``success``, ``status``...), empty when it is absent.
+    success : bool or None
+        Whether the run assembled the task (None without the trajectory file).
+    note : str
+        Something worth saying that is not a refusal (e.g. the task file's name differs).
+    """
+
+    path: Path
+    demo: Demonstration
+    steps: list[dict[str, Any]] = field(default_factory=list)
+    success: bool | None = None
+    note: str = ""
+
+    def summary(self) -> str:
+        """One line: the run's outcome and the first failed step with its reason."""
+        failed = [s for s in self.steps if not s.get("success", True)]
+        if self.success is None:
+            head = f"execution {self.path.name}: no trajectory file, outcome unknown"
+        elif self.success:
+            head = f"execution {self.path.name}: assembled ({len(self.steps)} steps)"
+        else:
+            head = f"execution {self.path.name}: failed"
+        if failed:
+            s = failed[0]
+            head += (
+                f"; step {int(s.get('index', 0)) + 1} ({s.get('child', '?')}): "
+                f"{s.get('status', 'failed')}"
+            )
+        return head + (f" ({self.note})" if self.note else "")
+
+
+def _parts(task: TaskFile) -> set[str]:
+    return {o.name for o in task.objects if o.kind == "part"}
+
+
+def load_replay(path: str | os.PathLike[str], task: TaskFile, task_path: Path) -> Replay:
+    """Read an execution record and check it is a run of ``task``.
+
+    Parameters
+    ----------
+    path : path-like
+        ``OUT.parquet`` (or ``OUT``) written by ``thirdhand execute --record OUT``.
+    task : TaskFile
+        The task under review.
+    task_path : Path
+        Its file (the record names the task by its file's stem).
+
+    Returns
+    -------
+    Replay
+
+    Raises
+    ------
+    ReplayError
+        Not a readable record, not written by ``thirdhand execute``, no tool frame,
+        or a record of another task: its parts are not the task's parts, or its
+        steps name constraints the task does not have. One line saying what and where.
+    """
+    from thirdhand import io
+
+    replay, traj = record_paths(path)
+    if not replay.exists():
+        raise ReplayError(f"{replay}: no such execution record (thirdhand execute --record)")
+    try:
+        demo = io.load(replay)
+    except ThirdhandError as exc:
+        raise ReplayError(f"{replay}: not an execution record: {exc}") from None
+    if demo.meta.get("source") != RECORD_SOURCE:
+        raise ReplayError(
+            f"{replay}: not an execution record (written by "
+            f"{demo.meta.get('source', 'an unknown program')!s}, not thirdhand execute --record)"
+        )
+    if TOOL_BODY not in demo.body_names:
+        raise ReplayError(f"{replay}: no robot tool frame {TOOL_BODY!r} in the record")
+    theirs = {b.name for b in demo.bodies if b.kind == "part"}
+    ours = _parts(task)
+    if theirs != ours:
+        extra, missing = sorted(theirs - ours), sorted(ours - theirs)
+        said = []
+        if extra:
+            said.append(f"it moves {', '.join(extra)}, which {task_path.name} does not have")
+        if missing:
+            said.append(f"it lacks {', '.join(missing)}")
+        raise ReplayError(
+            f"{replay}: a record of another task ({demo.meta.get('task', '?')}): " + "; ".join(said)
+        )
+    steps: list[dict[str, Any]] = []
+    success: bool | None = None
+    if traj.exists():
+        try:
+            doc = json.loads(traj.read_text())
+            steps = list(doc.get("steps", []))
+            success = bool(doc["success"]) if "success" in doc else None
+        except (OSError, ValueError, TypeError, AttributeError) as exc:
+            raise ReplayError(f"{traj}: unreadable trajectory file: {exc}") from None
+        ids = {c.id for c in task.constraints}
+        unknown = sorted({str(s["constraint"]) for s in steps if s.get("constraint")} - ids)
+        if unknown:
+            raise ReplayError(
+                f"{traj}: a record of another task: its steps establish {', '.join(unknown)}, "
+                f"not constraints of {task_path.name}"
+            )
+    recorded = str(demo.meta.get("task", ""))
+    ours_name = task_path.name.removesuffix(".json")
+    note = f"recorded as task {recorded!r}" if recorded and recorded != ours_name else ""
+    demo = demo.replace(meta={**demo.meta, "name": f"execution: {replay.name}"})
+    return Replay(replay, demo, steps, success, note)
+
+
+def robot_contacts(demo: Demonstration) -> HandContacts:
+    """When the robot holds each part: the intervals over which the part moves.
+
+    In a record every part not carried stands still (its pose is repeated), so a
+    part moving between two samples is the one attached to the tool.
+
+    Returns
+    -------
+    HandContacts
+        Intervals (s) under the side ``"robot"``, source ``"execution"``.
+    """
+    out: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    t = demo.t
+    for b in demo.bodies:
+        if b.kind != "part" or demo.n_frames < 2:
+            continue
+        tr = demo.track(b.name)
+        step = np.linalg.norm(np.diff(tr.pos, axis=0), axis=1)
+        turn = np.abs(np.diff(tr.quat, axis=0)).max(axis=1)
+        moving = np.nan_to_num(np.maximum(step, turn), nan=0.0) > MOVING
+        if not moving.any():
+            continue
+        # Runs of moving samples [i, j): the part is held from t[i] to t[j].
+        edges = np.diff(np.concatenate([[0], moving.astype(np.int8), [0]]))
+        starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+        spans = zip(starts, ends, strict=True)
+        out[(b.name, "robot")] = [(float(t[i]), float(t[j])) for i, j in spans]
+    return HandContacts(out, "execution")
+
+
+__all__ = ["RECORD_SOURCE", "Replay", "ReplayError", "load_replay", "robot_contacts"]
