@@ -240,6 +240,9 @@ class Motion:
         colours = playback_colours(self.contacts[self.demo_index], app.parts.names, self.time)
         app.parts.set_colours(colours)
         kinds = {b.name: b.kind for b in tl.demo.bodies}
+        for name, tool in self._tools.items():  # another recording's tool frame
+            if name not in poses:
+                tool.visible = False
         for n in tl.names:
             if n in app.parts.frames or n not in poses:
                 continue
