@@ -966,3 +966,50 @@ def test_execution_replay_moves_the_held_part(open_review: Any, chair: Any, tmp_
     review.wait_for(lambda: app.motion.demo_index == 0, "the recording")
     assert app.motion.tool_pose("robot_tool") is None  # no tool frame over the person
     assert app.panels.time.max == pytest.approx(round(chair.t[-1], 2))
+
+
+@pytest.mark.slow
+def test_a_real_execution_record_replays(
+    open_review: Any, chair: Any, tmp_path: Path, shared_data: Path
+) -> None:
+    """End to end: ``thirdhand execute --record`` on the chair's first step (the real
+    part meshes, the Panda, the motion planner), then ``--replay`` of that record."""
+    from thirdhand import io
+    from thirdhand.cli import main
+    from thirdhand.execute.record import TOOL_BODY
+    from thirdhand.review.playback import ROBOT_RGB
+    from thirdhand.review.replay import robot_contacts
+
+    task = truth_task(chair)
+    task = task.model_copy(update={"plan": task.plan[:1]})
+    path = tmp_path / "first.task.json"
+    save_task(task, path)
+    out = tmp_path / "run"
+    meshes = shared_data / "3rdhand" / "meshes"
+    assert main(["execute", str(path), "--record", str(out), "--meshes", str(meshes)]) == 0
+    run = out.with_suffix(".parquet")
+    record = io.load(run)
+    child = task.plan[0].child
+    [(start, end)] = robot_contacts(record).intervals[(child, "robot")]
+    review = open_review(task, "first.task.json", replays=[run])
+    app, page = review.app, review.page
+    page.locator("#th-replay", has_text="assembled (1 step)").wait_for(timeout=TIMEOUT_MS)
+    slider = page.get_by_role("slider")
+    slider.focus()
+    page.keyboard.press("End")
+    review.wait_for(lambda: app.motion.time == pytest.approx(record.t[-1], abs=0.01), "the end")
+    np.testing.assert_allclose(app.parts.frames[child].position, record.pos(child)[-1], atol=1e-6)
+    # Half-way through the carry on the slider's track: the leg where the record has it.
+    box = page.locator(".mantine-Slider-track").bounding_box()
+    assert box is not None
+    frac = 0.5 * (start + end) / record.t[-1]
+    page.mouse.click(box["x"] + frac * box["width"], box["y"] + 0.5 * box["height"])
+    review.wait_for(lambda: start < app.motion.time < end, "mid-carry")
+    k = int(np.searchsorted(record.t, app.motion.time, side="right")) - 1
+    np.testing.assert_allclose(app.parts.frames[child].position, record.pos(child)[k], atol=1e-6)
+    tool = app.motion.tool_pose(TOOL_BODY)
+    assert tool is not None
+    np.testing.assert_allclose(tool[0], record.pos(TOOL_BODY)[k], atol=1e-6)
+    assert app.colours()[child] == ROBOT_RGB
+    time.sleep(1.0)  # software WebGL: let the frame render before the screenshot
+    review.shot("execution-replay-real")

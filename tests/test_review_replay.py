@@ -165,3 +165,20 @@ def test_carry_offset_is_what_the_record_holds(chair: TaskFile, tmp_path: Path) 
     goal = np.asarray(world_poses(chair)["leg2"].pos)
     np.testing.assert_allclose(demo.pos("leg2")[0], goal + CARRY_FROM, atol=1e-12)
     np.testing.assert_allclose(demo.pos("leg2")[-1], goal, atol=1e-12)
+
+
+def test_replay_view_sees_every_body_of_the_run(chair: TaskFile, tmp_path: Path) -> None:
+    """Every sample of every body of a record lies within 30° of the camera's axis."""
+    from thirdhand import io
+    from thirdhand.review.replay import replay_view
+
+    demo = io.load(write_record(chair, tmp_path / "run"))
+    eye, target = (np.asarray(v) for v in replay_view(demo))
+    axis = (target - eye) / np.linalg.norm(target - eye)
+    pts = np.concatenate([demo.pos(n) for n in demo.body_names])
+    rays = pts - eye
+    cos = rays @ axis / np.linalg.norm(rays, axis=1)
+    assert np.degrees(np.arccos(cos.min())) < 30.0
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    np.testing.assert_allclose(target, 0.5 * (lo + hi), atol=1e-12)
+    assert eye[2] > target[2]  # from above

@@ -271,7 +271,13 @@ class ReviewApp:
         return self.replays[k] if 0 <= k < len(self.replays) else None
 
     def camera_pose(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        """Initial camera position and target (:func:`scene3d.front_view`), world frame, m."""
+        """Initial camera position and target (:func:`scene3d.front_view`; an execution
+        replay shown: everything it moves, :func:`replay.replay_view`), world frame, m."""
+        replay = self.replay_shown()
+        if replay is not None:
+            from thirdhand.review.replay import replay_view
+
+            return replay_view(replay.demo)
         parts = self.parts
         if parts is None:
             return (1.0, -1.0, 1.0), (0.0, 0.0, 0.0)

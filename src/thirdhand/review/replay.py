@@ -16,6 +16,7 @@ held part at its recorded pose.
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -33,6 +34,8 @@ from thirdhand.task.model import TaskFile
 RECORD_SOURCE = "thirdhand.execute"
 #: A part is held while it moves more than this between two samples, metres or radians.
 MOVING = 1e-6
+#: Samples a carried part may stand still between two executed segments and stay held.
+PAUSE_SAMPLES = 3
 
 
 class ReplayError(ThirdhandError, ValueError):
@@ -70,7 +73,8 @@ class Replay:
         if self.success is None:
             head = f"execution {self.path.name}: no trajectory file, outcome unknown"
         elif self.success:
-            head = f"execution {self.path.name}: assembled ({len(self.steps)} steps)"
+            n = len(self.steps)
+            head = f"execution {self.path.name}: assembled ({n} step{'' if n == 1 else 's'})"
         else:
             head = f"execution {self.path.name}: failed"
         if failed:
@@ -80,6 +84,37 @@ class Replay:
                 f"{s.get('status', 'failed')}"
             )
         return head + (f" ({self.note})" if self.note else "")
+
+
+def replay_view(
+    demo: Demonstration,
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """A camera position and target showing everything a record moves, z up.
+
+    The target is the centre of the box holding every body (parts, tool frame)
+    over the whole run; the camera looks at it from the (+x, -y) diagonal, above,
+    from 1.8 times the box's half-diagonal (at least 0.3 m): every body within 30°
+    of the view axis, inside viser's default field of view.
+
+    Returns
+    -------
+    eye, target : tuple of 3 float
+        Metres, world frame.
+    """
+    pts = [demo.pos(n)[demo.valid(n)] for n in demo.body_names]
+    every = np.concatenate([p for p in pts if len(p)]) if any(len(p) for p in pts) else None
+    if every is None:
+        return (1.0, -1.0, 1.0), (0.0, 0.0, 0.0)
+    lo, hi = every.min(axis=0), every.max(axis=0)
+    centre = 0.5 * (lo + hi)
+    reach = max(0.5 * float(np.linalg.norm(hi - lo)), 0.3)
+    away = np.array([1.0, -1.0, 0.0]) / math.sqrt(2.0)
+    eye = centre + 1.8 * reach * (away + np.array([0.0, 0.0, 0.6]))
+    return (float(eye[0]), float(eye[1]), float(eye[2])), (
+        float(centre[0]),
+        float(centre[1]),
+        float(centre[2]),
+    )
 
 
 def _parts(task: TaskFile) -> set[str]:
@@ -164,7 +199,8 @@ def robot_contacts(demo: Demonstration) -> HandContacts:
     """When the robot holds each part: the intervals over which the part moves.
 
     In a record every part not carried stands still (its pose is repeated), so a
-    part moving between two samples is the one attached to the tool.
+    part moving between two samples is the one attached to the tool; a pause of at
+    most :data:`PAUSE_SAMPLES` samples (between two segments) does not end the hold.
 
     Returns
     -------
@@ -173,6 +209,9 @@ def robot_contacts(demo: Demonstration) -> HandContacts:
     """
     out: dict[tuple[str, str], list[tuple[float, float]]] = {}
     t = demo.t
+    # A record repeats a sample between two executed segments (the arm stops there):
+    # a still part for at most PAUSE_SAMPLES samples is still held.
+    gap = PAUSE_SAMPLES * float(np.median(np.diff(t))) if demo.n_frames > 1 else 0.0
     for b in demo.bodies:
         if b.kind != "part" or demo.n_frames < 2:
             continue
@@ -185,9 +224,21 @@ def robot_contacts(demo: Demonstration) -> HandContacts:
         # Runs of moving samples [i, j): the part is held from t[i] to t[j].
         edges = np.diff(np.concatenate([[0], moving.astype(np.int8), [0]]))
         starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-        spans = zip(starts, ends, strict=True)
-        out[(b.name, "robot")] = [(float(t[i]), float(t[j])) for i, j in spans]
+        spans: list[tuple[float, float]] = []
+        for i, j in zip(starts, ends, strict=True):
+            if spans and t[i] - spans[-1][1] <= gap:  # the pause between two segments
+                spans[-1] = (spans[-1][0], float(t[j]))
+            else:
+                spans.append((float(t[i]), float(t[j])))
+        out[(b.name, "robot")] = spans
     return HandContacts(out, "execution")
 
 
-__all__ = ["RECORD_SOURCE", "Replay", "ReplayError", "load_replay", "robot_contacts"]
+__all__ = [
+    "RECORD_SOURCE",
+    "Replay",
+    "ReplayError",
+    "load_replay",
+    "replay_view",
+    "robot_contacts",
+]
