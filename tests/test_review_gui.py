@@ -879,6 +879,13 @@ def test_plan_timeline_reorders_within_the_partial_order(open_review: Any, chair
     )
     assert app.task.plan[4].after == [0]  # the back still follows leg1, now step 1
     page.locator("#th-tl-4", has_text="after 1").wait_for(timeout=TIMEOUT_MS)
+    # The keyframes as marks on the playback slider, numbered in the new plan order.
+    from thirdhand.review.panels import keyframe_marks
+
+    marks = sorted((round(s.time, 2), str(i + 1)) for i, s in enumerate(app.task.plan))
+    assert keyframe_marks(app) == marks and marks[3] == (round(app.task.plan[0].time, 2), "1")
+    labels = page.locator(".mantine-Slider-markLabel")
+    review.wait_for(lambda: labels.all_inner_texts() == [m[1] for m in marks], "the slider marks")
     time.sleep(1.0)  # software WebGL: let the keyframe render before the screenshot
     review.shot("plan-timeline")
     # The back before leg1: refused, the reason shown, nothing changed.
@@ -994,6 +1001,9 @@ def test_a_real_execution_record_replays(
     review = open_review(task, "first.task.json", replays=[run])
     app, page = review.app, review.page
     page.locator("#th-replay", has_text="assembled (1 step)").wait_for(timeout=TIMEOUT_MS)
+    from thirdhand.review.panels import keyframe_marks
+
+    assert keyframe_marks(app) == [(0.0, "1")]  # the run began step 1 at once
     slider = page.get_by_role("slider")
     slider.focus()
     page.keyboard.press("End")

@@ -15,6 +15,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import viser
+from viser._messages import GuiSliderMark
 
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
@@ -404,6 +405,18 @@ class Panels:
         tl = app.motion.timelines[app.motion.demo_index]
         self.time.min, self.time.max = round(tl.start, 2), round(tl.end, 2)
         self.legend.content = _legend_of(app)
+        self.show_marks()
+
+    def show_marks(self) -> None:
+        """The plan's steps as marks on the time slider, labelled with their plan number.
+
+        viser 1.1 takes marks only in ``add_slider(marks=...)``; its slider's
+        ``_marks`` property (a client-synced prop like ``min``) updates them.
+        """
+        if self.time is None:
+            return
+        marks = tuple(GuiSliderMark(value=t, label=label) for t, label in keyframe_marks(self.app))
+        self.time._marks = marks or None
 
     def show_time(self, t: float) -> None:
         """Move the time slider (no callback: the event has no client)."""
@@ -465,6 +478,7 @@ class Panels:
             self.markers.options = positions
             self.move_to.options = positions
         self._render_timeline()
+        self.show_marks()
         q = app.question
         why = app.focus.reason if q is not None and q.focused and app.focus is not None else ""
         self.question.content = _question_html(q.text if q is not None else None, why)
@@ -566,6 +580,31 @@ def _plan_html(plan: list[Any], shown: int | None) -> str:
         f'<ul id="th-plan" style="font-size:0.85em;margin:0;padding-left:1em;list-style:none">'
         f"{''.join(items)}</ul>"
     )
+
+
+def keyframe_marks(app: ReviewApp) -> list[tuple[float, str]]:
+    """Where the plan's steps are on the time axis of what is played back.
+
+    A recording of the person: each step's keyframe time; an execution replay:
+    when the run began the step. Labelled with the step's number in the current
+    plan order; steps off the recording's time span are left out.
+
+    Returns
+    -------
+    list of (float, str)
+        Seconds (rounded to 0.01, as the slider), label; in time order.
+    """
+    if not app.motion.timelines:
+        return []
+    tl = app.motion.timelines[app.motion.demo_index]
+    replay = app.replay_shown()
+    starts = replay.step_starts() if replay is not None else {}
+    out = []
+    for i, s in enumerate(app.task.plan):
+        t = starts.get(s.constraint or "") if replay is not None else s.time
+        if t is not None and tl.start <= t <= tl.end:
+            out.append((round(float(t), 2), str(i + 1)))
+    return sorted(out)
 
 
 def _positions(n: int) -> list[str]:

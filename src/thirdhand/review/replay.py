@@ -59,6 +59,8 @@ class Replay:
         Whether the run assembled the task (None without the trajectory file).
     note : str
         Something worth saying that is not a refusal (e.g. the task file's name differs).
+    segments : list of dict
+        The trajectory file's executed segments (``step``, ``segment``, ``t_start``...).
     """
 
     path: Path
@@ -66,6 +68,20 @@ class Replay:
     steps: list[dict[str, Any]] = field(default_factory=list)
     success: bool | None = None
     note: str = ""
+    segments: list[dict[str, Any]] = field(default_factory=list)
+
+    def step_starts(self) -> dict[str, float]:
+        """When the run began each step, by the step's constraint id (seconds)."""
+        first: dict[int, float] = {}
+        for seg in self.segments:
+            k = int(seg.get("step", -1))
+            first[k] = min(first.get(k, math.inf), float(seg.get("t_start", math.inf)))
+        out: dict[str, float] = {}
+        for s in self.steps:
+            cid, k = s.get("constraint"), int(s.get("index", -1))
+            if cid and k in first and math.isfinite(first[k]):
+                out[str(cid)] = first[k]
+        return out
 
     def summary(self) -> str:
         """One line: the run's outcome and the first failed step with its reason."""
@@ -173,11 +189,13 @@ def load_replay(path: str | os.PathLike[str], task: TaskFile, task_path: Path) -
             f"{replay}: a record of another task ({demo.meta.get('task', '?')}): " + "; ".join(said)
         )
     steps: list[dict[str, Any]] = []
+    segments: list[dict[str, Any]] = []
     success: bool | None = None
     if traj.exists():
         try:
             doc = json.loads(traj.read_text())
             steps = list(doc.get("steps", []))
+            segments = list(doc.get("segments", []))
             success = bool(doc["success"]) if "success" in doc else None
         except (OSError, ValueError, TypeError, AttributeError) as exc:
             raise ReplayError(f"{traj}: unreadable trajectory file: {exc}") from None
@@ -192,7 +210,7 @@ def load_replay(path: str | os.PathLike[str], task: TaskFile, task_path: Path) -
     ours_name = task_path.name.removesuffix(".json")
     note = f"recorded as task {recorded!r}" if recorded and recorded != ours_name else ""
     demo = demo.replace(meta={**demo.meta, "name": f"execution: {replay.name}"})
-    return Replay(replay, demo, steps, success, note)
+    return Replay(replay, demo, steps, success, note, segments)
 
 
 def robot_contacts(demo: Demonstration) -> HandContacts:
