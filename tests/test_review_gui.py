@@ -311,11 +311,11 @@ def open_review(tmp_path: Path, chair: Any, chromium_browser: Any) -> Iterator[A
 
     opened: list[Review] = []
 
-    def open_(task: Any, name: str = "chair.task.json") -> Review:
+    def open_(task: Any, name: str = "chair.task.json", **options: Any) -> Review:
         path = tmp_path / name
         save_task(task, path)
         meshes = [MESHES] if MESHES.is_dir() else []
-        app = ReviewApp(path, demos=[chair], port=0, meshes=meshes, light_rendering=True)
+        app = ReviewApp(path, demos=[chair], port=0, meshes=meshes, light_rendering=True, **options)
         url = app.start()
         page = chromium_browser.new_page(viewport={"width": 1280, "height": 900})
         opened.append(Review(app, page, path))
@@ -845,3 +845,181 @@ def test_a_second_tab_only_views(review: Review, chromium_browser: Any) -> None:
         review.wait_for(lambda: app.task.constraint_by_id(cid).pos[0] == x0, "B's undo")
     finally:
         page_b.close()
+
+
+# ---------------------------------------------------------------------- issue 22: plan, replay
+
+
+@pytest.mark.slow
+def test_plan_timeline_reorders_within_the_partial_order(open_review: Any, chair: Any) -> None:
+    """The plan as step markers: a marker chooses a step, Move reorders it; a move that
+    puts the back before leg1 (which it must follow) is refused with the reason; undo,
+    redo and save treat an accepted move like any edit."""
+    from tests.review_records import partial_order
+
+    review = open_review(partial_order(truth_task(chair)))
+    app, page = review.app, review.page
+    before = [s.child for s in app.task.plan]
+    assert before == ["leg2", "leg3", "leg4", "leg1", "back"]
+    page.locator("#th-tl-4", has_text="after 4").wait_for(timeout=TIMEOUT_MS)
+    # Marker 4 chooses leg1's step and shows its keyframe; the marker turns orange.
+    review.button("4").click()
+    review.wait_for(lambda: app.chosen_step == 3 and app.step == 3, "step 4 chosen")
+    page.locator("#th-tl-chosen", has_text="4. leg1").wait_for(timeout=TIMEOUT_MS)
+    assert app.panels.step.value.startswith("4.")  # the Keyframes list follows
+    # The legs are interchangeable: leg1 moves first.
+    review.choose("Move to", "1")
+    review.wait_for(lambda: app.panels.move_to.value == "1", "the position")
+    review.button("Move step").click()
+    moved = [before[3], *before[:3], before[4]]
+    review.wait_for(lambda: [s.child for s in app.task.plan] == moved, "the move")
+    page.locator("#th-tl-chosen", has_text="1. leg1").wait_for(timeout=TIMEOUT_MS)
+    page.locator("#th-message", has_text="applied: step 4 moved to position 1").wait_for(
+        timeout=TIMEOUT_MS
+    )
+    assert app.task.plan[4].after == [0]  # the back still follows leg1, now step 1
+    page.locator("#th-tl-4", has_text="after 1").wait_for(timeout=TIMEOUT_MS)
+    # The keyframes as marks on the playback slider, numbered in the new plan order.
+    from thirdhand.review.panels import keyframe_marks
+
+    marks = sorted((round(s.time, 2), str(i + 1)) for i, s in enumerate(app.task.plan))
+    assert keyframe_marks(app) == marks and marks[3] == (round(app.task.plan[0].time, 2), "1")
+    labels = page.locator(".mantine-Slider-markLabel")
+    review.wait_for(lambda: labels.all_inner_texts() == [m[1] for m in marks], "the slider marks")
+    time.sleep(1.0)  # software WebGL: let the keyframe render before the screenshot
+    review.shot("plan-timeline")
+    # The back before leg1: refused, the reason shown, nothing changed.
+    review.button("5").click()
+    review.wait_for(lambda: app.chosen_step == 4, "step 5 chosen")
+    review.button("Move step").click()
+    refusal = "step 5 (back on seating) must follow step 1 (leg1 on seating)"
+    page.locator("#th-message", has_text=refusal).wait_for(timeout=TIMEOUT_MS)
+    assert [s.child for s in app.task.plan] == moved
+    review.shot("plan-timeline-refused")
+    # Right after leg1 is fine; undo and redo it like any edit.
+    review.choose("Move to", "2")
+    review.wait_for(lambda: app.panels.move_to.value == "2", "the position")
+    review.button("Move step").click()
+    back_second = ["leg1", "back", "leg2", "leg3", "leg4"]
+    review.wait_for(lambda: [s.child for s in app.task.plan] == back_second, "the second move")
+    page.locator("#th-tl-chosen", has_text="2. back").wait_for(timeout=TIMEOUT_MS)
+    review.button("Undo").click()
+    review.wait_for(lambda: [s.child for s in app.task.plan] == moved, "undo")
+    review.button("Undo").click()
+    review.wait_for(lambda: [s.child for s in app.task.plan] == before, "the second undo")
+    review.button("Redo").click()
+    review.wait_for(lambda: [s.child for s in app.task.plan] == moved, "redo")
+    review.button("Save").click()
+    review.wait_for(lambda: not app.session.dirty, "save")
+    saved = json.loads(review.path.read_text())
+    assert [s["child"] for s in saved["plan"]] == moved
+    assert [s["after"] for s in saved["plan"]] == [[], [], [], [], [0]]
+    ops = saved["stages"]["review"]["effort"]["operations"]
+    # The person's work: two accepted moves (one later undone); the refused one is not one.
+    assert sum(o.get("reordering", 0) for o in ops.values()) == 2
+
+
+@pytest.mark.slow
+def test_execution_replay_moves_the_held_part(open_review: Any, chair: Any, tmp_path: Path) -> None:
+    """An execution record on the same scene: play/pause, and the time slider puts the
+    carried part and the tool frame at their recorded poses; the failed step is said."""
+    from tests.review_records import CARRY_FROM, TOOL_OFFSET, write_record
+
+    from thirdhand import io
+    from thirdhand.review.dofs import world_poses
+    from thirdhand.review.playback import ROBOT_RGB
+
+    task = truth_task(chair)
+    run = write_record(task, tmp_path / "run")
+    record = io.load(run)
+    review = open_review(task, replays=[run])
+    app, page = review.app, review.page
+    assert app.motion.demo_index == 1 and app.panels.demo.value.startswith("2: execution")
+    page.locator("#th-replay", has_text="step 2 (leg3): no collision-free grasp").wait_for(
+        timeout=TIMEOUT_MS
+    )
+    review.button("Play").click()
+    review.wait_for(lambda: app.motion.playing, "playback")
+    review.wait_for(lambda: app.motion.time > 0.5, "time advancing")
+    review.button("Pause").click()
+    review.wait_for(lambda: not app.motion.playing, "pause")
+    leg2 = app.parts.frames["leg2"]
+    goal = np.asarray(world_poses(task)["leg2"].pos)
+    slider = page.get_by_role("slider")
+    # Home / End on the slider: the carry's start and its end (the leg at its goal).
+    slider.focus()
+    page.keyboard.press("Home")
+    review.wait_for(lambda: app.motion.time == pytest.approx(0.0), "the start")
+    np.testing.assert_allclose(leg2.position, goal + CARRY_FROM, atol=1e-6)
+    page.keyboard.press("End")
+    review.wait_for(lambda: app.motion.time == pytest.approx(record.t[-1], abs=0.01), "the end")
+    np.testing.assert_allclose(leg2.position, goal, atol=1e-6)
+    # A click on the slider's track half-way: mid-carry, where the record has it.
+    box = page.locator(".mantine-Slider-track").bounding_box()
+    assert box is not None
+    page.mouse.click(box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
+    review.wait_for(lambda: 1.5 < app.motion.time < 4.5, "mid-carry")
+    k = int(np.searchsorted(record.t, app.motion.time, side="right")) - 1
+    np.testing.assert_allclose(leg2.position, record.pos("leg2")[k], atol=1e-6)
+    assert np.linalg.norm(np.asarray(leg2.position) - goal) > 0.05  # on its way
+    tool = app.motion.tool_pose("robot_tool")
+    assert tool is not None
+    np.testing.assert_allclose(tool[0], record.pos("leg2")[k] + TOOL_OFFSET, atol=1e-6)
+    assert app.colours()["leg2"] == ROBOT_RGB and app.colours()["leg3"] != ROBOT_RGB
+    time.sleep(1.0)  # software WebGL: let the frame render before the screenshot
+    review.shot("execution-replay")
+    # The person's recording is still there, on the same slider.
+    review.choose("Recording", app.panels.demo.options[0])
+    review.wait_for(lambda: app.motion.demo_index == 0, "the recording")
+    assert app.motion.tool_pose("robot_tool") is None  # no tool frame over the person
+    assert app.panels.time.max == pytest.approx(round(chair.t[-1], 2))
+
+
+@pytest.mark.slow
+def test_a_real_execution_record_replays(
+    open_review: Any, chair: Any, tmp_path: Path, shared_data: Path
+) -> None:
+    """End to end: ``thirdhand execute --record`` on the chair's first step (the real
+    part meshes, the Panda, the motion planner), then ``--replay`` of that record."""
+    from thirdhand import io
+    from thirdhand.cli import main
+    from thirdhand.execute.record import TOOL_BODY
+    from thirdhand.review.playback import ROBOT_RGB
+    from thirdhand.review.replay import robot_contacts
+
+    task = truth_task(chair)
+    task = task.model_copy(update={"plan": task.plan[:1]})
+    path = tmp_path / "first.task.json"
+    save_task(task, path)
+    out = tmp_path / "run"
+    meshes = shared_data / "3rdhand" / "meshes"
+    assert main(["execute", str(path), "--record", str(out), "--meshes", str(meshes)]) == 0
+    run = out.with_suffix(".parquet")
+    record = io.load(run)
+    child = task.plan[0].child
+    [(start, end)] = robot_contacts(record).intervals[(child, "robot")]
+    review = open_review(task, "first.task.json", replays=[run])
+    app, page = review.app, review.page
+    page.locator("#th-replay", has_text="assembled (1 step)").wait_for(timeout=TIMEOUT_MS)
+    from thirdhand.review.panels import keyframe_marks
+
+    assert keyframe_marks(app) == [(0.0, "1")]  # the run began step 1 at once
+    slider = page.get_by_role("slider")
+    slider.focus()
+    page.keyboard.press("End")
+    review.wait_for(lambda: app.motion.time == pytest.approx(record.t[-1], abs=0.01), "the end")
+    np.testing.assert_allclose(app.parts.frames[child].position, record.pos(child)[-1], atol=1e-6)
+    # Half-way through the carry on the slider's track: the leg where the record has it.
+    box = page.locator(".mantine-Slider-track").bounding_box()
+    assert box is not None
+    frac = 0.5 * (start + end) / record.t[-1]
+    page.mouse.click(box["x"] + frac * box["width"], box["y"] + 0.5 * box["height"])
+    review.wait_for(lambda: start < app.motion.time < end, "mid-carry")
+    k = int(np.searchsorted(record.t, app.motion.time, side="right")) - 1
+    np.testing.assert_allclose(app.parts.frames[child].position, record.pos(child)[k], atol=1e-6)
+    tool = app.motion.tool_pose(TOOL_BODY)
+    assert tool is not None
+    np.testing.assert_allclose(tool[0], record.pos(TOOL_BODY)[k], atol=1e-6)
+    assert app.colours()[child] == ROBOT_RGB
+    time.sleep(1.0)  # software WebGL: let the frame render before the screenshot
+    review.shot("execution-replay-real")

@@ -22,7 +22,7 @@ import os
 import threading
 from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
@@ -60,6 +60,9 @@ from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import DOF_NAMES
 from thirdhand.taskfile import TaskFile, save_task
 
+if TYPE_CHECKING:
+    from thirdhand.review.replay import Replay
+
 FloatArray = NDArray[np.float64]
 
 
@@ -83,6 +86,10 @@ class ReviewApp:
     light_rendering : bool
         No environment map and no shadows: for software WebGL (headless browsers,
         remote desktops), where they make every frame slow.
+    replays : sequence of path-like
+        Execution records (``thirdhand execute --record OUT``) of this task, played
+        back after the recordings on the same scene (the first one shown first);
+        a record of another task is refused (:func:`~thirdhand.review.replay.load_replay`).
 
     Attributes
     ----------
@@ -116,6 +123,7 @@ class ReviewApp:
         meshes: Sequence[str | os.PathLike[str]] = (),
         segment: bool = True,
         light_rendering: bool = False,
+        replays: Sequence[str | os.PathLike[str]] = (),
     ) -> None:
         self.task_path = Path(task_path)
         self.host, self.requested_port = host, port
@@ -123,6 +131,11 @@ class ReviewApp:
         self.light_rendering = light_rendering
         self.session = ReviewSession.open(self.task_path)
         self.demos = [_load_demo(d) for d in demos]
+        self.replays: list[Replay] = []
+        if replays:
+            from thirdhand.review.replay import load_replay
+
+            self.replays = [load_replay(r, self.session.task, self.task_path) for r in replays]
         self.lock = threading.RLock()
         self.selected: str | None = None
         self.step: int | None = None
@@ -144,7 +157,11 @@ class ReviewApp:
         self.glyphs: DofGlyphView | None = None
         self.gizmo: DofGizmo | None = None
         self.panels: Any = None
-        self.motion = Motion(self, self.demos, segment=segment)
+        self.motion = Motion(self, [*self.demos, *(r.demo for r in self.replays)], segment=segment)
+        if self.replays:  # the run first: it is what --replay asked to see
+            self.motion.demo_index = len(self.demos)
+            self.motion.time = self.motion.timelines[len(self.demos)].start
+            self.message = "; ".join(r.summary() for r in self.replays)
         self.motion.events = MotionEvents(playback_entered=self._enter_playback)
 
     # ------------------------------------------------------------------ lifecycle
@@ -199,9 +216,12 @@ class ReviewApp:
         self.server.on_client_disconnect(self._client_disconnected)
         with self.lock:
             self.refresh()
+            said = [r.summary() for r in self.replays]
             if self.parts.missing_meshes:
                 listed = ", ".join(f"{m} ({n})" for n, m in self.parts.missing_meshes.items())
-                self.say(f"meshes not found, drawn as boxes: {listed} (see --meshes)")
+                said.append(f"meshes not found, drawn as boxes: {listed} (see --meshes)")
+            if said:
+                self.say("; ".join(said))
         return self.url
 
     def stop(self) -> None:
@@ -245,8 +265,19 @@ class ReviewApp:
         """Whether the tab ``client_id`` may change the task (None: the server itself)."""
         return client_id is None or self.editor is None or client_id == self.editor
 
+    def replay_shown(self) -> Replay | None:
+        """The execution record played back now (None: a recording of the person)."""
+        k = self.motion.demo_index - len(self.demos)
+        return self.replays[k] if 0 <= k < len(self.replays) else None
+
     def camera_pose(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        """Initial camera position and target (:func:`scene3d.front_view`), world frame, m."""
+        """Initial camera position and target (:func:`scene3d.front_view`; an execution
+        replay shown: everything it moves, :func:`replay.replay_view`), world frame, m."""
+        replay = self.replay_shown()
+        if replay is not None:
+            from thirdhand.review.replay import replay_view
+
+            return replay_view(replay.demo)
         parts = self.parts
         if parts is None:
             return (1.0, -1.0, 1.0), (0.0, 0.0, 0.0)
@@ -408,7 +439,8 @@ class ReviewApp:
         Raises
         ------
         ThirdhandError
-            The step is already first (up) or last (down).
+            The step is already first (up) or last (down), or the move contradicts the
+            plan's partial order.
         """
         with self.lock:
             new = index + delta
@@ -416,11 +448,40 @@ class ReviewApp:
             if not 0 <= new < n:
                 where = "first" if delta < 0 else "last"
                 raise ThirdhandError(f"step {index + 1} is already the {where} of {n}")
-            self.apply(MoveStep(index, new), operation="reordering")
+            self.move_step_to(index, new)
+
+    def move_step_to(self, index: int, new_index: int) -> None:
+        """Move plan step ``index`` to position ``new_index`` (0-based; the plan timeline's
+        Move); the chosen and shown step follow it. An undoable edit like the others.
+
+        Raises
+        ------
+        ThirdhandError
+            An index out of range, or the move puts a step before one it must follow
+            (or after one that must follow it) in a true partial order
+            (:func:`~thirdhand.review.edits.order_conflict`); nothing changes.
+        """
+        with self.lock:
+            n = len(self.task.plan)
+            for what, v in (("step", index), ("position", new_index)):
+                if not 0 <= v < n:
+                    raise ThirdhandError(f"no {what} {v + 1}: the plan has {n} steps")
+            if index == new_index:
+                raise ThirdhandError(f"step {index + 1} is already at position {new_index + 1}")
+            self.apply(MoveStep(index, new_index, keep_order=True), operation="reordering")
             if self.step == index:
-                self.step = new
-            self.chosen_step = new
+                self.step = new_index
+            self.chosen_step = new_index
             self.refresh()
+
+    def choose_step(self, index: int) -> None:
+        """Choose plan step ``index`` (a timeline marker) and show its keyframe."""
+        with self.lock:
+            n = len(self.task.plan)
+            if not 0 <= index < n:
+                raise ThirdhandError(f"no plan step {index + 1}; the plan has {n}")
+            self.chosen_step = index
+            self.show_step(index)
 
     def show_step(self, index: int | None) -> None:
         """Show the keyframe of plan step ``index`` (None: the assembled task)."""
@@ -499,7 +560,8 @@ class ReviewApp:
     def start_clarification(self) -> Question | None:
         """Build the question queue (the object in focus, then least confident first); ask."""
         with self.lock:
-            demo = self.demos[self.motion.demo_index] if self.demos else None
+            i = self.motion.demo_index
+            demo = self.demos[i if i < len(self.demos) else 0] if self.demos else None
             self.focus = find_focus(self.task, demo)
             focus = self.focus.object if self.focus is not None else None
             self.questions = clarification_queue(self.task, focus=focus)

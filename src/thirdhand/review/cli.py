@@ -1,4 +1,6 @@
-"""``thirdhand review TASK.json [--demo REC...] [--port N] [--meshes DIR]``: the review GUI.
+"""``thirdhand review TASK.json [--demo REC...] [--replay RUN...] [--port N] [--meshes DIR]``.
+
+The review GUI.
 
 Mounted as a top-level command by :mod:`thirdhand.cli` (``COMMANDS``).
 """
@@ -26,6 +28,14 @@ def review_command(
         list[Path] | None,
         typer.Option("--meshes", help="A folder of part meshes (repeatable)."),
     ] = None,
+    replay: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--replay",
+            help="An execution record of this task (thirdhand execute --record OUT) to play "
+            "on the same scene (repeatable).",
+        ),
+    ] = None,
     light: Annotated[
         bool,
         typer.Option("--light", help="No environment map or shadows (software WebGL)."),
@@ -50,6 +60,7 @@ def review_command(
         port=port,
         meshes=list(meshes or []),
         light_rendering=light,
+        replays=list(replay or []),
     )
     # Ctrl-C (SIGINT) anywhere from here is the normal way to stop: exit 0. SIGTERM
     # ends with status 143 (thirdhand.cli.main); both stop the server in ``finally``.

@@ -18,7 +18,9 @@ demonstration, and a move simply makes the new order the total order. In a true
 partial order, indices are remapped to the new positions and a dependency the
 move contradicts (a step moved before one it must follow, or after one that must
 follow it) is dropped and recorded in the provenance with the reason; implied
-dependencies that the move keeps valid are kept (transitively reduced).
+dependencies that the move keeps valid are kept (transitively reduced). A move
+with ``keep_order`` (what the GUI's plan timeline and Up/Down make) is instead
+refused when it contradicts a true partial order: :func:`order_conflict` says why.
 """
 
 from __future__ import annotations
@@ -96,10 +98,16 @@ class SetParent:
 
 @dataclass(frozen=True)
 class MoveStep:
-    """Move the plan step at ``index`` to ``new_index`` (the others shift)."""
+    """Move the plan step at ``index`` to ``new_index`` (the others shift).
+
+    ``keep_order``: refuse a move that puts a step before one it must follow (or
+    after one that must follow it) in a true partial order (:func:`order_conflict`);
+    otherwise such a dependency is dropped and the drop recorded.
+    """
 
     index: int
     new_index: int
+    keep_order: bool = False
 
 
 @dataclass(frozen=True)
@@ -396,6 +404,57 @@ def _closure(preds: list[list[int]]) -> list[set[int]]:
     return out
 
 
+def _step_name(task: TaskFile, i: int) -> str:
+    s = task.plan[i]
+    return f"step {i + 1} ({s.child} on {s.parent})"
+
+
+def is_partial_order(task: TaskFile) -> bool:
+    """True when the plan's ``after`` lists are a true partial order, not the
+    demonstration's total order (all None, or each step after just the previous one)."""
+    if all(s.after is None for s in task.plan):
+        return False
+    return not _is_chain(task.predecessors())
+
+
+def order_conflict(task: TaskFile, index: int, new_index: int) -> str | None:
+    """Why moving plan step ``index`` to position ``new_index`` breaks the partial order.
+
+    Parameters
+    ----------
+    task : TaskFile
+    index, new_index : int
+        Plan indices (0-based), both in range.
+
+    Returns
+    -------
+    str or None
+        ``"step 5 (back on seating) must follow step 4 (leg1 on seating): it cannot
+        move to position 3"``; None when the move keeps every dependency (always
+        for the demonstration's total order, which any move may change).
+    """
+    if index == new_index or not is_partial_order(task):
+        return None
+    closure = _closure(task.predecessors())
+    lo, hi = sorted((index, new_index))
+    between = range(lo, hi + 1)
+    if new_index < index:  # moved earlier: past a step it must follow?
+        for j in reversed(between):
+            if j != index and j in closure[index]:
+                return (
+                    f"{_step_name(task, index)} must follow {_step_name(task, j)}: "
+                    f"it cannot move to position {new_index + 1}"
+                )
+    else:  # moved later: past a step that must follow it?
+        for j in between:
+            if j != index and index in closure[j]:
+                return (
+                    f"{_step_name(task, j)} must follow {_step_name(task, index)}: "
+                    f"{_step_name(task, index)} cannot move to position {new_index + 1}"
+                )
+    return None
+
+
 def _move_step(task: TaskFile, e: MoveStep, rec: _Recorder) -> None:
     n = len(task.plan)
     for what, v in (("index", e.index), ("new index", e.new_index)):
@@ -403,6 +462,10 @@ def _move_step(task: TaskFile, e: MoveStep, rec: _Recorder) -> None:
             raise EditError(f"move step: {what} {v!r} out of range (plan has {n} steps)")
     if e.index == e.new_index:
         return
+    if e.keep_order:
+        why = order_conflict(task, e.index, e.new_index)
+        if why is not None:
+            raise EditError(f"move refused: {why}")
     order = list(range(n))
     order.insert(e.new_index, order.pop(e.index))
     new_of = {old: new for new, old in enumerate(order)}

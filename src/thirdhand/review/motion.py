@@ -13,7 +13,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
+import numpy as np
 import viser
+from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
@@ -26,6 +28,8 @@ from thirdhand.task.constraint import Constraint
 if TYPE_CHECKING:
     from thirdhand.review.app import ReviewApp
 
+FloatArray = NDArray[np.float64]
+
 #: Seconds per DOF of an animation, and its frame rate (Hz).
 ANIMATION_SECONDS = 1.2
 ANIMATION_RATE = 20.0
@@ -33,6 +37,17 @@ ANIMATION_RATE = 20.0
 PLAYBACK_RATE = 20.0
 #: Radius of a finger's sphere in playback, metres.
 FINGER_RADIUS = 0.008
+#: Axis length of a robot tool frame in an execution replay, metres.
+TOOL_AXES = 0.08
+
+
+def _contacts(demo: Demonstration, *, segment: bool) -> HandContacts:
+    """Who holds what: the hands of a recording, the robot of an execution replay."""
+    if demo.meta.get("source") == "thirdhand.execute":
+        from thirdhand.review.replay import robot_contacts
+
+        return robot_contacts(demo)
+    return hand_contacts(demo, segment=segment)
 
 
 def _ignore(*_args: object) -> None:
@@ -91,12 +106,13 @@ class Motion:
     def __init__(self, app: ReviewApp, demos: Sequence[Demonstration], *, segment: bool) -> None:
         self.app = app
         self.timelines = [Timeline(d) for d in demos]
-        self.contacts: list[HandContacts] = [hand_contacts(d, segment=segment) for d in demos]
+        self.contacts: list[HandContacts] = [_contacts(d, segment=segment) for d in demos]
         self.demo_index = 0
         self.time = self.timelines[0].start if self.timelines else 0.0
         self.playing = False
         self.animating: str | None = None
         self._fingers: dict[str, viser.IcosphereHandle] = {}
+        self._tools: dict[str, viser.FrameHandle] = {}
         self._worker: threading.Thread | None = None
         self._stop = threading.Event()
         #: Set by the owner: Motion reports through these, it drives no panel.
@@ -223,8 +239,15 @@ class Motion:
         app.parts.set_poses({n: pq for n, pq in poses.items() if n in app.parts.frames})
         colours = playback_colours(self.contacts[self.demo_index], app.parts.names, self.time)
         app.parts.set_colours(colours)
+        kinds = {b.name: b.kind for b in tl.demo.bodies}
+        for name, tool in self._tools.items():  # another recording's tool frame
+            if name not in poses:
+                tool.visible = False
         for n in tl.names:
             if n in app.parts.frames or n not in poses:
+                continue
+            if kinds.get(n) == "tool":  # an execution replay's tool frame: axes
+                self._show_tool(n, *poses[n])
                 continue
             h = self._fingers.get(n)
             if h is None:
@@ -236,7 +259,31 @@ class Motion:
             x, y, z = (float(v) for v in poses[n][0])
             h.position = (x, y, z)
 
+    def _show_tool(self, name: str, pos: FloatArray, quat: FloatArray) -> None:
+        app = self.app
+        assert app.server is not None
+        h = self._tools.get(name)
+        if h is None:
+            h = app.server.scene.add_frame(
+                f"/tools/{name}", axes_length=TOOL_AXES, axes_radius=0.1 * TOOL_AXES
+            )
+            self._tools[name] = h
+        h.visible = True
+        h.position = (float(pos[0]), float(pos[1]), float(pos[2]))
+        x, y, z, w = (float(v) for v in quat)
+        h.wxyz = (w, x, y, z)
+
+    def tool_pose(self, name: str) -> tuple[FloatArray, FloatArray] | None:
+        """Where the tool frame ``name`` is drawn: position (m) and quaternion x y z w."""
+        h = self._tools.get(name)
+        if h is None or not h.visible:
+            return None
+        w, x, y, z = h.wxyz
+        return np.asarray(h.position, dtype=float), np.array([x, y, z, w])
+
     def hide_fingers(self) -> None:
-        """Hide the fingers (outside playback)."""
+        """Hide the fingers and tool frames (outside playback)."""
         for h in self._fingers.values():
             h.visible = False
+        for t in self._tools.values():
+            t.visible = False

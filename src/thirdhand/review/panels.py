@@ -15,11 +15,12 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import viser
+from viser._messages import GuiSliderMark
 
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
 from thirdhand.review.edits import SetDofRange, SetParent, parse_number, pose_values
-from thirdhand.review.playback import HAND_RGB
+from thirdhand.review.playback import HAND_RGB, ROBOT_RGB
 from thirdhand.review.scene3d import PARENT_RGB, SELECTED_RGB, hex_colour
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import DOF_NAMES
@@ -129,6 +130,22 @@ class Panels:
         )
         self._on(self.show_all.on_click, lambda e: app.attempt(app.show_step, None))
 
+        with gui.add_folder("Plan timeline"):
+            # viser has no drag-and-drop: a marker button chooses (and shows) a step,
+            # "Move to" + "Move step" reorder it; the partial order decides what may move.
+            self.timeline = gui.add_html("")
+            positions = _positions(len(app.task.plan))
+            self.markers = gui.add_button_group("Go to step", positions)
+            self.move_to = gui.add_dropdown("Move to", positions, initial_value=positions[0])
+            self.move = gui.add_button("Move step")
+        self._on(self.markers.on_click, self._marker_clicked)
+        self._on(
+            self.move.on_click,
+            lambda e: app.attempt(
+                lambda: app.move_step_to(self._chosen(), int(self.move_to.value) - 1)
+            ),
+        )
+
         with gui.add_folder("Clarify"):
             self.start_q = gui.add_button("Start clarification")
             self.question = gui.add_html("")
@@ -158,9 +175,7 @@ class Panels:
                 self.play = gui.add_button("Play")
                 self.speed = gui.add_number("Speed", 1.0, min=0.1, max=10.0, step=0.1)
                 self.back = gui.add_button("Show task")
-                self.legend = gui.add_html(
-                    _legend(app.motion.contacts[app.motion.demo_index].source)
-                )
+                self.legend = gui.add_html(_legend_of(app))
             slider = self.time
             self._on(
                 slider.on_update,
@@ -188,7 +203,14 @@ class Panels:
         # Typing in a read-only tab must not change what the editing tab will apply.
         for text in (*self.values.values(), self.dof_lo, self.dof_hi):
             text.on_update(self._typing_of(text))
-        for choice in (self.object, self.nudge_what, self.dof, self.new_parent, self.step):
+        for choice in (
+            self.object,
+            self.nudge_what,
+            self.dof,
+            self.new_parent,
+            self.step,
+            self.move_to,
+        ):
             self._last[id(choice)] = choice.value
         if self.time is not None:
             self._last[id(self.demo)] = self.demo.value
@@ -247,6 +269,19 @@ class Panels:
     def _step_chosen(self, event: Any) -> None:
         if _user(event) and self.step.value != "-":
             self.app.chosen_step = self._step_index()
+            self._render_timeline()
+
+    def _marker_clicked(self, event: Any) -> None:
+        value = self.markers.value
+        if value.isdigit():
+            self.app.attempt(self.app.choose_step, int(value) - 1)
+
+    def _chosen(self) -> int:
+        """The step the timeline's Move acts on: the chosen one (the first if none)."""
+        if not self.app.task.plan:
+            raise ThirdhandError("the plan has no step to move")
+        c = self.app.chosen_step
+        return 0 if c is None else c
 
     def _submit_values(self) -> None:
         changed = {n: h.value for n, h in self.values.items() if h.value != self._shown.get(n)}
@@ -369,7 +404,19 @@ class Panels:
         app = self.app
         tl = app.motion.timelines[app.motion.demo_index]
         self.time.min, self.time.max = round(tl.start, 2), round(tl.end, 2)
-        self.legend.content = _legend(app.motion.contacts[app.motion.demo_index].source)
+        self.legend.content = _legend_of(app)
+        self.show_marks()
+
+    def show_marks(self) -> None:
+        """The plan's steps as marks on the time slider, labelled with their plan number.
+
+        viser 1.1 takes marks only in ``add_slider(marks=...)``; its slider's
+        ``_marks`` property (a client-synced prop like ``min``) updates them.
+        """
+        if self.time is None:
+            return
+        marks = tuple(GuiSliderMark(value=t, label=label) for t, label in keyframe_marks(self.app))
+        self.time._marks = marks or None
 
     def show_time(self, t: float) -> None:
         """Move the time slider (no callback: the event has no client)."""
@@ -426,11 +473,22 @@ class Panels:
             current = _index_of(self.step.value, labels)
         self._set(self.step, labels[min(max(current, 0), len(labels) - 1)])
         self.plan.content = _plan_html(app.task.plan, app.step)
+        positions = tuple(_positions(len(app.task.plan)))
+        if tuple(self.markers.options) != positions:
+            self.markers.options = positions
+            self.move_to.options = positions
+        self._render_timeline()
+        self.show_marks()
         q = app.question
         why = app.focus.reason if q is not None and q.focused and app.focus is not None else ""
         self.question.content = _question_html(q.text if q is not None else None, why)
         self.yes.visible = self.no.visible = q is not None
         self.effort.content = _effort_html(app.session.effort)
+
+    def _render_timeline(self) -> None:
+        app = self.app
+        chosen = app.chosen_step if app.chosen_step is not None else 0
+        self.timeline.content = timeline_html(app.task, chosen, app.step)
 
     def _fill_range(self) -> None:
         c = self.app.constraint
@@ -460,7 +518,25 @@ def _index_of(value: str, labels: list[str]) -> int:
         return 0 if labels else -1
 
 
+def _legend_of(app: ReviewApp) -> str:
+    """The legend of the recording played back; for an execution, its outcome too."""
+    legend = _legend(app.motion.contacts[app.motion.demo_index].source)
+    replay = app.replay_shown()
+    if replay is None:
+        return legend
+    return legend + (
+        f'<div id="th-replay" style="padding:0 0.75em;font-size:0.85em">'
+        f"{html.escape(replay.summary())}</div>"
+    )
+
+
 def _legend(source: str) -> str:
+    if source == "execution":
+        return (
+            f'<div style="padding:0 0.75em;font-size:0.85em"><span style="color:'
+            f'{hex_colour(ROBOT_RGB)}">■ held by the robot</span>; the tool frame drawn as '
+            "axes (the robot's links are not drawn)</div>"
+        )
     items = " ".join(
         f'<span style="color:{hex_colour(rgb)}">■ {side}</span>' for side, rgb in HAND_RGB.items()
     )
@@ -503,6 +579,79 @@ def _plan_html(plan: list[Any], shown: int | None) -> str:
     return (
         f'<ul id="th-plan" style="font-size:0.85em;margin:0;padding-left:1em;list-style:none">'
         f"{''.join(items)}</ul>"
+    )
+
+
+def keyframe_marks(app: ReviewApp) -> list[tuple[float, str]]:
+    """Where the plan's steps are on the time axis of what is played back.
+
+    A recording of the person: each step's keyframe time; an execution replay:
+    when the run began the step. Labelled with the step's number in the current
+    plan order; steps off the recording's time span are left out.
+
+    Returns
+    -------
+    list of (float, str)
+        Seconds (rounded to 0.01, as the slider), label; in time order.
+    """
+    if not app.motion.timelines:
+        return []
+    tl = app.motion.timelines[app.motion.demo_index]
+    replay = app.replay_shown()
+    starts = replay.step_starts() if replay is not None else {}
+    out = []
+    for i, s in enumerate(app.task.plan):
+        t = starts.get(s.constraint or "") if replay is not None else s.time
+        if t is not None and tl.start <= t <= tl.end:
+            out.append((round(float(t), 2), str(i + 1)))
+    return sorted(out)
+
+
+def _positions(n: int) -> list[str]:
+    return [str(i + 1) for i in range(n)] or ["-"]
+
+
+def timeline_html(task: Any, chosen: int | None, shown: int | None) -> str:
+    """The plan as a row of step markers in order, each with what it must follow.
+
+    The chosen step (the one Move acts on) is orange with id ``th-tl-chosen``; the
+    one whose keyframe is shown is underlined. Marker ``i`` has id ``th-tl-{i}``.
+    """
+    from thirdhand.review.edits import is_partial_order
+
+    partial = is_partial_order(task)
+    preds = task.predecessors()
+    chips = []
+    for i, s in enumerate(task.plan):
+        if partial:
+            after = ", ".join(str(j + 1) for j in preds[i]) or "none"
+            order = f"after {after}"
+        else:
+            order = ""
+        when = f"{s.time:.1f} s" if s.time is not None else ""
+        style = (
+            "display:inline-block;margin:2px;padding:2px 6px;border-radius:4px;"
+            "border:1px solid #adb5bd;font-size:0.8em;line-height:1.25;text-align:center;"
+        )
+        if i == chosen:
+            style += f"background:{hex_colour(SELECTED_RGB)};color:white;font-weight:bold;"
+        if i == shown:
+            style += "text-decoration:underline;"
+        ident = ' id="th-tl-chosen"' if i == chosen else ""
+        lines = [f"{i + 1}. {html.escape(s.child)}", html.escape(order), when]
+        body = "<br>".join(x for x in lines if x)
+        chips.append(
+            f'<span{ident} class="th-tl-step" data-step="{i}" style="{style}">'
+            f'<span id="th-tl-{i}">{body}</span></span>'
+        )
+    how = (
+        "partial order: a step moves only where what it must follow stays before it"
+        if partial
+        else "the demonstration's order: any step may move"
+    )
+    return (
+        f'<div id="th-timeline" style="padding:0 0.75em">{"&#8594;".join(chips)}'
+        f'<div id="th-tl-order" style="font-size:0.75em;color:#495057">{how}</div></div>'
     )
 
 

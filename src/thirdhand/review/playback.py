@@ -26,7 +26,7 @@ from thirdhand.demonstration import Demonstration
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
-Side = Literal["left", "right", "both"]
+Side = Literal["left", "right", "both", "robot"]
 
 #: Colour of a part held by each hand, RGB 0-255 (right red, left green, both purple).
 HAND_RGB: dict[str, tuple[int, int, int]] = {
@@ -34,6 +34,8 @@ HAND_RGB: dict[str, tuple[int, int, int]] = {
     "left": (26, 152, 80),
     "both": (118, 42, 131),
 }
+#: Colour of a part the robot holds in an execution replay.
+ROBOT_RGB: tuple[int, int, int] = (0, 150, 136)
 #: Colour of a part nobody holds during playback.
 IDLE_RGB: tuple[int, int, int] = (170, 170, 170)
 
@@ -113,7 +115,8 @@ class HandContacts:
     intervals : dict of (object, side) to list of (start, end)
         Seconds; ``side`` is ``"left"`` or ``"right"``.
     source : str
-        ``"labels"`` or ``"segmentation"``.
+        ``"labels"``, ``"segmentation"`` or ``"execution"`` (side ``"robot"``: an
+        execution replay, :func:`thirdhand.review.replay.robot_contacts`).
     """
 
     intervals: dict[tuple[str, str], list[tuple[float, float]]] = field(default_factory=dict)
@@ -132,6 +135,10 @@ class HandContacts:
                 held.setdefault(obj, set()).add(side)
         out: dict[str, Side] = {}
         for obj, sides in held.items():
+            if sides == {"robot"}:
+                out[obj] = "robot"
+                continue
+            sides.discard("robot")
             out[obj] = "both" if len(sides) > 1 else ("left" if "left" in sides else "right")
         return out
 
@@ -199,4 +206,5 @@ def playback_colours(
 ) -> dict[str, tuple[int, int, int]]:
     """Colour of every object at ``time``: its holding hand's, else :data:`IDLE_RGB`."""
     held: Mapping[str, Side] = contacts.at(time)
-    return {n: HAND_RGB[held[n]] if n in held else IDLE_RGB for n in names}
+    rgb = {**HAND_RGB, "robot": ROBOT_RGB}
+    return {n: rgb[held[n]] if n in held else IDLE_RGB for n in names}
