@@ -68,6 +68,18 @@ def test_a_plan_naming_a_missing_part_is_refused(
     assert rc == 1 and says in _one_line(err)
 
 
+def test_a_plan_listing_a_step_twice_is_refused(capsys, tmp_path, bench_doc) -> None:
+    # plan = [c1, c1, ...]: the second would pick the part already in its slot
+    doc = copy.deepcopy(bench_doc)
+    first = doc["plan"][0]
+    doc["plan"] = [first, copy.deepcopy(first), *doc["plan"][1:]]
+    rc, _, err = _run(capsys, tmp_path, doc)
+    line = _one_line(err)
+    cid = first["constraint"]
+    assert rc == 1 and "task.json" in line
+    assert f"plan[1].constraint: constraint {cid!r} is already made by plan[0]" in line
+
+
 def test_a_step_after_a_later_one_is_refused(capsys, tmp_path, bench_doc) -> None:
     # ``after`` names earlier steps only, so a plan's order cannot form a cycle
     doc = copy.deepcopy(bench_doc)

@@ -2,10 +2,11 @@
 
 Prints, per step, the grasp (and whether it came from the demonstration or the
 part's shape), how the part was placed (along the learned primitive or straight
-in), the planning time, the executed path's length and whether it
-succeeded; ``--record OUT`` writes a replay (``OUT.parquet``, viewable with
-``thirdhand review TASK --demo OUT.parquet``) and the joint trajectory
-(``OUT.json``). Exits 1 when a step fails.
+in, and whether a regrasp was needed: the part put down near the arm and picked
+again), the planning time, the executed path's length and whether it succeeded;
+``--record OUT`` writes a replay (``OUT.parquet``, viewable with ``thirdhand review
+TASK --demo OUT.parquet``) and the joint trajectory (``OUT.json``). Exits 1 when a
+step fails.
 """
 
 from __future__ import annotations
@@ -76,6 +77,13 @@ def execute_command(
             "of its grasps are reachable (0: anywhere in the robot's band)."
         ),
     ] = 0,
+    regrasp: Annotated[
+        bool,
+        typer.Option(
+            help="When no grasp reached where a part lies can place it, put it down near "
+            "the arm and pick it again."
+        ),
+    ] = True,
 ) -> None:
     """Execute a task's plan on a simulated robot arm with a motion planner."""
     from thirdhand import io, options
@@ -111,7 +119,7 @@ def execute_command(
     opts = ExecutionOptions(
         sample_free_dofs=free_dofs, step_time_limit=step_time, plan_time_limit=plan_time,
         order=order, max_grasps=max_grasps, n_goal_samples=goals, placement=placement,
-        start_grasps=start_grasps,
+        start_grasps=start_grasps, regrasp=regrasp,
     )  # fmt: skip
     d = io.load(demo) if demo is not None else None
     ex = Executor.for_task(
@@ -140,7 +148,7 @@ def execute_command(
             str(r.index),
             f"{r.child} → {r.parent} ({r.constraint})",
             f"{r.grasp} ({r.grasp_source})" if r.grasp_source else "",
-            r.place_motion,
+            r.place_motion + (" after a regrasp" if r.regrasp else ""),
             f"{r.planning_time_s:.2f}",
             f"{r.joint_length_rad:.2f}",
             f"{r.tool_length_m:.2f}",
@@ -151,6 +159,14 @@ def execute_command(
     for e in result.events:
         console.print(f"event: {e}")
     for r in result.steps:
+        if r.regrasp is not None:
+            g = r.regrasp
+            console.print(
+                f"step {r.index} ({r.constraint}) regrasp: {r.child} put down at "
+                f"({g.spot[0]:.2f}, {g.spot[1]:.2f}) m, {g.distance_m:.2f} m from the arm"
+                f"{', face down' if g.face_down else ''}, and picked again; without it: "
+                f"{g.plain_status}"
+            )
         if r.success:
             continue
         n = r.tried

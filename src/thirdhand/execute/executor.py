@@ -41,7 +41,13 @@ from numpy.typing import NDArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import invert
-from thirdhand.execute.layout import ASSEMBLY_XY, Workcell, make_workcell, start_layout
+from thirdhand.execute.layout import (
+    ASSEMBLY_XY,
+    Workcell,
+    make_workcell,
+    part_vertices,
+    start_layout,
+)
 from thirdhand.execute.planner import plan_motion
 from thirdhand.execute.primitive_motion import find_primitive
 from thirdhand.execute.robot import Robot
@@ -197,6 +203,7 @@ class Executor:
         self.primitives = task.stages.get("primitives") if self.options.use_primitives else None
         #: Constraint id → the part put into its slot (offline; identical parts swap).
         self.bind: dict[str, str] = {}
+        self._verts: dict[str, FloatArray] | None = None
 
     def new_world(self, poses: Mapping[str, FloatArray] | None = None) -> SimWorld:
         """A world with the parts at ``poses`` (the start layout by default)."""
@@ -242,8 +249,59 @@ class Executor:
         )  # fmt: skip
         plan = search.run(q_start, np.random.default_rng([seed, index]))
         plan.report.index = index
+        if (
+            not plan.report.success
+            and self.options.regrasp
+            and not plan.report.status.startswith("step time limit")
+        ):
+            plan = self._regrasp(world, index, constraint, q_start, seed, plan, search.reached,
+                                 prim, hints)  # fmt: skip
+            plan.report.index = index
         plan.report.planning_time_s = time.perf_counter() - t0
         return plan
+
+    def _regrasp(
+        self, world: SimWorld, index: int, constraint: Constraint, q_start: FloatArray,
+        seed: int, plain: StepPlan, reached: Sequence[grasp_mod.Grasp], prim: Any,
+        hints: Mapping[str, Sequence[grasp_mod.Grasp]],
+    ) -> StepPlan:  # fmt: skip
+        """The step through an intermediate placement (:mod:`~thirdhand.execute.regrasp`).
+
+        Returns the joined plan, or ``plain`` with why no regrasp was found added to
+        its status.
+        """
+        from thirdhand.execute.regrasp import plan_regrasp
+
+        def search(
+            w: SimWorld, c: Constraint, q: FloatArray, deadline: float,
+            put_down: FloatArray | None, grasps: Sequence[grasp_mod.Grasp],
+            first_goals: tuple[FloatArray, FloatArray] | None,
+        ) -> StepPlan:  # fmt: skip
+            s = StepSearch(
+                w, self.task, c, self.options, seed=seed + 1, deadline=deadline,
+                primitive=prim if put_down is None else None, hints=hints, put_down=put_down,
+                grasps=grasps, first_goals=first_goals,
+            )  # fmt: skip
+            return s.run(q, np.random.default_rng([seed, index, 1]))
+
+        plan, why = plan_regrasp(
+            world, self.task, constraint, self.options, plain, reached, search,
+            verts=self._vertices(), cell=self.cell, hints=hints, q_start=q_start, seed=seed,
+        )  # fmt: skip
+        if plan is None:
+            plain.report.status += f"; {why}"
+            return plain
+        return plan
+
+    def _vertices(self) -> dict[str, FloatArray]:
+        """Body-frame vertices (n, 3) of every part laid out, metres (computed once)."""
+        if self._verts is None:
+            objs = {o.name: o for o in self.task.objects}
+            self._verts = {
+                n: part_vertices(objs[n], **self._where)  # type: ignore[arg-type]
+                for n in self.start
+            }
+        return self._verts
 
     def _execute(
         self, world: SimWorld, plan: StepPlan, q: FloatArray, trajectory: list[dict[str, Any]]

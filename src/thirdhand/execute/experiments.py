@@ -260,7 +260,7 @@ def run_once(
     hard, cell, start, target = setup
     opts = ExecutionOptions(
         sample_free_dofs=sample_free_dofs, step_time_limit=step_time_limit,
-        plan_time_limit=plan_time_limit, max_grasps=12,
+        plan_time_limit=plan_time_limit, max_grasps=12, regrasp=False,
     )  # fmt: skip
     ex = Executor(robot, hard, cell, start, opts, search=search)
     res = ex.run_online(seed=seed)

@@ -77,6 +77,10 @@ class ExecutionOptions:
         :meth:`Executor.for_task`: a start spot farther than 0.55 m from the arm is taken
         only if at least this many of the part's grasps have an IK solution there (0: any
         spot in the band; :func:`~thirdhand.execute.placement.reach_check`).
+    regrasp : bool
+        When no grasp reached where the part lies reaches its goal, put the part down
+        near the arm and pick it again (:mod:`~thirdhand.execute.regrasp`); tried only
+        after the plain search of the step failed.
     """
 
     sample_free_dofs: bool = True
@@ -103,6 +107,7 @@ class ExecutionOptions:
     max_parts: int = 2
     placement: str = "geometry"
     start_grasps: int = 0
+    regrasp: bool = True
 
 
 @dataclass
@@ -124,6 +129,36 @@ class Segment:
     path: FloatArray
     before: list[tuple[str, ...]] = field(default_factory=list)
     after: list[tuple[str, ...]] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class RegraspReport:
+    """How a step was done through an intermediate placement.
+
+    Attributes
+    ----------
+    spot : tuple of 3 floats
+        Where the part was put down: its body origin, world, metres.
+    distance_m : float
+        Horizontal distance of the part's centre (of its bounding box, world) there from
+        the arm's first joint.
+    face_down : bool
+        Put down turned half a turn about a horizontal axis (else at its start
+        resting orientation, turned about the vertical).
+    put_down_grasp : str
+        Label of the grasp that carried it to the spot.
+    plain_status : str
+        Why the step failed without the regrasp.
+    spots : tuple of (int, int)
+        Free spots drawn, of which feasible by the IK check.
+    """
+
+    spot: tuple[float, float, float]
+    distance_m: float
+    face_down: bool
+    put_down_grasp: str
+    plain_status: str
+    spots: tuple[int, int]
 
 
 @dataclass
@@ -170,6 +205,11 @@ class StepReport:
     collision_pairs : list of (str, str, int)
         The pairs most often colliding where IK converged (at most three, most
         frequent first, with their counts): what to move when a step fails.
+    regrasp : RegraspReport or None
+        Set when the step was done through an intermediate placement (the part put
+        down near the arm and picked again); ``grasp``, ``motions`` and ``tried``
+        then describe the second pick (``motions`` also has the ``"regrasp ..."``
+        segments of the put-down).
     """
 
     index: int
@@ -190,6 +230,7 @@ class StepReport:
     goal_dofs: list[float] | None = None
     tried: dict[str, int] = field(default_factory=dict)
     collision_pairs: list[tuple[str, str, int]] = field(default_factory=list)
+    regrasp: RegraspReport | None = None
 
 
 @dataclass

@@ -228,6 +228,15 @@ class StepSearch:
 
     The scene is left as found: the child free at its current pose, nothing
     attached, the same pairs allowed.
+
+    With ``put_down`` (world poses, shape (n, 4, 4)) the part is put down on the
+    table instead (a regrasp's first half, :mod:`~thirdhand.execute.regrasp`): those
+    poses are the goals, tried in their order, each reached straight down from
+    ``insert_m`` above; the part touches nothing on purpose (the table is lowered by
+    the scene's tolerance, so a part resting on it clears it). ``grasps`` replaces the
+    ranked candidates (:func:`candidate_grasps`), tried in its order; ``first_goals``
+    (world goals (k, 4, 4) and their displacements (k, 6) inside the free DOFs,
+    :func:`~thirdhand.execute.goals.sample_goals`) are tried before the sampled goals.
     """
 
     def __init__(
@@ -241,6 +250,9 @@ class StepSearch:
         deadline: float,
         primitive: Any | None,
         hints: Mapping[str, Sequence[grasp_mod.Grasp]],
+        put_down: FloatArray | None = None,
+        grasps: Sequence[grasp_mod.Grasp] | None = None,
+        first_goals: tuple[FloatArray, FloatArray] | None = None,
     ) -> None:
         self.world = world
         self.scene = world.scene
@@ -252,15 +264,27 @@ class StepSearch:
         self.deadline = deadline
         self.primitive = primitive
         self.hints = hints
+        self.put_down = put_down
+        self.grasps = None if grasps is None else list(grasps)
+        self.first_goals = first_goals
+        #: The part the child may touch while it is placed (none when put down).
+        self.contact: str | None = None if put_down is not None else constraint.parent
         self.tried = {"grasps": 0, "grasps_reachable": 0, "goals": 0, "place_reachable": 0,
                       "plans": 0, "plans_failed": 0, "primitive_rejected": 0,
                       "grasp_ik_failed": 0, "grasp_in_collision": 0, "place_ik_failed": 0,
                       "place_in_collision": 0, "straight_failed": 0}  # fmt: skip
+        #: The grasps reached where the part lies (IK and the straight approach), in order.
+        self.reached: list[grasp_mod.Grasp] = []
         #: Why IK found no valid configuration, per kind (``"grasp"``, ``"place"``).
         self.why: dict[str, dict[str, Any]] = {"grasp": {}, "place": {}}
 
     def left(self) -> float:
         return self.deadline - time.perf_counter()
+
+    def _touch(self, on: bool) -> None:
+        """Allow (``on``) or forbid again the child's contact with its parent."""
+        if self.contact is not None:
+            (self.scene.allow if on else self.scene.disallow)(self.c.child, self.contact)
 
     def _ik_blocks(
         self, targets: Callable[[int], FloatArray], n: int, q_seed: FloatArray, salt: int,
@@ -322,8 +346,7 @@ class StepSearch:
         densely with the part allowed to touch its parent); otherwise the
         straight line in from ``t_preplace_tool`` (``"straight"``).
         """
-        name, parent = self.c.child, self.c.parent
-        if self.primitive is not None:
+        if self.primitive is not None and self.put_down is None:
             tools = primitive_place_path(
                 self.primitive, parent_world=parent_pose, child_goal=goal, grasp=g.pose,
                 length_m=self.opt.primitive_m, constraint=self.c,
@@ -331,17 +354,17 @@ class StepSearch:
             # followed backwards from the place configuration: no IK restarts needed
             back = None if tools is None else follow_tool_path(self.robot, q_place, tools[::-1])
             if back is not None and self.scene.is_valid(back[-1]):
-                self.scene.allow(name, parent)
+                self._touch(True)
                 ok = self.scene.check_path(back)
-                self.scene.disallow(name, parent)
+                self._touch(False)
                 if ok:
                     return "primitive", back[::-1].copy()
             self.tried["primitive_rejected"] += 1
-        self.scene.allow(name, parent)
+        self._touch(True)
         try:
             line = self._line(q_place, t_preplace_tool)
         finally:
-            self.scene.disallow(name, parent)
+            self._touch(False)
         # the pre-place pose itself must be clear of the parent
         if line is None or not self.scene.is_valid(line[-1]):
             return None
@@ -352,10 +375,21 @@ class StepSearch:
         report = StepReport(0, c.parent, c.child, c.id, False, "")
         part_pose = self.world.pose(name)
         parent_pose = self.world.pose(c.parent)
-        n_goals = opt.n_goal_samples if opt.sample_free_dofs else 1
-        goals, dofs = sample_goals(parent_pose, c, n_goals, rng, stratified=True)
-        axis = insertion_axis(self.task, c)
-        grasps = candidate_grasps(self.task, c, self.hints, part_pose, 10**6)
+        if self.put_down is None:
+            n_goals = opt.n_goal_samples if opt.sample_free_dofs else 1
+            goals, dofs = sample_goals(parent_pose, c, n_goals, rng, stratified=True)
+            if self.first_goals is not None:
+                goals = np.concatenate([self.first_goals[0], goals])
+                dofs = np.concatenate([self.first_goals[1], dofs])
+            axes = np.repeat(insertion_axis(self.task, c)[None], len(goals), axis=0)
+        else:  # straight down onto the table: world up in the part's frame
+            goals = np.asarray(self.put_down, dtype=np.float64)
+            dofs = np.zeros((len(goals), 6))
+            axes = goals[:, 2, :3].copy()
+        if self.grasps is None:
+            grasps = candidate_grasps(self.task, c, self.hints, part_pose, 10**6)
+        else:
+            grasps = self.grasps
         if opt.rank_by_reach:
             grasps, n_both = rank_by_reach(
                 self.robot, scene, grasps, name, part_pose, goals[: opt.n_rank_goals], q_start,
@@ -383,7 +417,8 @@ class StepSearch:
             if q_grasp is None or back is None or not scene.is_valid(back[-1]):
                 continue
             self.tried["grasps_reachable"] += 1
-            found = self._with_grasp(q_grasp, g, goals, dofs, axis, parent_pose, part_pose)
+            self.reached.append(g)
+            found = self._with_grasp(q_grasp, g, goals, dofs, axes, parent_pose, part_pose)
             if found is None:
                 continue
             j, lift, transport, insert, retreat, kind = found
@@ -413,7 +448,8 @@ class StepSearch:
                         after=[("attach", name)]),
                 Segment("lift", lift),
                 Segment("transport", transport),
-                Segment("insert", insert, before=[("allow", name, c.parent)],
+                Segment("insert", insert,
+                        before=[] if self.contact is None else [("allow", name, self.contact)],
                         after=[("detach", name)]),
                 Segment("retreat", retreat, after=[("disallow", GRIPPER, name)]),
             ]  # fmt: skip
@@ -462,10 +498,10 @@ class StepSearch:
 
     def _with_grasp(
         self, q_grasp: FloatArray, g: grasp_mod.Grasp, goals: FloatArray, dofs: FloatArray,
-        axis: FloatArray, parent_pose: FloatArray, part_pose: FloatArray,
+        axes: FloatArray, parent_pose: FloatArray, part_pose: FloatArray,
     ) -> tuple[int, FloatArray, FloatArray, FloatArray, FloatArray, str] | None:  # fmt: skip
         """For one grasp: the first goal with lift, insertion, retreat and transport feasible."""
-        c, opt, name, scene = self.c, self.opt, self.c.child, self.scene
+        opt, name, scene = self.opt, self.c.child, self.scene
         t_grasp = self.robot.tool_transforms(q_grasp[None])[0]
         scene.attach(name, q_grasp)
         try:
@@ -481,13 +517,13 @@ class StepSearch:
                     return None
                 self.tried["goals"] += 1
                 t_place = goal @ g.pose
-                scene.allow(name, c.parent)
+                self._touch(True)
                 q_place = place_ik(j)
-                scene.disallow(name, c.parent)
+                self._touch(False)
                 if q_place is None:
                     continue
                 self.tried["place_reachable"] += 1
-                t_pre = goal @ _trans(opt.insert_m * axis) @ g.pose
+                t_pre = goal @ _trans(opt.insert_m * axes[j]) @ g.pose
                 found = self._insertion(q_place, t_pre, parent_pose, goal, g)
                 if found is None:
                     continue
@@ -507,16 +543,16 @@ class StepSearch:
         self, q_grasp: FloatArray, q_place: FloatArray, t_place: FloatArray, goal: FloatArray
     ) -> FloatArray | None:
         """Straight back from the placed part, checked with the part left at its goal."""
-        name, parent, scene = self.c.child, self.c.parent, self.scene
+        name, scene = self.c.child, self.scene
         scene.detach(name, q_grasp)
         part_pose = self.world.pose(name)
         self.world.set_pose(name, goal)
-        scene.allow(name, parent)
+        self._touch(True)
         scene.allow(GRIPPER, name)
         try:
             return self._line(q_place, t_place @ _trans([0.0, 0.0, -self.opt.retreat_m]))
         finally:
             scene.disallow(GRIPPER, name)
-            scene.disallow(name, parent)
+            self._touch(False)
             self.world.set_pose(name, part_pose)
             scene.attach(name, q_grasp)

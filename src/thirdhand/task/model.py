@@ -252,12 +252,20 @@ class TaskFile(TaskModel):
         if tree_problem is not None:
             return tree_problem
         ids = {c.id for c in self.constraints}
+        made: dict[str, int] = {}
         for i, s in enumerate(self.plan):
             for role in ("parent", "child"):
                 if getattr(s, role) not in names:
                     return f"plan[{i}].{role}: unknown object {getattr(s, role)!r}"
             if s.constraint is not None and s.constraint not in ids:
                 return f"plan[{i}].constraint: unknown constraint {s.constraint!r}"
+            if s.constraint is not None and s.constraint in made:
+                return (
+                    f"plan[{i}].constraint: constraint {s.constraint!r} is already made by "
+                    f"plan[{made[s.constraint]}] (a plan makes each constraint once)"
+                )
+            if s.constraint is not None:
+                made[s.constraint] = i
             for k, j in enumerate(s.after or []):
                 if not 0 <= j < i:
                     return (
