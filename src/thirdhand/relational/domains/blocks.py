@@ -112,11 +112,27 @@ def partitions(n: int, largest: int | None = None) -> list[tuple[int, ...]]:
     return [(h, *rest) for h in range(top, 0, -1) for rest in partitions(n - h, h)]
 
 
+def blocks_configs(n_blocks: int) -> list[tuple[int, ...]]:
+    """Every relational configuration of ``n_blocks`` blocks, as :func:`tower_heights` gives it."""
+    return [tuple(sorted(p)) for p in partitions(n_blocks)]
+
+
 def random_state(n_blocks: int, rng: np.random.Generator) -> State:
     """A state from P_state without enumeration: tower heights (a partition) uniformly,
     then the blocks in a uniformly random order."""
     parts = partitions(n_blocks)
-    heights = parts[int(rng.integers(len(parts)))]
+    return blocks_grounding(parts[int(rng.integers(len(parts)))], rng)
+
+
+def blocks_grounding(heights: tuple[int, ...], rng: np.random.Generator) -> State:
+    """A uniformly random grounding of the configuration ``heights`` (tower heights).
+
+    The ``sum(heights)`` blocks are put in a uniformly random order and stacked
+    tower by tower (colours are fixed by the block names).
+    """
+    n_blocks = sum(heights)
+    if any(h < 1 for h in heights):
+        raise RelationalError(f"blocks world: tower heights must be positive, got {heights}")
     order = [block_names(n_blocks)[i] for i in rng.permutation(n_blocks)]
     atoms = set(floor_state(n_blocks)) - {
         a for a in floor_state(n_blocks) if a.pred in ("on", "clear")
