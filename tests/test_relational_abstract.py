@@ -202,3 +202,13 @@ def test_dynamics_that_do_not_lump_are_rejected() -> None:
             _blocks_reward("stack"),
             np.random.default_rng(7),
         )
+
+
+def test_fast_blocks_successors_equal_the_rules() -> None:
+    for mdp in (blocks_mdp(5), blocks_mdp(4, unmovable=("b1",))):
+        dom = mdp.domain
+        for s in mdp.states:
+            assert dom.successors(s) == dom.rule_successors(s)
+    dom = blocks_domain(3)
+    odd = blocks_grounding((3,), np.random.default_rng(0)) | {Atom("on", ("b1", "floor"))}
+    assert dom.successors(odd) == dom.rule_successors(odd)

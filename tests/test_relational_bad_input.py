@@ -84,3 +84,16 @@ def test_experiment_bad_name_and_runs() -> None:
     )
     res = CliRunner().invoke(app, ["experiment", "large", "--runs", "0"])
     assert res.exit_code != 0
+
+
+def test_blocks_in_a_cycle_are_rejected_not_looped_on() -> None:
+    from thirdhand.relational.domains.blocks import tower_heights
+
+    cyc = frozenset(
+        {Atom("on", ("b1", "b2")), Atom("on", ("b2", "b1")), Atom("on", ("b3", "floor"))}
+    )
+    with pytest.raises(RelationalError, match="cycle"):
+        tower_heights(cyc)
+    hang = frozenset({Atom("on", ("b1", "b2")), Atom("on", ("b2", "b1")), Atom("on", ("b3", "b1"))})
+    with pytest.raises(RelationalError, match="does not stand on the floor"):
+        tower_heights(hang)
