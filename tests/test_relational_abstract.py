@@ -80,6 +80,22 @@ def test_abstract_optimal_values_match_value_iteration(kind: str) -> None:
     assert plan_perf(amdp, GAMMA) == pytest.approx(1.0, abs=1e-9)
 
 
+def test_perf_of_a_wrong_reward_is_low() -> None:
+    # The unstack reward planned, measured against stack on 5 blocks: only the
+    # one-tower configuration (1 of 7) scores, and only its first step (it
+    # unstacks at once): perf = (1 / 10) / 7 exactly.
+    amdp = abstract_mdp(
+        blocks_domain(5),
+        blocks_configs(5),
+        blocks_grounding,
+        _blocks_reward("unstack"),
+        _blocks_reward("stack"),
+        np.random.default_rng(1),
+        n_groundings=2,
+    )
+    assert plan_perf(amdp, GAMMA) == pytest.approx(1 / 70, abs=1e-9)
+
+
 def test_lumped_reward_values_and_grounded_policy_match() -> None:
     # A reward of (configuration, action, next configuration) lumps exactly:
     # abstract V equals grounded V state by state; the abstract policy, grounded
