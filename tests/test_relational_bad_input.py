@@ -97,3 +97,22 @@ def test_blocks_in_a_cycle_are_rejected_not_looped_on() -> None:
     hang = frozenset({Atom("on", ("b1", "b2")), Atom("on", ("b2", "b1")), Atom("on", ("b3", "b1"))})
     with pytest.raises(RelationalError, match="does not stand on the floor"):
         tower_heights(hang)
+
+
+def test_large_experiment_refuses_checkpoints(tmp_path: Path) -> None:
+    ck = tmp_path / "ck.jsonl"
+    res = CliRunner().invoke(
+        app,
+        [
+            "experiment",
+            "large",
+            "--runs",
+            "2",
+            "--checkpoint",
+            str(ck),
+            "--json",
+            str(tmp_path / "o.json"),
+        ],
+    )
+    assert isinstance(res.exception, RelationalError)
+    assert "--checkpoint and --tabulate are not supported" in str(res.exception)

@@ -336,10 +336,13 @@ def large(runs: int, jobs: int, *, scheduler: str | None = None, **grid: Any) ->
     """Beyond the paper: stack/unstack learned on 4+5 blocks planned on 10, 15, 20 blocks,
     build learned on the 4-legged chair planned with 6, 7, 8 legs (see :mod:`.large`).
 
-    ``grid`` (checkpoint options) is accepted and ignored; ``scheduler`` runs the
-    trials on a Dask cluster.
+    Checkpoints are not supported (``--checkpoint``/``--tabulate`` raise);
+    ``scheduler`` runs the trials on a Dask cluster.
     """
     from thirdhand.relational.large import large_experiment
+
+    if grid.get("checkpoint") is not None or grid.get("tabulate_only"):
+        raise RelationalError("irl experiment large: --checkpoint and --tabulate are not supported")
 
     return large_experiment(runs, jobs, scheduler=scheduler)
 
