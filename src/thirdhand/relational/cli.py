@@ -3,7 +3,9 @@
 ``thirdhand irl experiment {datasize,noise,transfer,dynamics,chair} [--runs N] [--jobs J]
 [--scheduler tcp://HOST:PORT] [--checkpoint FILE]`` reproduces a table of Munzer et al.
 (IJCAI 2015), ours beside the paper's, and writes it as JSON (``--scheduler``: the
-trials as Dask tasks, the same table; see ``docs/cluster.md``).
+trials as Dask tasks, the same table; see ``docs/cluster.md``). ``thirdhand irl
+experiment large`` plans rewards learned on 4+5 blocks (and the 4-legged chair) on
+10, 15 and 20 blocks (6, 7, 8 legs) over relational configurations.
 ``thirdhand irl learn TASK.json...`` learns a relational reward from the plans of
 task files (or of synthetic chairs with ``--synth``) and plans a bench and chairs
 with other numbers of legs with it.

@@ -332,72 +332,19 @@ def chair(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
     return _grid("chair", rows, [(m, m, "chair4") for m in METHODS], runs, jobs, **grid)
 
 
-def _large_trial(args: tuple[str, int, int, int]) -> dict[str, float]:
-    """Train RCSI+shaping on 5 blocks, evaluate by lookahead search on ``n_blocks`` blocks."""
-    from thirdhand.relational.domains.blocks import blocks_domain, optimal_steps, random_state
-    from thirdhand.relational.search import rollout, rollout_value
+def large(runs: int, jobs: int, *, scheduler: str | None = None, **grid: Any) -> dict[str, Any]:
+    """Beyond the paper: stack/unstack learned on 4+5 blocks planned on 10, 15, 20 blocks,
+    build learned on the 4-legged chair planned with 6, 7, 8 legs (see :mod:`.large`).
 
-    reward, n_blocks, n_states, seed = args
-    rng = np.random.default_rng(seed)
-    mdp = get_mdp("blocks5")
-    r = true_reward(mdp, reward)
-    expert = [(mdp, expert_pairs(mdp, r, 15, rng, gamma=GAMMA))]
-    model = fit_rcsi(
-        expert,
-        [(mdp, random_pairs(mdp, 300, rng))],
-        gamma=GAMMA,
-        seed=seed,
-        shaping=SHAPING["RCSI+shaping"],
-        balance=BALANCE,
-        reward_lookahead=REWARD_LOOKAHEAD,
-        reward_distinct_from_args=REWARD_DISTINCT_FROM_ARGS,
-    )
-    perf5 = perf_of_reward(mdp, model.reward_of(mdp), r, GAMMA, mdp.sample_states(1000, rng))
-    dom = blocks_domain(n_blocks)
-    ratios = []
-    for _ in range(n_states):
-        s = random_state(n_blocks, rng)
-        path, waited = rollout(
-            dom, model.reward.predict, s, depth=1, gamma=GAMMA, max_steps=3 * n_blocks
-        )
-        v = rollout_value(path, waited, lambda x: optimal_steps(x, reward) == 0, GAMMA)
-        ratios.append(v * (1 - GAMMA) / GAMMA ** optimal_steps(s, reward))
-    return {
-        "RCSI+shaping on 5 (exact)": perf5,
-        f"RCSI+shaping on {n_blocks} (search)": float(np.mean(ratios)),
-    }
-
-
-def large(
-    runs: int,
-    jobs: int,
-    *,
-    sizes: Sequence[int] = (10, 15),
-    n_states: int = 10,
-    scheduler: str | None = None,
-    **grid: Any,
-) -> dict[str, Any]:
-    """Beyond the paper: rewards learned on 5 blocks, evaluated on 10 and 15 blocks by search.
-
-    Grounded enumeration is impossible there (58 786 states for 10 blocks'
-    configurations times orderings, ~10^9 for 15); perf is measured on
-    ``n_states`` states drawn from P_state per run, with depth-1 lookahead on
-    the learned reward, values from the rollouts. ``grid`` (checkpoint options)
-    is accepted and ignored; ``scheduler`` runs the trials on a Dask cluster.
+    Checkpoints are not supported (``--checkpoint``/``--tabulate`` raise);
+    ``scheduler`` runs the trials on a Dask cluster.
     """
-    rows = []
-    cols: list[str] = []
-    for reward in ("stack", "unstack"):
-        for n in sizes:
-            args = [(reward, n, n_states, 1000 * k + 17) for k in range(runs)]
-            res = list(parallel_map(_large_trial, args, jobs=jobs, scheduler=scheduler))
-            row = Row(f"{reward}, {n} blocks")
-            for key in res[0]:
-                title = key.replace(f" on {n} ", " on N ")
-                cols += [title] if title not in cols else []
-                row.values[title] = summarise([x[key] for x in res])
-            rows.append(asdict(row))
-    return {"experiment": "large", "runs": runs, "columns": cols, "rows": rows}
+    from thirdhand.relational.large import large_experiment
+
+    if grid.get("checkpoint") is not None or grid.get("tabulate_only"):
+        raise RelationalError("irl experiment large: --checkpoint and --tabulate are not supported")
+
+    return large_experiment(runs, jobs, scheduler=scheduler)
 
 
 EXPERIMENTS: dict[str, Callable[..., dict[str, Any]]] = {

@@ -73,12 +73,29 @@ def parse_atom(text: str) -> Atom:
     return Atom(name.strip(), args)
 
 
-def index_state(state: Iterable[Atom]) -> dict[str, list[tuple[str, ...]]]:
+class StateIndex(dict[str, list[tuple[str, ...]]]):
+    """Ground atoms grouped by predicate (a dict of argument tuples), with lookup tables.
+
+    ``facts[pred]`` is the set of argument tuples and ``by_first[pred][x]`` the
+    tuples whose first argument is ``x``; :func:`match` uses them to test a
+    bound atom by membership and to scan only the facts of a bound first
+    argument, instead of every fact of the predicate.
+    """
+
+    def __init__(self, atoms: Iterable[Atom]) -> None:
+        super().__init__()
+        self.facts: dict[str, set[tuple[str, ...]]] = {}
+        self.by_first: dict[str, dict[str, list[tuple[str, ...]]]] = {}
+        for a in atoms:
+            self.setdefault(a.pred, []).append(a.args)
+            self.facts.setdefault(a.pred, set()).add(a.args)
+            if a.args:
+                self.by_first.setdefault(a.pred, {}).setdefault(a.args[0], []).append(a.args)
+
+
+def index_state(state: Iterable[Atom]) -> StateIndex:
     """Ground atoms grouped by predicate, for fast matching."""
-    out: dict[str, list[tuple[str, ...]]] = {}
-    for a in state:
-        out.setdefault(a.pred, []).append(a.args)
-    return out
+    return StateIndex(state)
 
 
 def unify(
@@ -135,12 +152,25 @@ def match(
     if distinct and len(set(start.values())) != len(start):
         return
 
+    fast = isinstance(index, StateIndex)
+
     def rec(i: int, th: Substitution) -> Iterator[Substitution]:
         if i == len(atoms):
             yield th
             return
-        for fact in index.get(atoms[i].pred, ()):
-            nxt = unify(atoms[i], fact, th, distinct=distinct)
+        atom = atoms[i]
+        facts: Iterable[tuple[str, ...]] = index.get(atom.pred, ())
+        if fast:
+            assert isinstance(index, StateIndex)
+            args = tuple(th.get(a, a) if is_variable(a) else a for a in atom.args)
+            if not any(is_variable(a) for a in args):
+                if args in index.facts.get(atom.pred, ()):
+                    yield from rec(i + 1, th)
+                return
+            if args and not is_variable(args[0]):
+                facts = index.by_first.get(atom.pred, {}).get(args[0], ())
+        for fact in facts:
+            nxt = unify(atom, fact, th, distinct=distinct)
             if nxt is not None:
                 yield from rec(i + 1, nxt)
 

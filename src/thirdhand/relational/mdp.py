@@ -52,6 +52,10 @@ class Domain:
     signature : callable or None
         ``state -> hashable``: the relational configuration of a state (the state
         up to renaming of objects), used by :meth:`GroundMDP.sample_states`.
+    successor_fn : callable or None
+        ``state -> list of (action, state)``: a faster equivalent of the rules'
+        generic matching for :meth:`successors` (it may return None for a state
+        it does not handle, which then goes through the rules).
     """
 
     name: str
@@ -59,6 +63,9 @@ class Domain:
     objects: tuple[str, ...]
     actions: tuple[ActionSchema, ...]
     signature: Callable[[State], Hashable] | None = field(default=None, compare=False)
+    successor_fn: Callable[[State], list[tuple[Atom, State]] | None] | None = field(
+        default=None, compare=False
+    )
 
     def __post_init__(self) -> None:
         if len(set(self.objects)) != len(self.objects):
@@ -115,6 +122,14 @@ class Domain:
 
     def successors(self, state: State) -> list[tuple[Atom, State]]:
         """Every applicable ground action and the state it leads to (sorted by action)."""
+        if self.successor_fn is not None:
+            fast = self.successor_fn(state)
+            if fast is not None:
+                return fast
+        return self.rule_successors(state)
+
+    def rule_successors(self, state: State) -> list[tuple[Atom, State]]:
+        """:meth:`successors` by matching the rules' preconditions (the definition)."""
         idx = index_state(state)
         out: dict[Atom, State] = {}
         for act in self.actions:

@@ -52,18 +52,31 @@ def block_names(n_blocks: int) -> tuple[str, ...]:
 
 
 def tower_heights(state: State) -> tuple[int, ...]:
-    """The relational configuration: sorted heights of the towers."""
+    """The relational configuration: sorted heights of the towers.
+
+    Raises
+    ------
+    RelationalError
+        If the ``on`` atoms do not form towers standing on the floor (a cycle,
+        or a block on nothing known).
+    """
     below = {a.args[0]: a.args[1] for a in state if a.pred == "on"}
-    heights: dict[str, int] = {}
-    for b, under in below.items():
-        if under == "floor":
-            heights[b] = 0
+    supports = set(below.values())
+    heights = []
     for b in below:
-        h, x = 0, b
-        while below[x] != "floor":
-            x, h = below[x], h + 1
-        heights[x] = max(heights[x], h)
-    return tuple(sorted(h + 1 for h in heights.values()))
+        if b in supports:
+            continue
+        h, x = 1, b
+        while below.get(x) != "floor":
+            x, h = below.get(x, ""), h + 1
+            if h > len(below):
+                raise RelationalError(
+                    f"blocks world: block {b} does not stand on the floor through a tower"
+                )
+        heights.append(h)
+    if sum(heights) != len(below):
+        raise RelationalError("blocks world: the on atoms form a cycle")
+    return tuple(sorted(heights))
 
 
 def blocks_domain(n_blocks: int, *, unmovable: tuple[str, ...] = ()) -> Domain:
@@ -79,7 +92,61 @@ def blocks_domain(n_blocks: int, *, unmovable: tuple[str, ...] = ()) -> Domain:
         (*block_names(n_blocks), "floor"),
         (_MOVE, _WAIT),
         tower_heights,
+        blocks_successors,
     )
+
+
+_WAIT_ATOM = Atom("wait", ())
+
+
+def blocks_successors(state: State) -> list[tuple[Atom, State]] | None:
+    """The successors the ``move`` rules and ``wait`` give, without generic matching.
+
+    Equal to :meth:`Domain.rule_successors` (pinned by a test over every state of
+    5 blocks, with and without an unmovable block); returns None (use the rules)
+    when a block stands on more than one object.
+    """
+    below: dict[str, str] = {}
+    clear, movable, cube, floor = set(), set(), set(), set()
+    n_on = 0
+    for a in state:
+        p = a.pred
+        if p == "on":
+            below[a.args[0]] = a.args[1]
+            n_on += 1
+        elif p == "clear":
+            clear.add(a.args[0])
+        elif p == "movable":
+            movable.add(a.args[0])
+        elif p == "cube":
+            cube.add(a.args[0])
+        elif p == "floor":
+            floor.add(a.args[0])
+    if n_on != len(below):
+        return None
+    out: list[tuple[Atom, State]] = [(_WAIT_ATOM, state)]
+    for x, z in below.items():
+        if x not in clear or x not in movable or x == z:
+            continue
+        on_xz = Atom("on", (x, z))
+        if z in cube:  # rule 1 (block to block), rule 2 (block to floor)
+            for y in clear:
+                if y in cube and y != x and y != z:
+                    nxt = (state - {on_xz, Atom("clear", (y,))}) | {
+                        Atom("on", (x, y)),
+                        Atom("clear", (z,)),
+                    }
+                    out.append((Atom("move", (x, y)), frozenset(nxt)))
+            for y in floor:
+                if y != x and y != z:
+                    nxt = (state - {on_xz}) | {Atom("on", (x, y)), Atom("clear", (z,))}
+                    out.append((Atom("move", (x, y)), frozenset(nxt)))
+        elif z in floor:  # rule 3 (floor to block)
+            for y in clear:
+                if y in cube and y != x and y != z:
+                    nxt = (state - {on_xz, Atom("clear", (y,))}) | {Atom("on", (x, y))}
+                    out.append((Atom("move", (x, y)), frozenset(nxt)))
+    return sorted(out)
 
 
 def floor_state(n_blocks: int, *, unmovable: tuple[str, ...] = ()) -> State:
@@ -112,11 +179,27 @@ def partitions(n: int, largest: int | None = None) -> list[tuple[int, ...]]:
     return [(h, *rest) for h in range(top, 0, -1) for rest in partitions(n - h, h)]
 
 
+def blocks_configs(n_blocks: int) -> list[tuple[int, ...]]:
+    """Every relational configuration of ``n_blocks`` blocks, as :func:`tower_heights` gives it."""
+    return [tuple(sorted(p)) for p in partitions(n_blocks)]
+
+
 def random_state(n_blocks: int, rng: np.random.Generator) -> State:
     """A state from P_state without enumeration: tower heights (a partition) uniformly,
     then the blocks in a uniformly random order."""
     parts = partitions(n_blocks)
-    heights = parts[int(rng.integers(len(parts)))]
+    return blocks_grounding(parts[int(rng.integers(len(parts)))], rng)
+
+
+def blocks_grounding(heights: tuple[int, ...], rng: np.random.Generator) -> State:
+    """A uniformly random grounding of the configuration ``heights`` (tower heights).
+
+    The ``sum(heights)`` blocks are put in a uniformly random order and stacked
+    tower by tower (colours are fixed by the block names).
+    """
+    n_blocks = sum(heights)
+    if any(h < 1 for h in heights):
+        raise RelationalError(f"blocks world: tower heights must be positive, got {heights}")
     order = [block_names(n_blocks)[i] for i in rng.permutation(n_blocks)]
     atoms = set(floor_state(n_blocks)) - {
         a for a in floor_state(n_blocks) if a.pred in ("on", "clear")

@@ -112,3 +112,33 @@ def chair_reward(mdp: GroundMDP) -> NDArray[np.float64]:
     """Reward *build* per pair, shape (P,): 1 when every connector is connected."""
     goal = np.logical_not(np.any(mdp.tables["free"], axis=1))
     return goal.astype(np.float64)[mdp.pair_state]
+
+
+def chair_configs(n_legs: int, *, with_back: bool = True) -> list[tuple[int, int]]:
+    """Every relational configuration (connected legs, back connected) of the chair world."""
+    return [(k, b) for k in range(n_legs + 1) for b in ((0, 1) if with_back else (0,))]
+
+
+def chair_grounding(
+    n_legs: int, config: tuple[int, int], rng: np.random.Generator, *, with_back: bool = True
+) -> State:
+    """A uniformly random grounding of ``config`` = (connected legs, back connected).
+
+    ``k`` legs drawn uniformly, each connected to a distinct seating connector
+    drawn uniformly (a uniformly random partial matching of that size).
+    """
+    k, back = config
+    if not 0 <= k <= n_legs or back not in (0, 1) or (back and not with_back):
+        raise RelationalError(
+            f"chair world: configuration {config} impossible with {n_legs} legs"
+            f"{'' if with_back else ' and no back'}"
+        )
+    atoms = set(chair_start(n_legs, with_back=with_back))
+    pairs = [("bm", "sb")] if back else []
+    legs = rng.permutation(n_legs)[:k]
+    sockets = rng.permutation(n_legs)[:k]
+    pairs += [(f"lm{i + 1}", f"sf{j + 1}") for i, j in zip(legs, sockets, strict=True)]
+    for m, f in pairs:
+        atoms -= {Atom("free", (m,)), Atom("free", (f,))}
+        atoms.add(Atom("connected", (m, f)))
+    return frozenset(atoms)
