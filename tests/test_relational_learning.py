@@ -38,7 +38,7 @@ from thirdhand.relational.experiments import (
 )
 from thirdhand.relational.logic import RelationalError
 from thirdhand.relational.mdp import optimal_pairs, value_iteration
-from thirdhand.relational.shaping import binned_entropy, fit_shaping
+from thirdhand.relational.shaping import binned_entropy, fit_shaping, state_features
 
 
 def test_expert_and_random_pairs() -> None:
@@ -159,6 +159,18 @@ def test_cma_shaping_finds_the_zero_entropy_optimum() -> None:
     # On this seed plain RCSI cycles (perf < 0.5 with the old tree, see above);
     # with the CMA-ES shaping it stacks from most states (0.936 measured).
     assert perf_of_reward(mdp, model.reward_of(mdp), r, 0.9, states) > 0.9
+    # The default (the tables' RCSI+cma-shaping): f on the value and the
+    # relational counts, entropy over D_E ∪ D_NE. CMA-ES lowers that entropy
+    # and, free to weigh every feature, takes the value's weight near −1
+    # (−1.10 measured) to cancel the classifier's per-state offset.
+    full = fit_rcsi([(mdp, e)], [(mdp, d)], q=q, shaping="cma", **kw)  # type: ignore[arg-type]
+    phi = np.concatenate([v[:, None], state_features(mdp, mdp.pair_state[pairs])], axis=1)
+    phi_n = np.concatenate([v_next[:, None], state_features(mdp, mdp.pair_next[pairs])], axis=1)
+    assert full.shaping.shape == (phi.shape[1],)
+    shaped = raw + (phi - 0.9 * phi_n) @ full.shaping
+    assert binned_entropy(shaped, width) < binned_entropy(raw, width)
+    assert -1.5 < full.shaping[0] < -0.5
+    assert perf_of_reward(mdp, full.reward_of(mdp), r, 0.9, states) > 0.9
     for bad, match in (
         ("shaping_features", "unknown shaping features"),
         ("shaping_samples", "unknown shaping samples"),
