@@ -68,6 +68,22 @@ def advantage_targets(q: BoostedQ, mdp: GroundMDP, pairs: NDArray[np.int64]) -> 
     return q.predict(mdp, pairs) - state_values(q, mdp, mdp.pair_state[pairs])
 
 
+def shaping_basis(
+    q: BoostedQ, mdp: GroundMDP, states: NDArray[np.int64], features: str
+) -> NDArray[np.float64]:
+    """Features φ(s) of the CMA-ES shaping ``f(s) = w·φ(s)``, shape (n, d).
+
+    ``"value"``: the classifier's state value ``max_a q(s,a)`` (d = 1);
+    ``"counts"``: :func:`.shaping.state_features`; ``"value+counts"``: both.
+    """
+    cols = []
+    if "value" in features:
+        cols.append(state_values(q, mdp, states)[:, None])
+    if "counts" in features:
+        cols.append(state_features(mdp, states))
+    return np.concatenate(cols, axis=1)
+
+
 def fit_rcsi(
     expert: Examples,
     random: Examples,
@@ -85,6 +101,8 @@ def fit_rcsi(
     reward_min_leaf: int = 1,
     reward_significance: float | None = None,
     reward_distinct_from_args: bool = True,
+    shaping_features: str = "value+counts",
+    shaping_samples: str = "all",
 ) -> RCSIModel:
     """RCSI: the boosted classifier, then the regression of its implied rewards.
 
@@ -105,8 +123,9 @@ def fit_rcsi(
         ``f(s) = −max_a q(s,a)``, whose targets are the advantages
         ``q(s,a) − max_a' q(s,a')`` (0 on every transition the classifier
         agrees with, the lowest-entropy targets on ``D_E``); ``"cma"`` (or
-        True): f linear in relational count features, by CMA-ES on the binned
-        entropy of the targets (:mod:`.shaping`).
+        True): the paper's shaping, f linear in relational state features
+        (``shaping_features``), its weights by CMA-ES on the binned entropy of
+        the targets (:mod:`.shaping`).
     balance : bool
         Weigh the regression so that ``D_E`` and ``D_NE`` count as much (the
         expert transitions are few but carry the task).
@@ -123,23 +142,41 @@ def fit_rcsi(
     reward_distinct_from_args : bool
         Object identity between the reward tree's variables and the action's
         arguments (see :func:`.tilde.extend`).
+    shaping_features : {"value", "value+counts", "counts"}
+        Features of the CMA-ES shaping: ``"value"`` the classifier's state value
+        ``max_a q(s,a)`` (a relational function of the state: a sum of the
+        boosted trees' leaves), ``"counts"`` the relational counts of
+        :func:`.shaping.state_features` (the first version), or both.
+    shaping_samples : {"expert", "all"}
+        Transitions whose target entropy CMA-ES minimises: ``D_E`` only, or
+        ``D_E ∪ D_NE`` (the regression data).
     """
     if q is None:
         q = fit_boosted(expert, n_trees=n_trees, max_depth=max_depth, max_vars=max_vars)
-    by_mdp: dict[int, tuple[GroundMDP, list[NDArray[np.int64]], list[NDArray[np.float64]]]] = {}
+    by_mdp: dict[
+        int,
+        tuple[
+            GroundMDP, list[NDArray[np.int64]], list[NDArray[np.float64]], list[NDArray[np.bool_]]
+        ],
+    ] = {}
     n_e = sum(np.asarray(p).size for _, p in expert)
     n_r = sum(np.asarray(p).size for _, p in random)
     w_e = n_r / n_e if balance and n_e and n_r else 1.0
-    for (mdp, pairs), wk in [*((x, w_e) for x in expert), *((x, 1.0) for x in random)]:
-        item = by_mdp.setdefault(id(mdp), (mdp, [], []))
+    for (mdp, pairs), wk, is_e in [
+        *((x, w_e, True) for x in expert),
+        *((x, 1.0, False) for x in random),
+    ]:
+        item = by_mdp.setdefault(id(mdp), (mdp, [], [], []))
+        n = np.asarray(pairs).size
         item[1].append(np.asarray(pairs, dtype=np.int64))
-        item[2].append(np.full(np.asarray(pairs).size, wk))
-    data = [(m, np.concatenate(ps)) for m, ps, _ in by_mdp.values() if sum(p.size for p in ps)]
+        item[2].append(np.full(n, wk))
+        item[3].append(np.full(n, is_e))
+    kept = [v for v in by_mdp.values() if sum(p.size for p in v[1])]
+    data = [(m, np.concatenate(ps)) for m, ps, _, _ in kept]
     if not data:
         raise RelationalError("RCSI: no transition to regress the reward on")
-    weights = np.concatenate(
-        [np.concatenate(ws) for _, ps, ws in by_mdp.values() if sum(p.size for p in ps)]
-    )
+    weights = np.concatenate([np.concatenate(ws) for _, _, ws, _ in kept])
+    from_expert = np.concatenate([np.concatenate(fs) for _, _, _, fs in kept])
     if shaping not in (False, True, "advantage", "cma"):
         raise RelationalError(f"RCSI: unknown shaping {shaping!r}, expected advantage or cma")
     w = np.zeros(0)
@@ -148,9 +185,23 @@ def fit_rcsi(
     else:
         targets = np.concatenate([csi_targets(q, m, p, gamma) for m, p in data])
     if shaping is True or shaping == "cma":
-        phi = np.concatenate([state_features(m, m.pair_state[p]) for m, p in data])
-        phi_n = np.concatenate([state_features(m, m.pair_next[p]) for m, p in data])
-        w = fit_shaping(phi, phi_n, targets, gamma, weights=weights, seed=seed)
+        if shaping_features not in ("value", "value+counts", "counts"):
+            raise RelationalError(
+                f"RCSI: unknown shaping features {shaping_features!r}, "
+                "expected value, value+counts or counts"
+            )
+        if shaping_samples not in ("expert", "all"):
+            raise RelationalError(
+                f"RCSI: unknown shaping samples {shaping_samples!r}, expected expert or all"
+            )
+        phi = np.concatenate(
+            [shaping_basis(q, m, m.pair_state[p], shaping_features) for m, p in data]
+        )
+        phi_n = np.concatenate(
+            [shaping_basis(q, m, m.pair_next[p], shaping_features) for m, p in data]
+        )
+        on = weights * from_expert if shaping_samples == "expert" else weights
+        w = fit_shaping(phi, phi_n, targets, gamma, weights=on, seed=seed)
         targets = targets + (phi - gamma * phi_n) @ w
     tree = fit_tree(
         data,
