@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from thirdhand.relational.experiments import run_experiment
+from thirdhand.experiments.relational_irl import run_experiment
 
 
 def start_cluster(folder: Path, workers: int) -> tuple[str, list[subprocess.Popen[bytes]]]:

@@ -16,17 +16,17 @@ import time
 
 import numpy as np
 
-from thirdhand.relational.csi import fit_rcsi
-from thirdhand.relational.data import expert_pairs, random_pairs
-from thirdhand.relational.domains.blocks import blocks_mdp, blocks_reward
-from thirdhand.relational.evaluate import perf_of_reward
-from thirdhand.relational.experiments import (
+from thirdhand.experiments.relational_irl import (
     BALANCE,
     REWARD_DISTINCT_FROM_ARGS,
     REWARD_LOOKAHEAD,
     SHAPING,
     run_experiment,
 )
+from thirdhand.relational.csi import fit_rcsi
+from thirdhand.relational.data import expert_pairs, random_pairs
+from thirdhand.relational.domains.blocks import blocks_mdp, blocks_reward
+from thirdhand.relational.evaluate import perf_of_reward
 
 
 def one_run(seed: int, *, shaping: bool | str) -> tuple[float, float]:

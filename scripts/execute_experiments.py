@@ -2,7 +2,7 @@
 
 Usage: ``python scripts/execute_experiments.py [--condition reach+clutter] [--runs 50]
 [--meshes DIR]``. For each condition (default: all of
-``thirdhand.execute.experiments.CONDITIONS``), seeds are taken in order until ``--runs``
+``thirdhand.experiments.execution.CONDITIONS``), seeds are taken in order until ``--runs``
 instances that are reachable in principle have run (the others are skipped and counted).
 Prints one row per run and the summary table (see docs/execution.md).
 """
@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 import itertools
 
-from thirdhand.execute.experiments import CONDITIONS, free_dof_experiment, summary_table
+from thirdhand.experiments.execution import CONDITIONS, free_dof_experiment, summary_table
 from thirdhand.synth import make_scene
 from thirdhand.synth.task import truth_task
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from thirdhand import se3
-from thirdhand.execute.experiments import RunOutcome, hard_setup, summary_table
 from thirdhand.execute.goals import constraint_holds, goal_pose, invert
+from thirdhand.experiments.execution import RunOutcome, hard_setup, summary_table
 
 
 def _bench():
@@ -53,8 +53,8 @@ def test_summary_table_counts() -> None:
 def test_feasible_spins_agree_with_the_executor(shared_data) -> None:
     from thirdhand.execute import Robot
     from thirdhand.execute.executor import ExecutionOptions, Executor
-    from thirdhand.execute.experiments import feasible_spins
     from thirdhand.execute.goals import vary
+    from thirdhand.experiments.execution import feasible_spins
 
     search = [str(shared_data / "3rdhand" / "meshes")]
     robot = Robot.load("panda", base_pose=([0.0, 0.0, 0.75], [0.0, 0.0, 0.0, 1.0]))
@@ -83,7 +83,7 @@ def test_feasible_spins_agree_with_the_executor(shared_data) -> None:
 
 @pytest.mark.slow
 def test_sampling_places_the_leg_where_the_demonstrated_goal_fails(shared_data) -> None:
-    from thirdhand.execute.experiments import free_dof_experiment
+    from thirdhand.experiments.execution import free_dof_experiment
 
     skipped: list[int] = []
     (o,) = free_dof_experiment(

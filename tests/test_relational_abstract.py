@@ -232,8 +232,8 @@ def test_fast_blocks_successors_equal_the_rules() -> None:
 
 @pytest.mark.slow
 def test_large_experiment_table() -> None:
-    from thirdhand.relational.experiments import format_table
-    from thirdhand.relational.large import ABSTRACT, EXACT, large_experiment
+    from thirdhand.experiments.relational_irl import format_table
+    from thirdhand.experiments.relational_large import ABSTRACT, EXACT, large_experiment
 
     res = large_experiment(1, 1, sizes=(7,), tasks=("unstack",))
     rows = {r["label"]: r["values"] for r in res["rows"]}

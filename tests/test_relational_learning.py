@@ -9,6 +9,14 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from thirdhand.experiments.relational_irl import (
+    Trial,
+    _grid,
+    format_markdown,
+    format_table,
+    run_experiment,
+    run_trial,
+)
 from thirdhand.relational.assembly import (
     learn_assembly,
     load_trajectory,
@@ -28,14 +36,6 @@ from thirdhand.relational.domains.plans import (
     parts_of,
 )
 from thirdhand.relational.evaluate import perf_of_reward, perf_of_scores
-from thirdhand.relational.experiments import (
-    Trial,
-    _grid,
-    format_markdown,
-    format_table,
-    run_experiment,
-    run_trial,
-)
 from thirdhand.relational.logic import RelationalError
 from thirdhand.relational.mdp import optimal_pairs, value_iteration
 from thirdhand.relational.shaping import binned_entropy, fit_shaping, state_features

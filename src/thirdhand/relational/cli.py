@@ -23,6 +23,7 @@ import typer
 from rich.console import Console
 
 from thirdhand import options
+from thirdhand.experiments.relational_irl import EXPERIMENTS, format_table, run_experiment
 from thirdhand.fileops import check_output, write_text
 from thirdhand.relational.assembly import (
     learn_assembly,
@@ -31,7 +32,6 @@ from thirdhand.relational.assembly import (
     plan_with_reward,
     synth_trajectories,
 )
-from thirdhand.relational.experiments import EXPERIMENTS, format_table, run_experiment
 from thirdhand.relational.logic import RelationalError
 
 app = typer.Typer(

@@ -338,12 +338,13 @@ def chair(runs: int, jobs: int, **grid: Any) -> dict[str, Any]:
 
 def large(runs: int, jobs: int, *, scheduler: str | None = None, **grid: Any) -> dict[str, Any]:
     """Beyond the paper: stack/unstack learned on 4+5 blocks planned on 10, 15, 20 blocks,
-    build learned on the 4-legged chair planned with 6, 7, 8 legs (see :mod:`.large`).
+    build learned on the 4-legged chair planned with 6, 7, 8 legs (see
+    :mod:`thirdhand.experiments.relational_large`).
 
     Checkpoints are not supported (``--checkpoint``/``--tabulate`` raise);
     ``scheduler`` runs the trials on a Dask cluster.
     """
-    from thirdhand.relational.large import large_experiment
+    from thirdhand.experiments.relational_large import large_experiment
 
     if grid.get("checkpoint") is not None or grid.get("tabulate_only"):
         raise RelationalError("irl experiment large: --checkpoint and --tabulate are not supported")

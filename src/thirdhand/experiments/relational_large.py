@@ -3,7 +3,7 @@
 A trial learns RCSI+shaping (the project's method, the settings of the tables)
 on 4+5 blocks (stack, unstack) or on the 4-legged chair (build, the chair
 table's settings), then measures perf on larger worlds by planning on the
-lumped MDP over relational configurations (:mod:`.abstract`): exact V* and
+lumped MDP over relational configurations (:mod:`thirdhand.relational.abstract`): exact V* and
 exact V^π there, so perf over P_state needs no sampling of start states. On
 the training sizes, the perf of the grounded value-iteration policy (the
 tables' measure) is reported beside it.
@@ -49,8 +49,7 @@ ABSTRACT = "configurations (exact)"
 
 def fit_task(task: str, seed: int) -> tuple[RCSIModel, dict[str, GroundMDP]]:
     """RCSI+shaping for ``task`` (stack, unstack: on 4+5 blocks; build: on the 4-legged chair)."""
-    from thirdhand.relational.boosting import fit_boosted
-    from thirdhand.relational.experiments import (
+    from thirdhand.experiments.relational_irl import (
         BALANCE,
         GAMMA,
         REWARD_DISTINCT_FROM_ARGS,
@@ -59,6 +58,7 @@ def fit_task(task: str, seed: int) -> tuple[RCSIModel, dict[str, GroundMDP]]:
         get_mdp,
         true_reward,
     )
+    from thirdhand.relational.boosting import fit_boosted
 
     if task not in ("stack", "unstack", "build"):
         raise RelationalError(f"large experiment: unknown task {task!r}")
@@ -95,7 +95,7 @@ def large_trial(args: tuple[str, int, tuple[int, ...]]) -> dict[str, dict[str, f
     ``args``: task (stack, unstack, build), seed, sizes (blocks or legs; the
     training sizes are added).
     """
-    from thirdhand.relational.experiments import GAMMA, true_reward
+    from thirdhand.experiments.relational_irl import GAMMA, true_reward
 
     task, seed, sizes = args
     model, mdps = fit_task(task, seed)
@@ -152,7 +152,7 @@ def large_experiment(
     **_: Any,
 ) -> dict[str, Any]:
     """The large-size table: ``runs`` seeds per task, trials in ``jobs`` processes."""
-    from thirdhand.relational.experiments import Row, summarise
+    from thirdhand.experiments.relational_irl import Row, summarise
 
     args = [
         (task, 1000 * k + 17, tuple(legs if task == "build" else sizes))
