@@ -14,15 +14,21 @@ every item, in the items' order, whatever ran them:
 ``fn`` must be a module-level function and every unit must be seeded by its own
 item, so the results do not depend on where or in which order units run. Dask is
 imported only here, and only when a scheduler is asked for (the ``dask`` extra).
+
+Stopping: local workers ignore SIGINT and take SIGTERM's default action, so the
+signals stop the parent alone (a terminal's Ctrl-C reaches the whole process
+group); whatever ends the parent's loop early (Ctrl-C, SIGTERM, a failed unit)
+terminates the workers at once instead of waiting for their pending units.
 """
 
 from __future__ import annotations
 
 import asyncio
+import multiprocessing
 import os
+import signal
 import socket
 from collections.abc import Callable, Iterable, Iterator
-from concurrent.futures import ProcessPoolExecutor
 from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
@@ -115,6 +121,24 @@ def _client(address: str, jobs: int, option: str) -> tuple[Any, Any]:
     return client, None
 
 
+def _worker_signals() -> None:
+    """Pool initializer: the parent alone answers Ctrl-C and SIGTERM (module notes)."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
+def _local_map(fn: Callable[[T], R], work: list[T], jobs: int) -> Iterator[R]:
+    """``fn`` over ``work`` in ``jobs`` forked worker processes, in order."""
+    pool = multiprocessing.get_context("fork").Pool(jobs, initializer=_worker_signals)
+    try:
+        yield from pool.imap(fn, work)
+        pool.close()
+    finally:
+        # Normal end: the workers are idle and exit; early end: kill them now.
+        pool.terminate()
+        pool.join()
+
+
 def parallel_map(
     fn: Callable[[T], R],
     items: Iterable[T],
@@ -137,8 +161,7 @@ def parallel_map(
         if jobs <= 1 or len(work) <= 1:
             yield from map(fn, work)
             return
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            yield from pool.map(fn, work)
+        yield from _local_map(fn, work, jobs)
         return
     client, cluster = _client(scheduler, jobs, option)
     futures: list[Any] = []
