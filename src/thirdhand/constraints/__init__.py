@@ -28,16 +28,16 @@ from thirdhand.constraints.select import (
 from thirdhand.constraints.types import (
     DOF_NAMES,
     MODEL_TYPES,
-    Constraint,
     ConstraintFitError,
+    JointFit,
     NoiseModel,
 )
 
 __all__ = [
     "DOF_NAMES",
     "MODEL_TYPES",
-    "Constraint",
     "ConstraintFitError",
+    "JointFit",
     "NoiseEstimate",
     "NoiseModel",
     "bic_weights",

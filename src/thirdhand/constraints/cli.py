@@ -26,7 +26,7 @@ from thirdhand.constraints.select import (
     fit_constraint,
     type_probabilities,
 )
-from thirdhand.constraints.types import MODEL_TYPES, Constraint, ConstraintFitError, NoiseModel
+from thirdhand.constraints.types import MODEL_TYPES, ConstraintFitError, JointFit, NoiseModel
 from thirdhand.demonstration import DOF_NAMES
 
 app = typer.Typer(
@@ -53,7 +53,7 @@ def _vec(v: np.ndarray | None, digits: int = 4) -> str:
     return "[" + ", ".join(f"{x:.{digits}f}" for x in v) + "]"
 
 
-def _print_table(path: Path, where: str, c: Constraint) -> None:
+def _print_table(path: Path, where: str, c: JointFit) -> None:
     out.print(f"[bold]{path.name}[/bold] ({where}, {c.n_samples} valid samples)")
     out.print(f"  type        {c.type}   confidence {c.confidence:.3f}")
     rot = "" if not math.isfinite(c.noise_rot) else f", {math.degrees(c.noise_rot):.2f} deg"

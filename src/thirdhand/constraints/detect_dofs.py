@@ -12,7 +12,7 @@ from thirdhand.constraints.hmm import HMMParams
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import prepare_track
 from thirdhand.constraints.select import fit_constraint
-from thirdhand.constraints.types import Constraint, ConstraintFitError, NoiseModel
+from thirdhand.constraints.types import ConstraintFitError, JointFit, NoiseModel
 
 
 def _step_noise(p: FloatArray, q: FloatArray) -> NoiseModel:
@@ -33,7 +33,7 @@ def _step_noise(p: FloatArray, q: FloatArray) -> NoiseModel:
 
 def _on_joint(
     p: FloatArray, q: FloatArray, min_motion: tuple[float, float], share: float = 0.9
-) -> Constraint | None:
+) -> JointFit | None:
     """The prismatic or revolute joint a span moves along, or None.
 
     The fixed, prismatic and revolute models are fitted; a joint must win, move
@@ -71,7 +71,7 @@ def _min_joint_motion(params: HMMParams) -> tuple[float, float]:
     return max(0.02, 10 * params.sigma_pos), max(math.radians(15.0), 10 * params.sigma_rot)
 
 
-def _joint_residuals(p: FloatArray, q: FloatArray, c: Constraint) -> tuple[FloatArray, FloatArray]:
+def _joint_residuals(p: FloatArray, q: FloatArray, c: JointFit) -> tuple[FloatArray, FloatArray]:
     """Distance (m) and angle (rad) of each pose from a prismatic or revolute joint's path."""
     axis = np.asarray(c.axis, dtype=np.float64)
     final_q = np.asarray(c.quat, dtype=np.float64)

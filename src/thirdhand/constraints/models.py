@@ -1,4 +1,4 @@
-"""The model fits: a :class:`~thirdhand.constraints.types.Constraint` from one model.
+"""The model fits: a :class:`~thirdhand.constraints.types.JointFit` from one model.
 
 Each ``fit_<model>`` validates the track (:func:`prepare_track`), fits the model
 robustly with its likelihood (:func:`thirdhand.constraints.robust.fit_model`) and
@@ -20,7 +20,7 @@ from thirdhand import se3_compiled as sc
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import MIN_SAMPLES, ModelFit, fit_model, prepare_track
-from thirdhand.constraints.types import Constraint, ConstraintFitError, NoiseModel
+from thirdhand.constraints.types import ConstraintFitError, JointFit, NoiseModel
 
 FloatArray = NDArray[np.float64]
 
@@ -56,8 +56,8 @@ def to_constraint(
     *,
     confidence: float = 1.0,
     scores: dict[str, float] | None = None,
-) -> Constraint:
-    """The :class:`Constraint` described by a model fit of a prepared track.
+) -> JointFit:
+    """The :class:`JointFit` described by a model fit of a prepared track.
 
     Latent ranges are measured from the last inlier sample (the constrained pose);
     the axis is turned so that the first inlier lies at a negative configuration.
@@ -136,7 +136,7 @@ def to_constraint(
         q_end = -q_end
     if frame_q[3] < 0:
         frame_q = -frame_q
-    return Constraint(
+    return JointFit(
         type=name,
         frame_pos=np.asarray(frame_p, dtype=np.float64),
         frame_quat=np.asarray(frame_q, dtype=np.float64),
@@ -161,7 +161,7 @@ def to_constraint(
 
 def _fit_one(
     name: str, pos: ArrayLike, quat: ArrayLike | None, noise: NoiseModel | None
-) -> Constraint:
+) -> JointFit:
     p, q = prepare_track(pos, quat)
     est = estimate_noise(p, q)
     fit = fit_model(name, p, q, noise=est.noise_model() if noise is None else noise)
@@ -179,7 +179,7 @@ def _fit_one(
 
 def fit_fixed(
     pos: ArrayLike, quat: ArrayLike | None = None, *, noise: NoiseModel | None = None
-) -> Constraint:
+) -> JointFit:
     """Fit a fixed (rigid) constraint: robust mean pose.
 
     Parameters
@@ -194,7 +194,7 @@ def fit_fixed(
 
     Returns
     -------
-    Constraint
+    JointFit
         ``scores`` holds this model's BIC only.
     """
     return _fit_one("fixed", pos, quat, noise)
@@ -202,7 +202,7 @@ def fit_fixed(
 
 def fit_prismatic(
     pos: ArrayLike, quat: ArrayLike | None = None, *, noise: NoiseModel | None = None
-) -> Constraint:
+) -> JointFit:
     """Fit a prismatic constraint: a line of positions at constant orientation.
 
     Parameters and result as :func:`fit_fixed`; ``axis`` is the line direction,
@@ -213,7 +213,7 @@ def fit_prismatic(
 
 def fit_revolute(
     pos: ArrayLike, quat: ArrayLike | None = None, *, noise: NoiseModel | None = None
-) -> Constraint:
+) -> JointFit:
     """Fit a revolute constraint: rotation about one axis, positions on a circle.
 
     Parameters and result as :func:`fit_fixed`; ``axis`` and ``origin`` give the
@@ -225,7 +225,7 @@ def fit_revolute(
 
 def fit_cylindrical(
     pos: ArrayLike, quat: ArrayLike | None = None, *, noise: NoiseModel | None = None
-) -> Constraint:
+) -> JointFit:
     """Fit a cylindrical constraint: rotation about and translation along one axis.
 
     Parameters and result as :func:`fit_fixed`; ``ranges[0]`` (tx) and
@@ -236,7 +236,7 @@ def fit_cylindrical(
 
 def fit_screw(
     pos: ArrayLike, quat: ArrayLike | None = None, *, noise: NoiseModel | None = None
-) -> Constraint:
+) -> JointFit:
     """Fit a screw constraint: rotation about an axis coupled to translation along it.
 
     Parameters and result as :func:`fit_fixed`; ``pitch`` is the translation per
@@ -248,7 +248,7 @@ def fit_screw(
 
 def fit_free(
     pos: ArrayLike, quat: ArrayLike | None = None, *, noise: NoiseModel | None = None
-) -> Constraint:
+) -> JointFit:
     """Fit the free model: mean pose with a spread at least the noise ceiling.
 
     Parameters and result as :func:`fit_fixed`; ``ranges`` are the observed

@@ -28,8 +28,8 @@ from thirdhand.constraints.models import (
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.types import (
     MODEL_TYPES,
-    Constraint,
     ConstraintFitError,
+    JointFit,
     NoiseModel,
 )
 from thirdhand.demonstration import Demonstration
@@ -169,7 +169,7 @@ def fit_constraint(
     models: Sequence[str] = DEFAULT_MODELS,
     noise: NoiseModel | None = None,
     where: str = "track",
-) -> Constraint:
+) -> JointFit:
     """Fit every candidate model to a relative-pose track and return the best by BIC.
 
     Parameters
@@ -193,7 +193,7 @@ def fit_constraint(
 
     Returns
     -------
-    Constraint
+    JointFit
         The chosen model; ``scores`` holds the BIC of every candidate (``inf``
         for one that cannot describe the track), ``confidence`` the calibrated
         probability of the chosen type, ``noise_pos`` and ``noise_rot`` the
@@ -317,7 +317,7 @@ def fit_relative(
     end: float | None = None,
     models: Sequence[str] = DEFAULT_MODELS,
     noise: NoiseModel | None = None,
-) -> Constraint:
+) -> JointFit:
     """Fit a constraint to the pose of ``child`` in ``parent`` over a time window.
 
     Parameters

@@ -90,8 +90,13 @@ def _floats(a: FloatArray | None) -> list[Any] | None:
 
 
 @dataclass(frozen=True, eq=False)
-class Constraint:
-    """A kinematic constraint fitted to the relative-pose track of a child in its parent.
+class JointFit:
+    """A joint model fitted to the relative-pose track of a child in its parent.
+
+    The kinematics of one constraint as a track shows them (axis, radius, pitch,
+    residuals, confidence). The package's one constraint record is
+    :class:`thirdhand.task.Constraint`; like it, a fit gives its free DOFs as a
+    :class:`~thirdhand.demonstration.FreeDofs` (:attr:`free_dofs`).
 
     Attributes
     ----------
