@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from thirdhand import io
 from thirdhand.plan.assembly import plan_success, truth_slot
-from thirdhand.plan.learn import learn, run_stage
+from thirdhand.plan.learn import learn, plan_figures
 from thirdhand.synth import SensorModel, make_scene
 from thirdhand.taskfile import dump_task, load_task, parse_task
 
@@ -54,8 +54,14 @@ def test_plan_fails_when_a_slot_is_used_twice() -> None:
 
 def test_task_file_validates_and_round_trips(tmp_path: Path) -> None:
     demo = make_scene("chair", seed=2, sensor=SensorModel())
-    summary: dict = {"lines": [], "files": []}
-    task = run_stage(demo, tmp_path, summary)
+    from thirdhand.plan.report import write_report
+    from thirdhand.taskfile import save_task
+
+    result = learn([demo])
+    task = result.task()
+    save_task(task, tmp_path / "task.json")
+    write_report(result, tmp_path / "report")
+    block, line = plan_figures(result)
     loaded = load_task(tmp_path / "task.json")
     assert dump_task(parse_task(dump_task(loaded))) == dump_task(loaded)
     assert len(task.constraints) == 5
@@ -67,8 +73,8 @@ def test_task_file_validates_and_round_trips(tmp_path: Path) -> None:
     assert [s.constraint for s in loaded.plan] == [c.id for c in loaded.constraints]
     assert all(s.keyframe for s in loaded.plan)
     assert (tmp_path / "report" / "index.html").read_text().count("data:image/png") >= 2
-    assert summary["plan"]["pos_error_cm"] < 0.3
-    assert any(line.startswith("plan: 5 steps") for line in summary["lines"])
+    assert block["pos_error_cm"] < 0.3
+    assert line.startswith("plan: 5 steps")
 
 
 def test_cli_learn(tmp_path: Path) -> None:
@@ -93,8 +99,10 @@ def test_cli_learn(tmp_path: Path) -> None:
 
 def test_toolbox_excerpt_runs_despite_missing_frames(shared_data: Path, tmp_path: Path) -> None:
     demo = io.load(shared_data / "3rdhand" / "toolbox_coop_4_excerpt")
-    summary: dict = {"lines": [], "files": []}
-    task = run_stage(demo, tmp_path, summary)
+    from thirdhand.taskfile import save_task
+
+    task = learn([demo]).task()
+    save_task(task, tmp_path / "task.json")
     assert load_task(tmp_path / "task.json").schema_ == task.schema_
 
 

@@ -2,7 +2,7 @@
 
 ``learn(demos)`` runs the whole pipeline on one or several demonstrations of the
 same task and returns a :class:`Learned` bundle whose :meth:`Learned.task` is the
-``thirdhand.task/1`` document; :func:`run_stage` is the step of ``thirdhand demo``.
+``thirdhand.task/1`` document (written by the caller: ``thirdhand learn``, the demo).
 """
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ import math
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from thirdhand.constraints.detect import (
@@ -251,51 +250,3 @@ def plan_figures(result: Learned) -> tuple[dict[str, Any], str]:
     if "pos_error_cm" in block:
         line += f" (pose error {block['pos_error_cm']:.2f} cm, {block['rot_error_deg']:.2f}°)"
     return block, line
-
-
-def run_stage(
-    demos_or_demo: Demonstration | Sequence[Demonstration],
-    out_dir: Path,
-    summary: dict[str, Any],
-    *,
-    phases: Any = None,
-    report: bool = True,
-) -> TaskFile:
-    """The planning stage of ``thirdhand demo``: ``task.json`` and a ``report/`` folder.
-
-    Parameters
-    ----------
-    demos_or_demo : Demonstration or sequence of Demonstration
-    out_dir : pathlib.Path
-        Output folder.
-    summary : dict
-        Receives ``lines``, ``files`` and a ``plan`` block of figures.
-    phases : SegmentationResult or sequence of them, optional
-        The segmentation already computed (not recomputed when given).
-    report : bool
-        Write the HTML report.
-    """
-    from thirdhand.taskfile import save_task
-
-    demos = [demos_or_demo] if isinstance(demos_or_demo, Demonstration) else list(demos_or_demo)
-    ph = None
-    if phases is not None:
-        ph = list(phases) if isinstance(phases, list | tuple) else [phases]
-    result = learn(demos, phases=ph)
-    task = result.task()
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    path = out / "task.json"
-    save_task(task, path)
-    summary.setdefault("files", []).append(str(path))
-    block, line = plan_figures(result)
-    summary["plan"] = block
-    summary.setdefault("lines", []).append(f"{line} → {path}")
-    if report:
-        from thirdhand.plan.report import write_report
-
-        folder = out / "report"
-        index = write_report(result, folder)
-        summary["files"].append(str(index))
-        summary["lines"].append(f"plan report → {index}")
-    return task

@@ -14,13 +14,16 @@ import html
 import io
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from thirdhand import se3
 from thirdhand.demonstration import DOF_NAMES
 from thirdhand.fileops import atomic_write_bytes
+
+if TYPE_CHECKING:
+    from thirdhand.plan.learn import Learned
 
 
 def _png(fig: Any) -> str:
@@ -32,7 +35,7 @@ def _png(fig: Any) -> str:
     return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-def _timeline(learned: Any, k: int) -> str:
+def _timeline(learned: Learned, k: int) -> str:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -40,8 +43,7 @@ def _timeline(learned: Any, k: int) -> str:
 
     det = learned.detections[k]
     phases = learned.phases[k]
-    hands = list(getattr(phases, "hands", []) or [])
-    hands = [h for h in hands if h.intervals]
+    hands = [] if phases is None else [h for h in phases.hands if h.intervals]
     direct = {frozenset((i.parent, i.child)) for i in det.instances}
     rows = [(a, b) for a, b in det.pairs if frozenset((a, b)) in direct]
     n = len(rows) + len(hands)
@@ -61,7 +63,7 @@ def _timeline(learned: Any, k: int) -> str:
     return _png(fig)
 
 
-def _strip(learned: Any, k: int, max_frames: int = 8) -> str:
+def _strip(learned: Learned, k: int, max_frames: int = 8) -> str:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -106,7 +108,7 @@ def _strip(learned: Any, k: int, max_frames: int = 8) -> str:
     return _png(fig)
 
 
-def _constraint_table(learned: Any) -> str:
+def _constraint_table(learned: Learned) -> str:
     rows = []
     for k, det in enumerate(learned.detections):
         for i in det.instances:
@@ -146,7 +148,7 @@ def _constraint_table(learned: Any) -> str:
     return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
 
 
-def write_report(learned: Any, folder: str | Path) -> Path:
+def write_report(learned: Learned, folder: str | Path) -> Path:
     """Write ``index.html`` into ``folder`` (created) and return its path.
 
     Parameters
