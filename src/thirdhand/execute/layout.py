@@ -608,6 +608,69 @@ def _overlap(a: FloatArray, b: FloatArray) -> bool:
     return bool(a[0] < b[1] and b[0] < a[1] and a[2] < b[3] and b[2] < a[3])
 
 
+def occupied_footprints(
+    cell: Workcell, placed: Sequence[FloatArray], margin: float
+) -> list[FloatArray]:
+    """Table footprints already taken: ``placed`` world vertex sets, the fixtures, the robot.
+
+    Parameters
+    ----------
+    placed : sequence of ndarray (k, 3)
+        World vertices (metres) of the parts already on the table or assembled.
+    margin : float
+        Free space kept around each part and fixture, metres (half on each side).
+
+    Returns
+    -------
+    list of ndarray (4,)
+        ``[x_min, x_max, y_min, y_max]`` in the world frame, metres; the robot's base
+        as a 32 cm square.
+    """
+    taken = [_footprint(v, margin / 2) for v in placed]
+    taken += [_footprint(_transform(t, _box_vertices(s)), margin / 2) for _, t, s in cell.fixtures]
+    bx, by = cell.robot_base[0, 3], cell.robot_base[1, 3]
+    taken.append(np.array([bx - 0.16, bx + 0.16, by - 0.16, by + 0.16]))
+    return taken
+
+
+def table_spot(
+    v: FloatArray, rot: FloatArray, cell: Workcell, r: float, ang: float, margin: float
+) -> tuple[FloatArray, FloatArray | None]:
+    """A part laid on the table ``r`` m from the arm, at angle ``ang``, turned by ``rot``.
+
+    Parameters
+    ----------
+    v : ndarray (k, 3)
+        The part's vertices in its own frame, metres.
+    rot : ndarray (3, 3)
+        The part's orientation in the world.
+    r, ang : float
+        Distance (m) and bearing (rad) of the part's bounding-box centre from the
+        arm's first joint (``cell.arm_xy``).
+    margin : float
+        Free space kept around the footprint, metres (half on each side).
+
+    Returns
+    -------
+    T_world_part : ndarray (4, 4)
+        Resting on the table top (lowest vertex at ``cell.table_z``).
+    footprint : ndarray (4,) or None
+        ``[x_min, x_max, y_min, y_max]`` with the margin, or None when it leaves the table.
+    """
+    rx, ry = cell.arm_xy
+    vw = v @ rot.T
+    centre = (vw.min(axis=0) + vw.max(axis=0)) / 2.0
+    t = np.eye(4)
+    t[:3, :3] = rot
+    t[0, 3] = rx + r * np.cos(ang) - centre[0]
+    t[1, 3] = ry + r * np.sin(ang) - centre[1]
+    t[2, 3] = cell.table_z - vw[:, 2].min()
+    fp = _footprint(_transform(t, v), margin / 2)
+    x0, x1, y0, y1 = cell.table_extent
+    inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
+    return t, (fp if inside else None)
+
+
 def start_layout(
     task: TaskFile,
     cell: Workcell,
@@ -664,13 +727,9 @@ def start_layout(
     goal_rot = {
         n: (cell.base_pose[:3, :3] @ _pose_in_base(task, cell.base, n)[:3, :3]) for n in placed
     }
-    taken = [_footprint(_transform(cell.base_pose, v), margin / 2) for v in placed.values()]
-    taken += [_footprint(_transform(t, _box_vertices(s)), margin / 2) for _, t, s in cell.fixtures]
-    bx, by = cell.robot_base[0, 3], cell.robot_base[1, 3]
-    taken.append(np.array([bx - 0.16, bx + 0.16, by - 0.16, by + 0.16]))
-    rx, ry = cell.arm_xy
+    assembled = [_transform(cell.base_pose, v) for v in placed.values()]
+    taken = occupied_footprints(cell, assembled, margin)
     reach = cell.reach if reach is None else reach
-    x0, x1, y0, y1 = cell.table_extent
     order = [c.child for c in task.constraints if c.child in verts]
     # the largest parts first: they need the most room
     area = {n: float(np.prod(np.sort(np.ptp(verts[n], axis=0))[1:])) for n in order}
@@ -682,19 +741,11 @@ def start_layout(
             v = verts[name]
             for _ in range(max_tries):
                 rot = rest_rotation(v, goal_rot.get(name, np.eye(3)), rng)
-                vw = v @ rot.T
                 r = rng.uniform(*reach)
                 ang = rng.uniform(-np.pi * 0.85, np.pi * 0.85)
-                centre = (vw.min(axis=0) + vw.max(axis=0)) / 2.0
-                t = np.eye(4)
-                t[:3, :3] = rot
-                t[0, 3] = rx + r * np.cos(ang) - centre[0]
-                t[1, 3] = ry + r * np.sin(ang) - centre[1]
-                t[2, 3] = cell.table_z - vw[:, 2].min()
-                fp = _footprint(_transform(t, v), margin / 2)
-                inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
+                t, fp = table_spot(v, rot, cell, r, ang, margin)
                 if (
-                    inside
+                    fp is not None
                     and not any(_overlap(fp, o) for o in free)
                     and (accept is None or accept(name, t))
                 ):

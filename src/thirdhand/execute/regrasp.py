@@ -35,7 +35,13 @@ from numpy.typing import NDArray
 
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import sample_goals
-from thirdhand.execute.layout import Workcell, _box_vertices, _footprint, _overlap, _transform
+from thirdhand.execute.layout import (
+    Workcell,
+    _overlap,
+    _transform,
+    occupied_footprints,
+    table_spot,
+)
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.scene import GRIPPER, CollisionScene
 from thirdhand.execute.step_plan import ExecutionOptions, RegraspReport, Segment, StepPlan
@@ -113,16 +119,8 @@ def rest_spots(
         ``T_world_part`` at rest on the table, and whether it is face down; every other
         draw face down.
     """
-    taken = [
-        _footprint(_transform(p, verts[k]), margin / 2)
-        for k, p in poses.items()
-        if k != part and k in verts
-    ]
-    taken += [_footprint(_transform(t, _box_vertices(s)), margin / 2) for _, t, s in cell.fixtures]
-    bx, by = cell.robot_base[0, 3], cell.robot_base[1, 3]
-    taken.append(np.array([bx - 0.16, bx + 0.16, by - 0.16, by + 0.16]))
-    x0, x1, y0, y1 = cell.table_extent
-    rx, ry = cell.arm_xy
+    others = [_transform(p, verts[k]) for k, p in poses.items() if k != part and k in verts]
+    taken = occupied_footprints(cell, others, margin)
     v = verts[part]
     out: list[tuple[FloatArray, bool]] = []
     for k in range(draws):
@@ -132,16 +130,8 @@ def rest_spots(
         )
         r = rng.uniform(cell.reach[0], max(NEAR_M, cell.reach[0] + 0.05))
         ang = rng.uniform(-np.pi * 0.85, np.pi * 0.85)
-        vw = v @ rot.T
-        centre = (vw.min(axis=0) + vw.max(axis=0)) / 2.0
-        t = np.eye(4)
-        t[:3, :3] = rot
-        t[0, 3] = rx + r * np.cos(ang) - centre[0]
-        t[1, 3] = ry + r * np.sin(ang) - centre[1]
-        t[2, 3] = cell.table_z - vw[:, 2].min()
-        fp = _footprint(_transform(t, v), margin / 2)
-        inside = fp[0] > x0 and fp[1] < x1 and fp[2] > y0 and fp[3] < y1
-        if inside and not any(_overlap(fp, o) for o in taken):
+        t, fp = table_spot(v, rot, cell, r, ang, margin)
+        if fp is not None and not any(_overlap(fp, o) for o in taken):
             out.append((t, face_down))
             if len(out) >= n:
                 break
