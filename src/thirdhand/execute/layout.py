@@ -211,9 +211,14 @@ def _rotation_up(axis: int, sign: float, yaw: float) -> FloatArray:
     x_b = other
     y_b = np.cross(z_b, x_b)
     r_world_base = np.stack([x_b, y_b, z_b])  # maps base coords to a z-up frame
-    c, s = np.cos(yaw), np.sin(yaw)
-    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    rz = rot_z(yaw)
     return np.asarray(rz @ r_world_base, dtype=np.float64)
+
+
+def rot_z(yaw: float) -> FloatArray:
+    """Rotation matrix (3, 3) about the world's vertical by ``yaw`` radians."""
+    c, s = np.cos(yaw), np.sin(yaw)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def _hull(v: FloatArray) -> FloatArray:
@@ -577,8 +582,7 @@ def rest_rotation(v: FloatArray, goal_rotation: FloatArray, rng: np.random.Gener
     """
     long_axis = _is_rod(v)
     yaw = rng.uniform(-np.pi, np.pi)
-    c, s = np.cos(yaw), np.sin(yaw)
-    rz = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    rz = rot_z(yaw)
     if long_axis is not None:
         spin = rng.uniform(-np.pi, np.pi)
         axis = np.zeros(3)

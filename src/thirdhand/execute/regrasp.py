@@ -40,6 +40,7 @@ from thirdhand.execute.layout import (
     _overlap,
     _transform,
     occupied_footprints,
+    rot_z,
     table_spot,
 )
 from thirdhand.execute.robot import Robot
@@ -75,11 +76,6 @@ def _key(g: grasp_mod.Grasp) -> tuple[str, str, bytes]:
 
 def _rot_x_pi() -> FloatArray:
     return np.diag([1.0, -1.0, -1.0])
-
-
-def _rot_z(yaw: float) -> FloatArray:
-    c, s = np.cos(yaw), np.sin(yaw)
-    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
 def rest_spots(
@@ -125,7 +121,7 @@ def rest_spots(
     out: list[tuple[FloatArray, bool]] = []
     for k in range(draws):
         face_down = k % 2 == 1
-        rot = _rot_z(rng.uniform(-np.pi, np.pi)) @ (
+        rot = rot_z(rng.uniform(-np.pi, np.pi)) @ (
             _rot_x_pi() @ part_pose[:3, :3] if face_down else part_pose[:3, :3]
         )
         r = rng.uniform(cell.reach[0], max(NEAR_M, cell.reach[0] + 0.05))
