@@ -11,8 +11,6 @@ from __future__ import annotations
 import json
 import os
 import socket
-import subprocess
-import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,7 +18,7 @@ from pathlib import Path
 import pytest
 
 from cli_helpers import call
-from thirdhand.batch import CONNECT_TIMEOUT_S, check_scheduler, parallel_map
+from thirdhand.batch import CONNECT_TIMEOUT_S, check_scheduler, dask_processes, parallel_map
 from thirdhand.errors import OptionError
 
 distributed = pytest.importorskip("distributed")
@@ -41,48 +39,14 @@ def _fail_on_three(x: int) -> int:
 
 
 @pytest.fixture(scope="module")
-def cluster(tmp_path_factory: pytest.TempPathFactory) -> Iterator[str]:
+def cluster() -> Iterator[str]:
     """Address of a ``dask scheduler`` with two single-threaded ``dask worker`` processes."""
-    tmp = tmp_path_factory.mktemp("dask")
-    info = tmp / "scheduler.json"
     # The workers (and the scheduler, which unpickles the graph) import this test
     # module's helpers by name, as they would import thirdhand's own functions.
     path = os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONPATH": path}
-    common = ["--no-dashboard"]
-    procs = [
-        subprocess.Popen(
-            [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1", "--port", "0",
-             "--scheduler-file", str(info), *common],
-            env=env, cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-        )
-    ]  # fmt: skip
-    try:
-        deadline = time.monotonic() + 120
-        while not info.exists() or not info.read_text().strip():
-            if time.monotonic() > deadline or procs[0].poll() is not None:
-                pytest.fail("the dask scheduler did not start")
-            time.sleep(0.2)
-        address = json.loads(info.read_text())["address"]
-        for _ in range(2):
-            procs.append(
-                subprocess.Popen(
-                    [sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
-                     "--nworkers", "1", "--no-nanny", "--host", "127.0.0.1", *common],
-                    env=env, cwd=tmp, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                )
-            )  # fmt: skip
-        with distributed.Client(address, timeout=30) as client:
-            client.wait_for_workers(2, timeout=120)
+    with dask_processes(2, env=env, timeout=120) as address:
         yield address
-    finally:
-        for p in reversed(procs):
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                p.kill()
 
 
 def test_parallel_map_in_order_on_the_cluster(cluster: str) -> None:

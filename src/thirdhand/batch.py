@@ -15,6 +15,10 @@ every item, in the items' order, whatever ran them:
 item, so the results do not depend on where or in which order units run. Dask is
 imported only here, and only when a scheduler is asked for (the ``dask`` extra).
 
+:func:`dask_processes` starts a scheduler and workers on the loopback interface as
+separate processes, the way a user starts them by hand (``dask scheduler``, ``dask
+worker``): for scripts and tests that need a real cluster.
+
 Stopping: local workers ignore SIGINT and take SIGTERM's default action, so the
 signals stop the parent alone (a terminal's Ctrl-C reaches the whole process
 group); whatever ends the parent's loop early (Ctrl-C, SIGTERM, a failed unit)
@@ -24,11 +28,18 @@ terminates the workers at once instead of waiting for their pending units.
 from __future__ import annotations
 
 import asyncio
+import json
 import multiprocessing
 import os
 import signal
 import socket
-from collections.abc import Callable, Iterable, Iterator
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
 from typing import Any, TypeVar
 from urllib.parse import urlsplit
 
@@ -184,3 +195,95 @@ def parallel_map(
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+@contextmanager
+def dask_processes(
+    workers: int = 2,
+    *,
+    env: Mapping[str, str] | None = None,
+    timeout: float = 300.0,
+) -> Iterator[str]:
+    """A ``dask scheduler`` and ``workers`` single-threaded ``dask worker`` processes.
+
+    Started on 127.0.0.1 with ``python -m dask`` (no dashboard, no nanny), as
+    ``docs/cluster.md`` tells a user to start them; stopped (terminated, killed
+    after 30 s) when the block ends, however it ends.
+
+    Parameters
+    ----------
+    workers : int
+        Number of worker processes, each with one thread.
+    env : mapping, optional
+        Environment of the processes (this process's by default). Workers unpickle
+        the units' functions by module name, so their ``PYTHONPATH`` must reach them.
+    timeout : float
+        Seconds to wait for the scheduler and for every worker to join.
+
+    Yields
+    ------
+    str
+        The scheduler's ``tcp://127.0.0.1:PORT`` address.
+
+    Raises
+    ------
+    BatchError
+        The scheduler did not start, or the workers did not join, within ``timeout``.
+    OptionError
+        The dask extra is not installed.
+    """
+    try:
+        from distributed import Client
+    except ImportError:
+        raise OptionError(
+            "a Dask cluster needs the dask extra: pip install 'thirdhand[dask]'"
+        ) from None
+    procs: list[subprocess.Popen[bytes]] = []
+    quiet: dict[str, Any] = {"stdout": subprocess.DEVNULL, "stderr": subprocess.DEVNULL}
+    with tempfile.TemporaryDirectory(prefix="thirdhand-dask-") as tmp:
+        info = Path(tmp) / "scheduler.json"
+        run: dict[str, Any] = {**quiet, "cwd": tmp, "env": dict(env) if env is not None else None}
+        try:
+            procs.append(
+                subprocess.Popen(
+                    [sys.executable, "-m", "dask", "scheduler", "--host", "127.0.0.1",
+                     "--port", "0", "--scheduler-file", str(info), "--no-dashboard"],
+                    **run,
+                )
+            )  # fmt: skip
+            deadline = time.monotonic() + timeout
+            while not info.exists() or not info.read_text().strip():
+                if procs[0].poll() is not None:
+                    raise BatchError(
+                        f"the dask scheduler exited at start (code {procs[0].returncode})"
+                    )
+                if time.monotonic() > deadline:
+                    raise BatchError(f"the dask scheduler did not start within {timeout:g} s")
+                time.sleep(0.2)
+            address = str(json.loads(info.read_text())["address"])
+            for _ in range(workers):
+                procs.append(
+                    subprocess.Popen(
+                        [sys.executable, "-m", "dask", "worker", address, "--nthreads", "1",
+                         "--nworkers", "1", "--no-nanny", "--host", "127.0.0.1",
+                         "--no-dashboard"],
+                        **run,
+                    )
+                )  # fmt: skip
+            with Client(address, timeout=30) as client:
+                try:
+                    client.wait_for_workers(workers, timeout=timeout)
+                except TimeoutError:
+                    raise BatchError(
+                        f"{workers} dask workers did not join {address} within {timeout:g} s"
+                    ) from None
+            yield address
+        finally:
+            for p in reversed(procs):
+                p.terminate()
+            for p in procs:
+                try:
+                    p.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    p.kill()
+                    p.wait()
