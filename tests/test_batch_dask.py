@@ -133,3 +133,24 @@ def test_learn_segmentation_units_on_the_cluster_equal_serial(cluster: str) -> N
 def test_local_cluster_of_two_workers() -> None:
     """``--scheduler local``: a LocalCluster of --jobs processes, started and closed here."""
     assert list(parallel_map(abs, [-1, -2, 3, -4], scheduler="local", jobs=2)) == [1, 2, 3, 4]
+
+
+def test_segment_batch_on_the_cluster_writes_the_serial_files(
+    cluster: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``segment batch --scheduler``: the files equal the serial run's, byte for byte."""
+    from thirdhand import io
+    from thirdhand.synth import make_scene
+
+    recs = tmp_path / "recs"
+    recs.mkdir()
+    for s in (1, 2):
+        io.save(make_scene("drawer", seed=s, sensor=None).slice(0.0, 4.0), recs / f"d{s}.parquet")
+    rc, _, err = call(capsys, "segment", "batch", str(recs), "-o", str(tmp_path / "serial"))
+    assert rc == 0, err
+    rc, _, err = call(
+        capsys, "segment", "batch", str(recs), "-o", str(tmp_path / "dask"), "--scheduler", cluster
+    )
+    assert rc == 0, err
+    for name in ("d1.phases.json", "d2.phases.json"):
+        assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes()

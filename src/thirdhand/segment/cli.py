@@ -6,7 +6,9 @@ trains a model; ``thirdhand segment evaluate DEMOS…`` runs the report's Table 
 protocol (train on the left hand's pairs, test on the right hand's; or leave one
 object out, or split in time, within one hand's pairs); ``thirdhand segment
 calibrate DEMOS… -o MODEL.json`` refits a model's operating point to a user's
-rig from a few labelled intervals (:mod:`thirdhand.segment.calibrate`).
+rig from a few labelled intervals (:mod:`thirdhand.segment.calibrate`);
+``thirdhand segment batch RECORDINGS|FOLDERS… -o FOLDER [--jobs N] [--scheduler A]``
+segments many recordings as independent units (:mod:`thirdhand.segment.batch`).
 
 Label files: ``--labels`` (one per recording); a 3rdHand folder holding an
 ``ann_kvg.kvg`` uses it when ``--labels`` is not given (train, evaluate, calibrate).
@@ -345,6 +347,88 @@ def calibrate(
             f"NLL per step {r['nll_per_step_before']:.4f} → {r['nll_per_step_after']:.4f}"
         )
     out.print(f"wrote {output}")
+
+
+@app.command()
+def batch(
+    inputs: Annotated[
+        list[Path],
+        typer.Argument(
+            help="Recordings, or folders of recordings (a folder that is no recording "
+            "stands for the readable recordings directly inside it)."
+        ),
+    ],
+    output: Annotated[
+        Path, typer.Option("-o", "--output", help="Folder for one <name>.phases.json each.")
+    ],
+    model: Annotated[
+        Path | None,
+        typer.Option("--model", "-m", help="Model JSON or built-in: default, synthetic."),
+    ] = None,
+    jobs: Annotated[int, typer.Option(help="Segment in this many local processes.")] = 1,
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Segment as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or 'local' "
+            "(a local cluster of --jobs workers; docs/cluster.md; needs the dask extra)."
+        ),
+    ] = None,
+    force: Annotated[
+        bool, typer.Option(help="Replace existing phases files (kept as numbered .bak).")
+    ] = False,
+) -> None:
+    """Segment many recordings, one unit each, serially, in processes or on a Dask cluster.
+
+    Every output is checked before any work starts; a recording that cannot be
+    read or segmented is reported and the others are still written (the command
+    then exits 1). The files are the same whatever ran the units.
+    """
+    from thirdhand import options
+    from thirdhand.batch import check_scheduler, parallel_map
+    from thirdhand.progress import progress
+    from thirdhand.segment.batch import SegmentJob, output_names, recordings_in, segment_unit
+
+    options.integer("--jobs", jobs, low=1, high=1024)
+    if scheduler is not None:
+        check_scheduler(scheduler)
+    if output.exists() and not output.is_dir():
+        raise ThirdhandError(f"--output {output}: expected a folder, it is a file")
+    recordings = recordings_in(inputs)
+    names = output_names(recordings)
+    model_inputs = [model] if model is not None and model.exists() else []
+    targets = [output / n for n in names]
+    for target in targets:
+        check_output(target, force=force, inputs=[*inputs, *recordings, *model_inputs])
+    spec = None if model is None else str(model)
+    if model is not None:
+        _model(model)  # a bad model is one error before any unit runs
+    work = [SegmentJob(str(p), spec) for p in recordings]
+    failed: list[tuple[str, str]] = []
+    with progress() as bar:
+        task = bar.add_task("segment", total=len(work))
+        units = parallel_map(segment_unit, work, jobs=jobs, scheduler=scheduler)
+        for target, outcome in zip(targets, units, strict=True):
+            bar.advance(task)
+            if outcome.phases is None:
+                failed.append((outcome.recording, outcome.error or "failed"))
+                out.print(f"{outcome.recording}: FAILED: {outcome.error}")
+                continue
+            output.mkdir(parents=True, exist_ok=True)
+            write_text(target, json.dumps(outcome.phases))
+            scores = ", ".join(
+                f"{kind} F1 {s['frame_f1']:.3f}" for kind, s in outcome.scores.items()
+            )
+            out.print(
+                f"{outcome.recording}: {outcome.n_pairs} pairs, {outcome.n_steps} latent steps"
+                + (f"; vs labels: {scores}" if scores else "")
+                + f" → {target}"
+            )
+    if failed:
+        first, why = failed[0]
+        raise ThirdhandError(
+            f"{len(failed)} of {len(work)} recordings failed (the others were written); "
+            f"first: {first}: {why}"
+        )
 
 
 __all__ = ["DefaultCommandGroup", "app", "read_label_file"]
