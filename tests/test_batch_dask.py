@@ -154,3 +154,11 @@ def test_segment_batch_on_the_cluster_writes_the_serial_files(
     assert rc == 0, err
     for name in ("d1.phases.json", "d2.phases.json"):
         assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes()
+
+
+def test_experiment_units_on_the_cluster_give_the_serial_table(cluster: str) -> None:
+    """``thirdhand experiment corrections --scheduler``: each seed a Dask task, same rows."""
+    from thirdhand.experiments.plan_accuracy import corrections_table
+
+    kw = {"scenes": ("bench",), "seeds": [0, 1], "scale": None}
+    assert corrections_table(**kw, scheduler=cluster) == corrections_table(**kw)  # type: ignore[arg-type]

@@ -39,6 +39,26 @@ experiment_app = typer.Typer(
 )
 
 
+#: ``--jobs`` and ``--scheduler`` of the experiments: each seeded run is a unit of its own.
+JobsOption = Annotated[int, typer.Option(help="Run the units in this many local processes.")]
+SchedulerOption = Annotated[
+    str | None,
+    typer.Option(
+        help="Run the units as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or 'local' "
+        "(a local cluster of --jobs workers; docs/cluster.md; needs the dask extra)."
+    ),
+]
+
+
+def _check_batch(jobs: int, scheduler: str | None) -> None:
+    """Refuse a nonsense ``--jobs`` or a malformed ``--scheduler`` before any work."""
+    options.integer("--jobs", jobs, low=1, high=1024)
+    if scheduler is not None:
+        from thirdhand.batch import check_scheduler
+
+        check_scheduler(scheduler)
+
+
 def _load(path: Path) -> Demonstration:
     from thirdhand import io
 
@@ -91,14 +111,8 @@ def learn_command(
         bool,
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
     ] = False,
-    jobs: Annotated[int, typer.Option(help="Segment the recordings in this many processes.")] = 1,
-    scheduler: Annotated[
-        str | None,
-        typer.Option(
-            help="Segment the recordings as Dask tasks: tcp://HOST:PORT or 'local' "
-            "(docs/cluster.md; needs the dask extra)."
-        ),
-    ] = None,
+    jobs: JobsOption = 1,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Learn a task from recordings: every stage that needs no robot, into one task file.
 
@@ -112,11 +126,7 @@ def learn_command(
     from thirdhand.taskfile import save_task
 
     options.seed(seed)
-    options.integer("--jobs", jobs, low=1, high=1024)
-    if scheduler is not None:
-        from thirdhand.batch import check_scheduler
-
-        check_scheduler(scheduler)
+    _check_batch(jobs, scheduler)
     check_output(output, force=force, inputs=demos)
     if report is not None:
         if report.exists() and not report.is_dir():
@@ -188,11 +198,16 @@ def _table(title: str, rows: list, ours: str = "thirdhand") -> None:
 @experiment_app.command("constraints")
 def experiment_constraints(
     seeds: Annotated[int, typer.Option(help="Seeds per scene and noise level.")] = 5,
+    jobs: JobsOption = 1,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Constraint pose error on the synthetic chair and bench across noise levels."""
     from thirdhand.experiments.plan_accuracy import constraint_error_table
 
-    _table("Constraint pose error", constraint_error_table(seeds=range(seeds)))
+    options.integer("--seeds", seeds, low=1, high=100_000)
+    _check_batch(jobs, scheduler)
+    rows = constraint_error_table(seeds=range(seeds), jobs=jobs, scheduler=scheduler)
+    _table("Constraint pose error", rows)
 
 
 @experiment_app.command("plan")
@@ -202,11 +217,23 @@ def experiment_plan(
     noise: Annotated[
         float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
     ] = 1.0,
+    jobs: JobsOption = 1,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Plan success with 1–4 demonstrations."""
     from thirdhand.experiments.plan_accuracy import plan_success_table
 
-    rows = plan_success_table(scene=scene, runs=runs, scale=noise if noise > 0 else None)
+    options.integer("--runs", runs, low=1, high=100_000)
+    options.finite("--noise", noise, low=0.0, high=1000.0)
+    _check_scene(scene)
+    _check_batch(jobs, scheduler)
+    rows = plan_success_table(
+        scene=scene,
+        runs=runs,
+        scale=noise if noise > 0 else None,
+        jobs=jobs,
+        scheduler=scheduler,
+    )
     _table(f"Plan success ({scene}, noise x{noise:g})", rows)
 
 
@@ -216,9 +243,25 @@ def experiment_corrections(
     noise: Annotated[
         float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
     ] = 1.0,
+    jobs: JobsOption = 1,
+    scheduler: SchedulerOption = None,
 ) -> None:
     """Constraint parameters a user would still correct (chair of 30, bench of 24)."""
     from thirdhand.experiments.plan_accuracy import corrections_table
 
-    rows = corrections_table(seeds=range(seeds), scale=noise if noise > 0 else None)
+    options.integer("--seeds", seeds, low=1, high=100_000)
+    options.finite("--noise", noise, low=0.0, high=1000.0)
+    _check_batch(jobs, scheduler)
+    rows = corrections_table(
+        seeds=range(seeds), scale=noise if noise > 0 else None, jobs=jobs, scheduler=scheduler
+    )
     _table(f"Parameters to correct (noise x{noise:g})", rows)
+
+
+def _check_scene(scene: str) -> None:
+    from thirdhand.synth import SCENES
+
+    if scene not in SCENES:
+        raise ThirdhandError(
+            f"--scene: unknown scene {scene!r}; expected one of {', '.join(SCENES)}"
+        )
