@@ -62,8 +62,21 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         }
         for i, c in enumerate(demo.labels.constraints)
     ]
+    def keyframe(t: float) -> dict[str, dict[str, list[float]]]:
+        k = int(np.searchsorted(demo.t, t))
+        return {
+            n: {"pos": demo.pos(n)[k].tolist(), "quat": demo.quat(n)[k].tolist()}
+            for n in demo.bodies_of_kind("part")
+        }
+
     plan = [
-        {"parent": c["parent"], "child": c["child"], "constraint": c["id"], "time": c["time"]}
+        {
+            "parent": c["parent"],
+            "child": c["child"],
+            "constraint": c["id"],
+            "time": c["time"],
+            "keyframe": keyframe(c["time"]),
+        }
         for c in cons
     ]
     objects = [
@@ -156,6 +169,10 @@ def test_recording_with_task_phases_execution(
     assert rows[f"{seg}/probability"]["time"] == n_phase - 1  # the null is no sample
     n_cons = scene["n_cons"]
     assert rows["/keyframes"]["time"] == n_cons
+    for name in demo.bodies_of_kind("part"):  # every step's keyframe pose, both timelines
+        e = _entity(name, "/world/keyframes")
+        assert rows[e]["time"] == n_cons and rows[e]["plan_step"] == n_cons
+        assert "Mesh3D:vertex_positions" in static[f"{e}/shape"]
     cons = [e for e in static if "/constraints/" in e and e.endswith("/frame")]
     assert len(cons) == n_cons
     glyphs = [e for e in static if e.endswith("/free/translation") or e.endswith("/free/rotation")]
@@ -219,4 +236,98 @@ def test_bad_phases_file_one_error_nothing_written(
     target = tmp_path / "out.rrd"
     rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--phases", str(bad))
     assert rc == 1 and "thirdhand.phases/1" in err and err.count("\n") == 1
+    assert not target.exists()
+
+
+def _column(path: Path, entity: str, component: str) -> np.ndarray:
+    """The rows of one temporal component of one entity, in ``execution_time`` order."""
+    rows: list[tuple[Any, list[float]]] = []
+    for chunk in RrdReader(path).stream():
+        if chunk.entity_path != entity or chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        names = batch.schema.names
+        if component in names:
+            times = batch.column(names.index("execution_time")).to_pylist()
+            values = batch.column(names.index(component)).to_pylist()
+            rows += [(t, v[0]) for t, v in zip(times, values, strict=True)]
+    rows.sort(key=lambda r: r[0])
+    return np.array([v for _, v in rows], dtype=np.float64)
+
+
+def _run_with_robot(folder: Path, *, stored_base: bool) -> tuple[Path, Any, np.ndarray]:
+    """An execution record of the Panda at a turned, shifted base (and its replay)."""
+    from thirdhand import se3
+    from thirdhand.demonstration import BodyInfo, Demonstration
+    from thirdhand.execute.record import TOOL_BODY
+    from thirdhand.execute.robot import Robot
+
+    base = (np.array([0.4, -0.2, 0.75]), np.array([0.0, 0.0, np.sin(0.35), np.cos(0.35)]))
+    arm = Robot.load("panda", base_pose=base)
+    t = np.arange(0.0, 2.0, 0.02)
+    q = arm.home[None] + 0.3 * np.sin(t[:, None] + np.arange(7))
+    doc: dict[str, Any] = {
+        "schema": "thirdhand.trajectory/1",
+        "robot": "panda",
+        "joint_names": list(arm.joint_names),
+        "t": t.tolist(),
+        "q": q.tolist(),
+    }
+    if stored_base:
+        doc["base_pose"] = {"pos": base[0].tolist(), "quat": base[1].tolist()}
+    path = folder / ("stored.json" if stored_base else "derived.json")
+    path.write_text(json.dumps(doc))
+    tool = arm.tool_transforms(q)
+    pos, quat = se3.matrix_to_pose(tool)
+    replay = Demonstration(
+        t, [BodyInfo(TOOL_BODY, kind="tool")], {TOOL_BODY: pos}, {TOOL_BODY: quat}
+    )
+    io.save(replay, path.with_suffix(".parquet"))
+    return path, arm, q
+
+
+@pytest.mark.parametrize("stored_base", [True, False])
+def test_execution_draws_the_robot_where_it_was(
+    scene: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str], stored_base: bool
+) -> None:
+    """Every collision shape of the arm, at pinocchio's pose of it, the base stored or derived."""
+    import pinocchio as pin
+
+    from thirdhand.export.robot_model import robot_shapes
+
+    execution, arm, q = _run_with_robot(tmp_path, stored_base=stored_base)
+    out = tmp_path / "robot.rrd"
+    rc, text, err = call(
+        capsys, "convert", str(scene["rec"]), str(out), "--execution", str(execution)
+    )
+    assert rc == 0, err
+    shapes = robot_shapes(arm)
+    assert f"{len(shapes)} robot shapes" in text
+    rows, static = _read(out)
+    data, gdata = arm.model.createData(), pin.GeometryData(arm.geometry)
+    k = 37
+    pin.forwardKinematics(arm.model, data, q[k])
+    pin.updateGeometryPlacements(arm.model, data, arm.geometry, gdata)
+    kinds = {"cylinder": "Cylinders3D", "sphere": "Ellipsoids3D", "box": "Boxes3D"}
+    for g, shape in enumerate(shapes):
+        e = "/execution/robot/" + rr.escape_entity_path_part(shape.name)
+        assert rows[e]["execution_time"] == q.shape[0]
+        assert any(c.startswith(kinds.get(shape.kind, "Mesh3D")) for c in static[e])
+        logged = _column(out, e, "Transform3D:translation")
+        # float32 storage: 1e-6 m on poses within 2 m of the origin
+        assert np.abs(logged[k] - gdata.oMg[g].translation).max() < 1e-5
+
+
+def test_bad_base_pose_is_one_error(
+    scene: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    execution, _, _ = _run_with_robot(tmp_path, stored_base=True)
+    doc = json.loads(execution.read_text())
+    doc["base_pose"]["quat"] = [0.0, 0.0, 0.0, 2.0]
+    execution.write_text(json.dumps(doc))
+    target = tmp_path / "x.rrd"
+    rc, _, err = call(
+        capsys, "convert", str(scene["rec"]), str(target), "--execution", str(execution)
+    )
+    assert rc == 1 and "'base_pose' must be" in err and err.count("\n") == 1
     assert not target.exists()

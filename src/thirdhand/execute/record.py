@@ -143,7 +143,10 @@ def replay_demonstration(
 def trajectory_document(
     robot: Robot, result: ExecutionResult, *, rate_hz: float = 50.0
 ) -> dict[str, Any]:
-    """The JSON trajectory: robot, joint names, ``t`` (s), ``q`` (rad), segments, steps, events.
+    """The JSON trajectory: robot, base pose, joints, ``t`` (s), ``q`` (rad), steps, events.
+
+    ``base_pose`` is the robot root's pose in the world (``pos`` metres, ``quat``
+    x y z w), so a viewer can place the arm (:mod:`thirdhand.export.robot_model`).
 
     ``segments`` says which motion each executed segment used (``"planner"``,
     ``"straight"``, ``"primitive"``) and when it ran; ``steps`` are the step
@@ -154,6 +157,10 @@ def trajectory_document(
     return {
         "schema": "thirdhand.trajectory/1",
         "robot": robot.name,
+        "base_pose": {
+            "pos": [float(v) for v in robot.base_pose[0]],
+            "quat": [float(v) for v in robot.base_pose[1]],
+        },
         "joint_names": list(robot.joint_names),
         "rate_hz": rate_hz,
         "t": [round(float(v), 6) for v in t],

@@ -12,6 +12,11 @@ the optional extra ``thirdhand[rerun]``). Entities and timelines written:
 - ``phases/segmented/<a>--<b>/{probability,label}`` (``time``): a
   ``thirdhand.phases/1`` file's pairs (a null probability is no sample).
 - ``keyframes`` (``time``): one text marker per plan step.
+- ``world/keyframes/<body>`` (timelines ``time`` at each step's time, and
+  ``plan_step``, the step's number): every body's pose in the step's keyframe
+  (the assembly as it was when the step's constraint appeared), drawn as a
+  translucent copy of the part's mesh or box (``…/shape``, static); on the
+  ``time`` timeline the last keyframe stays shown until the next one.
 - ``world/bodies/<parent>/constraints/<id>`` (static): the learned constraint,
   the child's pose in the parent; under it ``frame`` (the constraint frame, with
   axes), ``frame/free/translation`` (an arrow per free translation spanning its
@@ -21,6 +26,11 @@ the optional extra ``thirdhand[rerun]``). Entities and timelines written:
   trajectory, radians.
 - ``execution/bodies/<body>`` (``execution_time``): the replay's poses
   (``OUT.parquet`` beside ``OUT.json``).
+- ``execution/robot/<shape>`` (``execution_time``): the arm as the planner saw
+  it, every collision shape of the robot (:mod:`thirdhand.export.robot_model`;
+  cylinders, spheres, boxes, meshes, static) at its world pose per sample. The
+  robot's root pose comes from the record (``base_pose``), or, for records made
+  before it was stored, from the replay's tool frame.
 
 Body names are escaped into one entity-path part each (``/human/rh/thumb``
 becomes ``\\/human\\/rh\\/thumb``). Times are seconds on the demonstration's
@@ -53,6 +63,11 @@ ARC_RADIUS = 0.04
 #: Timeline of the demonstration and of an executed run.
 TIMELINE = "time"
 EXECUTION_TIMELINE = "execution_time"
+#: Sequence timeline of the plan's keyframes (1 = the first step).
+STEP_TIMELINE = "plan_step"
+#: Colours (RGBA) of the keyframe ghosts and of the robot's shapes.
+KEYFRAME_RGBA = (90, 160, 230, 90)
+ROBOT_RGBA = (235, 235, 235, 255)
 
 
 def body_path(name: str, root: str = "world/bodies") -> str:
@@ -236,7 +251,8 @@ def _log_constraints(rec: Any, task: TaskFile, bodies: Sequence[str]) -> int:
     return n
 
 
-def _log_keyframes(rec: Any, task: TaskFile) -> int:
+def _log_keyframes(rec: Any, task: TaskFile, shapes: dict[str, Any]) -> int:
+    """Text markers per step; every keyframe's body poses, on ``time`` and ``plan_step``."""
     import rerun as rr
 
     steps = [(i, s) for i, s in enumerate(task.plan) if s.time is not None]
@@ -245,31 +261,55 @@ def _log_keyframes(rec: Any, task: TaskFile) -> int:
         sym = f", {s.symbol}" if s.symbol else ""
         rec.log("keyframes", rr.TextLog(f"step {i + 1}: {s.action}({s.parent}, {s.child}{sym})"))
     rec.reset_time()
+    posed: set[str] = set()
+    for i, s in enumerate(task.plan):
+        for body, pose in s.keyframe.items():
+            entity = body_path(body, "world/keyframes")
+            rec.reset_time()
+            rec.set_time(STEP_TIMELINE, sequence=i + 1)
+            if s.time is not None:
+                rec.set_time(TIMELINE, duration=float(s.time))
+            rec.log(
+                entity,
+                rr.Transform3D(translation=pose.pos, quaternion=rr.Quaternion(xyzw=pose.quat)),
+            )
+            posed.add(body)
+    rec.reset_time()
+    for body in sorted(posed):
+        if body in shapes:
+            rec.log(f"{body_path(body, 'world/keyframes')}/shape", shapes[body], static=True)
     return len(steps)
 
 
-def _log_meshes(rec: Any, task: TaskFile, task_path: Path | None, bodies: Sequence[str]) -> int:
-    import rerun as rr
-
+def _object_meshes(task: TaskFile, task_path: Path | None) -> dict[str, FloatArray]:
+    """Triangles ``(F, 3, 3)`` of every object the task can draw (mesh file or box)."""
     from thirdhand.task.meshes import object_triangles
 
-    n = 0
+    out = {}
     for obj in task.objects:
-        if obj.name not in bodies:
-            continue
         tri = object_triangles(obj, task_path)
-        if tri is None:
+        if tri is not None:
+            out[obj.name] = np.asarray(tri, dtype=np.float64).reshape(-1, 3, 3)
+    return out
+
+
+def _mesh(tri: FloatArray, rgba: Sequence[int]) -> Any:
+    import rerun as rr
+
+    verts = np.asarray(tri, dtype=np.float32).reshape(-1, 3)
+    return rr.Mesh3D(
+        vertex_positions=verts,
+        triangle_indices=np.arange(verts.shape[0], dtype=np.uint32).reshape(-1, 3),
+        albedo_factor=[c / 255 for c in rgba],
+    )
+
+
+def _log_meshes(rec: Any, meshes: dict[str, FloatArray], bodies: Sequence[str]) -> int:
+    n = 0
+    for name, tri in meshes.items():
+        if name not in bodies:
             continue
-        verts = np.asarray(tri, dtype=np.float32).reshape(-1, 3)
-        rec.log(
-            f"{body_path(obj.name)}/mesh",
-            rr.Mesh3D(
-                vertex_positions=verts,
-                triangle_indices=np.arange(verts.shape[0], dtype=np.uint32).reshape(-1, 3),
-                albedo_factor=[0.75, 0.7, 0.6, 0.6],
-            ),
-            static=True,
-        )
+        rec.log(f"{body_path(name)}/mesh", _mesh(tri, (191, 178, 153, 153)), static=True)
         n += 1
     return n
 
@@ -286,10 +326,111 @@ def read_execution(path: Path) -> dict[str, Any]:
     q = np.asarray(doc["q"], dtype=np.float64)
     if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.size:
         raise FormatError(path, f"'q' must have one row per time: {q.shape} for {t.size} times")
+    if "base_pose" in doc and not _is_pose(doc["base_pose"]):
+        raise FormatError(
+            path, "'base_pose' must be {'pos': [x, y, z], 'quat': [x, y, z, w]}, finite, unit"
+        )
     return doc
 
 
-def _log_execution(rec: Any, doc: dict[str, Any], path: Path) -> int:
+def _is_pose(value: Any) -> bool:
+    """``{"pos": 3 finite numbers, "quat": 4 finite numbers of unit norm}``."""
+    if not isinstance(value, dict):
+        return False
+    try:
+        pos = np.asarray(value.get("pos"), dtype=np.float64)
+        quat = np.asarray(value.get("quat"), dtype=np.float64)
+    except (TypeError, ValueError):
+        return False
+    return (
+        pos.shape == (3,)
+        and quat.shape == (4,)
+        and bool(np.all(np.isfinite(pos)) and np.all(np.isfinite(quat)))
+        and abs(float(np.linalg.norm(quat)) - 1.0) < 1e-6
+    )
+
+
+def _robot_base(doc: dict[str, Any], replay: Demonstration | None) -> FloatArray | None:
+    """``T_world_root`` of the recorded arm: stored, else from the replay's tool frame."""
+    from thirdhand import se3
+    from thirdhand.execute.record import TOOL_BODY
+    from thirdhand.execute.robot import Robot
+
+    base = doc.get("base_pose")
+    if base is not None:
+        return se3.pose_to_matrix(np.asarray(base["pos"]), np.asarray(base["quat"]))
+    if replay is None or TOOL_BODY not in replay.body_names:
+        return None
+    from thirdhand.export.robot_model import base_from_tool
+
+    t = np.asarray(doc["t"], dtype=np.float64)
+    valid = np.flatnonzero(replay.valid(TOOL_BODY))
+    if valid.size == 0:
+        return None
+    k = int(valid[0])
+    j = int(np.argmin(np.abs(t - replay.t[k])))
+    if abs(t[j] - replay.t[k]) > 1e-3:  # the two files sample the same run at the same times
+        return None
+    tool = se3.pose_to_matrix(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
+    arm = Robot.load(str(doc["robot"]))
+    return base_from_tool(arm, np.asarray(doc["q"][j], dtype=np.float64), tool)
+
+
+def _robot_archetype(shape: Any) -> Any:
+    import rerun as rr
+
+    colour = [ROBOT_RGBA]
+    if shape.kind == "cylinder":
+        return rr.Cylinders3D(
+            lengths=[shape.size[1]], radii=[shape.size[0]], colors=colour, fill_mode="solid"
+        )
+    if shape.kind == "sphere":
+        r = float(shape.size[0])
+        return rr.Ellipsoids3D(half_sizes=[[r, r, r]], colors=colour, fill_mode="solid")
+    if shape.kind == "box":
+        return rr.Boxes3D(half_sizes=[shape.size], colors=colour, fill_mode="solid")
+    return rr.Mesh3D(
+        vertex_positions=np.asarray(shape.vertices, dtype=np.float32),
+        triangle_indices=shape.triangles,
+        albedo_factor=[c / 255 for c in ROBOT_RGBA],
+    )
+
+
+def _log_robot(rec: Any, doc: dict[str, Any], replay: Demonstration | None, path: Path) -> int:
+    """The arm's collision shapes over the run; 0 when the record names no known robot."""
+    import rerun as rr
+
+    from thirdhand import se3
+    from thirdhand.execute.robot import ROBOTS, Robot
+    from thirdhand.export.robot_model import robot_shapes, shape_transforms
+
+    name = doc.get("robot")
+    if name not in ROBOTS:
+        return 0
+    base = _robot_base(doc, replay)
+    if base is None:
+        return 0
+    arm = Robot.load(str(name), base_pose=se3.matrix_to_pose(base))
+    q = np.asarray(doc["q"], dtype=np.float64)
+    if q.shape[1] != arm.dof:
+        raise FormatError(path, f"'q' has {q.shape[1]} joints; {name} has {arm.dof}")
+    t = np.asarray(doc["t"], dtype=np.float64)
+    shapes = robot_shapes(arm)
+    poses = shape_transforms(arm, shapes, q)
+    for k, shape in enumerate(shapes):
+        entity = f"execution/robot/{rr.escape_entity_path_part(shape.name)}"
+        rec.log(entity, _robot_archetype(shape), static=True)
+        pos, quat = se3.matrix_to_pose(poses[:, k])
+        rec.send_columns(
+            entity,
+            indexes=[rr.TimeColumn(EXECUTION_TIMELINE, duration=t)],
+            columns=rr.Transform3D.columns(translation=pos, quaternion=quat),
+        )
+    return len(shapes)
+
+
+def _log_execution(rec: Any, doc: dict[str, Any], path: Path) -> tuple[int, int]:
+    """The joint scalars, the replay's bodies and the robot; (joints, robot shapes) written."""
     import rerun as rr
 
     t = np.asarray(doc["t"], dtype=np.float64)
@@ -301,12 +442,14 @@ def _log_execution(rec: Any, doc: dict[str, Any], path: Path) -> int:
             indexes=[rr.TimeColumn(EXECUTION_TIMELINE, duration=t)],
             columns=rr.Scalars.columns(scalars=q[:, j]),
         )
-    replay = path.with_suffix(".parquet")
-    if replay.is_file():
+    replay_path = path.with_suffix(".parquet")
+    replay = None
+    if replay_path.is_file():
         from thirdhand import io
 
-        _log_bodies(rec, io.load(replay), "execution/bodies", EXECUTION_TIMELINE, paths=False)
-    return q.shape[1]
+        replay = io.load(replay_path)
+        _log_bodies(rec, replay, "execution/bodies", EXECUTION_TIMELINE, paths=False)
+    return q.shape[1], _log_robot(rec, doc, replay, path)
 
 
 def write_rrd(
@@ -342,7 +485,7 @@ def write_rrd(
     -------
     dict
         Counts of what was written: ``bodies``, ``label_pairs``, ``segmented_pairs``,
-        ``keyframes``, ``constraints``, ``meshes``, ``joints``.
+        ``keyframes``, ``constraints``, ``meshes``, ``joints``, ``robot_shapes``.
 
     Raises
     ------
@@ -368,6 +511,7 @@ def write_rrd(
             "constraints",
             "meshes",
             "joints",
+            "robot_shapes",
         ),
         0,
     )
@@ -384,11 +528,13 @@ def write_rrd(
         if phases_doc is not None:
             counts["segmented_pairs"] = _log_segmented_phases(rec, phases_doc)
         if task is not None:
-            counts["keyframes"] = _log_keyframes(rec, task)
+            meshes = _object_meshes(task, task_path)
+            ghosts = {n: _mesh(tri, KEYFRAME_RGBA) for n, tri in meshes.items()}
+            counts["keyframes"] = _log_keyframes(rec, task, ghosts)
             counts["constraints"] = _log_constraints(rec, task, bodies)
-            counts["meshes"] = _log_meshes(rec, task, task_path, bodies)
+            counts["meshes"] = _log_meshes(rec, meshes, bodies)
         if exec_doc is not None and execution is not None:
-            counts["joints"] = _log_execution(rec, exec_doc, execution)
+            counts["joints"], counts["robot_shapes"] = _log_execution(rec, exec_doc, execution)
         rec.flush()
         rec.disconnect()
     return counts
