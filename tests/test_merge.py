@@ -62,6 +62,7 @@ def test_two_mm_noise_within_1ms_1mm_01deg(seed: int) -> None:
     """
     ref, other, truth = make_pair(noise_m=2 * MM, seed=seed)
     _, (al,) = merge([ref, other])
+    assert al.smoothed
     dt, dd, dp, da = _errors(al, truth)
     assert dt < 1 * MS and dp < 1 * MM and da < DEG
     assert dd < 40e-6
@@ -73,13 +74,15 @@ def test_smoothing_keeps_cubics_and_splits_at_missing_samples() -> None:
     t = np.arange(0.0, 2.0, 1 / 120)
     cubic = np.stack([t**3 - t, 0.5 * t**2, np.full_like(t, 0.3)], 1)
     # a cubic Savitzky-Golay filter reproduces a cubic exactly (rounding only)
-    assert np.abs(smooth_track(t, cubic) - cubic).max() < 1e-12
+    out, done = smooth_track(t, cubic)
+    assert done.all() and np.abs(out - cubic).max() < 1e-12
     noisy = cubic + np.random.default_rng(0).normal(0.0, 1e-3, cubic.shape)
-    assert np.std(smooth_track(t, noisy) - cubic) < 0.5 * np.std(noisy - cubic)
+    assert np.std(smooth_track(t, noisy)[0] - cubic) < 0.5 * np.std(noisy - cubic)
     # one missing sample ends a run; a run shorter than the 0.2 s window stays raw
     keep = np.ones(t.size, bool)
     keep[[10, 100]] = False
-    out = smooth_track(t[keep], noisy[keep])
+    out, done = smooth_track(t[keep], noisy[keep])
+    assert not done[:10].any() and done[10:98].all()
     assert np.array_equal(out[:10], noisy[keep][:10])
     assert not np.array_equal(out[10:98], noisy[keep][10:98])
 

@@ -57,9 +57,12 @@ TRIM_FLOOR_M = 1e-4
 MAX_REFINE_PAIRS = 20000
 #: Longest interval between two reference samples a pair may be interpolated across, s.
 PAIR_MAX_GAP_S = 0.1
-#: Span of the cubic Savitzky-Golay smoother applied to the reference's positions
-#: before the joint refinement interpolates them, seconds (see :func:`smooth_track`).
+#: Span of the cubic Savitzky-Golay smoother of the clock's last refinement, seconds
+#: (see :func:`smooth_track`).
 REF_SMOOTH_S = 0.2
+#: Smallest fraction of both recordings' shared-body samples the smoother must reach
+#: (in evenly spaced runs as long as its window) for that refinement to run.
+MIN_SMOOTHED_FRACTION = 0.8
 
 
 class MergeError(ThirdhandError, ValueError):
@@ -110,6 +113,9 @@ class Alignment:
         ``"motion"`` (estimated from the shared bodies), ``"given"`` (an option)
         or ``"start times"`` (the recordings' absolute start times).
     residuals : tuple of BodyResidual
+    smoothed : bool
+        The clock's last refinement ran on smoothed tracks of both recordings
+        (:func:`smooth_track`; only when both are evenly sampled enough).
     """
 
     offset_s: float
@@ -120,6 +126,7 @@ class Alignment:
     time_source: str = "given"
     frame_source: str = "given"
     residuals: tuple[BodyResidual, ...] = field(default_factory=tuple)
+    smoothed: bool = False
 
     def map_time(self, t: FloatArray) -> FloatArray:
         """Times of the other recording on the reference axis, seconds."""
@@ -410,7 +417,9 @@ def estimate_transform(
 
 
 # ---------------------------------------------------------------- refinement
-def smooth_track(t: FloatArray, pos: FloatArray, span_s: float = REF_SMOOTH_S) -> FloatArray:
+def smooth_track(
+    t: FloatArray, pos: FloatArray, span_s: float = REF_SMOOTH_S
+) -> tuple[FloatArray, NDArray[np.bool_]]:
     """Positions smoothed by a cubic Savitzky-Golay filter over ``span_s``, run by run.
 
     The joint refinement differentiates the reference's interpolated positions
@@ -432,13 +441,16 @@ def smooth_track(t: FloatArray, pos: FloatArray, span_s: float = REF_SMOOTH_S) -
 
     Returns
     -------
-    ndarray, shape (n, 3)
+    smoothed : ndarray, shape (n, 3)
+    done : ndarray of bool, shape (n,)
+        The samples the filter reached (the others are returned raw).
     """
     from scipy.signal import savgol_filter
 
     out = np.array(pos, dtype=np.float64, copy=True)
+    done = np.zeros(t.size, dtype=bool)
     if t.size < 5:
-        return out
+        return out, done
     dt = np.diff(t)
     step = float(np.median(dt))
     # the filter assumes even spacing: a missing sample ends a run
@@ -447,20 +459,24 @@ def smooth_track(t: FloatArray, pos: FloatArray, span_s: float = REF_SMOOTH_S) -
     for a, b in zip(np.r_[0, cuts], np.r_[cuts, t.size], strict=True):
         if b - a >= window:
             out[a:b] = savgol_filter(out[a:b], window, 3, axis=0)
-    return out
+            done[a:b] = True
+    return out, done
 
 
 def _smoothed(
     demo: Demonstration, bodies: Sequence[str], drop_t: dict[str, FloatArray]
-) -> Demonstration:
-    """``demo`` with the bodies' positions smoothed (:func:`smooth_track`), ``drop_t`` untracked."""
+) -> tuple[Demonstration, float]:
+    """The bodies with smoothed positions (``drop_t`` untracked), and the fraction smoothed."""
     tracks = {}
+    reached, total = 0, 0
     for body in bodies:
         v = demo.valid(body) & ~np.isin(demo.t, drop_t.get(body, np.zeros(0)))
         pos = np.full_like(demo.pos(body), np.nan)
-        pos[v] = smooth_track(demo.t[v], demo.pos(body)[v])
+        pos[v], done = smooth_track(demo.t[v], demo.pos(body)[v])
+        reached += int(done.sum())
+        total += int(v.sum())
         tracks[body] = (pos, demo.quat(body), v)
-    return demo.select(list(bodies)).replace(tracks=tracks)
+    return demo.select(list(bodies)).replace(tracks=tracks), reached / max(total, 1)
 
 
 def _refine(
@@ -637,12 +653,18 @@ def align(
         inl = r < max(TRIM_FACTOR * float(np.median(r)), TRIM_FLOOR_M)
         if transform is not None:
             inl = np.ones(r.size, bool)
+    smoothed = False
     if fit_time:
         # A last refinement on smoothed tracks of both recordings (the same filter on
         # each, the other's outlier samples dropped first): the clock is fitted to
-        # the motion's time derivative, which raw noisy samples swamp.
+        # the motion's time derivative, which raw noisy samples swamp. Only when the
+        # filter reaches most samples of both: smoothing one side and not the other
+        # (a gappy tracker's short runs stay raw) biases the fit instead.
         drop = {b: pairs.t[(pairs.body == i) & ~inl] for i, b in enumerate(bodies)}
-        ref_s, other_s = _smoothed(ref, bodies, {}), _smoothed(other, bodies, drop)
+        ref_s, f_ref = _smoothed(ref, bodies, {})
+        other_s, f_other = _smoothed(other, bodies, drop)
+        smoothed = min(f_ref, f_other) >= MIN_SMOOTHED_FRACTION
+    if smoothed:
         pairs_s = _pairs(ref_s, other_s, bodies, off, dr)
         r = _residual(pairs_s.x, pairs_s.x_ref, p, q)
         inl_s = r < max(TRIM_FACTOR * float(np.median(r)), TRIM_FLOOR_M)
@@ -670,6 +692,7 @@ def align(
         time_source=time_source,
         frame_source=frame_source,
         residuals=_residuals(bodies, pairs, inl, p, q),
+        smoothed=smoothed,
     )
 
 

@@ -147,7 +147,8 @@ def _float(option: str, text: str) -> float:
 
 def _summary(path: Path, al: Any) -> str:
     lines = [
-        f"{path}: t_ref = (1 {al.drift * 1e6:+.2f} ppm) t {al.offset_s:+.6f} s ({al.time_source}); "
+        f"{path}: t_ref = (1 {al.drift * 1e6:+.2f} ppm) t {al.offset_s:+.6f} s "
+        f"({al.time_source}{', smoothed tracks' if al.smoothed else ''}); "
         f"x_ref = R x + p, p = ({', '.join(f'{v:.4f}' for v in al.translation)}) m, "
         f"R = {al.rotation_deg:.3f}° ({al.frame_source})"
     ]
