@@ -154,6 +154,18 @@ def test_failed_writer_leaves_old_file_and_no_temporary(tmp_path: Path) -> None:
     assert listing(tmp_path) == ["x.bin"]
 
 
+def test_a_failed_write_removes_the_folders_made_for_it(tmp_path: Path) -> None:
+    (tmp_path / "kept").mkdir()
+    target = tmp_path / "kept" / "new" / "deeper" / "x.bin"
+    with pytest.raises(RuntimeError, match="half-way"), atomic_output(target) as tmp:
+        tmp.write_bytes(b"partial")
+        raise RuntimeError("half-way")
+    assert listing(tmp_path) == ["kept"] and listing(tmp_path / "kept") == []
+    with atomic_output(target) as tmp:  # a write that succeeds keeps them
+        tmp.write_bytes(b"whole")
+    assert target.read_bytes() == b"whole"
+
+
 def test_temporary_names_are_unique_per_writer(tmp_path: Path) -> None:
     target = tmp_path / "task.json"
     with atomic_output(target) as a, atomic_output(target) as b:

@@ -268,7 +268,8 @@ def atomic_output(
     ends without an exception, the result is flushed to disk, ``verify`` (if
     given) checks it, and it replaces the target; the previous target is kept as
     a numbered backup when ``backup``. On any exception (also Ctrl-C) the
-    temporary folder is removed and the target is left as it was.
+    temporary folder is removed and the target is left as it was. Missing
+    folders of the target are created, and removed again when the write fails.
 
     Raises
     ------
@@ -278,12 +279,15 @@ def atomic_output(
     """
     p = Path(path)
     folder = p.parent if str(p.parent) else Path(".")
+    created = _missing_folders(folder)
     try:
         folder.mkdir(parents=True, exist_ok=True)
         tmp_dir = Path(tempfile.mkdtemp(dir=folder, prefix=f".{p.name}.", suffix=".tmp"))
     except OSError as exc:
+        _remove_empty(created)
         raise OutputError(_message(p, exc)) from None
     built = tmp_dir / p.name
+    done = False
     try:
         try:
             yield built
@@ -293,10 +297,32 @@ def atomic_output(
             if verify is not None:
                 verify(built)
             _replace(built, p, backup=backup)
+            done = True
         except OSError as exc:
             raise OutputError(_message(p, exc)) from None
     finally:
         shutil.rmtree(tmp_dir, ignore_errors=True)
+        if not done:  # a failed write leaves no trace, not even the folders made for it
+            _remove_empty(created)
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """The folders ``mkdir(parents=True)`` of ``folder`` would create, outermost first."""
+    missing = []
+    f = folder
+    while not os.path.lexists(f) and f != f.parent:
+        missing.append(f)
+        f = f.parent
+    return missing[::-1]
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove ``folders`` (outermost first) from the innermost out, while they are empty."""
+    for f in reversed(folders):
+        try:
+            f.rmdir()
+        except OSError:
+            return
 
 
 def _write_all(fd: int, data: bytes) -> None:
