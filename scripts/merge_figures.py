@@ -36,6 +36,14 @@ CONDITIONS = {
     "0.5 mm noise": {"noise_m": 0.5e-3},
     "2 mm noise": {"noise_m": 2e-3},
     "0.5 mm + 10 % outliers + gaps": {"noise_m": 0.5e-3, "outliers": 0.1, "gaps": True},
+    "0.5 mm noise, --smooth": {"noise_m": 0.5e-3, "smooth": True},
+    "2 mm noise, --smooth": {"noise_m": 2e-3, "smooth": True},
+    "0.5 mm + outliers + gaps, --smooth": {
+        "noise_m": 0.5e-3,
+        "outliers": 0.1,
+        "gaps": True,
+        "smooth": True,
+    },
 }
 
 
@@ -53,9 +61,10 @@ def synthetic(seeds: int) -> dict[str, np.ndarray]:
     out = {}
     for name, kw in CONDITIONS.items():
         rows = []
+        pair = {k: v for k, v in kw.items() if k != "smooth"}
         for seed in range(seeds):
-            ref, other, truth = make_pair(seed=seed, **kw)  # type: ignore[arg-type]
-            _, (al,) = merge([ref, other])
+            ref, other, truth = make_pair(seed=seed, **pair)  # type: ignore[arg-type]
+            _, (al,) = merge([ref, other], smooth=bool(kw.get("smooth", False)))
             rows.append(errors(al, truth.offset_s, truth.drift, truth.translation, truth.rotation))
         out[name] = np.asarray(rows)
     return out
@@ -104,9 +113,16 @@ def real(data: Path) -> list[tuple[str, tuple[float, ...], float]]:
             io.save(copy, path)
             back = io.load(path)
             want = off + (1 + drift) * (copy.t[0] - back.t[0])
-            start = time.perf_counter()
-            _, (al,) = merge([ref, back])
-            rows.append((label, errors(al, want, drift, p_r, q_r), time.perf_counter() - start))
+            for smooth in (False, True):
+                start = time.perf_counter()
+                _, (al,) = merge([ref, back], smooth=smooth)
+                rows.append(
+                    (
+                        label + (", --smooth" if smooth else ""),
+                        errors(al, want, drift, p_r, q_r),
+                        time.perf_counter() - start,
+                    )
+                )
     return rows
 
 

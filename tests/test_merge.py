@@ -53,15 +53,15 @@ def test_noisy_pair_with_outliers_and_gaps_within_1ms_1mm_01deg(seed: int) -> No
 
 
 @pytest.mark.parametrize("seed", [0, 5])
-def test_two_mm_noise_within_1ms_1mm_01deg(seed: int) -> None:
-    """Noise twice the motion between samples: the clock from smoothed tracks still holds.
+def test_two_mm_noise_within_1ms_1mm_01deg_with_smoothing(seed: int) -> None:
+    """Noise twice the motion between samples: the clock from smoothed tracks (--smooth) holds.
 
     At 2 mm per axis and 0.1 m/s, one sample places its time to about 20 ms; over
     some 18,000 pairs the offset's standard error is of order 0.2 ms, and the
     drift's lever (27 s to the overlap's end) about doubles it: 1 ms is 2-3 of those.
     """
     ref, other, truth = make_pair(noise_m=2 * MM, seed=seed)
-    _, (al,) = merge([ref, other])
+    _, (al,) = merge([ref, other], smooth=True)
     assert al.smoothed
     dt, dd, dp, da = _errors(al, truth)
     assert dt < 1 * MS and dp < 1 * MM and da < DEG

@@ -65,6 +65,13 @@ def merge_command(
         ),
     ] = None,
     drift: Annotated[bool, typer.Option(help="Estimate a clock drift rate.")] = True,
+    smooth: Annotated[
+        bool,
+        typer.Option(
+            help="Fit the clock last on smoothed tracks (noisy, slow, evenly sampled "
+            "trackers; docs/merge.md)."
+        ),
+    ] = False,
     rate: Annotated[
         float | None, typer.Option(help="Output rate, Hz (default the highest).")
     ] = None,
@@ -116,6 +123,7 @@ def merge_command(
         offsets=offsets,
         transforms=transforms,
         fit_drift=drift,
+        smooth=smooth,
         rate=rate,
         max_gap=max_gap,
         sources=[str(p) for p in recordings],

@@ -193,6 +193,7 @@ def merge(
     offsets: Sequence[float | None] | None = None,
     transforms: Sequence[tuple[Sequence[float], Sequence[float]] | None] | None = None,
     fit_drift: bool = True,
+    smooth: bool = False,
     rate: float | None = None,
     max_gap: float = DEFAULT_MAX_GAP_S,
     sources: Sequence[str] | None = None,
@@ -209,7 +210,7 @@ def merge(
     offsets, transforms : sequence, optional
         Per recording after the first: a known clock offset (s) / world transform
         ``(p, q)``, or None to estimate it.
-    fit_drift, rate, max_gap, sources
+    fit_drift, smooth, rate, max_gap, sources
         See :func:`~thirdhand.merge.align.align` and :func:`combine`.
 
     Raises
@@ -262,6 +263,7 @@ def merge(
                 offset=offset,
                 transform=transforms[i],
                 fit_drift=fit_drift,
+                smooth=smooth,
             )
         except MergeError as exc:
             raise MergeError(f"{names[0]} + {names[i + 1]}: {exc}") from None
