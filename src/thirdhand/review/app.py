@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
+from thirdhand.review.access import AccessGate, is_loopback, new_token, shown_host, token_url
 from thirdhand.review.clarify import Question, clarification_queue
 from thirdhand.review.edits import (
     Confirm,
@@ -90,6 +91,10 @@ class ReviewApp:
         Execution records (``thirdhand execute --record OUT``) of this task, played
         back after the recordings on the same scene (the first one shown first);
         a record of another task is refused (:func:`~thirdhand.review.replay.load_replay`).
+    token : str, optional
+        Access token (:mod:`thirdhand.review.access`): a client must present it to
+        see the task or edit. Default: none on a loopback ``host``, a fresh random
+        one beyond loopback. :attr:`url` carries it.
 
     Attributes
     ----------
@@ -124,8 +129,13 @@ class ReviewApp:
         segment: bool = True,
         light_rendering: bool = False,
         replays: Sequence[str | os.PathLike[str]] = (),
+        token: str | None = None,
     ) -> None:
         self.task_path = Path(task_path)
+        if token is None and not is_loopback(host):
+            token = new_token()
+        #: Who may connect (None: anyone who reaches a loopback address).
+        self.gate = AccessGate(token) if token is not None else None
         self.host, self.requested_port = host, port
         self.meshes = [Path(m) for m in meshes]
         self.light_rendering = light_rendering
@@ -177,14 +187,22 @@ class ReviewApp:
 
     @property
     def url(self) -> str:
-        """Address of the web app."""
-        return f"http://{self.host}:{self.port}/"
+        """Address of the web app; beyond loopback it carries the access token."""
+        return self.url_for(shown_host(self.host))
+
+    def url_for(self, host: str) -> str:
+        """Address of the web app reached as ``host`` (with the token when one is asked)."""
+        if self.gate is None:
+            return f"http://{host}:{self.port}/"
+        return token_url(host, self.port, self.gate.token)
 
     def start(self) -> str:
         """Start the server (background threads), build the scene and panels; return the URL."""
         from thirdhand.review.panels import Panels
 
         self.server = viser.ViserServer(host=self.host, port=self.requested_port, verbose=False)
+        if self.gate is not None:
+            self.gate.install(self.server)
         self.server.scene.set_up_direction("+z")
         if self.light_rendering:
             self.server.scene.configure_environment_map(None)
@@ -232,6 +250,8 @@ class ReviewApp:
             self.server = None
 
     def _client_connected(self, client: viser.ClientHandle) -> None:
+        if self.gate is not None and not self.gate.allowed(client.client_id):
+            return
         position, look_at = self.camera_pose()
         client.camera.position = position
         client.camera.look_at = look_at
@@ -253,7 +273,11 @@ class ReviewApp:
         with self.lock:
             if client.client_id != self.editor:
                 return
-            others = sorted(c for c in self.server.get_clients() if c != client.client_id)
+            others = sorted(
+                c
+                for c in self.server.get_clients()
+                if c != client.client_id and (self.gate is None or self.gate.allowed(c))
+            )
             self.editor = others[0] if others else None
             heir = self.server.get_clients().get(self.editor) if self.editor is not None else None
         if heir is not None:
@@ -262,8 +286,15 @@ class ReviewApp:
             )
 
     def may_edit(self, client_id: int | None) -> bool:
-        """Whether the tab ``client_id`` may change the task (None: the server itself)."""
-        return client_id is None or self.editor is None or client_id == self.editor
+        """Whether the tab ``client_id`` may change the task (None: the server itself).
+
+        A client without the access token never may; of the others, the editing tab.
+        """
+        if client_id is None:
+            return True
+        if self.gate is not None and not self.gate.allowed(client_id):
+            return False
+        return self.editor is None or client_id == self.editor
 
     def replay_shown(self) -> Replay | None:
         """The execution record played back now (None: a recording of the person)."""

@@ -233,6 +233,12 @@ class Panels:
         target = getattr(event, "target", None)
         if target is not None and id(target) in self._last:
             target.value = self._last[id(target)]
+        gate = self.app.gate
+        if gate is not None and not gate.allowed(event.client_id):
+            event.client.add_notification(
+                "Refused", "This tab has no access token.", color="red", auto_close_seconds=6.0
+            )
+            return
         event.client.add_notification(
             "Read-only",
             "Another tab is editing this task; this one only shows it (one editor at a time). "
