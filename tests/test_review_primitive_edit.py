@@ -11,11 +11,19 @@ from __future__ import annotations
 
 import copy
 import json
+import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
+from tests.test_review_gui import (  # noqa: F401  (fixtures)
+    TIMEOUT_MS,
+    Review,
+    chair,
+    chromium_browser,
+    open_review,
+)
 
 from thirdhand.review.edits import EditError, SetPrimitivePoint, apply_edit
 from thirdhand.review.primitive_edit import (
@@ -29,7 +37,6 @@ from thirdhand.review.primitive_edit import (
     sample,
 )
 from thirdhand.review.session import ReviewSession
-from thirdhand.synth import make_scene
 from thirdhand.synth.task import truth_task
 from thirdhand.task.model import TaskFile
 from thirdhand.taskfile import load_task, save_task
@@ -38,10 +45,9 @@ TOL_M = 1e-3
 
 
 @pytest.fixture(scope="module")
-def task() -> TaskFile:
+def task(chair: Any) -> TaskFile:  # noqa: F811
     from thirdhand.primitives.stage import primitives_stage
 
-    chair = make_scene("chair", seed=0)
     t = truth_task(chair)
     t.stages["primitives"] = primitives_stage([chair])
     return t
@@ -169,3 +175,56 @@ def test_a_task_without_primitives_is_told(task: TaskFile) -> None:
     with pytest.raises(PrimitiveEditError, match="the task has no learned primitives"):
         primitive_path(None, "c1")
     assert key_for(None, "seating", "leg2") is None
+
+
+def _type(review: Review, name: str, text: str) -> None:
+    """Type into a key point field until the server has the text (the client throttles)."""
+    handle = review.app.panels.key_values[name]
+    for attempt in range(3):
+        field = review.text_input(f"key {name}")
+        if attempt:
+            field.fill("")
+        field.fill(text)
+        try:
+            review.wait_for(lambda: handle.value == text, f"the server to get {text!r}")
+            return
+        except AssertionError:
+            if attempt == 2:
+                raise
+
+
+@pytest.mark.slow
+def test_motion_key_point_moved_in_the_browser(open_review: Any, task: TaskFile) -> None:  # noqa: F811
+    """Select leg2: its learned motion is drawn with 3 key points; moving the second one
+    5 cm up refits the motion, and Save writes it with the effort log."""
+    review = open_review(task)
+    app = review.app
+    review.choose("Object", "leg2")
+    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    key = app.primitive_key()
+    assert key is not None and app.motion_view.shown == (key, 0)
+    review.page.locator("#th-motion").get_by_text("key point", exact=False).count()
+    review.choose("Key point", "2")
+    review.wait_for(lambda: app.key_point == 1, "key point 2 chosen")
+    assert app.motion_view.shown == (key, 1)
+    before = primitive_path(task.stages["primitives"], key)
+    z = before.key_points[1][2] + 0.05
+    _type(review, "z", f"{100.0 * z:.2f} cm")
+    review.button("Move key point").click()
+    review.wait_for(lambda: app.session.dirty, "the key point moved")
+    after = app.motion_path()
+    assert after is not None
+    target = before.key_points[1] + [0.0, 0.0, z - before.key_points[1][2]]
+    assert np.linalg.norm(after.key_points[1] - target) < 1e-3 + 5e-5  # + the typed rounding
+    np.testing.assert_allclose(app.motion_view.key_points, after.key_points)
+    review.page.get_by_text("1 key point move(s)").wait_for(timeout=TIMEOUT_MS)
+    review.page.locator("#th-message").get_by_text("key point 2 at").wait_for(timeout=TIMEOUT_MS)
+    time.sleep(1.0)  # software WebGL: let the path render before the screenshot
+    review.shot("primitive-edit")
+    review.button("Save").click()
+    review.wait_for(lambda: not app.session.dirty, "the save")
+    saved = load_task(review.path)
+    moved = primitive_path(saved.stages["primitives"], key)
+    np.testing.assert_allclose(moved.key_points, after.key_points)
+    effort = saved.stages["review"]["effort"]["operations"]
+    assert effort["leg2"]["primitive"] == 1

@@ -40,6 +40,7 @@ from thirdhand.review.edits import (
     SetParent,
     SetPose,
     SetPoseValue,
+    SetPrimitivePoint,
     describe_edit,
     parse_number,
     pose_values,
@@ -48,6 +49,8 @@ from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
 from thirdhand.review.focus import Focus, find_focus
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion, MotionEvents
+from thirdhand.review.primitive_edit import PrimitivePath, key_for, primitive_path
+from thirdhand.review.primitive_view import PrimitiveView
 from thirdhand.review.scene3d import (
     DofGlyphView,
     PartsView,
@@ -166,6 +169,9 @@ class ReviewApp:
         self.editor: int | None = None
         self.glyphs: DofGlyphView | None = None
         self.gizmo: DofGizmo | None = None
+        self.motion_view: PrimitiveView | None = None
+        #: The learned motion's key point the Motion panel moves (0-based).
+        self.key_point = 0
         self.panels: Any = None
         self.motion = Motion(self, [*self.demos, *(r.demo for r in self.replays)], segment=segment)
         if self.replays:  # the run first: it is what --replay asked to see
@@ -222,6 +228,7 @@ class ReviewApp:
         self.parts.on_click(self._clicked)
         self.glyphs = DofGlyphView(self.server.scene)
         self.gizmo = DofGizmo(self.server.scene, self.gizmo_moved)
+        self.motion_view = PrimitiveView(self.server.scene)
         self.panels = Panels(self)
         self.motion.events = MotionEvents(
             playback_entered=self._enter_playback,
@@ -268,18 +275,20 @@ class ReviewApp:
 
     def _client_disconnected(self, client: viser.ClientHandle) -> None:
         """The editing tab closed: the oldest other tab edits now, and is told so."""
-        if self.server is None:
+        server = self.server  # stop() may clear it meanwhile
+        if server is None:
             return
         with self.lock:
             if client.client_id != self.editor:
                 return
+            clients = server.get_clients()
             others = sorted(
                 c
-                for c in self.server.get_clients()
+                for c in clients
                 if c != client.client_id and (self.gate is None or self.gate.allowed(c))
             )
             self.editor = others[0] if others else None
-            heir = self.server.get_clients().get(self.editor) if self.editor is not None else None
+            heir = clients.get(self.editor) if self.editor is not None else None
         if heir is not None:
             heir.add_notification(
                 "You can edit now", "The editing tab closed.", color="green", auto_close_seconds=6.0
@@ -446,6 +455,49 @@ class ReviewApp:
                 raise ThirdhandError("select an object with a constraint first")
             current = pose_values(c)[name]
             self.apply(SetPoseValue(c.id, name, current + delta), operation=VALUE_OPERATION[name])
+
+    def primitive_key(self) -> str | None:
+        """The key of the selected constraint's learned motion (None: it has none)."""
+        c = self.constraint
+        if c is None:
+            return None
+        return key_for(self.task.stages.get("primitives"), c.parent, c.child)
+
+    def motion_path(self) -> PrimitivePath | None:
+        """The selected constraint's learned motion as a path with key points (parent frame)."""
+        key = self.primitive_key()
+        return None if key is None else primitive_path(self.task.stages["primitives"], key)
+
+    def choose_key_point(self, index: int) -> None:
+        """Choose the key point (0-based) the Motion panel moves."""
+        with self.lock:
+            path = self.motion_path()
+            if path is None:
+                raise ThirdhandError("select a part whose constraint has a learned motion first")
+            n = len(path.key_times)
+            if not 0 <= index < n:
+                raise ThirdhandError(f"no key point {index + 1}; the motion has {n}")
+            self.key_point = index
+            self.refresh()
+
+    def move_key_point(self, texts: dict[str, str]) -> None:
+        """Move the chosen key point of the selected motion: ``{"x": "12 cm", ...}``.
+
+        Parent frame; a bare number is in cm; a value not given stays. The motion
+        is refitted and saved in the task's primitives block (undoable, counted as
+        ``primitive`` in the effort log).
+        """
+        with self.lock:
+            path = self.motion_path()
+            if path is None:
+                raise ThirdhandError("select a part whose constraint has a learned motion first")
+            point = [float(v) for v in path.key_points[self.key_point]]
+            for k, name in enumerate("xyz"):
+                text = texts.get(name, "").strip()
+                if text:
+                    point[k] = parse_number(text, unit="cm")
+            edit = SetPrimitivePoint(path.key, self.key_point, (point[0], point[1], point[2]))
+            self.apply(edit, operation="primitive")
 
     def undo(self) -> None:
         """Undo the last edit."""
@@ -652,6 +704,8 @@ class ReviewApp:
     def _enter_playback(self) -> None:
         """The view shows the recording: the task's DOF glyphs and gizmo go away."""
         self.mode = "playback"
+        if self.motion_view is not None:
+            self.motion_view.clear()
         if self.glyphs is not None:
             self.glyphs.clear()
         if self.gizmo is not None:
@@ -672,6 +726,8 @@ class ReviewApp:
                 self.selected = None
         if self.mode == "playback" and self.motion.timelines:
             self.motion.place()
+            if self.motion_view is not None:
+                self.motion_view.clear()
             if self.glyphs is not None:
                 self.glyphs.clear()
             if self.gizmo is not None:
@@ -693,7 +749,10 @@ class ReviewApp:
         if c is None or child is None:
             self.glyphs.clear()
             self.gizmo.hide()
+            if self.motion_view is not None:
+                self.motion_view.clear()
             return
+        self._show_motion(c, poses)
         ap, aq = pose_compose(child.pos, child.quat, c.frame.pos, c.frame.quat)
         ranges = c.free_dof_array()
         classes = [
@@ -702,6 +761,20 @@ class ReviewApp:
         size = self.parts.extent.get(c.child, 0.1)
         self.glyphs.show(ap, aq, ranges, classes, size=size)
         self.gizmo.show(c, classes, size)
+
+    def _show_motion(self, c: Constraint, poses: dict[str, Any]) -> None:
+        """Draw the constraint's learned motion at its parent's pose (or nothing)."""
+        view = self.motion_view
+        if view is None:
+            return
+        path = self.motion_path()
+        parent = poses.get(c.parent)
+        if path is None or parent is None:
+            view.clear()
+            return
+        self.key_point = min(self.key_point, len(path.key_times) - 1)
+        size = self.parts.extent.get(c.child, 0.1) if self.parts is not None else 0.1
+        view.show(path, parent.pos, parent.quat, chosen=self.key_point, size=size)
 
     # ------------------------------------------------------------------ gizmo
     def gizmo_moved(self, move: GizmoMove) -> None:

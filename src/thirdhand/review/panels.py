@@ -21,6 +21,7 @@ from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
 from thirdhand.review.edits import SetDofRange, SetParent, parse_number, pose_values
 from thirdhand.review.playback import HAND_RGB, ROBOT_RGB
+from thirdhand.review.primitive_edit import KEY_FRACTIONS
 from thirdhand.review.scene3d import PARENT_RGB, SELECTED_RGB, hex_colour
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import DOF_NAMES
@@ -110,6 +111,25 @@ class Panels:
                 app.attempt(app.set_gizmo_edits, self.gizmo_edits.value) if _user(e) else None
             ),
         )
+
+        with gui.add_folder("Motion"):
+            # The learned motion (DMP rollout) of the selected part, drawn as a violet path
+            # with key points; moving one refits the motion.
+            self.motion_info = gui.add_html("")
+            self.key_point = gui.add_dropdown(
+                "Key point", [str(i + 1) for i in range(len(KEY_FRACTIONS))], initial_value="1"
+            )
+            self.key_values = {n: gui.add_text(f"key {n}", "") for n in "xyz"}
+            self.move_key = gui.add_button("Move key point")
+        self._on(
+            self.key_point.on_update,
+            lambda e: (
+                app.attempt(app.choose_key_point, int(self.key_point.value) - 1)
+                if _user(e)
+                else None
+            ),
+        )
+        self._on(self.move_key.on_click, lambda e: app.attempt(self._submit_key_point))
 
         with gui.add_folder("Keyframes"):
             self.plan = gui.add_html("")
@@ -201,7 +221,7 @@ class Panels:
             self.effort = gui.add_html("")
 
         # Typing in a read-only tab must not change what the editing tab will apply.
-        for text in (*self.values.values(), self.dof_lo, self.dof_hi):
+        for text in (*self.values.values(), *self.key_values.values(), self.dof_lo, self.dof_hi):
             text.on_update(self._typing_of(text))
         for choice in (
             self.object,
@@ -210,6 +230,7 @@ class Panels:
             self.new_parent,
             self.step,
             self.move_to,
+            self.key_point,
         ):
             self._last[id(choice)] = choice.value
         if self.time is not None:
@@ -301,6 +322,15 @@ class Panels:
         step = float(self.nudge.value)
         delta = step / 100.0 if name in ("x", "y", "z") else math.radians(step)
         self.app.attempt(self.app.nudge, name, delta)
+
+    def _submit_key_point(self) -> None:
+        changed = {
+            n: h.value for n, h in self.key_values.items() if h.value != self._shown.get(f"key {n}")
+        }
+        if not changed:
+            self.app.notify("no key point value changed")
+            return
+        self.app.move_key_point(changed)
 
     def _submit_range(self) -> None:
         c = self.app.constraint
@@ -468,6 +498,7 @@ class Panels:
             self._set(h, text)
             h.disabled = c is None
         self._fill_range()
+        self._fill_motion()
         self._set(self.new_parent, app.parent if app.parent is not None else NONE)
         labels = [step_label(i, s) for i, s in enumerate(app.task.plan)] or ["-"]
         self.step.options = labels
@@ -495,6 +526,19 @@ class Panels:
         app = self.app
         chosen = app.chosen_step if app.chosen_step is not None else 0
         self.timeline.content = timeline_html(app.task, chosen, app.step)
+
+    def _fill_motion(self) -> None:
+        app = self.app
+        path = app.motion_path() if app.constraint is not None else None
+        self.motion_info.content = _motion_html(app, path)
+        point = path.key_points[app.key_point] if path is not None else None
+        for k, (n, h) in enumerate(self.key_values.items()):
+            text = fmt_value(n, float(point[k])) if point is not None else ""
+            self._shown[f"key {n}"] = text
+            self._set(h, text)
+            h.disabled = path is None
+        self._set(self.key_point, str(app.key_point + 1))
+        self.move_key.disabled = path is None
 
     def _fill_range(self) -> None:
         c = self.app.constraint
@@ -563,6 +607,29 @@ def _constraint_html(c: Constraint | None) -> str:
         f'<div id="th-constraint" style="padding:0 0.75em;font-size:0.85em">'
         f"<b>{html.escape(c.id)}</b>: {c.type}, confidence {c.confidence:.2f}, {c.source}<br>"
         f"pose: {pose}<table>{''.join(rows)}</table></div>"
+    )
+
+
+def _motion_html(app: ReviewApp, path: Any) -> str:
+    """The selected part's learned motion: its key points (parent frame, cm) and edits."""
+    pad = 'style="padding:0 0.75em;font-size:0.85em"'
+    c = app.constraint
+    if c is None:
+        return f'<div id="th-motion" {pad}>select a part to see its learned motion</div>'
+    if path is None:
+        return f'<div id="th-motion" {pad}>{html.escape(c.child)}: no learned motion</div>'
+    entry = app.task.stages["primitives"]["constraints"][path.key]
+    rows = []
+    for i, (t, p) in enumerate(zip(path.key_times, path.key_points, strict=True)):
+        where = ", ".join(f"{100.0 * v:.1f}" for v in p)
+        mark = " ◀" if i == app.key_point else ""
+        rows.append(f"<tr><td>{i + 1}</td><td>{t:.1f} s</td><td>({where}) cm{mark}</td></tr>")
+    edits = len(entry.get("edits") or [])
+    said = f", {edits} key point move(s)" if edits else ""
+    return (
+        f'<div id="th-motion" {pad}><b>{html.escape(path.key)}</b>: {html.escape(c.child)} '
+        f"in {html.escape(c.parent)}'s frame, {path.s[-1]:.1f} s{said}"
+        f"<table>{''.join(rows)}</table></div>"
     )
 
 

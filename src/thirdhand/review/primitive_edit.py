@@ -54,7 +54,8 @@ class PrimitivePath:
     parent, child : str
     s : ndarray, shape (n,), seconds from the motion's start
     pos : ndarray, shape (n, 3), metres, parent frame
-    quat : ndarray, shape (n, 4), x y z w, parent frame
+        The position DMP's rollout (the orientation DMP, which an edit leaves as
+        it is, is not rolled out: its numerical integration takes seconds).
     key_times : ndarray, shape (k,), seconds
     key_points : ndarray, shape (k, 3), metres, parent frame
         The path's positions at ``key_times``.
@@ -65,7 +66,6 @@ class PrimitivePath:
     child: str
     s: FloatArray
     pos: FloatArray
-    quat: FloatArray
     key_times: FloatArray
     key_points: FloatArray
 
@@ -131,7 +131,7 @@ def primitive_path(
     """
     entry = primitive_entry(block, key)
     dmp = _pose_dmp(entry, key)
-    s, pos, quat = dmp.rollout()
+    s, pos, _ = dmp.position_.rollout()
     times = np.asarray(fractions, dtype=np.float64) * float(s[-1])
     return PrimitivePath(
         key=key,
@@ -139,7 +139,6 @@ def primitive_path(
         child=str(entry.get("child", "")),
         s=s,
         pos=pos,
-        quat=quat,
         key_times=times,
         key_points=sample(s, pos, times),
     )
