@@ -115,3 +115,32 @@ def test_label_file_round_trips_through_the_training_reader(chair: Any, tmp_path
     assert (tmp_path / "chair.labels.kvg.bak").is_file()
     with pytest.raises(PhaseLabelError, match="has no body 'nobody'"):
         phase_labels(chair, {(a, "nobody"): spans})
+
+
+def test_labelling_session_answers_and_marks(chair: Any, tmp_path: Path) -> None:
+    from thirdhand.review.phase_labels import PhaseLabelling
+
+    a, b = chair.labels.interaction_pairs()[0]
+    truth = pair_intervals(chair.labels, a, b)
+    edges = np.arange(0.0, 11.0)
+    p_ab = np.array([0.9, 0.5, 0.5, 0.95, 0.1, 0.7, 0.05, np.nan, 0.45, 0.0])
+    p_other = np.array([0.0, 0.0, 0.6, 0.6, 0.6, 0.6, 0.0, 0.0, 0.0, 0.0])
+    other = ("nobody-hand", "nobody-part")
+    s = PhaseLabelling(chair, [(a, b, p_ab, [(9.0, 9.5)]), (*other, p_other, [(2.0, 6.0)])], edges)
+    # The recording's labels start the labelled pair; the CRF's intervals the other.
+    assert s.labelled[(a, b)] == truth and s.labelled[other] == [(2.0, 6.0)]
+    assert [(q.b, q.start) for q in s.questions] == [(other[1], 2.0), (b, 1.0), (b, 8.0), (b, 5.0)]
+    s.mark((a, b), 7.5, 9.5, True)  # the person marks an interval first: 8..9 is not asked
+    nxt = s.answer(False)  # "no" to the other pair's 2..6 s
+    assert s.labelled[other] == [] and nxt is not None and (nxt.b, nxt.start) == (b, 1.0)
+    assert s.answer(True) is not None and (s.question.b, s.question.start) == (b, 5.0)  # type: ignore[union-attr]
+    assert s.answer(True) is None
+    assert s.labelled[(a, b)] == set_span(
+        set_span(set_span(truth, 7.5, 9.5, True), 1.0, 3.0, True), 5.0, 6.0, True
+    )
+    with pytest.raises(PhaseLabelError, match="no question left"):
+        s.answer(True)
+    with pytest.raises(PhaseLabelError, match="no pair x - y to label"):
+        s.mark(("x", "y"), 0.0, 1.0, True)
+    with pytest.raises(PhaseLabelError, match="has no body 'nobody-hand'"):
+        s.write(tmp_path / "x.kvg")

@@ -23,6 +23,7 @@ import os
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -233,9 +234,115 @@ def write_phase_labels(
     return p
 
 
+class PhaseLabelling:
+    """A person's labelling of interaction phases, question by question.
+
+    Parameters
+    ----------
+    demo : Demonstration
+    pairs : sequence of (a, b, probability, intervals)
+        Per pair, the CRF marginal (n_steps,) and its decoded intervals (s).
+    edges : ndarray, shape (n_steps + 1,), seconds
+        The latent axis's step edges.
+
+    Attributes
+    ----------
+    labelled : dict (a, b) -> list of (start, end)
+        The intervals so far: the recording's labels of the pair when it has
+        some, else the CRF's decoded intervals; then the person's answers and marks.
+    answered : dict (a, b) -> list of (start, end)
+        What the person answered or marked (not asked again).
+    questions : list of PhaseQuestion
+        The most uncertain first; ``index`` is the one asked.
+    """
+
+    def __init__(
+        self,
+        demo: Demonstration,
+        pairs: Sequence[tuple[str, str, FloatArray, Sequence[Span]]],
+        edges: FloatArray,
+    ) -> None:
+        from thirdhand.segment.intervals import pair_intervals
+
+        self.demo = demo
+        self.edges = np.asarray(edges, dtype=np.float64)
+        self.probability = {(a, b): np.asarray(p, dtype=np.float64) for a, b, p, _ in pairs}
+        self.labelled: dict[Pair, list[Span]] = {}
+        for a, b, _, decoded in pairs:
+            truth = pair_intervals(demo.labels, a, b)
+            self.labelled[(a, b)] = (
+                list(truth) if truth else [(float(s), float(e)) for s, e in decoded]
+            )
+        self.answered: dict[Pair, list[Span]] = {}
+        self.questions = active_questions(
+            [(a, b, p) for (a, b), p in self.probability.items()], self.edges
+        )
+        self.index = 0
+
+    @classmethod
+    def from_segmentation(
+        cls,
+        demo: Demonstration,
+        result: Any,
+        *,
+        kinds: Sequence[str] = ("finger-object", "hand-object"),
+    ) -> PhaseLabelling:
+        """From a :class:`~thirdhand.segment.pipeline.SegmentationResult` of ``demo``;
+        the pairs of ``kinds`` (hands and fingers with objects, what the labels hold)."""
+        pairs = [(p.a, p.b, p.probability, p.intervals) for p in result.pairs if p.kind in kinds]
+        if not pairs:
+            raise PhaseLabelError("the recording has no hand-object pair to label")
+        return cls(demo, pairs, result.edges)
+
+    @property
+    def pairs(self) -> list[Pair]:
+        """The pairs that can be labelled."""
+        return list(self.labelled)
+
+    @property
+    def question(self) -> PhaseQuestion | None:
+        """The question asked now (None: every one answered)."""
+        return self.questions[self.index] if self.index < len(self.questions) else None
+
+    def mark(self, pair: Pair, start: float, end: float, value: bool) -> None:
+        """Mark ``[start, end]`` s of ``pair`` interacting (``value``) or not.
+
+        Raises
+        ------
+        PhaseLabelError
+            An unknown pair, or a bad interval (:func:`set_span`).
+        """
+        if pair not in self.labelled:
+            raise PhaseLabelError(
+                f"no pair {pair[0]} - {pair[1]} to label; the pairs are "
+                + ", ".join(f"{a} - {b}" for a, b in self.labelled)
+            )
+        self.labelled[pair] = set_span(self.labelled[pair], start, end, value)
+        self.answered[pair] = set_span(self.answered.get(pair, []), start, end, True)
+
+    def answer(self, yes: bool) -> PhaseQuestion | None:
+        """Answer the question asked: its interval is (not) an interaction. The next one."""
+        q = self.question
+        if q is None:
+            raise PhaseLabelError("no question left: every uncertain interval is answered")
+        self.mark((q.a, q.b), q.start, q.end, yes)
+        self.index += 1
+        while self.question is not None and self._answered(self.question):
+            self.index += 1
+        return self.question
+
+    def _answered(self, q: PhaseQuestion) -> bool:
+        return any(s <= q.start and q.end <= e for s, e in self.answered.get((q.a, q.b), []))
+
+    def write(self, path: str | os.PathLike[str], *, force: bool = False) -> Path:
+        """Write the labels (every pair's) as a kvg file (:func:`write_phase_labels`)."""
+        return write_phase_labels(path, self.demo, self.labelled, force=force)
+
+
 __all__ = [
     "UNCERTAIN_BAND",
     "PhaseLabelError",
+    "PhaseLabelling",
     "PhaseQuestion",
     "active_questions",
     "phase_labels",
