@@ -144,3 +144,74 @@ def test_labelling_session_answers_and_marks(chair: Any, tmp_path: Path) -> None
         s.mark(("x", "y"), 0.0, 1.0, True)
     with pytest.raises(PhaseLabelError, match="has no body 'nobody-hand'"):
         s.write(tmp_path / "x.kvg")
+
+
+@pytest.mark.slow
+def test_phases_labelled_in_the_browser(chair: Any, tmp_path: Path) -> None:
+    """Start labelling a 15 s excerpt: the most uncertain interval is asked first with the
+    band; answer it, mark another interval by hand, save; segment train's reader reads it."""
+    from tests.test_review_gui import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, Review
+
+    if not CHROMIUM.exists():
+        pytest.skip(f"{CHROMIUM} not found: install Debian's chromium package for browser tests")
+    from playwright.sync_api import sync_playwright
+
+    from thirdhand import io
+    from thirdhand.review.app import ReviewApp
+    from thirdhand.segment.cli import _with_labels
+    from thirdhand.synth.task import truth_task
+    from thirdhand.taskfile import save_task
+
+    part = chair.slice(20.0, 35.0)
+    path = tmp_path / "chair.task.json"
+    save_task(truth_task(chair), path)
+    app = ReviewApp(path, demos=[part], port=0, light_rendering=True)
+    app.start()
+    try:
+        with sync_playwright() as pw:
+            browser = pw.chromium.launch(executable_path=str(CHROMIUM), args=CHROMIUM_ARGS)
+            try:
+                page = browser.new_page(viewport={"width": 1280, "height": 900})
+                page.goto(app.url)
+                page.get_by_role("button", name="Save", exact=True).wait_for(timeout=TIMEOUT_MS)
+                review = Review(app, page, path)
+                page.get_by_text("Label phases", exact=True).click()
+                review.button("Start labelling").click()
+                review.wait_for(lambda: app.labelling is not None, "the segmentation", 300.0)
+                s = app.labelling
+                assert s is not None
+                first = s.question
+                assert first is not None and first.score == max(q.score for q in s.questions)
+                assert app.label_pair == (first.a, first.b)
+                assert app.motion.time == pytest.approx(max(first.start, part.t[0]))
+                page.locator("#th-band-q").wait_for(timeout=TIMEOUT_MS)
+                page.get_by_text(first.text()).wait_for(timeout=TIMEOUT_MS)
+                notice = page.locator(".mantine-Notification-root", has_text="Software WebGL")
+                if notice.count():
+                    notice.locator("button").first.click()
+                page.locator("#th-phase-q").scroll_into_view_if_needed()
+                review.shot("phase-labels")
+                review.button("Interacting").click()
+                review.wait_for(lambda: s.index >= 1, "the answer")
+                pair = (first.a, first.b)
+                assert any(a <= first.start and first.end <= b for a, b in s.labelled[pair])
+                # Mark by hand: 22-23 s of the same pair is not an interaction.
+                app.motion.set_time(22.0)
+                review.button("From here").click()
+                review.wait_for(lambda: app.label_from == pytest.approx(22.0), "the mark")
+                app.motion.set_time(23.0)
+                review.button("not").click()
+                review.wait_for(lambda: app.label_from is None, "the marked interval")
+                assert not any(a < 22.9 and b > 22.1 for a, b in s.labelled[pair])
+                review.button("Save labels").click()
+                saved = tmp_path / "chair.task.phases.kvg"
+                review.wait_for(saved.is_file, "the label file")
+            finally:
+                browser.close()
+    finally:
+        app.stop()
+    recording = tmp_path / "part.parquet"
+    io.save(part, recording)
+    (demo,) = _with_labels([recording], [saved])
+    got = pair_intervals(demo.labels, *pair)
+    np.testing.assert_allclose(got, snap_to_frames(s.labelled[pair], part.t), atol=1e-9)

@@ -49,6 +49,7 @@ from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
 from thirdhand.review.focus import Focus, find_focus
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion, MotionEvents
+from thirdhand.review.phase_labels import PhaseLabelling, PhaseQuestion
 from thirdhand.review.primitive_edit import PrimitivePath, key_for, primitive_path
 from thirdhand.review.primitive_view import PrimitiveView
 from thirdhand.review.scene3d import (
@@ -169,6 +170,11 @@ class ReviewApp:
         self.editor: int | None = None
         self.glyphs: DofGlyphView | None = None
         self.gizmo: DofGizmo | None = None
+        #: Phase labelling for calibration (None until started), the pair whose band is
+        #: shown and where a marked interval starts (s).
+        self.labelling: PhaseLabelling | None = None
+        self.label_pair: tuple[str, str] | None = None
+        self.label_from: float | None = None
         self.motion_view: PrimitiveView | None = None
         #: The learned motion's key point the Motion panel moves (0-based).
         self.key_point = 0
@@ -685,6 +691,82 @@ class ReviewApp:
                 self.notify(f"Correct {q.constraint} in the Correct panel, then go on")
             self.question_index += 1
             return self._ask()
+
+    # ------------------------------------------------------------------ phase labelling
+    def start_labelling(self) -> PhaseQuestion | None:
+        """Segment the recording shown and ask about its most uncertain intervals first."""
+        with self.lock:
+            i = self.motion.demo_index
+            if i >= len(self.demos):
+                raise ThirdhandError("phases are labelled on a recording of the person (--demo)")
+            from thirdhand.segment import segment_demonstration
+
+            demo = self.demos[i]
+            self.labelling = PhaseLabelling.from_segmentation(demo, segment_demonstration(demo))
+            self.label_pair = self.labelling.pairs[0]
+            self.label_from = None
+            return self._ask_phase()
+
+    def _labelling(self) -> PhaseLabelling:
+        if self.labelling is None:
+            raise ThirdhandError("start labelling first")
+        return self.labelling
+
+    def _ask_phase(self) -> PhaseQuestion | None:
+        q = self._labelling().question
+        if q is None:
+            self.notify("Labelling: every uncertain interval answered")
+        else:
+            self.label_pair = (q.a, q.b)
+            self.motion.set_time(q.start)
+        self.refresh()
+        return q
+
+    def answer_phase(self, yes: bool) -> PhaseQuestion | None:
+        """Answer the phase question: its interval is (``yes``) or is not an interaction."""
+        with self.lock:
+            self._labelling().answer(yes)
+            return self._ask_phase()
+
+    def choose_label_pair(self, pair: tuple[str, str]) -> None:
+        """Show the band of ``pair`` (its marginal and labels)."""
+        with self.lock:
+            if pair not in self._labelling().pairs:
+                raise ThirdhandError(f"no pair {pair[0]} - {pair[1]} to label")
+            self.label_pair = pair
+            self.refresh()
+
+    def mark_from_here(self) -> None:
+        """The marked interval starts at the playback time."""
+        with self.lock:
+            self._labelling()
+            self.label_from = self.motion.time
+            self.say(f"labelling: from {self.label_from:.2f} s; play on, then mark to here")
+            self.refresh()
+
+    def mark_to_here(self, value: bool) -> None:
+        """Mark the shown pair interacting (``value``) or not from the mark to the playback time."""
+        with self.lock:
+            labelling = self._labelling()
+            if self.label_from is None or self.label_pair is None:
+                raise ThirdhandError("mark where the interval starts first (From here)")
+            a, b = sorted((self.label_from, self.motion.time))
+            labelling.mark(self.label_pair, a, b, value)
+            what = "interacting" if value else "not interacting"
+            self.say(
+                f"labelling: {self.label_pair[0]} - {self.label_pair[1]} {what} {a:.2f}-{b:.2f} s"
+            )
+            self.label_from = None
+            self.refresh()
+
+    def save_phase_labels(self) -> Path:
+        """Write the labels next to the task (``STEM.phases.kvg``; the previous one kept as
+        a numbered backup): ``thirdhand segment train/calibrate --labels`` reads it."""
+        with self.lock:
+            path = self.task_path.with_name(f"{self.task_path.stem}.phases.kvg")
+            out = self._labelling().write(path, force=True)
+            self.notify(f"Saved the phase labels in {out.name}")
+            return out
 
     # ------------------------------------------------------------------ animation & playback
     def animate_dofs(
