@@ -56,6 +56,7 @@ from thirdhand.review.scene3d import (
     DofGlyphView,
     PartsView,
     floor_height,
+    framed_view,
     front_view,
     selection_colours,
 )
@@ -504,6 +505,17 @@ class ReviewApp:
                     point[k] = parse_number(text, unit="cm")
             edit = SetPrimitivePoint(path.key, self.key_point, (point[0], point[1], point[2]))
             self.apply(edit, operation="primitive")
+
+    def frame_selection(self, client: viser.ClientHandle) -> None:
+        """Point ``client``'s camera at the selected part, from the direction it looks now."""
+        with self.lock:
+            if self.selected is None or self.parts is None:
+                raise ThirdhandError("select a part to frame first")
+            centre = self.parts.world_centroid(self.selected)
+            size = self.parts.extent.get(self.selected, 0.1)
+        eye, target = framed_view(client.camera.position, client.camera.look_at, centre, size)
+        client.camera.position = eye
+        client.camera.look_at = target
 
     def undo(self) -> None:
         """Undo the last edit."""

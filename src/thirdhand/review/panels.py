@@ -23,6 +23,7 @@ from thirdhand.review.edits import SetDofRange, SetParent, parse_number, pose_va
 from thirdhand.review.playback import HAND_RGB, ROBOT_RGB
 from thirdhand.review.primitive_edit import KEY_FRACTIONS
 from thirdhand.review.scene3d import PARENT_RGB, SELECTED_RGB, hex_colour
+from thirdhand.review.shortcuts import shortcuts_html
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import DOF_NAMES
 
@@ -65,6 +66,7 @@ class Panels:
         #: what a read-only tab's change is undone to.
         self._last: dict[int, Any] = {}
         self.status = gui.add_html("")
+        self.shortcuts = gui.add_html(shortcuts_html())
         self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
         self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
         self.save = gui.add_button("Save", icon=viser.Icon.DEVICE_FLOPPY)
@@ -82,8 +84,13 @@ class Panels:
             self.selection = gui.add_html("")
             self.info = gui.add_html("")
             self.animate = gui.add_button("Animate DOFs")
+            self.frame = gui.add_button("Frame selection")
         self._on(self.object.on_update, self._object_chosen)
         self._on(self.animate.on_click, lambda e: app.attempt(app.animate_dofs))
+        # Framing only moves the asking tab's camera: a read-only tab may frame too.
+        self.frame.on_click(
+            lambda e: app.attempt(app.frame_selection, e.client) if _user(e) else None
+        )
 
         with gui.add_folder("Correct"):
             # Plain inputs, not a form: the client sends a value and a form's "dirty"
