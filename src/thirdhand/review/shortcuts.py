@@ -53,7 +53,8 @@ def shortcuts_html() -> str:
         '<img alt="" src="data:," style="display:none" id="th-shortcuts" '
         f'onerror="{_LISTENER}">'
         '<div style="padding:0 0.75em;font-size:0.75em;color:#495057">'
-        "Ctrl+Z undo, Ctrl+Y redo, Ctrl+S save, F frame the selection</div>"
+        "Ctrl+Z undo, Ctrl+Y redo, Ctrl+S save, F frame the selection; in the 3D view "
+        "shift-click a part: new parent of the selection, ctrl-click: animate its DOFs</div>"
     )
 
 
