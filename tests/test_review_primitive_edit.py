@@ -228,3 +228,42 @@ def test_motion_key_point_moved_in_the_browser(open_review: Any, task: TaskFile)
     np.testing.assert_allclose(moved.key_points, after.key_points)
     effort = saved.stages["review"]["effort"]["operations"]
     assert effort["leg2"]["primitive"] == 1
+
+
+def test_dragging_the_key_point_handle_moves_it(task: TaskFile, tmp_path: Path) -> None:
+    from types import SimpleNamespace
+
+    from thirdhand.review.app import ReviewApp
+
+    path = tmp_path / "chair.task.json"
+    save_task(task, path)
+    app = ReviewApp(path, port=0, light_rendering=True)
+    app.start()
+    try:
+        app.select("leg2")
+        key = app.primitive_key()
+        view = app.motion_view
+        assert key is not None and view is not None and view.handle is not None
+        before = primitive_path(task.stages["primitives"], key)
+        np.testing.assert_allclose(view.handle.position, before.key_points[0])
+        app.choose_key_point(2)
+        np.testing.assert_allclose(view.handle.position, before.key_points[2])
+        target = before.key_points[2] + np.array([0.03, 0.0, 0.0])
+
+        def drag(phase: str, client_id: int | None) -> None:
+            moved = SimpleNamespace(position=tuple(target))
+            view.on_event(SimpleNamespace(phase=phase, target=moved, client_id=client_id))
+
+        drag("update", None)  # a drag previews nothing and changes nothing
+        assert not app.session.dirty
+        app.editor = 7  # another tab edits: this one's release is refused
+        drag("end", 8)
+        assert not app.session.dirty and "only views" in app.message
+        np.testing.assert_allclose(view.handle.position, before.key_points[2])
+        drag("end", 7)
+        after = app.motion_path()
+        assert after is not None and np.linalg.norm(after.key_points[2] - target) < TOL_M
+        assert app.session.effort.counts()["leg2"]["primitive"] == 1
+        np.testing.assert_allclose(view.handle.position, after.key_points[2])
+    finally:
+        app.stop()

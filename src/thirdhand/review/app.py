@@ -235,7 +235,7 @@ class ReviewApp:
         self.parts.on_click(self._clicked)
         self.glyphs = DofGlyphView(self.server.scene)
         self.gizmo = DofGizmo(self.server.scene, self.gizmo_moved)
-        self.motion_view = PrimitiveView(self.server.scene)
+        self.motion_view = PrimitiveView(self.server.scene, on_drag=self._key_point_dragged)
         self.panels = Panels(self)
         self.motion.events = MotionEvents(
             playback_entered=self._enter_playback,
@@ -516,6 +516,19 @@ class ReviewApp:
         eye, target = framed_view(client.camera.position, client.camera.look_at, centre, size)
         client.camera.position = eye
         client.camera.look_at = target
+
+    def _key_point_dragged(self, index: int, point: FloatArray, client_id: int | None) -> None:
+        """The key point's handle was released at ``point`` (m, parent frame)."""
+        if not self.may_edit(client_id):
+            self.notify("this tab only views: the key point stays", error=True)
+            with self.lock:
+                self.refresh()  # the handle goes back
+            return
+        key = self.primitive_key()
+        if key is None:
+            return
+        edit = SetPrimitivePoint(key, index, (float(point[0]), float(point[1]), float(point[2])))
+        self.attempt(self.apply, edit, operation="primitive")
 
     def undo(self) -> None:
         """Undo the last edit."""
