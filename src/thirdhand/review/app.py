@@ -31,6 +31,7 @@ from numpy.typing import NDArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
+from thirdhand.review.access import AccessGate, is_loopback, new_token, shown_host, token_url
 from thirdhand.review.clarify import Question, clarification_queue
 from thirdhand.review.edits import (
     Confirm,
@@ -39,6 +40,7 @@ from thirdhand.review.edits import (
     SetParent,
     SetPose,
     SetPoseValue,
+    SetPrimitivePoint,
     describe_edit,
     parse_number,
     pose_values,
@@ -47,10 +49,14 @@ from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
 from thirdhand.review.focus import Focus, find_focus
 from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
 from thirdhand.review.motion import Motion, MotionEvents
+from thirdhand.review.phase_labels import PhaseLabelling, PhaseQuestion
+from thirdhand.review.primitive_edit import PrimitivePath, key_for, primitive_path
+from thirdhand.review.primitive_view import PrimitiveView
 from thirdhand.review.scene3d import (
     DofGlyphView,
     PartsView,
     floor_height,
+    framed_view,
     front_view,
     selection_colours,
 )
@@ -90,6 +96,10 @@ class ReviewApp:
         Execution records (``thirdhand execute --record OUT``) of this task, played
         back after the recordings on the same scene (the first one shown first);
         a record of another task is refused (:func:`~thirdhand.review.replay.load_replay`).
+    token : str, optional
+        Access token (:mod:`thirdhand.review.access`): a client must present it to
+        see the task or edit. Default: none on a loopback ``host``, a fresh random
+        one beyond loopback. :attr:`url` carries it.
 
     Attributes
     ----------
@@ -124,8 +134,13 @@ class ReviewApp:
         segment: bool = True,
         light_rendering: bool = False,
         replays: Sequence[str | os.PathLike[str]] = (),
+        token: str | None = None,
     ) -> None:
         self.task_path = Path(task_path)
+        if token is None and not is_loopback(host):
+            token = new_token()
+        #: Who may connect (None: anyone who reaches a loopback address).
+        self.gate = AccessGate(token) if token is not None else None
         self.host, self.requested_port = host, port
         self.meshes = [Path(m) for m in meshes]
         self.light_rendering = light_rendering
@@ -156,6 +171,14 @@ class ReviewApp:
         self.editor: int | None = None
         self.glyphs: DofGlyphView | None = None
         self.gizmo: DofGizmo | None = None
+        #: Phase labelling for calibration (None until started), the pair whose band is
+        #: shown and where a marked interval starts (s).
+        self.labelling: PhaseLabelling | None = None
+        self.label_pair: tuple[str, str] | None = None
+        self.label_from: float | None = None
+        self.motion_view: PrimitiveView | None = None
+        #: The learned motion's key point the Motion panel moves (0-based).
+        self.key_point = 0
         self.panels: Any = None
         self.motion = Motion(self, [*self.demos, *(r.demo for r in self.replays)], segment=segment)
         if self.replays:  # the run first: it is what --replay asked to see
@@ -177,14 +200,22 @@ class ReviewApp:
 
     @property
     def url(self) -> str:
-        """Address of the web app."""
-        return f"http://{self.host}:{self.port}/"
+        """Address of the web app; beyond loopback it carries the access token."""
+        return self.url_for(shown_host(self.host))
+
+    def url_for(self, host: str) -> str:
+        """Address of the web app reached as ``host`` (with the token when one is asked)."""
+        if self.gate is None:
+            return f"http://{host}:{self.port}/"
+        return token_url(host, self.port, self.gate.token)
 
     def start(self) -> str:
         """Start the server (background threads), build the scene and panels; return the URL."""
         from thirdhand.review.panels import Panels
 
         self.server = viser.ViserServer(host=self.host, port=self.requested_port, verbose=False)
+        if self.gate is not None:
+            self.gate.install(self.server)
         self.server.scene.set_up_direction("+z")
         if self.light_rendering:
             self.server.scene.configure_environment_map(None)
@@ -204,6 +235,7 @@ class ReviewApp:
         self.parts.on_click(self._clicked)
         self.glyphs = DofGlyphView(self.server.scene)
         self.gizmo = DofGizmo(self.server.scene, self.gizmo_moved)
+        self.motion_view = PrimitiveView(self.server.scene, on_drag=self._key_point_dragged)
         self.panels = Panels(self)
         self.motion.events = MotionEvents(
             playback_entered=self._enter_playback,
@@ -232,6 +264,8 @@ class ReviewApp:
             self.server = None
 
     def _client_connected(self, client: viser.ClientHandle) -> None:
+        if self.gate is not None and not self.gate.allowed(client.client_id):
+            return
         position, look_at = self.camera_pose()
         client.camera.position = position
         client.camera.look_at = look_at
@@ -248,22 +282,35 @@ class ReviewApp:
 
     def _client_disconnected(self, client: viser.ClientHandle) -> None:
         """The editing tab closed: the oldest other tab edits now, and is told so."""
-        if self.server is None:
+        server = self.server  # stop() may clear it meanwhile
+        if server is None:
             return
         with self.lock:
             if client.client_id != self.editor:
                 return
-            others = sorted(c for c in self.server.get_clients() if c != client.client_id)
+            clients = server.get_clients()
+            others = sorted(
+                c
+                for c in clients
+                if c != client.client_id and (self.gate is None or self.gate.allowed(c))
+            )
             self.editor = others[0] if others else None
-            heir = self.server.get_clients().get(self.editor) if self.editor is not None else None
+            heir = clients.get(self.editor) if self.editor is not None else None
         if heir is not None:
             heir.add_notification(
                 "You can edit now", "The editing tab closed.", color="green", auto_close_seconds=6.0
             )
 
     def may_edit(self, client_id: int | None) -> bool:
-        """Whether the tab ``client_id`` may change the task (None: the server itself)."""
-        return client_id is None or self.editor is None or client_id == self.editor
+        """Whether the tab ``client_id`` may change the task (None: the server itself).
+
+        A client without the access token never may; of the others, the editing tab.
+        """
+        if client_id is None:
+            return True
+        if self.gate is not None and not self.gate.allowed(client_id):
+            return False
+        return self.editor is None or client_id == self.editor
 
     def replay_shown(self) -> Replay | None:
         """The execution record played back now (None: a recording of the person)."""
@@ -415,6 +462,73 @@ class ReviewApp:
                 raise ThirdhandError("select an object with a constraint first")
             current = pose_values(c)[name]
             self.apply(SetPoseValue(c.id, name, current + delta), operation=VALUE_OPERATION[name])
+
+    def primitive_key(self) -> str | None:
+        """The key of the selected constraint's learned motion (None: it has none)."""
+        c = self.constraint
+        if c is None:
+            return None
+        return key_for(self.task.stages.get("primitives"), c.parent, c.child)
+
+    def motion_path(self) -> PrimitivePath | None:
+        """The selected constraint's learned motion as a path with key points (parent frame)."""
+        key = self.primitive_key()
+        return None if key is None else primitive_path(self.task.stages["primitives"], key)
+
+    def choose_key_point(self, index: int) -> None:
+        """Choose the key point (0-based) the Motion panel moves."""
+        with self.lock:
+            path = self.motion_path()
+            if path is None:
+                raise ThirdhandError("select a part whose constraint has a learned motion first")
+            n = len(path.key_times)
+            if not 0 <= index < n:
+                raise ThirdhandError(f"no key point {index + 1}; the motion has {n}")
+            self.key_point = index
+            self.refresh()
+
+    def move_key_point(self, texts: dict[str, str]) -> None:
+        """Move the chosen key point of the selected motion: ``{"x": "12 cm", ...}``.
+
+        Parent frame; a bare number is in cm; a value not given stays. The motion
+        is refitted and saved in the task's primitives block (undoable, counted as
+        ``primitive`` in the effort log).
+        """
+        with self.lock:
+            path = self.motion_path()
+            if path is None:
+                raise ThirdhandError("select a part whose constraint has a learned motion first")
+            point = [float(v) for v in path.key_points[self.key_point]]
+            for k, name in enumerate("xyz"):
+                text = texts.get(name, "").strip()
+                if text:
+                    point[k] = parse_number(text, unit="cm")
+            edit = SetPrimitivePoint(path.key, self.key_point, (point[0], point[1], point[2]))
+            self.apply(edit, operation="primitive")
+
+    def frame_selection(self, client: viser.ClientHandle) -> None:
+        """Point ``client``'s camera at the selected part, from the direction it looks now."""
+        with self.lock:
+            if self.selected is None or self.parts is None:
+                raise ThirdhandError("select a part to frame first")
+            centre = self.parts.world_centroid(self.selected)
+            size = self.parts.extent.get(self.selected, 0.1)
+        eye, target = framed_view(client.camera.position, client.camera.look_at, centre, size)
+        client.camera.position = eye
+        client.camera.look_at = target
+
+    def _key_point_dragged(self, index: int, point: FloatArray, client_id: int | None) -> None:
+        """The key point's handle was released at ``point`` (m, parent frame)."""
+        if not self.may_edit(client_id):
+            self.notify("this tab only views: the key point stays", error=True)
+            with self.lock:
+                self.refresh()  # the handle goes back
+            return
+        key = self.primitive_key()
+        if key is None:
+            return
+        edit = SetPrimitivePoint(key, index, (float(point[0]), float(point[1]), float(point[2])))
+        self.attempt(self.apply, edit, operation="primitive")
 
     def undo(self) -> None:
         """Undo the last edit."""
@@ -603,6 +717,82 @@ class ReviewApp:
             self.question_index += 1
             return self._ask()
 
+    # ------------------------------------------------------------------ phase labelling
+    def start_labelling(self) -> PhaseQuestion | None:
+        """Segment the recording shown and ask about its most uncertain intervals first."""
+        with self.lock:
+            i = self.motion.demo_index
+            if i >= len(self.demos):
+                raise ThirdhandError("phases are labelled on a recording of the person (--demo)")
+            from thirdhand.segment import segment_demonstration
+
+            demo = self.demos[i]
+            self.labelling = PhaseLabelling.from_segmentation(demo, segment_demonstration(demo))
+            self.label_pair = self.labelling.pairs[0]
+            self.label_from = None
+            return self._ask_phase()
+
+    def _labelling(self) -> PhaseLabelling:
+        if self.labelling is None:
+            raise ThirdhandError("start labelling first")
+        return self.labelling
+
+    def _ask_phase(self) -> PhaseQuestion | None:
+        q = self._labelling().question
+        if q is None:
+            self.notify("Labelling: every uncertain interval answered")
+        else:
+            self.label_pair = (q.a, q.b)
+            self.motion.set_time(q.start)
+        self.refresh()
+        return q
+
+    def answer_phase(self, yes: bool) -> PhaseQuestion | None:
+        """Answer the phase question: its interval is (``yes``) or is not an interaction."""
+        with self.lock:
+            self._labelling().answer(yes)
+            return self._ask_phase()
+
+    def choose_label_pair(self, pair: tuple[str, str]) -> None:
+        """Show the band of ``pair`` (its marginal and labels)."""
+        with self.lock:
+            if pair not in self._labelling().pairs:
+                raise ThirdhandError(f"no pair {pair[0]} - {pair[1]} to label")
+            self.label_pair = pair
+            self.refresh()
+
+    def mark_from_here(self) -> None:
+        """The marked interval starts at the playback time."""
+        with self.lock:
+            self._labelling()
+            self.label_from = self.motion.time
+            self.say(f"labelling: from {self.label_from:.2f} s; play on, then mark to here")
+            self.refresh()
+
+    def mark_to_here(self, value: bool) -> None:
+        """Mark the shown pair interacting (``value``) or not from the mark to the playback time."""
+        with self.lock:
+            labelling = self._labelling()
+            if self.label_from is None or self.label_pair is None:
+                raise ThirdhandError("mark where the interval starts first (From here)")
+            a, b = sorted((self.label_from, self.motion.time))
+            labelling.mark(self.label_pair, a, b, value)
+            what = "interacting" if value else "not interacting"
+            self.say(
+                f"labelling: {self.label_pair[0]} - {self.label_pair[1]} {what} {a:.2f}-{b:.2f} s"
+            )
+            self.label_from = None
+            self.refresh()
+
+    def save_phase_labels(self) -> Path:
+        """Write the labels next to the task (``STEM.phases.kvg``; the previous one kept as
+        a numbered backup): ``thirdhand segment train/calibrate --labels`` reads it."""
+        with self.lock:
+            path = self.task_path.with_name(f"{self.task_path.stem}.phases.kvg")
+            out = self._labelling().write(path, force=True)
+            self.notify(f"Saved the phase labels in {out.name}")
+            return out
+
     # ------------------------------------------------------------------ animation & playback
     def animate_dofs(
         self, constraint_id: str | None = None, dofs: Iterable[str] = DOF_NAMES
@@ -621,6 +811,8 @@ class ReviewApp:
     def _enter_playback(self) -> None:
         """The view shows the recording: the task's DOF glyphs and gizmo go away."""
         self.mode = "playback"
+        if self.motion_view is not None:
+            self.motion_view.clear()
         if self.glyphs is not None:
             self.glyphs.clear()
         if self.gizmo is not None:
@@ -641,6 +833,8 @@ class ReviewApp:
                 self.selected = None
         if self.mode == "playback" and self.motion.timelines:
             self.motion.place()
+            if self.motion_view is not None:
+                self.motion_view.clear()
             if self.glyphs is not None:
                 self.glyphs.clear()
             if self.gizmo is not None:
@@ -662,7 +856,10 @@ class ReviewApp:
         if c is None or child is None:
             self.glyphs.clear()
             self.gizmo.hide()
+            if self.motion_view is not None:
+                self.motion_view.clear()
             return
+        self._show_motion(c, poses)
         ap, aq = pose_compose(child.pos, child.quat, c.frame.pos, c.frame.quat)
         ranges = c.free_dof_array()
         classes = [
@@ -671,6 +868,20 @@ class ReviewApp:
         size = self.parts.extent.get(c.child, 0.1)
         self.glyphs.show(ap, aq, ranges, classes, size=size)
         self.gizmo.show(c, classes, size)
+
+    def _show_motion(self, c: Constraint, poses: dict[str, Any]) -> None:
+        """Draw the constraint's learned motion at its parent's pose (or nothing)."""
+        view = self.motion_view
+        if view is None:
+            return
+        path = self.motion_path()
+        parent = poses.get(c.parent)
+        if path is None or parent is None:
+            view.clear()
+            return
+        self.key_point = min(self.key_point, len(path.key_times) - 1)
+        size = self.parts.extent.get(c.child, 0.1) if self.parts is not None else 0.1
+        view.show(path, parent.pos, parent.quat, chosen=self.key_point, size=size)
 
     # ------------------------------------------------------------------ gizmo
     def gizmo_moved(self, move: GizmoMove) -> None:

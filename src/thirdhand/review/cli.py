@@ -22,7 +22,11 @@ def review_command(
     ] = None,
     port: Annotated[int, typer.Option(help="Port (the next free one if busy).")] = 8080,
     host: Annotated[
-        str, typer.Option(help="Address to bind; 0.0.0.0 serves the whole network.")
+        str,
+        typer.Option(
+            help="Address to bind; 0.0.0.0 serves the whole network. Beyond loopback an "
+            "access token is asked, carried by the URL printed at start."
+        ),
     ] = "127.0.0.1",
     meshes: Annotated[
         list[Path] | None,

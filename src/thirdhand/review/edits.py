@@ -123,7 +123,21 @@ class Confirm:
     dof: str | None = None
 
 
-Edit = SetPose | SetPoseValue | SetDofRange | SetParent | MoveStep | Confirm
+@dataclass(frozen=True)
+class SetPrimitivePoint:
+    """Move key point ``index`` of the learned motion ``key`` to ``pos`` (m, parent frame).
+
+    The primitive is refitted (:func:`~thirdhand.review.primitive_edit.move_key_point`)
+    and saved in the task's ``stages["primitives"]`` block; its start, goal and
+    orientation stay.
+    """
+
+    key: str
+    index: int
+    pos: tuple[float, float, float]
+
+
+Edit = SetPose | SetPoseValue | SetDofRange | SetParent | MoveStep | Confirm | SetPrimitivePoint
 
 _NUMBER = re.compile(r"^\s*([+-]?(?:\d+(?:[.,]\d*)?|[.,]\d+)(?:[eE][+-]?\d+)?)\s*([A-Za-z°µ]*)\s*$")
 _LENGTH = {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "µm": 1e-6, "um": 1e-6}
@@ -522,6 +536,32 @@ def _confirm(task: TaskFile, e: Confirm, rec: _Recorder) -> None:
         entry.append(what)
 
 
+def _set_primitive_point(task: TaskFile, e: SetPrimitivePoint, rec: _Recorder) -> None:
+    from thirdhand.review.primitive_edit import PrimitiveEditError, move_key_point, primitive_path
+
+    what = f"primitive {e.key!r} key point {e.index + 1}"
+    pos = [_finite(v, f"{what} {axis}") for v, axis in zip(e.pos, "xyz", strict=True)]
+    far = max(abs(v) for v in pos)
+    if far > PLAUSIBLE_OFFSET_M:
+        raise EditError(
+            f"{what}: {far:g} m from the parent is not plausible "
+            f"(a part within {PLAUSIBLE_OFFSET_M:g} m of its parent expected)"
+        )
+    block = task.stages.get("primitives")
+    try:
+        old = primitive_path(block, e.key).key_points
+        new = move_key_point(block, e.key, e.index, pos)
+    except PrimitiveEditError as exc:
+        raise EditError(str(exc)) from None
+    task.stages["primitives"] = new
+    rec(
+        f"stages.primitives.constraints.{e.key}.key_points[{e.index}]",
+        [float(v) for v in old[e.index]],
+        pos,
+        parameter="primitive",
+    )
+
+
 def _shown(name: str, value: float) -> str:
     """A value as the panels show it: centimetres for a translation, degrees for a rotation."""
     if name in ("x", "y", "z") or name.startswith("t"):
@@ -544,6 +584,9 @@ def describe_edit(edit: Edit) -> str:
         return f"{edit.child} now on {edit.parent}"
     if isinstance(edit, MoveStep):
         return f"step {edit.index + 1} moved to position {edit.new_index + 1}"
+    if isinstance(edit, SetPrimitivePoint):
+        where = ", ".join(f"{100.0 * v:.2f}" for v in edit.pos)
+        return f"{edit.key} motion: key point {edit.index + 1} at ({where}) cm"
     what = f" {edit.dof}" if edit.dof is not None else ""
     return f"{edit.constraint}{what} confirmed"
 
@@ -554,7 +597,7 @@ def apply_edit(task: TaskFile, edit: Edit, *, who: str = "user") -> TaskFile:
     Parameters
     ----------
     task : TaskFile
-    edit : SetPose, SetPoseValue, SetDofRange, SetParent, MoveStep or Confirm
+    edit : SetPose, SetPoseValue, SetDofRange, SetParent, MoveStep, Confirm or SetPrimitivePoint
     who : str
         Recorded as the author of the provenance corrections.
 
@@ -586,6 +629,8 @@ def apply_edit(task: TaskFile, edit: Edit, *, who: str = "user") -> TaskFile:
         _move_step(new, edit, rec)
     elif isinstance(edit, Confirm):
         _confirm(new, edit, rec)
+    elif isinstance(edit, SetPrimitivePoint):
+        _set_primitive_point(new, edit, rec)
     else:
         raise EditError(f"unknown edit {edit!r}")
     for i in rec.changed:

@@ -3,8 +3,9 @@
 The 3rdHand IROS 2015 user study logged, per object, the operations people made in
 the correction GUI (``click``, ``movex``/``y``/``z``, ``rotx``/``y``/``z``,
 ``parent``, ``reordering``, ``kfviews``); :class:`EffortLog` counts the same ones
-(plus ``range`` and ``confirm``) and :func:`changed_parameters` the parameters
-that differ between two tasks, in the report's unit (see ``docs/review.md``).
+(plus ``range``, ``confirm`` and ``primitive``, a moved key point of a learned
+motion) and :func:`changed_parameters` the parameters that differ between two
+tasks, in the report's unit (see ``docs/review.md``).
 """
 
 from __future__ import annotations
@@ -22,12 +23,14 @@ from thirdhand.review.edits import (
     SetParent,
     SetPose,
     SetPoseValue,
+    SetPrimitivePoint,
     pose_values,
 )
 from thirdhand.task.geometry import DOF_NAMES
 from thirdhand.task.model import TaskFile
 
-#: GUI operations counted per object (those of the IROS'15 study, then ``range``, ``confirm``).
+#: GUI operations counted per object (the IROS'15 study's, then ``range``, ``confirm``,
+#: ``primitive``).
 OPERATIONS: tuple[str, ...] = (
     "click",
     "movex",
@@ -41,6 +44,7 @@ OPERATIONS: tuple[str, ...] = (
     "kfviews",
     "range",
     "confirm",
+    "primitive",
 )
 #: Object name under which plan-wide operations (reordering, keyframe views) are counted.
 ACTIONS = "actions"
@@ -70,6 +74,8 @@ def operation_of(edit: Edit) -> str:
         return "reordering"
     if isinstance(edit, Confirm):
         return "confirm"
+    if isinstance(edit, SetPrimitivePoint):
+        return "primitive"
     raise ThirdhandError(f"unknown edit {edit!r}")
 
 

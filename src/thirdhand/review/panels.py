@@ -21,7 +21,9 @@ from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
 from thirdhand.review.edits import SetDofRange, SetParent, parse_number, pose_values
 from thirdhand.review.playback import HAND_RGB, ROBOT_RGB
+from thirdhand.review.primitive_edit import KEY_FRACTIONS
 from thirdhand.review.scene3d import PARENT_RGB, SELECTED_RGB, hex_colour
+from thirdhand.review.shortcuts import shortcuts_html
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import DOF_NAMES
 
@@ -64,6 +66,7 @@ class Panels:
         #: what a read-only tab's change is undone to.
         self._last: dict[int, Any] = {}
         self.status = gui.add_html("")
+        self.shortcuts = gui.add_html(shortcuts_html())
         self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
         self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
         self.save = gui.add_button("Save", icon=viser.Icon.DEVICE_FLOPPY)
@@ -81,8 +84,13 @@ class Panels:
             self.selection = gui.add_html("")
             self.info = gui.add_html("")
             self.animate = gui.add_button("Animate DOFs")
+            self.frame = gui.add_button("Frame selection")
         self._on(self.object.on_update, self._object_chosen)
         self._on(self.animate.on_click, lambda e: app.attempt(app.animate_dofs))
+        # Framing only moves the asking tab's camera: a read-only tab may frame too.
+        self.frame.on_click(
+            lambda e: app.attempt(app.frame_selection, e.client) if _user(e) else None
+        )
 
         with gui.add_folder("Correct"):
             # Plain inputs, not a form: the client sends a value and a form's "dirty"
@@ -110,6 +118,25 @@ class Panels:
                 app.attempt(app.set_gizmo_edits, self.gizmo_edits.value) if _user(e) else None
             ),
         )
+
+        with gui.add_folder("Motion"):
+            # The learned motion (DMP rollout) of the selected part, drawn as a violet path
+            # with key points; moving one refits the motion.
+            self.motion_info = gui.add_html("")
+            self.key_point = gui.add_dropdown(
+                "Key point", [str(i + 1) for i in range(len(KEY_FRACTIONS))], initial_value="1"
+            )
+            self.key_values = {n: gui.add_text(f"key {n}", "") for n in "xyz"}
+            self.move_key = gui.add_button("Move key point")
+        self._on(
+            self.key_point.on_update,
+            lambda e: (
+                app.attempt(app.choose_key_point, int(self.key_point.value) - 1)
+                if _user(e)
+                else None
+            ),
+        )
+        self._on(self.move_key.on_click, lambda e: app.attempt(self._submit_key_point))
 
         with gui.add_folder("Keyframes"):
             self.plan = gui.add_html("")
@@ -197,11 +224,36 @@ class Panels:
                 ),
             )
 
+        self.label_band = None
+        if app.demos:
+            with gui.add_folder("Label phases", expand_by_default=False):
+                # The CRF's marginal of a pair as a band, the labels under it; the most
+                # uncertain intervals are asked first (calibration labels for segment train).
+                self.start_labels = gui.add_button("Start labelling")
+                self.label_pair = gui.add_dropdown("Pair", ["-"], initial_value="-")
+                self.label_band = gui.add_html("")
+                self.phase_question = gui.add_html("")
+                self.phase_yes = gui.add_button("Interacting", color="green", visible=False)
+                self.phase_no = gui.add_button("Not interacting", color="red", visible=False)
+                self.mark_from = gui.add_button("From here")
+                self.mark_to = gui.add_button_group("To here", ("interacting", "not"))
+                self.save_labels = gui.add_button("Save labels")
+            self._on(self.start_labels.on_click, lambda e: app.attempt(app.start_labelling))
+            self._on(self.phase_yes.on_click, lambda e: app.attempt(app.answer_phase, True))
+            self._on(self.phase_no.on_click, lambda e: app.attempt(app.answer_phase, False))
+            self._on(self.mark_from.on_click, lambda e: app.attempt(app.mark_from_here))
+            self._on(
+                self.mark_to.on_click,
+                lambda e: app.attempt(app.mark_to_here, self.mark_to.value == "interacting"),
+            )
+            self._on(self.save_labels.on_click, lambda e: app.attempt(app.save_phase_labels))
+            self._on(self.label_pair.on_update, self._label_pair_chosen)
+
         with gui.add_folder("Effort", expand_by_default=False):
             self.effort = gui.add_html("")
 
         # Typing in a read-only tab must not change what the editing tab will apply.
-        for text in (*self.values.values(), self.dof_lo, self.dof_hi):
+        for text in (*self.values.values(), *self.key_values.values(), self.dof_lo, self.dof_hi):
             text.on_update(self._typing_of(text))
         for choice in (
             self.object,
@@ -210,6 +262,7 @@ class Panels:
             self.new_parent,
             self.step,
             self.move_to,
+            self.key_point,
         ):
             self._last[id(choice)] = choice.value
         if self.time is not None:
@@ -233,6 +286,12 @@ class Panels:
         target = getattr(event, "target", None)
         if target is not None and id(target) in self._last:
             target.value = self._last[id(target)]
+        gate = self.app.gate
+        if gate is not None and not gate.allowed(event.client_id):
+            event.client.add_notification(
+                "Refused", "This tab has no access token.", color="red", auto_close_seconds=6.0
+            )
+            return
         event.client.add_notification(
             "Read-only",
             "Another tab is editing this task; this one only shows it (one editor at a time). "
@@ -295,6 +354,55 @@ class Panels:
         step = float(self.nudge.value)
         delta = step / 100.0 if name in ("x", "y", "z") else math.radians(step)
         self.app.attempt(self.app.nudge, name, delta)
+
+    def _label_pair_chosen(self, event: Any) -> None:
+        value = self.label_pair.value
+        if _user(event) and " - " in value:
+            a, b = value.split(" - ", 1)
+            self.app.attempt(self.app.choose_label_pair, (a, b))
+
+    def _fill_labelling(self) -> None:
+        app = self.app
+        if self.label_band is None:
+            return
+        s = app.labelling
+        if s is None or app.label_pair is None:
+            self.label_band.content = ""
+            self.phase_question.content = ""
+            self.phase_yes.visible = self.phase_no.visible = False
+            return
+        options = tuple(f"{a} - {b}" for a, b in s.pairs)
+        if tuple(self.label_pair.options) != options:
+            self.label_pair.options = options
+        self._set(self.label_pair, f"{app.label_pair[0]} - {app.label_pair[1]}")
+        self._last[id(self.label_pair)] = self.label_pair.value
+        tl = app.motion.timelines[app.motion.demo_index]
+        q = s.question
+        shown = q if q is not None and (q.a, q.b) == app.label_pair else None
+        self.label_band.content = band_html(
+            s.probability[app.label_pair],
+            s.edges,
+            s.labelled[app.label_pair],
+            span=(tl.start, tl.end),
+            question=(shown.start, shown.end) if shown is not None else None,
+            mark=app.label_from,
+        )
+        left = len(s.questions) - s.index
+        text = q.text() if q is not None else "every uncertain interval answered"
+        self.phase_question.content = (
+            f'<div id="th-phase-q" style="padding:0 0.75em;font-size:0.85em">'
+            f"{html.escape(text)}<br>{max(left, 0)} question(s) left</div>"
+        )
+        self.phase_yes.visible = self.phase_no.visible = q is not None
+
+    def _submit_key_point(self) -> None:
+        changed = {
+            n: h.value for n, h in self.key_values.items() if h.value != self._shown.get(f"key {n}")
+        }
+        if not changed:
+            self.app.notify("no key point value changed")
+            return
+        self.app.move_key_point(changed)
 
     def _submit_range(self) -> None:
         c = self.app.constraint
@@ -462,6 +570,8 @@ class Panels:
             self._set(h, text)
             h.disabled = c is None
         self._fill_range()
+        self._fill_motion()
+        self._fill_labelling()
         self._set(self.new_parent, app.parent if app.parent is not None else NONE)
         labels = [step_label(i, s) for i, s in enumerate(app.task.plan)] or ["-"]
         self.step.options = labels
@@ -489,6 +599,19 @@ class Panels:
         app = self.app
         chosen = app.chosen_step if app.chosen_step is not None else 0
         self.timeline.content = timeline_html(app.task, chosen, app.step)
+
+    def _fill_motion(self) -> None:
+        app = self.app
+        path = app.motion_path() if app.constraint is not None else None
+        self.motion_info.content = _motion_html(app, path)
+        point = path.key_points[app.key_point] if path is not None else None
+        for k, (n, h) in enumerate(self.key_values.items()):
+            text = fmt_value(n, float(point[k])) if point is not None else ""
+            self._shown[f"key {n}"] = text
+            self._set(h, text)
+            h.disabled = path is None
+        self._set(self.key_point, str(app.key_point + 1))
+        self.move_key.disabled = path is None
 
     def _fill_range(self) -> None:
         c = self.app.constraint
@@ -557,6 +680,90 @@ def _constraint_html(c: Constraint | None) -> str:
         f'<div id="th-constraint" style="padding:0 0.75em;font-size:0.85em">'
         f"<b>{html.escape(c.id)}</b>: {c.type}, confidence {c.confidence:.2f}, {c.source}<br>"
         f"pose: {pose}<table>{''.join(rows)}</table></div>"
+    )
+
+
+def _motion_html(app: ReviewApp, path: Any) -> str:
+    """The selected part's learned motion: its key points (parent frame, cm) and edits."""
+    pad = 'style="padding:0 0.75em;font-size:0.85em"'
+    c = app.constraint
+    if c is None:
+        return f'<div id="th-motion" {pad}>select a part to see its learned motion</div>'
+    if path is None:
+        return f'<div id="th-motion" {pad}>{html.escape(c.child)}: no learned motion</div>'
+    entry = app.task.stages["primitives"]["constraints"][path.key]
+    rows = []
+    for i, (t, p) in enumerate(zip(path.key_times, path.key_points, strict=True)):
+        where = ", ".join(f"{100.0 * v:.1f}" for v in p)
+        mark = " ◀" if i == app.key_point else ""
+        rows.append(f"<tr><td>{i + 1}</td><td>{t:.1f} s</td><td>({where}) cm{mark}</td></tr>")
+    edits = len(entry.get("edits") or [])
+    said = f", {edits} key point move(s)" if edits else ""
+    return (
+        f'<div id="th-motion" {pad}><b>{html.escape(path.key)}</b>: {html.escape(c.child)} '
+        f"in {html.escape(c.parent)}'s frame, {path.s[-1]:.1f} s{said}"
+        f"<table>{''.join(rows)}</table></div>"
+    )
+
+
+def band_html(
+    probability: Any,
+    edges: Any,
+    labelled: list[tuple[float, float]],
+    *,
+    span: tuple[float, float],
+    question: tuple[float, float] | None = None,
+    mark: float | None = None,
+    segments: int = 200,
+) -> str:
+    """A pair's CRF marginal as a band (violet, opaque where p = 1, grey where unknown) over
+    the recording's time ``span`` (s), its labelled intervals as green bars under it, the
+    interval asked about outlined in orange, and a started mark as a line."""
+    import numpy as np
+
+    t0, t1 = span
+    width = max(t1 - t0, 1e-9)
+    p = np.asarray(probability, dtype=np.float64)
+    centres = 0.5 * (np.asarray(edges[:-1]) + np.asarray(edges[1:]))
+    grid = np.linspace(t0, t1, segments + 1)
+    stops = []
+    for k in range(segments):
+        inside = (centres >= grid[k]) & (centres < grid[k + 1])
+        vals = p[inside]
+        vals = vals[np.isfinite(vals)]
+        colour = "rgba(200,200,200,1)" if vals.size == 0 else f"rgba(132,94,247,{vals.mean():.2f})"
+        a, b = 100.0 * k / segments, 100.0 * (k + 1) / segments
+        stops.append(f"{colour} {a:.2f}%, {colour} {b:.2f}%")
+
+    def pct(t: float) -> float:
+        return 100.0 * min(max((t - t0) / width, 0.0), 1.0)
+
+    bars = "".join(
+        f'<div class="th-label" style="position:absolute;top:0;height:100%;background:#2b8a3e;'
+        f'left:{pct(s):.2f}%;width:{max(pct(e) - pct(s), 0.2):.2f}%"></div>'
+        for s, e in labelled
+    )
+    outline = ""
+    if question is not None:
+        s, e = question
+        outline = (
+            f'<div id="th-band-q" style="position:absolute;top:-2px;height:32px;'
+            f"border:2px solid {hex_colour(SELECTED_RGB)};left:{pct(s):.2f}%;"
+            f'width:{max(pct(e) - pct(s), 0.4):.2f}%"></div>'
+        )
+    line = (
+        f'<div style="position:absolute;top:-2px;height:32px;border-left:2px dashed #000;'
+        f'left:{pct(mark):.2f}%"></div>'
+        if mark is not None
+        else ""
+    )
+    return (
+        f'<div id="th-band" style="margin:0 0.75em;position:relative;height:28px">'
+        f'<div style="height:16px;background:linear-gradient(to right, {", ".join(stops)})">'
+        f'</div><div style="position:relative;height:8px;margin-top:4px;background:#e9ecef">'
+        f"{bars}</div>{outline}{line}</div>"
+        f'<div style="padding:0 0.75em;font-size:0.75em;color:#495057">{t0:.1f} s … {t1:.1f} s: '
+        "band = the model's p(interacting); green = labelled</div>"
     )
 
 

@@ -361,6 +361,32 @@ def selection_colours(
     return out
 
 
+def framed_view(
+    eye: FloatArray, target: FloatArray, centre: FloatArray, size: float
+) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """The camera moved to frame one part: same viewing direction, looking at its centre.
+
+    Parameters
+    ----------
+    eye, target : ndarray, shape (3,), metres, world frame
+        The camera's current position and look-at point.
+    centre : ndarray, shape (3,), metres, world frame
+        The part's centre.
+    size : float
+        The part's size, metres: the camera stands ``3 × max(size, 0.05)`` from it.
+
+    Returns
+    -------
+    eye, target : tuple of 3 float
+        Metres, world frame.
+    """
+    c = np.asarray(centre, dtype=np.float64).reshape(3)
+    back = np.asarray(eye, dtype=np.float64).reshape(3) - np.asarray(target, dtype=np.float64)
+    norm = float(np.linalg.norm(back))
+    back = back / norm if norm > 1e-9 else np.array([1.0, -1.0, 0.6]) / np.sqrt(2.36)
+    return _vec3(c + 3.0 * max(size, 0.05) * back), _vec3(c)
+
+
 def front_view(
     centroids: FloatArray, extent: float
 ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:

@@ -15,7 +15,7 @@ import os
 from pathlib import Path
 
 from thirdhand.errors import ThirdhandError
-from thirdhand.review.edits import Edit, MoveStep, SetParent
+from thirdhand.review.edits import Edit, MoveStep, SetParent, SetPrimitivePoint
 from thirdhand.review.effort import ACTIONS, EffortLog, changed_parameters, operation_of
 from thirdhand.review.history import History
 from thirdhand.task.model import TaskFile
@@ -41,6 +41,12 @@ def _object_of(task: TaskFile, edit: Edit) -> str:
         return edit.child
     if isinstance(edit, MoveStep):
         return ACTIONS
+    if isinstance(edit, SetPrimitivePoint):
+        block = task.stages.get("primitives")
+        entries = block.get("constraints") if isinstance(block, dict) else None
+        entry = entries.get(edit.key) if isinstance(entries, dict) else None
+        child = entry.get("child") if isinstance(entry, dict) else None
+        return str(child) if child else ACTIONS
     cid = getattr(edit, "constraint", None)
     for c in task.constraints:
         if c.id == cid:
