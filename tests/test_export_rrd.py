@@ -62,6 +62,7 @@ def scene(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
         }
         for i, c in enumerate(demo.labels.constraints)
     ]
+
     def keyframe(t: float) -> dict[str, dict[str, list[float]]]:
         k = int(np.searchsorted(demo.t, t))
         return {
