@@ -438,3 +438,46 @@ def test_quaternion_helpers_match_scipy() -> None:
     axis = v / np.linalg.norm(v)
     expected = Rotation.from_rotvec(angle[:, None] * axis).apply(np.array([0.3, -0.2, 0.1]))
     np.testing.assert_allclose(g.rotate_about(axis, angle, np.array([0.3, -0.2, 0.1])), expected)
+
+
+def _tau_brute(e: np.ndarray) -> float:
+    """Geyer's initial positive sequence estimate of ``1 + 2 Σ ρ_k``, written plainly."""
+    e = e - e.mean(axis=0)
+    den = float((e * e).sum())
+    rho = [float((e[k:] * e[: len(e) - k]).sum()) / den for k in range(len(e))]
+    tau = -1.0
+    for j in range(0, len(e) // 2, 2):
+        pair = rho[j] + rho[j + 1]
+        if pair <= 0.0:
+            break
+        tau += 2.0 * pair
+    return max(tau, 1.0)
+
+
+def test_residual_correlation_time() -> None:
+    """The effective-sample count's correlation time: the brute-force sum on any residuals;
+    about ``(1 + ρ) / (1 - ρ)`` on a long AR(1) error; about 1 on white noise; and much
+    more than the AR(1) formula of its lag-1 correlation on white noise plus a slow wander."""
+    from thirdhand.constraints.robust import _correlation_time
+
+    rng = np.random.default_rng(7)
+    n = 20000
+    ones = np.ones(n, dtype=bool)
+    white = rng.standard_normal((n, 3))
+    ar = np.empty((n, 3))
+    ar[0] = white[0]
+    for i in range(1, n):
+        ar[i] = 0.5 * ar[i - 1] + math.sqrt(0.75) * white[i]
+    kernel = np.exp(-0.5 * (np.arange(-60, 61) / 20.0) ** 2)
+    slow = np.stack(
+        [np.convolve(rng.standard_normal(n + 120), kernel, "valid") for _ in range(3)], 1
+    )
+    mixed = rng.standard_normal((n, 3)) + 2.0 * slow / slow.std()
+    for e in (white[:500], ar[:500], mixed[:500]):
+        assert _correlation_time(e, e, False, ones[:500], 1.0, 1.0) == pytest.approx(_tau_brute(e))
+    # Sampling error of τ over 20,000 samples: a few percent.
+    assert _correlation_time(ar, ar, False, ones, 1.0, 1.0) == pytest.approx(3.0, rel=0.1)
+    assert _correlation_time(white, white, False, ones, 1.0, 1.0) < 1.1
+    m = mixed - mixed.mean(axis=0)
+    rho1 = float((m[1:] * m[:-1]).sum() / (m * m).sum())
+    assert _correlation_time(mixed, mixed, False, ones, 1.0, 1.0) > 5.0 * (1 + rho1) / (1 - rho1)

@@ -50,9 +50,11 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 #: Real errors are not white and the BIC's evidence grows with the number of
 #: samples as if they were; a track with slowly varying error can be wrong by
 #: hundreds of BIC units, which no temperature alone makes honest. Both values
-#: minimise the log loss of the true type on the calibration seeds of the sweep.
-CONFIDENCE_TEMPERATURE = 5.0
-CONFIDENCE_FLOOR = 0.02
+#: minimise the log loss of the true type on the calibration seeds of the sweep
+#: (3.16 is √10 on its grid; 5 and 0.02 before the effective sample count followed
+#: the residuals' whole correlation time, :func:`effective_samples`).
+CONFIDENCE_TEMPERATURE = 3.16
+CONFIDENCE_FLOOR = 0.01
 #: An arc that bows away from its chord by less than this fraction of the chord
 #: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
 #: turn from positions alone: real trackers bend a straight stroke by 1-2 % of its
@@ -116,17 +118,20 @@ def _margin(best: float) -> float:
 def effective_samples(fits: dict[str, ModelFit]) -> float:
     """Effective number of independent samples of a track, from its best model's residuals.
 
-    With lag-1 autocorrelation ``ρ`` of the residuals of the model with the lowest
-    plain BIC (the model whose residuals are closest to the sensor noise), an AR(1)
-    error has ``n (1 - ρ) / (1 + ρ)`` effective samples. White residuals (the
-    synthetic tracks) give ``n``; a real sensor's slowly varying error (a camera's
-    bias that changes along a drawer's stroke) gives far fewer, and a systematic
-    error of a few millimetres is no longer strong evidence for a curved joint.
+    ``n / τ``, with ``τ`` the integrated autocorrelation time of the residuals of
+    the model with the lowest plain BIC (the model whose residuals are closest to
+    the sensor error; :meth:`~thirdhand.constraints.robust.ModelFit.residual_correlation_time`).
+    White residuals (the synthetic white-noise tracks) give ``n``; a real sensor's
+    slowly varying error (a camera's bias that changes along a drawer's stroke, a
+    tracker that wanders) gives far fewer, and a systematic error of a few
+    millimetres is no longer strong evidence for a curved joint or a slide. The
+    lag-1 correlation alone (the AR(1) ``n (1 - ρ) / (1 + ρ)``, used before) counts
+    an error that is white noise plus a slow wander as 5-10 times more samples
+    than it holds.
     """
     best = min(fits.values(), key=lambda f: f.bic)
     n = float(best.weights.shape[0])
-    rho = best.residual_autocorrelation()
-    return max(min(n, float(MIN_SAMPLES)), n * (1.0 - rho) / (1.0 + rho))
+    return max(min(n, float(MIN_SAMPLES)), n / best.residual_correlation_time())
 
 
 def degenerate_joint(
