@@ -51,9 +51,10 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 #: samples as if they were; a track with slowly varying error can be wrong by
 #: hundreds of BIC units, which no temperature alone makes honest. Both values
 #: minimise the log loss of the true type on the calibration seeds of the sweep
-#: (3.16 is √10 on its grid; 5 and 0.02 before the effective sample count followed
-#: the residuals' whole correlation time, :func:`effective_samples`).
-CONFIDENCE_TEMPERATURE = 3.16
+#: (3.98 is 10^0.6 on its grid; 3.16 before a cylindrical joint's slide had to be
+#: resolved, :func:`degenerate_joint`; 5 and 0.02 before the effective sample count
+#: followed the residuals' whole correlation time, :func:`effective_samples`).
+CONFIDENCE_TEMPERATURE = 3.98
 CONFIDENCE_FLOOR = 0.01
 #: An arc that bows away from its chord by less than this fraction of the chord
 #: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
@@ -146,11 +147,28 @@ def degenerate_joint(
     least :data:`MIN_TURN` and :data:`MIN_TURN_FLOORS` standard errors
     ``σ √(12 / n_eff)`` of a linear trend of ``n_eff`` effective samples of
     rotation noise ``σ`` (the floor).
+
+    A cylindrical fit's slide must be resolved as well: at least
+    :data:`MIN_TURN_FLOORS` standard errors ``σ_pos √(12 / n_eff)`` of a trend in
+    its own residuals (``σ_pos`` its fitted position noise). A slowly varying
+    error along a turn (a pose-dependent calibration error, a tag's viewing angle)
+    gives a revolute joint a slide of a few millimetres that the residuals'
+    correlation time says is no more than that error.
     """
     name = fit.kernel.name
     if name not in ("revolute", "cylindrical", "screw"):
         return None
-    lat = fit.proj.latent[fit.inlier, 0] if np.any(fit.inlier) else fit.proj.latent[:, 0]
+    keep = fit.inlier if np.any(fit.inlier) else np.ones(fit.inlier.shape, dtype=bool)
+    if name == "cylindrical":
+        slide = float(np.ptp(fit.proj.latent[keep, 1]))
+        se = fit.sigma_pos * math.sqrt(12.0 / n_eff)
+        if slide < MIN_TURN_FLOORS * se:
+            return (
+                f"cylindrical not chosen: its slide of {1e3 * slide:.1f} mm is under "
+                f"{MIN_TURN_FLOORS:g} standard errors ({1e3 * se:.1f} mm) of a trend in its "
+                f"residuals ({n_eff:.0f} effective samples)"
+            )
+    lat = fit.proj.latent[keep, 0]
     phi = float(np.ptp(lat))
     if oriented and phi >= max(
         MIN_TURN, MIN_TURN_FLOORS * rot_floor * math.sqrt(12.0 / max(n_eff, 12.0))
