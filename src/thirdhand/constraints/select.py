@@ -51,11 +51,12 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 #: samples as if they were; a track with slowly varying error can be wrong by
 #: hundreds of BIC units, which no temperature alone makes honest. Both values
 #: minimise the log loss of the true type on the calibration seeds of the sweep
-#: (3.98 is 10^0.6 on its grid; 3.16 before a cylindrical joint's slide had to be
-#: resolved, :func:`degenerate_joint`; 5 and 0.02 before the effective sample count
-#: followed the residuals' whole correlation time, :func:`effective_samples`).
+#: (3.98 is 10^0.6 on its grid, and no uniform share; 3.16 and 0.01 before a turn's
+#: bow and a cylindrical joint's slide had to be resolved, :func:`degenerate_joint`; 5
+#: and 0.02 before the effective sample count followed the residuals' whole
+#: correlation time, :func:`effective_samples`).
 CONFIDENCE_TEMPERATURE = 3.98
-CONFIDENCE_FLOOR = 0.01
+CONFIDENCE_FLOOR = 0.0
 #: An arc that bows away from its chord by less than this fraction of the chord
 #: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
 #: turn from positions alone: real trackers bend a straight stroke by 1-2 % of its
@@ -148,6 +149,12 @@ def degenerate_joint(
     ``σ √(12 / n_eff)`` of a linear trend of ``n_eff`` effective samples of
     rotation noise ``σ`` (the floor).
 
+    Nor is one chosen whose bow from the chord, ``r (1 - cos(φ/2))``, is under
+    :data:`MIN_TURN_FLOORS` standard errors ``σ_pos √(12 / n_eff)`` of a trend in
+    its own residuals (``σ_pos`` its fitted position noise), unless orientations
+    resolve the turn: a tracker's error that wanders slowly along a stroke bends
+    it by more than 3 % of its chord at a few noise levels.
+
     A cylindrical fit's slide must be resolved as well: at least
     :data:`MIN_TURN_FLOORS` standard errors ``σ_pos √(12 / n_eff)`` of a trend in
     its own residuals (``σ_pos`` its fitted position noise). A slowly varying
@@ -175,9 +182,21 @@ def degenerate_joint(
     ):
         return None
     ratio = 0.5 * math.tan(0.25 * min(phi, 2.0 * math.pi))
-    if ratio >= MIN_SAGITTA_RATIO:
+    radius = math.nan
+    if fit.geom.lever is not None and fit.geom.axis is not None:
+        lever = fit.geom.lever - (fit.geom.lever @ fit.geom.axis) * fit.geom.axis
+        radius = float(np.linalg.norm(lever))
+    bow = radius * (1.0 - math.cos(0.5 * min(phi, math.pi)))
+    se = fit.sigma_pos * math.sqrt(12.0 / n_eff)
+    if ratio >= MIN_SAGITTA_RATIO and not bow < MIN_TURN_FLOORS * se:
         return None
-    radius = float(np.linalg.norm(fit.geom.lever)) if fit.geom.lever is not None else math.nan
+    if ratio >= MIN_SAGITTA_RATIO:
+        return (
+            f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) "
+            f"bows the path by {1e3 * bow:.1f} mm, under {MIN_TURN_FLOORS:g} standard errors "
+            f"({1e3 * se:.1f} mm) of a trend in its residuals ({n_eff:.0f} effective samples)"
+            + ("" if not oriented else ", and the orientations do not resolve it")
+        )
     return (
         f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) bows "
         f"the path by {100 * ratio:.1f} % of its chord, under {100 * MIN_SAGITTA_RATIO:.0f} %"
