@@ -1,4 +1,6 @@
-"""Why ``articulation/drawer_one/004`` reads as revolute: its end-stop slide as a regime.
+"""What ``articulation/drawer_one/004`` holds: its end-stop slide as a regime, and more.
+
+A close call: revolute until a turn's bow had to be resolved (issue 15, round 3).
 
 The gripper slides sideways along the handle at the end stop (frames 83-90). The
 script models that as a real artefact: the track is split at a change point

@@ -20,6 +20,7 @@ from thirdhand import io, se3
 from thirdhand.constraints import NoiseModel, demo_track, fit_constraint, fit_prismatic
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import fit_model, prepare_track
+from thirdhand.constraints.select import type_probabilities
 
 CAMERA = NoiseModel.camera()
 
@@ -57,52 +58,41 @@ def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
     assert 70.0 < np.degrees(np.ptp(c.ranges[3])) < 115.0
 
 
-DRAWER_004_REASON = (
-    "drawer_one/004 (position only) is a close call: the grasp creeps sideways along the "
-    "handle in steps during the last 25 cm of the stroke and slides 5 cm more at the end "
-    "stop; frames 0-83 alone are a 1.65 m arc turning 15 degrees (1.4 mm rms against 3.5 mm "
-    "for a line), and the whole track is prismatic only when the tracker's error is capped "
-    "at 4-7.5 mm (the end-stop regime then becomes the line's outliers), revolute at 3 mm "
-    "and at 9 mm or more; the synthetic sweep does not tell 5 mm from 15 mm, and the "
-    "shipped 1 cm makes it revolute at 0.61 (scripts/drawer_one_004.py)"
-)
-
-
-@pytest.mark.parametrize(
-    "index",
-    [
-        pytest.param(i, marks=pytest.mark.xfail(strict=True, reason=DRAWER_004_REASON))
-        if i == 4
-        else i
-        for i in range(1, 11)
-    ],
-)
+@pytest.mark.parametrize("index", range(1, 11))
 def test_drawer_one_is_prismatic(shared_data: Path, index: int) -> None:
     pos, _ = _track(shared_data / "articulation" / "drawer_one" / f"{index:03d}.log")
     c = fit_constraint(pos)
     assert c.type == "prismatic", c.scores
     assert c.axis is not None
-    # Drawers open along the camera's x axis by about 45 cm.
-    assert abs(c.axis[0]) > 0.99
+    # Drawers open along the camera's x axis by about 45 cm; 004's line is tilted by 9°
+    # towards the 5 cm its grasp slides sideways at the end stop (frames 84 on).
+    assert abs(c.axis[0]) > (0.98 if index == 4 else 0.99)
     assert 0.43 < np.ptp(c.ranges[0]) < 0.47
 
 
-def test_drawer_one_004_is_a_close_call(shared_data: Path) -> None:
-    """004's grasp slides 5 cm sideways at the end stop (frames 84 on); why it stays revolute.
+def test_drawer_one_004_is_prismatic_by_the_bow_test(shared_data: Path) -> None:
+    """004's grasp slides 5 cm sideways at the end stop (frames 84 on) and creeps along the
+    handle before it; why it is prismatic, and how close the call is.
 
-    With the tracker's error capped at 5 mm the prismatic fit gives the whole terminal
-    regime, and only it, to the outlier class, and wins; with the shipped 1 cm cap the
-    arc wins. Both at a confidence that says the call is close.
+    The arc still scores better (a lower BIC; 0.74 of the weight between the two), but
+    its 38 mm bow is under 5 standard errors of a trend in its residuals, whose slowly
+    varying error leaves about 8 effective samples: the revolute is passed over, as a
+    turn the track does not resolve (it was chosen, at 0.59-0.79, until the bow had to be
+    resolved). With the tracker's error capped at 5 mm the prismatic fit gives the whole
+    terminal regime, and only it, to the outlier class, and wins at a confidence under 0.8.
     """
     pos, _ = _track(shared_data / "articulation" / "drawer_one" / "004.log")
     c = fit_constraint(pos)
-    assert c.type == "revolute"
-    assert c.confidence < 0.7
+    assert c.type == "prismatic"
+    assert c.scores["revolute"] < c.scores["prismatic"]
+    assert type_probabilities(c.scores)["revolute"] > 0.5
+    assert any(n.startswith("revolute not chosen") and "standard errors" in n for n in c.notes)
     p, _ = prepare_track(pos, None)
     capped = dataclasses.replace(estimate_noise(p).noise_model(), pos_ceiling=0.005)
     c5 = fit_constraint(pos, noise=capped)
     assert c5.type == "prismatic"
-    assert c5.confidence < 0.7
+    assert c5.confidence < 0.8
+    assert type_probabilities(c5.scores)["revolute"] > 0.2
     fit = fit_model("prismatic", p, None, noise=capped)
     assert fit is not None
     np.testing.assert_array_equal(np.flatnonzero(~fit.inlier), np.arange(84, p.shape[0]))
@@ -115,7 +105,8 @@ def test_drawer_one_004_is_a_close_call(shared_data: Path) -> None:
     dist = np.linalg.norm(off - np.outer(off @ line.axis, line.axis), axis=1)
     assert np.all(dist > 0.03)
     # Before the slide the stroke bends by creeping steps: flat stretches of the sideways
-    # coordinate 16 mm apart, each within 2 mm; with the estimated noise the arc wins there.
+    # coordinate 16 mm apart, each within 2 mm; with the estimated noise the arc wins there
+    # (the stroke alone has more effective samples: its bow is resolved).
     y = pos[:, 1]
     assert y[64:76].mean() - y[47:58].mean() > 0.012
     assert max(y[47:58].std(), y[64:76].std()) < 0.002
@@ -215,3 +206,23 @@ def test_cli_errors_are_thirdhand_errors(shared_data: Path, tmp_path: Path) -> N
     result = runner.invoke(app, ["fit", str(short)])
     assert isinstance(result.exception, ThirdhandError)
     assert "3 valid sample(s) of 3" in str(result.exception)
+
+
+def test_attached_toolbox_boards_drift_in_time(shared_data: Path) -> None:
+    """The time drift of the synthetic sweep is real: two boards rigidly attached (the
+    last 37 s of ``toolbox_coop_4``, a Polhemus magnetic tracker) hold their relative
+    pose within 0.01 mm from sample to sample, yet it wanders by millimetres over
+    seconds: the means over windows of a tenth of the stretch spread by over 100 times
+    the white noise (the sweep's time drift: 2 times). It is still read as fixed."""
+    demo = io.load(shared_data / "3rdhand" / "toolbox_coop_4")
+    p, q, valid = demo.relative_pose("/toolbox/side_front", "/toolbox/side_left")
+    keep = valid & (demo.t >= demo.t[0] + 30.0)
+    pos, quat = prepare_track(p[keep], q[keep])
+    white = estimate_noise(pos, quat).sigma_pos
+    w = pos.shape[0] // 10
+    means = np.stack([np.convolve(pos[:, a], np.ones(w) / w, "valid") for a in range(3)], 1)
+    slow = float(np.sqrt(((means - means.mean(axis=0)) ** 2).mean()))
+    assert white < 5e-5
+    assert slow > 100.0 * white
+    assert slow > 1e-3
+    assert fit_constraint(pos, quat).type == "fixed"

@@ -50,9 +50,13 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 #: Real errors are not white and the BIC's evidence grows with the number of
 #: samples as if they were; a track with slowly varying error can be wrong by
 #: hundreds of BIC units, which no temperature alone makes honest. Both values
-#: minimise the log loss of the true type on the calibration seeds of the sweep.
-CONFIDENCE_TEMPERATURE = 5.0
-CONFIDENCE_FLOOR = 0.02
+#: minimise the log loss of the true type on the calibration seeds of the sweep
+#: (3.98 is 10^0.6 on its grid, and no uniform share; 3.16 and 0.01 before a turn's
+#: bow and a cylindrical joint's slide had to be resolved, :func:`degenerate_joint`; 5
+#: and 0.02 before the effective sample count followed the residuals' whole
+#: correlation time, :func:`effective_samples`).
+CONFIDENCE_TEMPERATURE = 3.98
+CONFIDENCE_FLOOR = 0.0
 #: An arc that bows away from its chord by less than this fraction of the chord
 #: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
 #: turn from positions alone: real trackers bend a straight stroke by 1-2 % of its
@@ -116,17 +120,20 @@ def _margin(best: float) -> float:
 def effective_samples(fits: dict[str, ModelFit]) -> float:
     """Effective number of independent samples of a track, from its best model's residuals.
 
-    With lag-1 autocorrelation ``ρ`` of the residuals of the model with the lowest
-    plain BIC (the model whose residuals are closest to the sensor noise), an AR(1)
-    error has ``n (1 - ρ) / (1 + ρ)`` effective samples. White residuals (the
-    synthetic tracks) give ``n``; a real sensor's slowly varying error (a camera's
-    bias that changes along a drawer's stroke) gives far fewer, and a systematic
-    error of a few millimetres is no longer strong evidence for a curved joint.
+    ``n / τ``, with ``τ`` the integrated autocorrelation time of the residuals of
+    the model with the lowest plain BIC (the model whose residuals are closest to
+    the sensor error; :meth:`~thirdhand.constraints.robust.ModelFit.residual_correlation_time`).
+    White residuals (the synthetic white-noise tracks) give ``n``; a real sensor's
+    slowly varying error (a camera's bias that changes along a drawer's stroke, a
+    tracker that wanders) gives far fewer, and a systematic error of a few
+    millimetres is no longer strong evidence for a curved joint or a slide. The
+    lag-1 correlation alone (the AR(1) ``n (1 - ρ) / (1 + ρ)``, used before) counts
+    an error that is white noise plus a slow wander as 5-10 times more samples
+    than it holds.
     """
     best = min(fits.values(), key=lambda f: f.bic)
     n = float(best.weights.shape[0])
-    rho = best.residual_autocorrelation()
-    return max(min(n, float(MIN_SAMPLES)), n * (1.0 - rho) / (1.0 + rho))
+    return max(min(n, float(MIN_SAMPLES)), n / best.residual_correlation_time())
 
 
 def degenerate_joint(
@@ -141,20 +148,55 @@ def degenerate_joint(
     least :data:`MIN_TURN` and :data:`MIN_TURN_FLOORS` standard errors
     ``σ √(12 / n_eff)`` of a linear trend of ``n_eff`` effective samples of
     rotation noise ``σ`` (the floor).
+
+    Nor is one chosen whose bow from the chord, ``r (1 - cos(φ/2))``, is under
+    :data:`MIN_TURN_FLOORS` standard errors ``σ_pos √(12 / n_eff)`` of a trend in
+    its own residuals (``σ_pos`` its fitted position noise), unless orientations
+    resolve the turn: a tracker's error that wanders slowly along a stroke bends
+    it by more than 3 % of its chord at a few noise levels.
+
+    A cylindrical fit's slide must be resolved as well: at least
+    :data:`MIN_TURN_FLOORS` standard errors ``σ_pos √(12 / n_eff)`` of a trend in
+    its own residuals (``σ_pos`` its fitted position noise). A slowly varying
+    error along a turn (a pose-dependent calibration error, a tag's viewing angle)
+    gives a revolute joint a slide of a few millimetres that the residuals'
+    correlation time says is no more than that error.
     """
     name = fit.kernel.name
     if name not in ("revolute", "cylindrical", "screw"):
         return None
-    lat = fit.proj.latent[fit.inlier, 0] if np.any(fit.inlier) else fit.proj.latent[:, 0]
+    keep = fit.inlier if np.any(fit.inlier) else np.ones(fit.inlier.shape, dtype=bool)
+    if name == "cylindrical":
+        slide = float(np.ptp(fit.proj.latent[keep, 1]))
+        se = fit.sigma_pos * math.sqrt(12.0 / n_eff)
+        if slide < MIN_TURN_FLOORS * se:
+            return (
+                f"cylindrical not chosen: its slide of {1e3 * slide:.1f} mm is under "
+                f"{MIN_TURN_FLOORS:g} standard errors ({1e3 * se:.1f} mm) of a trend in its "
+                f"residuals ({n_eff:.0f} effective samples)"
+            )
+    lat = fit.proj.latent[keep, 0]
     phi = float(np.ptp(lat))
     if oriented and phi >= max(
         MIN_TURN, MIN_TURN_FLOORS * rot_floor * math.sqrt(12.0 / max(n_eff, 12.0))
     ):
         return None
     ratio = 0.5 * math.tan(0.25 * min(phi, 2.0 * math.pi))
-    if ratio >= MIN_SAGITTA_RATIO:
+    radius = math.nan
+    if fit.geom.lever is not None and fit.geom.axis is not None:
+        lever = fit.geom.lever - (fit.geom.lever @ fit.geom.axis) * fit.geom.axis
+        radius = float(np.linalg.norm(lever))
+    bow = radius * (1.0 - math.cos(0.5 * min(phi, math.pi)))
+    se = fit.sigma_pos * math.sqrt(12.0 / n_eff)
+    if ratio >= MIN_SAGITTA_RATIO and not bow < MIN_TURN_FLOORS * se:
         return None
-    radius = float(np.linalg.norm(fit.geom.lever)) if fit.geom.lever is not None else math.nan
+    if ratio >= MIN_SAGITTA_RATIO:
+        return (
+            f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) "
+            f"bows the path by {1e3 * bow:.1f} mm, under {MIN_TURN_FLOORS:g} standard errors "
+            f"({1e3 * se:.1f} mm) of a trend in its residuals ({n_eff:.0f} effective samples)"
+            + ("" if not oriented else ", and the orientations do not resolve it")
+        )
     return (
         f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) bows "
         f"the path by {100 * ratio:.1f} % of its chord, under {100 * MIN_SAGITTA_RATIO:.0f} %"
