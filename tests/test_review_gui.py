@@ -189,6 +189,15 @@ def test_gizmo_correction_applies_the_dragged_pose(chair: Any, tmp_path: Path) -
         np.testing.assert_allclose(new.pos, expected, atol=1e-9)
         np.testing.assert_allclose(np.abs(np.dot(new.quat, c.quat)), 1.0, atol=1e-9)
         assert app.session.effort.counts()["leg2"]["movex"] == 1
+        # A tab that only views (another tab edits) drags and releases: nothing changes.
+        app.editor, before = 1, app.task.constraint_by_id(c.id)
+        viewer = SimpleNamespace(target=moved, phase="end", client_id=2)
+        app.gizmo.on_event(SimpleNamespace(target=moved, phase="update", client_id=2))
+        app.gizmo.on_event(viewer)
+        assert app.task.constraint_by_id(c.id) == before
+        assert app.session.effort.counts()["leg2"]["movex"] == 1
+        app.gizmo.on_event(SimpleNamespace(target=moved, phase="end", client_id=1))
+        assert app.task.constraint_by_id(c.id) != before  # the editing tab's drag applies
     finally:
         app.stop()
 

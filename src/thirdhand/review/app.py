@@ -885,7 +885,16 @@ class ReviewApp:
 
     # ------------------------------------------------------------------ gizmo
     def gizmo_moved(self, move: GizmoMove) -> None:
-        """A gizmo drag: the child follows; releasing it in editing mode corrects the pose."""
+        """A gizmo drag: the child follows; releasing it in editing mode corrects the pose.
+
+        A tab that only views moves nothing: its drag is undone when released.
+        """
+        if not self.may_edit(move.client_id):
+            if move.phase == "end":
+                self.notify("this tab only views: the part stays", error=True)
+                with self.lock:
+                    self.refresh()  # the gizmo goes back
+            return
         with self.lock:
             c = self.constraint
             poses = self.world_poses()

@@ -34,11 +34,14 @@ class GizmoMove:
     phase : {"start", "update", "end"}
     pos : ndarray, shape (3,), metres
     quat : ndarray, shape (4,), x y z w
+    client_id : int or None
+        The tab that dragged it (None: not known, the server itself).
     """
 
     phase: str
     pos: FloatArray
     quat: FloatArray
+    client_id: int | None = None
 
 
 def moved_child(
@@ -130,5 +133,6 @@ class DofGizmo:
             phase=str(event.phase),
             pos=np.asarray(target.position, dtype=np.float64),
             quat=np.asarray(xyzw(target.wxyz), dtype=np.float64),
+            client_id=getattr(event, "client_id", None),
         )
         self.on_move(move)
