@@ -118,16 +118,23 @@ def test_serial_and_process_maps_keep_order() -> None:
     assert list(parallel_map(_square, range(6), jobs=2)) == [0, 1, 4, 9, 16, 25]
 
 
-def test_learn_segmentation_units_on_the_cluster_equal_serial(cluster: str) -> None:
-    """``learn --scheduler``'s unit (segment one recording) gives the serial phases exactly."""
-    from thirdhand.plan.cli import _segment_one
+def test_learn_units_on_the_cluster_equal_serial(cluster: str) -> None:
+    """``learn --scheduler``'s unit (segment + detect one recording) gives the serial results."""
+    from thirdhand.constraints.detect import detect_constraints
+    from thirdhand.plan.cli import LearnUnit, learn_unit
     from thirdhand.segment import segment_demonstration
     from thirdhand.synth import make_scene
 
     demos = [make_scene("drawer", seed=s, sensor=None).slice(0.0, 4.0) for s in (1, 2)]
-    serial = [segment_demonstration(d).to_dict() for d in demos]
-    remote = list(parallel_map(_segment_one, [(d, None) for d in demos], scheduler=cluster))
-    assert [r.to_dict() for r in remote] == serial  # type: ignore[attr-defined]
+    serial = [segment_demonstration(d) for d in demos]
+    units = [LearnUnit(d, f"d{k}", True) for k, d in enumerate(demos)]
+    remote = list(parallel_map(learn_unit, units, scheduler=cluster))
+    assert [ph.to_dict() for ph, _ in remote] == [ph.to_dict() for ph in serial]  # type: ignore[union-attr]
+    for (ph, det), d, k in zip(remote, demos, range(2), strict=True):
+        local = detect_constraints(d, phases=ph, demo_name=f"d{k}")
+        assert [(i.parent, i.child, i.type, i.start) for i in det.instances] == [
+            (i.parent, i.child, i.type, i.start) for i in local.instances
+        ]
 
 
 def test_local_cluster_of_two_workers() -> None:

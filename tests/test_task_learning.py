@@ -123,3 +123,30 @@ def test_cli_learn_chair_writes_every_block(tmp_path: Path, capsys) -> None:
     assert all(np.isclose(c.free_dofs.rx[1] - c.free_dofs.rx[0], 2 * np.pi) for c in legs)
     status, _, err = call(capsys, "learn", str(path), "-o", str(out), "--no-segment")
     assert status == 1 and "exists" in err and err.count("\n") == 1
+
+
+@pytest.mark.slow
+def test_cli_learn_in_two_processes_writes_the_serial_task(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``learn --jobs 2``: each recording segmented and detected in a unit; same task file."""
+    import json
+
+    from cli_helpers import call
+    from thirdhand import io
+    from thirdhand.synth import make_scene
+
+    recs = []
+    for s in (1, 2):
+        recs.append(str(tmp_path / f"d{s}.parquet"))
+        io.save(make_scene("drawer", seed=s, sensor=None), recs[-1])
+    docs = []
+    for extra in ([], ["--jobs", "2"]):
+        out = tmp_path / f"task{len(docs)}.json"
+        rc, _, err = call(capsys, "learn", *recs, "-o", str(out), "--no-reward", *extra)
+        assert rc == 0, err
+        doc = json.loads(out.read_text())
+        doc.pop("provenance")
+        docs.append(doc)
+    assert docs[0]["constraints"] and docs[0]["plan"]
+    assert docs[0] == docs[1]

@@ -21,6 +21,7 @@ from thirdhand.demonstration import ConstraintEvent, Demonstration, FreeDofs
 from thirdhand.errors import ThirdhandError
 
 if TYPE_CHECKING:
+    from thirdhand.constraints.detect import DetectionResult
     from thirdhand.plan.learn import Learned
     from thirdhand.relational.assembly import AssemblyModel, RewardPlan
     from thirdhand.segment.model import SegmentModel
@@ -221,6 +222,7 @@ def learn_task(
     seed: int = 0,
     inputs: Sequence[str | os.PathLike[str]] = (),
     progress: Callable[[str], None] | None = None,
+    detections: Sequence[DetectionResult] | None = None,
 ) -> LearnedTask:
     """Learn a task from demonstrations: every stage that needs no robot.
 
@@ -246,6 +248,10 @@ def learn_task(
         Source files, hashed into the task's provenance.
     progress : callable, optional
         Called with the name of each stage as it starts.
+    detections : sequence of DetectionResult, optional
+        Constraint detections already computed per demonstration (with its
+        ``phases``; ``learn --jobs/--scheduler`` runs segmentation and detection
+        of each recording as one unit).
 
     Returns
     -------
@@ -272,7 +278,9 @@ def learn_task(
     elif ph is None:
         skipped.append("segment: skipped by the user")
     say("constraints and plan")
-    learned = learn(demo_list, names=names, phases=ph, segment=False, inputs=inputs)
+    learned = learn(
+        demo_list, names=names, phases=ph, segment=False, inputs=inputs, detections=detections
+    )
     task = learned.task()
     block = None
     if not primitives:

@@ -6,6 +6,7 @@ The integrator mounts :data:`learn_command` as ``thirdhand learn`` and
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
 
@@ -20,6 +21,7 @@ from thirdhand.fileops import check_output
 from thirdhand.progress import stage_status
 
 if TYPE_CHECKING:
+    from thirdhand.constraints.detect import DetectionResult
     from thirdhand.segment.model import SegmentModel
     from thirdhand.segment.pipeline import SegmentationResult
 
@@ -69,12 +71,27 @@ def _load(path: Path) -> Demonstration:
     return io.load(path)
 
 
-def _segment_one(job: tuple[Demonstration, SegmentModel | None]) -> SegmentationResult:
-    """One independent unit of ``learn --jobs/--scheduler``: segment one demonstration."""
+@dataclass(frozen=True)
+class LearnUnit:
+    """One independent unit of ``learn --jobs/--scheduler``: one recording's own stages."""
+
+    demo: Demonstration
+    name: str
+    segment: bool
+    model: SegmentModel | None = None
+
+
+def learn_unit(unit: LearnUnit) -> tuple[SegmentationResult | None, DetectionResult]:
+    """Segment one recording (unless told not to) and detect its constraints.
+
+    What :func:`~thirdhand.task_learning.learn_task` would do to this recording
+    alone, so the task file is the same serially, in processes and on a cluster.
+    """
+    from thirdhand.constraints.detect import detect_constraints
     from thirdhand.segment import segment_demonstration
 
-    demo, model = job
-    return segment_demonstration(demo, model)
+    phases = segment_demonstration(unit.demo, unit.model) if unit.segment else None
+    return phases, detect_constraints(unit.demo, phases=phases, demo_name=unit.name)
 
 
 @app.command("learn")
@@ -140,22 +157,27 @@ def learn_command(
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
-    phases = None
-    if not no_segment and (jobs > 1 or scheduler is not None):
+    phases = detections = None
+    if jobs > 1 or scheduler is not None:
         from thirdhand.batch import parallel_map
 
-        # One unit per recording; the segmentation is deterministic, so the task
-        # file is the same serially, in processes and on a cluster.
-        phases = list(
-            parallel_map(
-                _segment_one, [(d, seg_model) for d in loaded], jobs=jobs, scheduler=scheduler
-            )
-        )
+        # One unit per recording (segmentation and constraint detection); both are
+        # deterministic, so the task file is the same serially, in processes and on
+        # a cluster. Symbols, plan, primitives and reward join them here.
+        units = [
+            LearnUnit(d, p.name, not no_segment, seg_model)
+            for d, p in zip(loaded, demos, strict=True)
+        ]
+        done = list(parallel_map(learn_unit, units, jobs=jobs, scheduler=scheduler))
+        detections = [det for _, det in done]
+        if not no_segment:
+            phases = [ph for ph, _ in done if ph is not None]
     with stage_status() as say:
         result = learn_task(
             loaded,
             names=[p.name for p in demos],
             phases=phases,
+            detections=detections,
             segment=not no_segment,
             segment_model=seg_model,
             primitives=not no_primitives,

@@ -178,6 +178,7 @@ def learn(
     segment: bool = True,
     options: DetectOptions | None = None,
     inputs: Sequence[str | os.PathLike[str]] = (),
+    detections: Sequence[DetectionResult] | None = None,
 ) -> Learned:
     """Run constraint detection, symbols and planning on one or several demonstrations.
 
@@ -195,6 +196,10 @@ def learn(
     options : DetectOptions, optional
     inputs : sequence of path-like
         Source files, recorded in the provenance.
+    detections : sequence of DetectionResult, optional
+        Constraint detections already computed, one per demonstration (by
+        :func:`~thirdhand.constraints.detect.detect_constraints` with ``phases``,
+        ``options`` and the name, as here: ``learn --jobs`` runs them as units).
     """
     demo_list = list(demos)
     nm = list(names) if names is not None else [f"demo{i + 1}" for i in range(len(demo_list))]
@@ -206,10 +211,15 @@ def learn(
         ph = [segment_demonstration(d) for d in demo_list]
     else:
         ph = [None] * len(demo_list)
-    dets = [
-        detect_constraints(d, phases=p, options=options, demo_name=n)
-        for d, p, n in zip(demo_list, ph, nm, strict=True)
-    ]
+    if detections is not None:
+        dets = list(detections)
+        if len(dets) != len(demo_list):
+            raise ValueError(f"{len(dets)} detections for {len(demo_list)} demonstrations")
+    else:
+        dets = [
+            detect_constraints(d, phases=p, options=options, demo_name=n)
+            for d, p, n in zip(demo_list, ph, nm, strict=True)
+        ]
     all_inst = [i for det in dets for i in det.instances]
     symbols = assign_symbols(all_inst)
     plan = plan_from_demos([det.instances for det in dets], symbols)
