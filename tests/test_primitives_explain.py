@@ -197,6 +197,20 @@ def test_motions_too_short_are_named_not_parsed() -> None:
     seg = ConstraintSegment(_event(), t, np.zeros((13, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (13, 1)))
     with pytest.raises(PrimitiveError, match="shorter than 4 samples at 20 Hz"):
         explain_constraint_motions([seg])
+    # beside a motion that can be parsed, the short one is kept with a note
+    t2 = np.linspace(0.0, 0.25, 31)  # 6 grid samples: one possible segment only
+    move = ConstraintSegment(
+        _event(), t2, np.outer(t2, [0.1, 0.0, 0.0]), np.tile([0.0, 0.0, 0.0, 1.0], (31, 1))
+    )
+    res = explain_constraint_motions([seg, move], n_skills=4)
+    assert res.library.n_skills == 1  # K lowered to the one possible segment
+    assert (
+        res.explanations[0].steps == () and "shorter than one segment" in res.explanations[0].note
+    )
+    (step,) = res.explanations[1].steps
+    assert (step.skill, step.start, step.end) == (0, 0.0, 0.25)
+    ex = res.steps_by_key()["c1"]
+    assert ex[0]["steps"] == [] and "note" in ex[0] and "note" not in ex[1]
     with pytest.raises(PrimitiveError, match="at least 1 skill"):
         explain_constraint_motions([seg], n_skills=0)
     with pytest.raises(PrimitiveError, match="no constraint motion"):

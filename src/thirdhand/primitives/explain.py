@@ -41,6 +41,8 @@ FloatArray = NDArray[np.float64]
 SHAPE_UNITS = {"pos": 0.02, "rot": 0.1}
 #: Unit of each level channel: m/s, rad/s.
 LEVEL_UNITS = {"speed": 0.02, "angular": 0.1}
+#: Shortest segment, grid samples (0.2 s at 20 Hz); shorter motions are not parsed.
+MIN_SAMPLES = 4
 
 METHOD = (
     "primitive library (mixture of ProMPs over segments, exact DP over candidate cuts) "
@@ -273,20 +275,11 @@ def explain_constraint_motions(
         raise PrimitiveError("skill library: no constraint motion given")
     if n_skills < 1:
         raise PrimitiveError(f"skill library: at least 1 skill, got {n_skills}")
-    lib = PrimitiveLibrary(
-        n_skills,
-        threshold=1.0,
-        window=3,
-        grid=grid,
-        switch_penalty=switch_penalty,
-        n_init=n_init,
-        seed=seed,
-    )
     chans = [motion_channels(s, rate=rate) for s in segments]
-    usable = [i for i, c in enumerate(chans) if c.t.size >= lib.min_length]
+    usable = [i for i, c in enumerate(chans) if c.t.size >= MIN_SAMPLES]
     if not usable:
         raise PrimitiveError(
-            f"skill library: every constraint motion is shorter than {lib.min_length} samples "
+            f"skill library: every constraint motion is shorter than {MIN_SAMPLES} samples "
             f"at {rate:g} Hz"
         )
     tracks = [(chans[i].t, chans[i].shape, chans[i].levels) for i in usable]
@@ -294,16 +287,29 @@ def explain_constraint_motions(
         float(np.linalg.norm(np.gradient(y, 1.0 / rate, axis=0), axis=1).max())
         for _, y, _ in tracks
     ]
-    # candidate cuts where the motion is nearly still, relative to how fast these motions go
-    lib.threshold = 0.05 * float(np.median(peaks))
+
+    def library(k: int) -> PrimitiveLibrary:
+        return PrimitiveLibrary(
+            k,
+            # candidate cuts where a motion is nearly still, relative to how fast they go
+            threshold=0.05 * float(np.median(peaks)),
+            window=3,
+            min_length=MIN_SAMPLES,
+            grid=grid,
+            switch_penalty=switch_penalty,
+            n_init=n_init,
+            seed=seed,
+        )
+
+    lib = library(n_skills)
     n_possible = lib.n_possible_segments(tracks)
     if n_possible < n_skills:
-        lib.n_skills = n_possible
+        lib = library(n_possible)
     lib.fit(tracks)
     explained = []
     for i, (seg, c) in enumerate(zip(segments, chans, strict=True)):
         if i not in usable:
-            note = f"{seg.duration:.2f} s: shorter than one segment of {lib.min_length} samples"
+            note = f"{seg.duration:.2f} s: shorter than one segment of {MIN_SAMPLES} samples"
             explained.append(MotionExplanation(seg.key, seg.source, (), note))
             continue
         parse = lib.parse(c.t, c.shape, levels=c.levels, name=f"{seg.source} {seg.key}").merged()
