@@ -251,6 +251,36 @@ def test_library_errors_for_k_and_short_tracks() -> None:
         lib.parse(t, np.hstack([y, y]))
 
 
+def test_library_score_of_its_training_tracks_is_its_log_likelihood() -> None:
+    tracks = [_level_track(s)[:3] for s in range(3)]
+    lib = PrimitiveLibrary(2, threshold=0.3, seed=0, n_init=2).fit(tracks)
+    assert lib.score(tracks) == pytest.approx(lib.log_likelihood_, rel=1e-12)
+    # a track's score is its own term of the sum
+    assert lib.score(tracks[:1]) + lib.score(tracks[1:]) == pytest.approx(
+        lib.log_likelihood_, rel=1e-12
+    )
+
+
+def test_heldout_likelihood_prefers_the_skills_the_data_has() -> None:
+    from thirdhand.primitives.label_eval import ParserConfig, fit_library, heldout_scores
+
+    tracks = [_level_track(s)[:3] for s in range(3)]
+    held = heldout_scores(tracks, ParserConfig(n_init=2), [1, 2], 0.3)
+    # one skill for moves at level 0 and at level 5 (noise 0.1): each level sample
+    # under N(2.5, 2.5²) instead of N(0 or 5, 0.1²) loses log(2.5 / 0.1) ≈ 3.2 nats,
+    # and levels are half the scalar observations: ≈ 1.6 nats per observation
+    assert held[2] - held[1] > 1.0
+    cfg = ParserConfig(n_skills=None, k_range=(1, 2), n_init=2, threshold=0.3)
+    lib, sel = fit_library(tracks, cfg)
+    assert sel is not None and sel.chosen == 2 == lib.n_skills
+    assert set(sel.bic) == set(sel.heldout) == {1, 2}
+    bic_cfg = ParserConfig(n_skills=None, k_range=(1, 2), n_init=2, threshold=0.3, select="bic")
+    _, by_bic = fit_library(tracks, bic_cfg)
+    assert by_bic is not None and by_bic.chosen == min(by_bic.bic, key=by_bic.bic.__getitem__)
+    with pytest.raises(PrimitiveError, match="'heldout' or 'bic', got 'aic'"):
+        fit_library(tracks, ParserConfig(n_skills=None, select="aic"))
+
+
 # --------------------------------------------------------------------- CLI
 def test_evaluate_command_table_and_json(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
@@ -278,12 +308,31 @@ def test_evaluate_command_table_and_json(
     assert rc == 1 and "exists" in se and "--force" in se
 
 
+@pytest.mark.slow
+def test_evaluate_selects_k_by_heldout_likelihood_and_reports_bic(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _write_proc(tmp_path / "w.mat", [_wiping_like(s) for s in range(3)])
+    out = tmp_path / "res.json"
+    rc, so, se = call(capsys, "primitives", "evaluate", str(tmp_path / "w.mat"), "--json", str(out))
+    assert rc == 0, se
+    doc = json.loads(out.read_text())
+    for r in doc["files"][0]["recordings"]:
+        sel = r["k_selection"]
+        held, bic = sel["heldout_loglik_per_obs"], sel["bic"]
+        assert set(held) == set(bic) == {"2", "3", "4", "5", "6"}
+        assert sel["by"] == "heldout" and r["n_skills"] == sel["chosen"]
+        assert held[str(sel["chosen"])] == max(held.values())
+        assert f"without {r['name']}: K = {sel['chosen']} by heldout; BIC" in so
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
         (["--skills", "0"], "--skills"),
         (["--skills", "60", "--grid", "0"], "possible segments for 60 skills"),
         (["--tolerance", "-1"], "--tolerance"),
+        (["--select", "aic"], "--select must be heldout or bic"),
         (["--shape", "speed"], "unknown shape channel 'speed'"),
         (["--arms", "3"], "no arm 3"),
     ],

@@ -141,6 +141,19 @@ def _write_task(learned: LearnedTask, out: Path, summary: dict[str, Any]) -> Pat
             f"primitives: {len(keys)} constraint motions (quaternion DMP + ProMP) "
             f"→ {path} stages.primitives"
         )
+        lib = learned.primitives.get("skill_library")
+        if lib is not None:
+            seqs = {
+                k: " ".join(str(s["skill"]) for s in c["skills"][0]["steps"])
+                for k, c in learned.primitives["constraints"].items()
+                if c.get("skills")
+            }
+            summary["primitives"]["skills"] = seqs
+            summary["lines"].append(
+                f"skills: {lib['n_skills']} library skills explain the constraint motions ("
+                + "; ".join(f"{k}: {v}" for k, v in sorted(seqs.items()))
+                + ") → stages.primitives.skill_library"
+            )
     if learned.reward is not None:
         plans = learned.reward.plans
         complete = [label for label, p in plans.items() if p.complete]

@@ -120,8 +120,25 @@ def learned_events(learned: Learned) -> list[tuple[ConstraintEvent, ...]]:
     return [tuple(sorted(per_demo[n], key=lambda e: e.time)) for n in learned.names]
 
 
-def fit_task_primitives(learned: Learned) -> dict[str, Any] | None:
+#: Skills of the library that explains the constraint motions (transport,
+#: approach, screwing turn, rest in the synthetic chair), unless told otherwise.
+DEFAULT_SKILLS = 4
+
+
+def fit_task_primitives(
+    learned: Learned, *, skills: int | None = DEFAULT_SKILLS, seed: int = 0
+) -> dict[str, Any] | None:
     """Motor primitives (quaternion DMP + ProMP) of every learned constraint.
+
+    Parameters
+    ----------
+    learned : Learned
+    skills : int, optional
+        Skills of the library learned over all constraint motions, each motion
+        explained as a sequence of them (None: no library; see
+        :func:`~thirdhand.primitives.stage.primitives_stage`).
+    seed : int
+        Seeds the library's restarts.
 
     Returns
     -------
@@ -131,10 +148,16 @@ def fit_task_primitives(learned: Learned) -> dict[str, Any] | None:
     from thirdhand.primitives.stage import primitives_stage
 
     events = learned_events(learned)
-    used = [(d, e) for d, e in zip(learned.demos, events, strict=True) if e]
+    used = [(d, e, n) for d, e, n in zip(learned.demos, events, learned.names, strict=True) if e]
     if not used:
         return None
-    return primitives_stage([d for d, _ in used], events=[e for _, e in used])
+    return primitives_stage(
+        [d for d, _, _ in used],
+        events=[e for _, e, _ in used],
+        skills=skills,
+        names=[n for _, _, n in used],
+        seed=seed,
+    )
 
 
 def _numbered(type_name: str, count: int) -> list[str]:
@@ -217,6 +240,7 @@ def learn_task(
     segment: bool = True,
     segment_model: SegmentModel | None = None,
     primitives: bool = True,
+    skills: int | None = DEFAULT_SKILLS,
     reward: bool = True,
     reward_plans: Mapping[str, Sequence[str]] | None = None,
     seed: int = 0,
@@ -240,10 +264,13 @@ def learn_task(
         The segmentation model (default: the shipped one).
     primitives, reward : bool
         Run the motor-primitive and the relational-reward stages.
+    skills : int, optional
+        Skills of the library that explains the constraint motions in the
+        primitives block (None: no library).
     reward_plans : mapping of str to sequence of str, optional
         Part sets the learned reward plans for; default :func:`reward_targets`.
     seed : int
-        Seed of the reward stage's random transitions.
+        Seed of the reward stage's random transitions and of the skill library.
     inputs : sequence of path-like
         Source files, hashed into the task's provenance.
     progress : callable, optional
@@ -287,7 +314,7 @@ def learn_task(
         skipped.append("primitives: skipped by the user")
     else:
         say("primitives")
-        block = fit_task_primitives(learned)
+        block = fit_task_primitives(learned, skills=skills, seed=seed)
         if block is None:
             skipped.append("primitives: no constraint was learned")
         else:

@@ -116,7 +116,14 @@ def learn_command(
     no_reward: Annotated[
         bool, typer.Option("--no-reward", help="Skip the relational reward (RCSI).")
     ] = False,
-    seed: Annotated[int, typer.Option(help="Seed of the reward stage.")] = 0,
+    skills: Annotated[
+        int,
+        typer.Option(
+            help="Skills of the library that explains the constraint motions "
+            "(stages.primitives.skill_library; 0: no library)."
+        ),
+    ] = 4,
+    seed: Annotated[int, typer.Option(help="Seed of the reward stage and the skill library.")] = 0,
     segment_model: Annotated[
         Path | None,
         typer.Option(
@@ -143,6 +150,7 @@ def learn_command(
     from thirdhand.taskfile import save_task
 
     options.seed(seed)
+    options.integer("--skills", skills, low=0, high=20)
     _check_batch(jobs, scheduler)
     check_output(output, force=force, inputs=demos)
     if report is not None:
@@ -181,6 +189,7 @@ def learn_command(
             segment=not no_segment,
             segment_model=seg_model,
             primitives=not no_primitives,
+            skills=skills or None,
             reward=not no_reward,
             seed=seed,
             inputs=demos,

@@ -229,8 +229,16 @@ def evaluate(
         list[Path], typer.Argument(help="Labelled .mat files (proc_data/True_states or Data_*).")
     ],
     skills: Annotated[
-        int | None, typer.Option(help="Number of skills K (default: chosen by BIC over 2-6).")
+        int | None,
+        typer.Option(help="Number of skills K (default: selected over 2-6, see --select)."),
     ] = None,
+    select: Annotated[
+        str,
+        typer.Option(
+            help="How K is selected without --skills: heldout (cross-validated log-likelihood "
+            "on the training recordings) or bic; both tables are printed."
+        ),
+    ] = "heldout",
     shape: Annotated[
         str, typer.Option(help="Shape channels per arm: pos, rot, force, torque (comma list).")
     ] = "pos",
@@ -280,6 +288,8 @@ def evaluate(
     try:
         if skills is not None:
             options.integer("--skills", skills, low=1, high=100)
+        if select not in ("heldout", "bic"):
+            raise ThirdhandError(f"--select must be heldout or bic, got {select!r}")
         options.finite("--tolerance", tolerance, low=0.0)
         options.finite("--grid", grid, low=0.0)
         options.integer("--subsample", subsample, low=1, high=1000)
@@ -306,6 +316,7 @@ def evaluate(
             levels=_names(levels),
             arms=arm_ids,
             n_skills=skills,
+            select=select,
             subsample=subsample,
             grid=grid or None,
             threshold=threshold,
@@ -328,7 +339,8 @@ def evaluate(
     }
     for fname, (streams, res) in results.items():
         out.print(
-            f"{fname}: {len(streams)} recordings, K = {res.streams[0].n_skills}, frame accuracy "
+            f"{fname}: {len(streams)} recordings, K = "
+            f"{'/'.join(str(r.n_skills) for r in res.streams)}, frame accuracy "
             f"{res.accuracy:.3f} (one map for all: {res.global_accuracy:.3f}), "
             f"boundaries P {res.boundaries.precision:.2f} "
             f"R {res.boundaries.recall:.2f} F1 {res.boundaries.f1:.2f} "
@@ -347,8 +359,16 @@ def evaluate(
                 f"{b.recall:>5.2f} {b.f1:>5.2f} {b.n_true:>4} {b.n_pred:>4} {r.n_candidates:>5} "
                 f"{r.n_phases:>6} {r.fit_s:>6.1f}{note}"
             )
-        if res.bic:
-            out.print("  BIC: " + ", ".join(f"K={k}: {v:.0f}" for k, v in res.bic.items()))
+        for r in res.streams:
+            if r.selection is None:
+                continue
+            sel = r.selection
+            out.print(
+                f"  without {r.name[:30]}: K = {sel.chosen} by {select}; BIC "
+                + ", ".join(f"{k}: {v:.0f}" for k, v in sel.bic.items())
+                + "; held-out log-lik per obs "
+                + ", ".join(f"{k}: {v:.3f}" for k, v in sel.heldout.items())
+            )
         doc["files"].append(
             {
                 "file": fname,
@@ -358,6 +378,7 @@ def evaluate(
                 "raw_boundaries": _bscore(res.raw_boundaries),
                 "mapping": {str(k): v for k, v in res.mapping.items()},
                 "bic": {str(k): v for k, v in res.bic.items()},
+                "heldout_loglik_per_obs": {str(k): v for k, v in res.heldout.items()},
                 "rate_assumed": any(s.rate_assumed for s in streams),
                 "recordings": [
                     {
@@ -373,6 +394,16 @@ def evaluate(
                         "n_skills": r.n_skills,
                         "in_sample": r.in_sample,
                         "fit_s": r.fit_s,
+                        "k_selection": None
+                        if r.selection is None
+                        else {
+                            "by": select,
+                            "chosen": r.selection.chosen,
+                            "bic": {str(k): v for k, v in r.selection.bic.items()},
+                            "heldout_loglik_per_obs": {
+                                str(k): v for k, v in r.selection.heldout.items()
+                            },
+                        },
                     }
                     for r, s in zip(res.streams, streams, strict=True)
                 ],

@@ -51,8 +51,14 @@ class ParserConfig:
     arms : tuple of int or None
         Arms used (None: all).
     n_skills : int or None
-        ``K``; None selects it by BIC over ``k_range`` on the training recordings.
+        ``K``; None selects it over ``k_range`` on the training recordings (``select``).
     k_range : tuple of int
+    select : {"heldout", "bic"}
+        How ``K`` is selected when not given: the highest held-out log-likelihood
+        (:func:`heldout_scores`: each training recording scored by a library fitted on
+        the other training recordings, or each half of a single training recording by
+        the other half), or the lowest BIC of the library fitted on all of them. Both
+        tables are computed either way.
     subsample : int
         Keep every n-th sample (the parse is mapped back to every sample).
     grid : float or None
@@ -76,6 +82,7 @@ class ParserConfig:
     arms: tuple[int, ...] | None = None
     n_skills: int | None = 3
     k_range: tuple[int, ...] = (2, 3, 4, 5, 6)
+    select: str = "heldout"
     subsample: int = 5
     grid: float | None = 0.5
     threshold: float | None = None
@@ -85,6 +92,24 @@ class ParserConfig:
     switch_penalty: float = 0.0
     n_init: int = 4
     seed: int = 0
+
+
+@dataclass(frozen=True)
+class KSelection:
+    """How ``K`` was chosen on one fold's training recordings.
+
+    Attributes
+    ----------
+    bic : dict of int to float
+        K → BIC of the library fitted on all training recordings.
+    heldout : dict of int to float
+        K → held-out log-likelihood per scalar observation (:func:`heldout_scores`).
+    chosen : int
+    """
+
+    bic: dict[int, float]
+    heldout: dict[int, float]
+    chosen: int
 
 
 @dataclass(frozen=True)
@@ -110,6 +135,8 @@ class StreamResult:
         ``K`` used for this recording's library.
     in_sample : bool
     fit_s : float
+    selection : KSelection or None
+        How K was chosen on this recording's training recordings (None: K given).
     """
 
     name: str
@@ -125,6 +152,7 @@ class StreamResult:
     n_skills: int
     in_sample: bool
     fit_s: float
+    selection: KSelection | None = None
 
 
 @dataclass(frozen=True)
@@ -145,7 +173,10 @@ class FileResult:
     mapping : dict
         Skill → human label.
     bic : dict
-        K → BIC of the last library fitted with K chosen by BIC (empty with a fixed K).
+        K → BIC of the library fitted on the last fold's training recordings (empty
+        with a fixed K).
+    heldout : dict
+        K → held-out log-likelihood per scalar observation, same fold (empty with a fixed K).
     """
 
     streams: list[StreamResult]
@@ -155,6 +186,7 @@ class FileResult:
     raw_boundaries: BoundaryScore
     mapping: dict[int, int]
     bic: dict[int, float] = field(default_factory=dict)
+    heldout: dict[int, float] = field(default_factory=dict)
 
 
 def n_parameters(lib: PrimitiveLibrary) -> int:
@@ -194,42 +226,96 @@ def _threshold(tracks: Sequence[tuple[np.ndarray, ...]], cfg: ParserConfig) -> f
     return 0.05 * float(np.median(peaks))
 
 
+def _make_library(k: int, thr: float, cfg: ParserConfig) -> PrimitiveLibrary:
+    return PrimitiveLibrary(
+        k,
+        threshold=thr,
+        window=cfg.window,
+        grid=cfg.grid,
+        trim_rest=cfg.trim_rest,
+        switch_penalty=cfg.switch_penalty,
+        n_init=cfg.n_init,
+        seed=cfg.seed,
+    )
+
+
+def _halves(
+    track: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    t, y, lev = track
+    h = t.size // 2
+    return [(t[:h], y[:h], lev[:h]), (t[h:], y[h:], lev[h:])]
+
+
+def heldout_scores(
+    tracks: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    cfg: ParserConfig,
+    k_range: Sequence[int],
+    threshold: float,
+) -> dict[int, float]:
+    """Held-out log-likelihood per scalar observation of each K, by cross-validation.
+
+    Each track is scored (:meth:`PrimitiveLibrary.score`) by a library fitted on
+    the other tracks; a single track is cut in two halves in time, each scored
+    by a library fitted on the other. The candidate cuts use ``threshold`` (the
+    one of the final fit), so every K is scored on the same segmentations.
+
+    Returns
+    -------
+    dict of int to float
+        K → ``Σ_folds log p(held-out | θ_K) / n``, ``n`` scalar observations held out;
+        K that cannot be fitted on some fold are left out.
+    """
+    folds = list(tracks) if len(tracks) > 1 else _halves(tracks[0])
+    n_obs = sum(y.size + lev.size for _, y, lev in folds)
+    out: dict[int, float] = {}
+    for k in k_range:
+        total = 0.0
+        try:
+            for i, held in enumerate(folds):
+                train = [f for j, f in enumerate(folds) if j != i]
+                total += _make_library(k, threshold, cfg).fit(train).score([held])
+        except PrimitiveError:
+            continue
+        out[k] = total / n_obs
+    return out
+
+
 def fit_library(
     tracks: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]], cfg: ParserConfig
-) -> tuple[PrimitiveLibrary, dict[int, float]]:
-    """Fit with ``cfg.n_skills``, or with the K of lowest BIC over ``cfg.k_range``."""
+) -> tuple[PrimitiveLibrary, KSelection | None]:
+    """Fit with ``cfg.n_skills``, or with the K selected over ``cfg.k_range`` (``cfg.select``).
+
+    Returns
+    -------
+    library : PrimitiveLibrary
+    selection : KSelection or None
+        None when ``cfg.n_skills`` is given.
+    """
+    if cfg.select not in ("heldout", "bic"):
+        raise PrimitiveError(f"K selection must be 'heldout' or 'bic', got {cfg.select!r}")
     thr = _threshold(tracks, cfg)
-
-    def make(k: int) -> PrimitiveLibrary:
-        return PrimitiveLibrary(
-            k,
-            threshold=thr,
-            window=cfg.window,
-            grid=cfg.grid,
-            trim_rest=cfg.trim_rest,
-            switch_penalty=cfg.switch_penalty,
-            n_init=cfg.n_init,
-            seed=cfg.seed,
-        ).fit(list(tracks))
-
     if cfg.n_skills is not None:
-        return make(cfg.n_skills), {}
+        return _make_library(cfg.n_skills, thr, cfg).fit(list(tracks)), None
     n_obs = sum(y.size + lev.size for _, y, lev in tracks)
+    libs: dict[int, PrimitiveLibrary] = {}
     scores: dict[int, float] = {}
-    best: PrimitiveLibrary | None = None
     for k in cfg.k_range:
         try:
-            lib = make(k)
+            libs[k] = _make_library(k, thr, cfg).fit(list(tracks))
         except PrimitiveError:
-            if best is None:
+            if not libs:
                 raise
             break
-        scores[k] = bic(lib, n_obs)
-        if best is None or scores[k] <= min(scores.values()):
-            best = lib
-    if best is None:
+        scores[k] = bic(libs[k], n_obs)
+    if not libs:
         raise PrimitiveError(f"no K in {list(cfg.k_range)} could be fitted")
-    return best, scores
+    held = heldout_scores(tracks, cfg, list(libs), thr)
+    if cfg.select == "heldout" and held:
+        chosen = max(held, key=lambda k: held[k])
+    else:
+        chosen = min(scores, key=lambda k: scores[k])
+    return libs[chosen], KSelection(scores, held, chosen)
 
 
 def evaluate_streams(
@@ -240,12 +326,12 @@ def evaluate_streams(
         raise PrimitiveError("no labelled recording to evaluate")
     tracks = _tracks(streams, cfg)
     results: list[StreamResult] = []
-    last_bic: dict[int, float] = {}
+    last: KSelection | None = None
     for i, (s, (t, y, lev)) in enumerate(zip(streams, tracks, strict=True)):
         train = [tr for j, tr in enumerate(tracks) if j != i] or [tracks[i]]
         t0 = time.perf_counter()
-        lib, scores = fit_library(train, cfg)
-        last_bic = scores or last_bic
+        lib, selection = fit_library(train, cfg)
+        last = selection or last
         raw = lib.parse(t, y, levels=lev, name=s.name)
         parse = raw.merged()
         if cfg.n_phases is not None:
@@ -269,6 +355,7 @@ def evaluate_streams(
                 int(lib.n_skills),
                 len(streams) == 1,
                 fit_s,
+                selection,
             )
         )
     mapping, n_ok, n_all = best_label_map([r.skills for r in results], [s.labels for s in streams])
@@ -280,7 +367,11 @@ def evaluate_streams(
     total, raw_total = final[0].boundaries, final[0].raw_boundaries
     for r in final[1:]:
         total, raw_total = total + r.boundaries, raw_total + r.raw_boundaries
-    return FileResult(final, per_map, n_ok / n_all, total, raw_total, mapping, last_bic)
+    bic_table = {} if last is None else last.bic
+    held_table = {} if last is None else last.heldout
+    return FileResult(
+        final, per_map, n_ok / n_all, total, raw_total, mapping, bic_table, held_table
+    )
 
 
 def _phase_grouper(

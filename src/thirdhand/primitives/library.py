@@ -346,6 +346,41 @@ class PrimitiveLibrary:
         self.candidates_ = [tr.nodes[1:-1] + tr.offset for tr in prepared]
         return self
 
+    def score(self, tracks: Sequence[tuple[ArrayLike, ...]]) -> float:
+        """Log-likelihood of (new) tracks under the fitted library: held-out model selection.
+
+        ``Σ_tracks log Σ_j Π_{S_h ∈ D_j} p(S_h | θ)`` over every segmentation of each
+        track at its candidate cuts (the quantity :meth:`fit` maximises, so a
+        library's score on its own training tracks is ``log_likelihood_``).
+
+        Parameters
+        ----------
+        tracks : sequence of tuple
+            As in :meth:`fit`.
+        """
+        prepared = [
+            self._prepare(tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None)
+            for i, tr in enumerate(tracks)
+        ]
+        return self._e_step(prepared, self.mixture_)[1]
+
+    def n_possible_segments(self, tracks: Sequence[tuple[ArrayLike, ...]]) -> int:
+        """Segments the candidate cuts of ``tracks`` allow (``K`` can be at most this).
+
+        Parameters
+        ----------
+        tracks : sequence of tuple
+            As in :meth:`fit`.
+        """
+        return sum(
+            int(
+                self._prepare(
+                    tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None
+                ).allowed.sum()
+            )
+            for i, tr in enumerate(tracks)
+        )
+
     @staticmethod
     def _reseed(mix: ProMPMixture, x: SegmentStats, u: FloatArray) -> bool:
         """Move one dead component onto the probable segment explained worst (per sample)."""

@@ -8,7 +8,7 @@ transfers when the parent is elsewhere (:func:`rollout_in_world`).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Literal
 
 import numpy as np
@@ -188,6 +188,9 @@ def primitives_stage(
     align: Literal["phase", "dtw"] = "phase",
     keyframe_times: Sequence[Sequence[float]] | None = None,
     events: Sequence[Sequence[ConstraintEvent]] | None = None,
+    skills: int | None = None,
+    names: Sequence[str] | None = None,
+    seed: int = 0,
 ) -> dict[str, Any]:
     """Learn per-constraint primitives from demonstrations; a JSON-able task-file block.
 
@@ -201,6 +204,16 @@ def primitives_stage(
         Per demonstration, the constraints to learn motions for (e.g. the learned
         ones, :func:`thirdhand.task_learning.learned_events`); default each
         demonstration's labels.
+    skills : int, optional
+        Also learn a library of this many skills over all the constraint motions
+        and explain each motion as a sequence of them
+        (:func:`~thirdhand.primitives.explain.explain_constraint_motions`): the
+        block's ``skill_library`` and each constraint's ``skills``. None: no library.
+    names : sequence of str, optional
+        A name per demonstration, the ``source`` of its explained motions
+        (default each demonstration's ``meta["source"]``).
+    seed : int
+        Seeds the skill library's restarts.
 
     Returns
     -------
@@ -210,6 +223,10 @@ def primitives_stage(
     """
     if not demos:
         raise PrimitiveError("primitives stage: no demonstration given")
+    if names is not None and len(names) != len(demos):
+        raise PrimitiveError(
+            f"primitives stage: {len(names)} names for {len(demos)} demonstrations"
+        )
     if events is not None and len(events) != len(demos):
         raise PrimitiveError(
             f"primitives stage: {len(events)} event lists for {len(demos)} demonstrations"
@@ -218,7 +235,10 @@ def primitives_stage(
     for i, d in enumerate(demos):
         kf = None if keyframe_times is None else keyframe_times[i]
         ev = None if events is None else events[i]
-        segs.extend(constraint_segments(d, keyframe_times=kf, events=ev))
+        found = constraint_segments(d, keyframe_times=kf, events=ev)
+        if names is not None:
+            found = [replace(sg, source=names[i]) for sg in found]
+        segs.extend(found)
     out: dict[str, Any] = {
         "schema": SCHEMA,
         "frame": "child pose in the parent part's frame",
@@ -229,6 +249,13 @@ def primitives_stage(
             group, n_weights=n_weights, promp_weights=promp_weights, align=align
         )
         out["constraints"][key] = prim.to_dict()
+    if skills is not None:
+        from thirdhand.primitives.explain import explain_constraint_motions
+
+        explained = explain_constraint_motions(segs, n_skills=skills, seed=seed)
+        out["skill_library"] = explained.library_block()
+        for key, examples in explained.steps_by_key().items():
+            out["constraints"][key]["skills"] = examples
     return out
 
 

@@ -27,6 +27,7 @@ from pydantic import (
 from thirdhand.errors import TaskFileError
 from thirdhand.task.constraint import Constraint, Name
 from thirdhand.task.geometry import Pose, Positive, TaskModel, Vec3
+from thirdhand.task.skill_block import skill_block_problem
 
 #: The schema string of this version of the task file.
 SCHEMA = "thirdhand.task/1"
@@ -272,7 +273,7 @@ class TaskFile(TaskModel):
                         f"plan[{i}].after[{k}]: step {j} is not an earlier step "
                         f"(expected an index in 0..{i - 1})"
                     )
-        return None
+        return skill_block_problem(self.stages.get("primitives"))
 
     @classmethod
     def new(

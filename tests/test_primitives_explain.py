@@ -1,0 +1,238 @@
+"""Constraint motions explained by library skills, stored in the task's primitives block."""
+
+from __future__ import annotations
+
+import copy
+import itertools
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.ndimage import uniform_filter1d
+
+from thirdhand.errors import TaskFileError
+from thirdhand.primitives import PrimitiveError
+from thirdhand.primitives.explain import (
+    accumulated_rotation,
+    explain_constraint_motions,
+    motion_channels,
+)
+from thirdhand.primitives.segments import ConstraintSegment, constraint_segments
+from thirdhand.primitives.serialize import promp_from_dict
+from thirdhand.primitives.stage import primitives_stage
+from thirdhand.synth import make_scene
+from thirdhand.task.skill_block import skill_block_problem
+from thirdhand.taskfile import TaskFile, load_task, save_task
+
+K = 4
+
+
+@pytest.fixture(scope="module")
+def chairs() -> list:
+    return [make_scene("chair", seed=s, sensor=None) for s in range(2)]
+
+
+@pytest.fixture(scope="module")
+def block(chairs: list) -> dict:
+    return primitives_stage(chairs, promp_weights=5, skills=K, names=["chair0", "chair1"])
+
+
+def _roles(block: dict) -> dict[str, int]:
+    """Skills by what they do, from their level Gaussians (not from the labels)."""
+    skills = block["skill_library"]["skills"]
+    speed = np.array([s["mean_speed_m_s"] for s in skills])
+    turn = np.array([s["mean_angular_speed_rad_s"] for s in skills])
+    roles = {
+        "transport": int(np.argmax(speed)),
+        "turn": int(np.argmax(turn)),
+        "rest": int(np.argmin(speed)),
+    }
+    assert len(set(roles.values())) == 3
+    roles["approach"] = ({0, 1, 2, 3} - set(roles.values())).pop()
+    return roles
+
+
+def _true_turns(demo, leg: str) -> int:
+    """Screwing turns of a leg, counted on the noise-free track: fast spins once seated."""
+    p, q, _ = demo.relative_pose("seating", leg)
+    ev = next(e for e in demo.labels.constraints if e.child == leg)
+    sel = demo.t <= ev.time + 1e-9
+    seated = np.linalg.norm(p - np.asarray(ev.pos), axis=1) < 0.013
+    dt = float(demo.t[1] - demo.t[0])
+    rot = accumulated_rotation(q)
+    w = np.linalg.norm(uniform_filter1d(np.gradient(rot, dt, axis=0), 5, axis=0), axis=1)
+    spinning = (w > 1.0) & seated & sel
+    return int(np.sum(spinning[1:] & ~spinning[:-1]))
+
+
+def test_accumulated_rotation_does_not_wrap() -> None:
+    # five quarter turns about z: 2.5 π rad, where a log map wraps at π
+    angle = np.linspace(0.0, 2.5 * np.pi, 200)
+    q = np.stack(
+        [np.zeros_like(angle), np.zeros_like(angle), np.sin(angle / 2), np.cos(angle / 2)], 1
+    )
+    q[::3] *= -1.0  # sign flips change nothing
+    rot = accumulated_rotation(q)
+    np.testing.assert_allclose(rot[:, 2], angle, atol=1e-12)
+    np.testing.assert_allclose(rot[:, :2], 0.0, atol=1e-12)
+
+
+def test_channels_of_a_straight_move_at_constant_speed() -> None:
+    t = np.linspace(0.0, 2.0, 241)
+    pos = np.stack([0.1 * t, np.zeros_like(t), np.zeros_like(t)], 1)
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1))
+    seg = ConstraintSegment(_event(), t, pos, quat)
+    c = motion_channels(seg, rate=20.0)
+    assert c.t.size == 41 and c.t[-1] == pytest.approx(2.0)
+    # 0.1 m/s in units of 0.02 m/s; away from the ends the smoothing changes nothing
+    np.testing.assert_allclose(c.levels[3:-3, 0], 5.0, atol=1e-9)
+    np.testing.assert_allclose(c.levels[:, 1], 0.0, atol=1e-12)
+    np.testing.assert_allclose(c.shape[3:-3, 0], 0.1 * c.t[3:-3] / 0.02, atol=1e-9)
+
+
+def _event():
+    from thirdhand.demonstration import ConstraintEvent
+
+    return ConstraintEvent(time=2.0, parent="a", child="b", type="fixed", symbol="c1")
+
+
+@pytest.mark.slow
+def test_every_leg_is_transport_approach_then_turns_and_rests(chairs: list, block: dict) -> None:
+    roles = _roles(block)
+    T, A, S, R = (roles[k] for k in ("transport", "approach", "turn", "rest"))
+    legs = 0
+    for key, c in block["constraints"].items():
+        examples = c["skills"]
+        assert [e["source"] for e in examples] == ["chair0", "chair1"]
+        for demo, ex in zip(chairs, examples, strict=True):
+            steps = ex["steps"]
+            seq = [s["skill"] for s in steps]
+            # steps tile the motion: contiguous, in time order
+            for a, b in itertools.pairwise(steps):
+                assert a["end"] == b["start"] and a["start"] < a["end"]
+            if c["child"] == "back":
+                assert S not in seq and R not in seq and seq[-2:] == [T, A]
+                continue
+            legs += 1
+            n = _true_turns(demo, c["child"])
+            assert 4 <= n <= 6  # the scene's range of turns
+            assert seq == [T, A, S] + [R, S] * (n - 1), (key, seq, n)
+    assert legs == 8
+
+
+@pytest.mark.slow
+def test_library_skills_rebuild_and_round_trip_through_the_task_file(
+    block: dict, tmp_path: Path
+) -> None:
+    lib = block["skill_library"]
+    assert lib["n_skills"] == K and [s["id"] for s in lib["skills"]] == [0, 1, 2, 3]
+    assert sum(s["weight"] for s in lib["skills"]) == pytest.approx(1.0)
+    for s in lib["skills"]:
+        pm = promp_from_dict(s["promp"])
+        assert pm.dims_ == 6 and pm.mean_trajectory([0.0, 1.0]).shape == (2, 6)
+    task = TaskFile.new(stages={"primitives": block})
+    path = tmp_path / "task.json"
+    save_task(task, path)
+    again = load_task(path)
+    assert again.stages["primitives"] == json.loads(json.dumps(block))
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("edit", "where"),
+    [
+        (
+            lambda b: b["constraints"]["c1"]["skills"][0]["steps"][1].update(skill=9),
+            "stages.primitives.constraints.c1.skills[0].steps[1].skill: unknown skill 9",
+        ),
+        (
+            lambda b: b["constraints"]["c2"]["skills"][1]["steps"][2].update(start=-1.0),
+            "stages.primitives.constraints.c2.skills[1].steps[2].start: -1.0 s is before",
+        ),
+        (
+            lambda b: b["skill_library"]["skills"][2]["promp"]["mean"].pop(),
+            "stages.primitives.skill_library.skills[2].promp.mean: expected n_weights × dims",
+        ),
+        (
+            lambda b: b["skill_library"]["skills"][1].pop("level_var"),
+            "stages.primitives.skill_library.skills[1].level_var: required field is missing",
+        ),
+        (
+            lambda b: b["skill_library"]["skills"][0].update(weight="0.5"),
+            "stages.primitives.skill_library.skills[0].weight: Input should be a valid number",
+        ),
+        (
+            lambda b: b.pop("skill_library"),
+            "stages.primitives.constraints.c1.skills: refers to skills, but "
+            "stages.primitives.skill_library is missing",
+        ),
+    ],
+)
+def test_a_malformed_skill_block_is_one_line_naming_where(
+    block: dict, tmp_path: Path, edit, where: str
+) -> None:
+    bad = copy.deepcopy(json.loads(json.dumps(block)))
+    edit(bad)
+    problem = skill_block_problem(bad)
+    assert problem is not None and problem.startswith(where), problem
+    good = TaskFile.new(stages={"primitives": block})
+    text = json.loads(good.model_dump_json(by_alias=True))
+    text["stages"]["primitives"] = bad
+    path = tmp_path / "bad.json"
+    path.write_text(json.dumps(text))
+    with pytest.raises(TaskFileError) as err:
+        load_task(path)
+    msg = str(err.value)
+    assert "\n" not in msg and where in msg and str(path) in msg
+
+
+def test_a_block_without_skills_needs_no_library() -> None:
+    assert skill_block_problem(None) is None
+    assert skill_block_problem({"constraints": {"c1": {"dmp": {}}}}) is None
+
+
+def test_motions_too_short_are_named_not_parsed() -> None:
+    t = np.linspace(0.0, 0.1, 13)  # 3 samples at 20 Hz: shorter than one segment
+    seg = ConstraintSegment(_event(), t, np.zeros((13, 3)), np.tile([0.0, 0.0, 0.0, 1.0], (13, 1)))
+    with pytest.raises(PrimitiveError, match="shorter than 4 samples at 20 Hz"):
+        explain_constraint_motions([seg])
+    # beside a motion that can be parsed, the short one is kept with a note
+    t2 = np.linspace(0.0, 0.25, 31)  # 6 grid samples: one possible segment only
+    move = ConstraintSegment(
+        _event(), t2, np.outer(t2, [0.1, 0.0, 0.0]), np.tile([0.0, 0.0, 0.0, 1.0], (31, 1))
+    )
+    res = explain_constraint_motions([seg, move], n_skills=4)
+    assert res.library.n_skills == 1  # K lowered to the one possible segment
+    assert (
+        res.explanations[0].steps == () and "shorter than one segment" in res.explanations[0].note
+    )
+    (step,) = res.explanations[1].steps
+    assert (step.skill, step.start, step.end) == (0, 0.0, 0.25)
+    ex = res.steps_by_key()["c1"]
+    assert ex[0]["steps"] == [] and "note" in ex[0] and "note" not in ex[1]
+    with pytest.raises(PrimitiveError, match="at least 1 skill"):
+        explain_constraint_motions([seg], n_skills=0)
+    with pytest.raises(PrimitiveError, match="no constraint motion"):
+        explain_constraint_motions([])
+
+
+@pytest.mark.slow
+def test_noisy_chair_legs_share_their_turn_skill() -> None:
+    """With tracker noise and gaps (the demo's sensor), every screwing turn is one skill."""
+    demo = make_scene("chair", seed=0)
+    segs = constraint_segments(demo)
+    res = explain_constraint_motions(segs, n_skills=K)
+    ang = res.library.mixture_.level_mean_[:, 1]
+    turn = int(np.argmax(ang))
+    for seg, ex in zip(segs, res.explanations, strict=True):
+        n_turn = ex.skills.count(turn)
+        if seg.event.child.startswith("leg"):
+            assert n_turn == _true_turns_noisy(demo, seg), (seg.key, ex.skills)
+        else:
+            assert n_turn == 0
+
+
+def _true_turns_noisy(demo, seg: ConstraintSegment) -> int:
+    clean = make_scene("chair", seed=0, sensor=None)
+    return _true_turns(clean, seg.event.child)
