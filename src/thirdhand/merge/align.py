@@ -644,22 +644,21 @@ def align(
         if pairs.t.size < 3:
             raise MergeError(f"only {pairs.t.size} simultaneous samples of the shared bodies")
     fit_time = offset is None
+    fixed_frame = transform is not None
+    state = (off, dr, p, q)
     for _ in range(2):
-        off, dr, p, q = _refine(
+        state = _refine(
             ref,
             bodies,
             pairs,
             inl,
-            (off, dr, p, q),
+            state,
             fit_time=fit_time,
-            fit_frame=transform is None,
+            fit_frame=not fixed_frame,
             fit_drift=fit_drift,
         )
-        pairs = _pairs(ref, other, bodies, off, dr)
-        r = _residual(pairs.x, pairs.x_ref, p, q)
-        inl = r < max(TRIM_FACTOR * float(np.median(r)), TRIM_FLOOR_M)
-        if transform is not None:
-            inl = np.ones(r.size, bool)
+        pairs = _pairs(ref, other, bodies, state[0], state[1])
+        inl = _trim(pairs, state, keep_all=fixed_frame)
     smoothed = False
     if fit_time and smooth:
         # A last refinement on smoothed tracks of both recordings (the same filter on
@@ -671,25 +670,21 @@ def align(
         ref_s, f_ref = _smoothed(ref, bodies, {})
         other_s, f_other = _smoothed(other, bodies, drop)
         smoothed = min(f_ref, f_other) >= MIN_SMOOTHED_FRACTION
-    if smoothed:
-        pairs_s = _pairs(ref_s, other_s, bodies, off, dr)
-        r = _residual(pairs_s.x, pairs_s.x_ref, p, q)
-        inl_s = r < max(TRIM_FACTOR * float(np.median(r)), TRIM_FLOOR_M)
-        off, dr, p, q = _refine(
-            ref_s,
-            bodies,
-            pairs_s,
-            inl_s,
-            (off, dr, p, q),
-            fit_time=True,
-            fit_frame=transform is None,
-            fit_drift=fit_drift,
-        )
-        pairs = _pairs(ref, other, bodies, off, dr)
-        r = _residual(pairs.x, pairs.x_ref, p, q)
-        inl = r < max(TRIM_FACTOR * float(np.median(r)), TRIM_FLOOR_M)
-        if transform is not None:
-            inl = np.ones(r.size, bool)
+        if smoothed:
+            pairs_s = _pairs(ref_s, other_s, bodies, state[0], state[1])
+            state = _refine(
+                ref_s,
+                bodies,
+                pairs_s,
+                _trim(pairs_s, state, keep_all=False),
+                state,
+                fit_time=True,
+                fit_frame=not fixed_frame,
+                fit_drift=fit_drift,
+            )
+            pairs = _pairs(ref, other, bodies, state[0], state[1])
+            inl = _trim(pairs, state, keep_all=fixed_frame)
+    off, dr, p, q = state
     return Alignment(
         offset_s=off,
         drift=dr,
@@ -701,6 +696,16 @@ def align(
         residuals=_residuals(bodies, pairs, inl, p, q),
         smoothed=smoothed,
     )
+
+
+def _trim(
+    pairs: _Pairs, state: tuple[float, float, FloatArray, FloatArray], *, keep_all: bool
+) -> NDArray[np.bool_]:
+    """Inlier pairs: within :data:`TRIM_FACTOR` median residuals (all of them: ``keep_all``)."""
+    r = _residual(pairs.x, pairs.x_ref, state[2], state[3])
+    if keep_all:
+        return np.ones(r.size, bool)
+    return np.asarray(r < max(TRIM_FACTOR * float(np.median(r)), TRIM_FLOOR_M))
 
 
 def _tuple3(v: Sequence[float] | FloatArray) -> tuple[float, float, float]:
