@@ -215,3 +215,46 @@ def test_phases_labelled_in_the_browser(chair: Any, tmp_path: Path) -> None:
     (demo,) = _with_labels([recording], [saved])
     got = pair_intervals(demo.labels, *pair)
     np.testing.assert_allclose(got, snap_to_frames(s.labelled[pair], part.t), atol=1e-9)
+
+
+def test_start_labelling_segments_outside_the_app_lock(
+    chair: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The segmentation (tens of seconds on a long recording) leaves the app's lock free:
+    another tab's action gets it meanwhile (it held the lock throughout before)."""
+    import threading
+
+    import thirdhand.segment
+    from thirdhand.review.app import ReviewApp
+    from thirdhand.synth.task import truth_task
+    from thirdhand.taskfile import save_task
+
+    part = chair.slice(20.0, 30.0)
+    path = tmp_path / "chair.task.json"
+    save_task(truth_task(chair), path)
+    app = ReviewApp(path, demos=[part], port=0, light_rendering=True)
+    real = thirdhand.segment.segment_demonstration
+    free: list[bool] = []
+
+    def watched(demo: Any, *args: Any, **kwargs: Any) -> Any:
+        def other_tab() -> None:
+            got = app.lock.acquire(timeout=5.0)
+            free.append(got)
+            if got:
+                app.lock.release()
+
+        t = threading.Thread(target=other_tab)
+        t.start()
+        t.join()
+        return real(demo, *args, **kwargs)
+
+    monkeypatch.setattr(thirdhand.segment, "segment_demonstration", watched)
+    app.start()
+    try:
+        app.attempt_long(app.start_labelling)
+        assert free == [True]
+        assert app.labelling is not None
+        q = app.labelling.question  # the first question is shown, as before
+        assert q is not None and app.label_pair == (q.a, q.b)
+    finally:
+        app.stop()

@@ -388,6 +388,14 @@ class ReviewApp:
         except ThirdhandError as exc:
             self.notify(str(exc), error=True)
 
+    def attempt_long(self, fn: Any, *args: Any) -> None:
+        """:meth:`attempt` for a long action that takes the app's lock only around its
+        quick parts (:meth:`start_labelling`), so other tabs and panels are not blocked."""
+        try:
+            fn(*args)
+        except ThirdhandError as exc:
+            self.notify(str(exc), error=True)
+
     # ------------------------------------------------------------------ actions
     def select(self, name: str | None, *, operation: str | None = "click") -> None:
         """Select an object: it turns orange, its parent blue; its values fill the editors."""
@@ -719,15 +727,22 @@ class ReviewApp:
 
     # ------------------------------------------------------------------ phase labelling
     def start_labelling(self) -> PhaseQuestion | None:
-        """Segment the recording shown and ask about its most uncertain intervals first."""
+        """Segment the recording shown and ask about its most uncertain intervals first.
+
+        The segmentation (tens of seconds on a long recording) runs outside the
+        app's lock, so the other panels and tabs stay responsive meanwhile.
+        """
         with self.lock:
             i = self.motion.demo_index
             if i >= len(self.demos):
                 raise ThirdhandError("phases are labelled on a recording of the person (--demo)")
-            from thirdhand.segment import segment_demonstration
-
             demo = self.demos[i]
-            self.labelling = PhaseLabelling.from_segmentation(demo, segment_demonstration(demo))
+            self.say("labelling: segmenting the recording…")
+        from thirdhand.segment import segment_demonstration
+
+        labelling = PhaseLabelling.from_segmentation(demo, segment_demonstration(demo))
+        with self.lock:
+            self.labelling = labelling
             self.label_pair = self.labelling.pairs[0]
             self.label_from = None
             return self._ask_phase()

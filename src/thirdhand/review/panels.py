@@ -238,7 +238,7 @@ class Panels:
                 self.mark_from = gui.add_button("From here")
                 self.mark_to = gui.add_button_group("To here", ("interacting", "not"))
                 self.save_labels = gui.add_button("Save labels")
-            self._on(self.start_labels.on_click, lambda e: app.attempt(app.start_labelling))
+            self._on(self.start_labels.on_click, lambda e: app.attempt_long(app.start_labelling))
             self._on(self.phase_yes.on_click, lambda e: app.attempt(app.answer_phase, True))
             self._on(self.phase_no.on_click, lambda e: app.attempt(app.answer_phase, False))
             self._on(self.mark_from.on_click, lambda e: app.attempt(app.mark_from_here))
