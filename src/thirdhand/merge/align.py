@@ -646,19 +646,27 @@ def align(
     fit_time = offset is None
     fixed_frame = transform is not None
     state = (off, dr, p, q)
-    for _ in range(2):
+
+    def refine_on(
+        fit_ref: Demonstration, fit_pairs: _Pairs, fit_inl: NDArray[np.bool_]
+    ) -> tuple[_Pairs, NDArray[np.bool_]]:
+        """Refine ``state`` on these tracks; the raw pairs and inliers at the result."""
+        nonlocal state
         state = _refine(
-            ref,
+            fit_ref,
             bodies,
-            pairs,
-            inl,
+            fit_pairs,
+            fit_inl,
             state,
             fit_time=fit_time,
             fit_frame=not fixed_frame,
             fit_drift=fit_drift,
         )
-        pairs = _pairs(ref, other, bodies, state[0], state[1])
-        inl = _trim(pairs, state, keep_all=fixed_frame)
+        raw = _pairs(ref, other, bodies, state[0], state[1])
+        return raw, _trim(raw, state, keep_all=fixed_frame)
+
+    for _ in range(2):
+        pairs, inl = refine_on(ref, pairs, inl)
     smoothed = False
     if fit_time and smooth:
         # A last refinement on smoothed tracks of both recordings (the same filter on
@@ -672,18 +680,7 @@ def align(
         smoothed = min(f_ref, f_other) >= MIN_SMOOTHED_FRACTION
         if smoothed:
             pairs_s = _pairs(ref_s, other_s, bodies, state[0], state[1])
-            state = _refine(
-                ref_s,
-                bodies,
-                pairs_s,
-                _trim(pairs_s, state, keep_all=False),
-                state,
-                fit_time=True,
-                fit_frame=not fixed_frame,
-                fit_drift=fit_drift,
-            )
-            pairs = _pairs(ref, other, bodies, state[0], state[1])
-            inl = _trim(pairs, state, keep_all=fixed_frame)
+            pairs, inl = refine_on(ref_s, pairs_s, _trim(pairs_s, state, keep_all=False))
     off, dr, p, q = state
     return Alignment(
         offset_s=off,
