@@ -52,6 +52,7 @@ from thirdhand.demonstration import Demonstration
 from thirdhand.errors import FormatError, OutputError
 
 if TYPE_CHECKING:
+    from thirdhand.execute.robot import Robot
     from thirdhand.taskfile import TaskFile
 
 FloatArray = NDArray[np.float64]
@@ -350,11 +351,13 @@ def _is_pose(value: Any) -> bool:
     )
 
 
-def _robot_base(doc: dict[str, Any], replay: Demonstration | None) -> FloatArray | None:
-    """``T_world_root`` of the recorded arm: stored, else from the replay's tool frame."""
+def _robot_base(doc: dict[str, Any], replay: Demonstration | None, arm: Robot) -> FloatArray | None:
+    """``T_world_root`` of the recorded arm: stored, else from the replay's tool frame.
+
+    ``arm`` is the robot loaded with its root at the world origin.
+    """
     from thirdhand import se3
     from thirdhand.execute.record import TOOL_BODY
-    from thirdhand.execute.robot import Robot
 
     base = doc.get("base_pose")
     if base is not None:
@@ -372,7 +375,6 @@ def _robot_base(doc: dict[str, Any], replay: Demonstration | None) -> FloatArray
     if abs(t[j] - replay.t[k]) > 1e-3:  # the two files sample the same run at the same times
         return None
     tool = se3.pose_to_matrix(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
-    arm = Robot.load(str(doc["robot"]))
     return base_from_tool(arm, np.asarray(doc["q"][j], dtype=np.float64), tool)
 
 
@@ -407,16 +409,16 @@ def _log_robot(rec: Any, doc: dict[str, Any], replay: Demonstration | None, path
     name = doc.get("robot")
     if name not in ROBOTS:
         return 0
-    base = _robot_base(doc, replay)
+    arm = Robot.load(str(name))  # root at the world origin; the base is applied below
+    base = _robot_base(doc, replay, arm)
     if base is None:
         return 0
-    arm = Robot.load(str(name), base_pose=se3.matrix_to_pose(base))
     q = np.asarray(doc["q"], dtype=np.float64)
     if q.shape[1] != arm.dof:
         raise FormatError(path, f"'q' has {q.shape[1]} joints; {name} has {arm.dof}")
     t = np.asarray(doc["t"], dtype=np.float64)
     shapes = robot_shapes(arm)
-    poses = shape_transforms(arm, shapes, q)
+    poses = base @ shape_transforms(arm, shapes, q)  # every shape moves with the root
     for k, shape in enumerate(shapes):
         entity = f"execution/robot/{rr.escape_entity_path_part(shape.name)}"
         rec.log(entity, _robot_archetype(shape), static=True)
