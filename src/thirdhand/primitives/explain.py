@@ -28,8 +28,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 from scipy.ndimage import uniform_filter1d
-from scipy.spatial.transform import Rotation
 
+from thirdhand import se3
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.library import PrimitiveLibrary
 from thirdhand.primitives.segments import ConstraintSegment
@@ -79,8 +79,8 @@ def accumulated_rotation(quat: FloatArray) -> FloatArray:
     quat : ndarray, shape (n, 4), x y z w
         Orientation of a body in some frame (sign-continuous or not).
     """
-    r = Rotation.from_quat(quat)
-    step = (r[1:] * r[:-1].inv()).as_rotvec()
+    q = np.asarray(quat, dtype=np.float64)
+    step = se3.quat_to_rotvec(se3.quat_multiply(q[1:], se3.quat_conjugate(q[:-1])))
     return np.vstack([np.zeros((1, 3)), np.cumsum(step, axis=0)])
 
 
