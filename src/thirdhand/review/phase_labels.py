@@ -78,13 +78,10 @@ def uncertain_runs(
     probability: FloatArray, *, band: float = UNCERTAIN_BAND
 ) -> list[tuple[int, int]]:
     """Runs ``(first, last_exclusive)`` of steps with ``|p - 1/2| <= band`` (NaN: not asked)."""
+    from thirdhand.segment.intervals import runs
+
     p = np.asarray(probability, dtype=np.float64)
-    inside = np.abs(p - 0.5) <= band  # NaN compares False
-    d = np.diff(np.concatenate([[0], inside.astype(np.int8), [0]]))
-    return [
-        (int(a), int(b))
-        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1), strict=True)
-    ]
+    return runs((np.abs(p - 0.5) <= band).astype(np.int64))  # NaN compares False
 
 
 def active_questions(
