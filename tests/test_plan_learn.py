@@ -9,7 +9,8 @@ import pytest
 from typer.testing import CliRunner
 
 from thirdhand import io
-from thirdhand.plan.assembly import plan_success, truth_slot
+from thirdhand.errors import OptionError
+from thirdhand.plan.assembly import plan_from_demos, plan_success, truth_slot
 from thirdhand.plan.learn import learn, plan_figures
 from thirdhand.synth import SensorModel, make_scene
 from thirdhand.taskfile import dump_task, load_task, parse_task
@@ -50,6 +51,68 @@ def test_plan_fails_when_a_slot_is_used_twice() -> None:
     assert plan_success(res.plan, res.symbols, demo.labels.constraints)
     res.plan.steps[1].symbol = res.plan.steps[0].symbol
     assert not plan_success(res.plan, res.symbols, demo.labels.constraints)
+
+
+def test_a_recording_without_constraints_does_not_vote() -> None:
+    demos = [make_scene("chair", seed=s, sensor=None) for s in (0, 1)]
+    res = learn(demos, segment=False)
+    full, other = res.instances
+    truth = demos[0].labels.constraints
+    # An excerpt that shows no constraint: before, every slot was seen in 1 of 2
+    # recordings and the plan was empty; now the excerpt does not vote.
+    for insts in ([full, []], [[], full]):
+        plan = plan_from_demos(insts, res.symbols)
+        assert len(plan.steps) == 5 and plan.voters == 1 and not plan.left_out
+        assert plan.silent == [insts.index([])]
+        assert plan_success(plan, res.symbols, truth)
+    # A recording cut after its first two attachments does vote: the three slots it
+    # lacks are seen in 1 of 2 and left out (and reported) unless min_support is 0.
+    cut = sorted(other, key=lambda i: i.start)[:2]
+    plan = plan_from_demos([full, cut], res.symbols)
+    assert len(plan.steps) == 2 and plan.silent == []
+    assert sorted(plan.left_out.values()) == [1, 1, 1]
+    assert {s.symbol for s in plan.steps}.isdisjoint(plan.left_out)
+    every = plan_from_demos([full, cut], res.symbols, min_support=0.0)
+    assert len(every.steps) == 5 and not every.left_out
+    assert plan_success(every, res.symbols, truth)
+    # The strict majority is unchanged: 2 of 4 is not more than half.
+    half = plan_from_demos([full, full, cut, cut], res.symbols)
+    assert len(half.steps) == 2 and sorted(half.left_out.values()) == [2, 2, 2]
+    for bad in (1.0, -0.1, float("nan")):
+        with pytest.raises(OptionError, match="min_support"):
+            plan_from_demos([full], res.symbols, min_support=bad)
+
+
+def test_real_toolbox_with_its_excerpt_keeps_the_plan(shared_data: Path, tmp_path: Path) -> None:
+    from thirdhand.cli import app
+
+    folder = shared_data / "3rdhand"
+    whole, excerpt = io.load(folder / "toolbox_coop_4"), io.load(folder / "toolbox_coop_4_excerpt")
+    alone = learn([whole], segment=False).task()
+    assert len(alone.plan) == 1
+    for demos, names in (
+        ([whole, excerpt], ["whole", "excerpt"]),
+        ([excerpt, whole], ["excerpt", "whole"]),
+    ):
+        res = learn(demos, names=names, segment=False)
+        task = res.task()
+        assert [(s.parent, s.child) for s in task.plan] == [(s.parent, s.child) for s in alone.plan]
+        assert task.stages["plan"]["silent_demos"] == ["excerpt"]
+        # The keyframe comes from the recording that has the step, whichever is first.
+        assert task.plan[0].keyframe == alone.plan[0].keyframe != {}
+    r = CliRunner().invoke(
+        app,
+        [
+            "learn",
+            str(folder / "toolbox_coop_4_excerpt"),
+            "-o",
+            str(tmp_path / "t.json"),
+            "--min-support",
+            "1",
+        ],
+    )
+    assert r.exit_code != 0 and "--min-support" in str(r.exception)
+    assert not (tmp_path / "t.json").exists()
 
 
 def test_task_file_validates_and_round_trips(tmp_path: Path) -> None:

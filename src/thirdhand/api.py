@@ -68,13 +68,18 @@ def detect_constraints(
     return detect(demo, phases=phases)
 
 
-def plan_assembly(detections: Sequence[DetectionResult]) -> AssemblyPlan:
+def plan_assembly(
+    detections: Sequence[DetectionResult], *, min_support: float = 0.5
+) -> AssemblyPlan:
     """The assembly plan of one or several recordings' detections (symbols assigned).
 
     Parameters
     ----------
     detections : sequence of DetectionResult
         One per recording of the same task, from :func:`detect_constraints`.
+    min_support : float
+        A slot becomes a step when more than this fraction of the recordings that
+        show any constraint have it, in [0, 1) (0.5: a strict majority).
     """
     from thirdhand.plan.assembly import plan_from_demos
     from thirdhand.plan.symbols import assign_symbols
@@ -82,7 +87,7 @@ def plan_assembly(detections: Sequence[DetectionResult]) -> AssemblyPlan:
     if not detections:
         raise ThirdhandError("plan_assembly: no detection given")
     symbols = assign_symbols([i for d in detections for i in d.instances])
-    return plan_from_demos([d.instances for d in detections], symbols)
+    return plan_from_demos([d.instances for d in detections], symbols, min_support=min_support)
 
 
 def fit_primitives(

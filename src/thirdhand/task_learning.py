@@ -247,6 +247,7 @@ def learn_task(
     inputs: Sequence[str | os.PathLike[str]] = (),
     progress: Callable[[str], None] | None = None,
     detections: Sequence[DetectionResult] | None = None,
+    min_support: float = 0.5,
 ) -> LearnedTask:
     """Learn a task from demonstrations: every stage that needs no robot.
 
@@ -279,6 +280,10 @@ def learn_task(
         Constraint detections already computed per demonstration (with its
         ``phases``; ``learn --jobs/--scheduler`` runs segmentation and detection
         of each recording as one unit).
+    min_support : float
+        A slot becomes a plan step when more than this fraction of the recordings
+        that show any constraint have it, in [0, 1) (0.5: a strict majority; 0: every
+        slot seen once).
 
     Returns
     -------
@@ -306,7 +311,13 @@ def learn_task(
         skipped.append("segment: skipped by the user")
     say("constraints and plan")
     learned = learn(
-        demo_list, names=names, phases=ph, segment=False, inputs=inputs, detections=detections
+        demo_list,
+        names=names,
+        phases=ph,
+        segment=False,
+        inputs=inputs,
+        detections=detections,
+        min_support=min_support,
     )
     task = learned.task()
     block = None

@@ -10,7 +10,10 @@ rank over the demonstrations (a linear extension of that partial order), and eac
 step's ``after`` lists its direct predecessors (the transitive reduction). With
 one demonstration the order is total. The child of a step is the part that went
 into its slot in most demonstrations, each part used once. A slot becomes a step
-only when more than half of the demonstrations have it.
+only when more than half (``min_support``) of the demonstrations have it, counting
+only the demonstrations that show at least one constraint: a recording that shows
+none (an excerpt, a recording cut before the first attachment) says nothing about
+which slots the task has, and must not erase the steps the others agree on.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.constraints.detect import ConstraintInstance
 from thirdhand.demonstration import ConstraintEvent
+from thirdhand.errors import OptionError
 from thirdhand.plan.symbols import Symbol
 
 
@@ -64,11 +68,23 @@ class AssemblyPlan:
     root : str or None
         The base every other part is (directly or not) attached to.
     n_demos : int
+    silent : list of int
+        Demonstrations (indices) that show no constraint; they do not vote.
+    left_out : dict of str to int
+        Slots seen in too few of the voting demonstrations to become steps, with the
+        number of demonstrations that have each.
     """
 
     steps: list[PlanAction]
     root: str | None
     n_demos: int
+    silent: list[int] = field(default_factory=list)
+    left_out: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def voters(self) -> int:
+        """Demonstrations that vote on the slots (those that show a constraint)."""
+        return self.n_demos - len(self.silent)
 
     def relational_trajectory(self) -> list[frozenset[str]]:
         """States ``s_0 = ∅ … s_n``, each a set of atoms ``is_constraint(O1, O2, C)``."""
@@ -107,6 +123,7 @@ def plan_from_demos(
     symbols: Sequence[Symbol],
     *,
     root: str | None = None,
+    min_support: float = 0.5,
 ) -> AssemblyPlan:
     """The assembly plan of one or several demonstrations.
 
@@ -118,7 +135,19 @@ def plan_from_demos(
     symbols : sequence of Symbol
     root : str, optional
         The base (default: the most common parent).
+    min_support : float
+        A slot becomes a step when more than this fraction of the demonstrations
+        that show any constraint have it, in [0, 1): 0.5 (default) is a strict
+        majority, so one demonstration's spurious constraint is not a step; 0 keeps
+        every slot seen at least once.
+
+    Raises
+    ------
+    OptionError
+        When ``min_support`` is outside [0, 1) (a ``ValueError`` too).
     """
+    if not 0.0 <= min_support < 1.0:  # also NaN
+        raise OptionError(f"min_support: expected a number >= 0 and < 1, got {min_support:g}")
     by_name = {s.name: s for s in symbols}
     seqs = []
     for insts in demos:
@@ -133,9 +162,13 @@ def plan_from_demos(
         for i in seq:
             if i.symbol in by_name:
                 support[i.symbol] = support.get(i.symbol, 0) + 1
-    # A step must appear in more than half of the demonstrations: one demonstration's
-    # spurious constraint does not become a step.
-    names = sorted(n for n, v in support.items() if 2 * v > len(seqs))
+    # A step must appear in more than half of the demonstrations that show anything:
+    # one demonstration's spurious constraint does not become a step, and a recording
+    # with no constraint at all (an excerpt) does not vote against the others.
+    silent = [k for k, seq in enumerate(seqs) if not seq]
+    voters = len(seqs) - len(silent)
+    names = sorted(n for n, v in support.items() if v > min_support * voters)
+    left_out = {n: v for n, v in sorted(support.items()) if n not in names}
     seqs = [[i for i in seq if i.symbol in names] for seq in seqs]
     rank: dict[str, list[float]] = {n: [] for n in names}
     times: dict[str, list[float]] = {n: [] for n in names}
@@ -169,7 +202,7 @@ def plan_from_demos(
         if root is not None
         else (max(sorted(set(parents)), key=parents.count) if parents else None)
     )
-    return AssemblyPlan(steps=steps, root=base, n_demos=len(seqs))
+    return AssemblyPlan(steps=steps, root=base, n_demos=len(seqs), silent=silent, left_out=left_out)
 
 
 def _assign_children(order: list[str], seqs: list[list[ConstraintInstance]]) -> dict[str, str]:

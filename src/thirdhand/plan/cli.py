@@ -16,7 +16,7 @@ from rich.table import Table
 
 from thirdhand import options
 from thirdhand.demonstration import Demonstration
-from thirdhand.errors import ThirdhandError
+from thirdhand.errors import OptionError, ThirdhandError
 from thirdhand.fileops import check_output
 from thirdhand.progress import stage_status
 
@@ -135,6 +135,13 @@ def learn_command(
         bool,
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
     ] = False,
+    min_support: Annotated[
+        float,
+        typer.Option(
+            help="A slot becomes a plan step when more than this fraction of the recordings "
+            "that show any constraint have it (0.5: a majority; 0: every slot seen once)."
+        ),
+    ] = 0.5,
     jobs: JobsOption = 1,
     scheduler: SchedulerOption = None,
 ) -> None:
@@ -151,6 +158,10 @@ def learn_command(
 
     options.seed(seed)
     options.integer("--skills", skills, low=0, high=20)
+    if not 0.0 <= min_support < 1.0:  # also NaN
+        raise OptionError(
+            f"--min-support: expected a finite number >= 0 and < 1, got {min_support:g}"
+        )
     _check_batch(jobs, scheduler)
     check_output(output, force=force, inputs=demos)
     if report is not None:
@@ -194,6 +205,7 @@ def learn_command(
             seed=seed,
             inputs=demos,
             progress=say,
+            min_support=min_support,
         )
     task = result.task
     check_output(output, force=force, inputs=demos)
@@ -202,6 +214,13 @@ def learn_command(
     out.print(f"root: {plan.root}")
     for line in plan.lines():
         out.print(f"  {line}")
+    for k in plan.silent:
+        out.print(f"  {demos[k]}: no constraint found; it does not vote on the plan's steps")
+    for symbol, seen in plan.left_out.items():
+        out.print(
+            f"  slot {symbol} seen in {seen} of {plan.voters} recordings: not a step "
+            f"(needs more than {min_support:g}; --min-support to keep it)"
+        )
     blocks = ", ".join(task.stages)
     out.print(f"{len(task.constraints)} constraints, {len(task.plan)} steps → {output} ({blocks})")
     if result.reward is not None:

@@ -110,17 +110,12 @@ class Learned:
                 }
             )
         plan = []
-        kf0 = {(k.parent, k.child): k for k in self.keyframes[0]} if self.keyframes else {}
+        kf_by_demo = {
+            n: {(k.parent, k.child): k for k in kfs}
+            for n, kfs in zip(self.names, self.keyframes, strict=True)
+        }
         for step in self.plan.steps:
-            key = next(
-                (
-                    (m.parent, m.child)
-                    for m in by_symbol[step.symbol].members
-                    if m.demo == self.names[0]
-                ),
-                None,
-            )
-            kf = kf0.get(key) if key else None
+            kf = self._keyframe(by_symbol[step.symbol], kf_by_demo)
             plan.append(
                 {
                     "parent": step.parent,
@@ -155,6 +150,9 @@ class Learned:
             },
             "plan": {
                 "n_demos": self.plan.n_demos,
+                "silent_demos": [self.names[k] for k in self.plan.silent],
+                "support": [len(st.times) for st in self.plan.steps],
+                "left_out": dict(self.plan.left_out),
                 "steps": [str(s) for s in self.plan.steps],
                 "relational_trajectory": [sorted(s) for s in self.plan.relational_trajectory()],
                 "interchangeable": [list(p) for p in self.plan.interchangeable()],
@@ -169,6 +167,16 @@ class Learned:
             parameters={"demos": self.names},
         )
 
+    def _keyframe(
+        self, symbol: Symbol, kf_by_demo: dict[str, dict[tuple[str, str], Keyframe]]
+    ) -> Keyframe | None:
+        """A step's keyframe from the first demonstration (in order) that has the step."""
+        for name in self.names:
+            for m in symbol.members:
+                if m.demo == name and (m.parent, m.child) in kf_by_demo.get(name, {}):
+                    return kf_by_demo[name][(m.parent, m.child)]
+        return None
+
 
 def learn(
     demos: Sequence[Demonstration],
@@ -179,6 +187,7 @@ def learn(
     options: DetectOptions | None = None,
     inputs: Sequence[str | os.PathLike[str]] = (),
     detections: Sequence[DetectionResult] | None = None,
+    min_support: float = 0.5,
 ) -> Learned:
     """Run constraint detection, symbols and planning on one or several demonstrations.
 
@@ -200,6 +209,9 @@ def learn(
         Constraint detections already computed, one per demonstration (by
         :func:`~thirdhand.constraints.detect.detect_constraints` with ``phases``,
         ``options`` and the name, as here: ``learn --jobs`` runs them as units).
+    min_support : float
+        A slot becomes a plan step when more than this fraction of the demonstrations
+        that show any constraint have it (:func:`~thirdhand.plan.assembly.plan_from_demos`).
     """
     demo_list = list(demos)
     nm = list(names) if names is not None else [f"demo{i + 1}" for i in range(len(demo_list))]
@@ -222,7 +234,7 @@ def learn(
         ]
     all_inst = [i for det in dets for i in det.instances]
     symbols = assign_symbols(all_inst)
-    plan = plan_from_demos([det.instances for det in dets], symbols)
+    plan = plan_from_demos([det.instances for det in dets], symbols, min_support=min_support)
     kfs = [keyframes(d, det.instances) for d, det in zip(demo_list, dets, strict=True)]
     return Learned(demo_list, nm, ph, dets, symbols, plan, kfs, list(inputs))
 
