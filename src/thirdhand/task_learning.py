@@ -248,6 +248,7 @@ def learn_task(
     progress: Callable[[str], None] | None = None,
     detections: Sequence[DetectionResult] | None = None,
     min_support: float = 0.5,
+    scene: str | os.PathLike[str] | None = None,
 ) -> LearnedTask:
     """Learn a task from demonstrations: every stage that needs no robot.
 
@@ -284,6 +285,8 @@ def learn_task(
         A slot becomes a plan step when more than this fraction of the recordings
         that show any constraint have it, in [0, 1) (0.5: a strict majority; 0: every
         slot seen once).
+    scene : path-like, optional
+        A 3rdHand scene file (``scene_*.json``) giving the parts' meshes.
 
     Returns
     -------
@@ -318,6 +321,7 @@ def learn_task(
         inputs=inputs,
         detections=detections,
         min_support=min_support,
+        scene=scene,
     )
     task = learned.task()
     block = None

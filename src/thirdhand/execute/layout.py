@@ -91,6 +91,12 @@ class LayoutError(ThirdhandError):
     """A task's parts cannot be laid out (no geometry, no room on the table)."""
 
 
+#: What to do about a part without geometry (a task learned from a recording alone).
+NO_GEOMETRY_HINT = (
+    " (learn the task with --scene scene_*.json, or give the object bbox_min/bbox_max)"
+)
+
+
 @dataclass
 class Workcell:
     """Where everything is: robot base, table, fixture and the base part's assembly pose.
@@ -172,7 +178,9 @@ def part_vertices(
     """
     tri = object_triangles(obj, task_path, search)
     if tri is None:
-        raise LayoutError(f"object {obj.name!r}: no mesh and no bounding box to lay it out")
+        raise LayoutError(
+            f"object {obj.name!r}: no mesh and no bounding box to lay it out{NO_GEOMETRY_HINT}"
+        )
     return np.unique(np.asarray(tri, dtype=np.float64).reshape(-1, 3), axis=0)
 
 
@@ -271,7 +279,9 @@ def _part_geometry(
 ) -> coal.CollisionGeometry:
     tri = object_triangles(obj, task_path, search)
     if tri is None:
-        raise LayoutError(f"object {obj.name!r}: no mesh and no bounding box to lay it out")
+        raise LayoutError(
+            f"object {obj.name!r}: no mesh and no bounding box to lay it out{NO_GEOMETRY_HINT}"
+        )
     return mesh_from_triangles(tri)
 
 

@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from thirdhand import se3
 from thirdhand.execute.goals import POS_TOL_M, ROT_TOL_RAD, constraint_holds, invert, sample_goals
-from thirdhand.execute.layout import LayoutError, Workcell
+from thirdhand.execute.layout import NO_GEOMETRY_HINT, LayoutError, Workcell
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.scene import CollisionScene
 from thirdhand.task.constraint import Constraint
@@ -80,7 +80,9 @@ class SimWorld:
                     box_center=(lo + hi) / 2.0,
                 )
             else:
-                raise LayoutError(f"object {name!r}: no mesh and no bounding box to simulate")
+                raise LayoutError(
+                    f"object {name!r}: no mesh and no bounding box to simulate{NO_GEOMETRY_HINT}"
+                )
 
     def pose(self, name: str, q: FloatArray | None = None) -> FloatArray:
         """``T_world_body`` of a part (a grasped one needs the arm's ``q``)."""

@@ -135,6 +135,14 @@ def learn_command(
         bool,
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
     ] = False,
+    scene: Annotated[
+        Path | None,
+        typer.Option(
+            "--scene",
+            help="3rdHand scene file (scene_*.json): each part's mesh and its pose on the "
+            "sensor. Default: the one on THIRDHAND_MESH_PATH that lists every part, if any.",
+        ),
+    ] = None,
     min_support: Annotated[
         float,
         typer.Option(
@@ -176,6 +184,15 @@ def learn_command(
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
+    if scene is None:
+        from thirdhand.task.scene_file import find_scene
+
+        parts = sorted({b.name for d in loaded for b in d.bodies if b.kind == "part"})
+        scene = find_scene(parts)
+        if scene is not None:
+            out.print(f"meshes: {scene}")
+    elif not scene.is_file():
+        raise ThirdhandError(f"--scene {scene}: no such file")
     phases = detections = None
     if jobs > 1 or scheduler is not None:
         from thirdhand.batch import parallel_map
@@ -206,6 +223,7 @@ def learn_command(
             inputs=demos,
             progress=say,
             min_support=min_support,
+            scene=scene,
         )
     task = result.task
     check_output(output, force=force, inputs=demos)

@@ -51,6 +51,10 @@ class Learned:
         Per demonstration.
     inputs : list of path-like
         Files the demonstrations were read from (hashed into the provenance).
+    scene_geometry : dict of str to dict
+        Task-object geometry fields per body from a 3rdHand scene file
+        (:func:`~thirdhand.task.scene_file.scene_geometry`); they win over the
+        recording's own.
     """
 
     demos: list[Demonstration]
@@ -61,6 +65,7 @@ class Learned:
     plan: AssemblyPlan
     keyframes: list[list[Keyframe]]
     inputs: list[str | os.PathLike[str]] = field(default_factory=list)
+    scene_geometry: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def instances(self) -> list[list[ConstraintInstance]]:
@@ -71,6 +76,8 @@ class Learned:
         """The task file: objects, one constraint per symbol, the plan, stage blocks."""
         demo = self.demos[0]
         geometry = object_geometry(demo)
+        for name, fields in self.scene_geometry.items():
+            geometry[name] = geometry.get(name, {}) | fields
         objects = [
             {"name": b.name, "kind": b.kind if b.kind in _KINDS else "other"}
             | geometry.get(b.name, {})
@@ -80,7 +87,9 @@ class Learned:
         for d in self.demos[1:]:
             for b in d.bodies:
                 if b.name not in known:
-                    objects.append({"name": b.name, "kind": b.kind})
+                    objects.append(
+                        {"name": b.name, "kind": b.kind} | self.scene_geometry.get(b.name, {})
+                    )
                     known.add(b.name)
         by_symbol = {s.name: s for s in self.symbols}
         constraints = []
@@ -188,6 +197,7 @@ def learn(
     inputs: Sequence[str | os.PathLike[str]] = (),
     detections: Sequence[DetectionResult] | None = None,
     min_support: float = 0.5,
+    scene: str | os.PathLike[str] | None = None,
 ) -> Learned:
     """Run constraint detection, symbols and planning on one or several demonstrations.
 
@@ -212,6 +222,9 @@ def learn(
     min_support : float
         A slot becomes a plan step when more than this fraction of the demonstrations
         that show any constraint have it (:func:`~thirdhand.plan.assembly.plan_from_demos`).
+    scene : path-like, optional
+        A 3rdHand scene file (``scene_*.json``): the meshes of the bodies it lists,
+        and where they sit on the sensors (:mod:`thirdhand.task.scene_file`).
     """
     demo_list = list(demos)
     nm = list(names) if names is not None else [f"demo{i + 1}" for i in range(len(demo_list))]
@@ -236,7 +249,13 @@ def learn(
     symbols = assign_symbols(all_inst)
     plan = plan_from_demos([det.instances for det in dets], symbols, min_support=min_support)
     kfs = [keyframes(d, det.instances) for d, det in zip(demo_list, dets, strict=True)]
-    return Learned(demo_list, nm, ph, dets, symbols, plan, kfs, list(inputs))
+    geometry = {}
+    if scene is not None:
+        from thirdhand.task.scene_file import scene_geometry
+
+        bodies = sorted({b for d in demo_list for b in d.body_names})
+        geometry = scene_geometry(scene, bodies)
+    return Learned(demo_list, nm, ph, dets, symbols, plan, kfs, list(inputs), geometry)
 
 
 def plan_figures(result: Learned) -> tuple[dict[str, Any], str]:

@@ -18,8 +18,10 @@ quaternion component renormalised after integration (``orientation="seven"``).
 
 from __future__ import annotations
 
+import math
 from typing import Literal
 
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -39,6 +41,118 @@ FloatArray = NDArray[np.float64]
 # The quaternion logarithm and exponential (half rotation vectors) of thirdhand.se3.
 quat_log = se3.quat_log
 quat_exp = se3.quat_exp
+
+
+@numba.njit(cache=True, nogil=True)
+def _derivative(  # pragma: no cover - compiled
+    q: FloatArray,
+    w: FloatArray,
+    g: FloatArray,
+    drive: FloatArray,
+    k_tau2: float,
+    d_tau: float,
+    qdot: FloatArray,
+    wdot: FloatArray,
+) -> None:
+    """``(q̇, ω̇)`` of one state into ``qdot`` (4,) and ``wdot`` (3,).
+
+    ``e = 2 log(g ⊗ q̄)`` (the rotation vector of the shorter turn), ``ω̇ = K/tau² e −
+    D/tau ω + drive`` and ``q̇ = ½ (ω, 0) ⊗ q``, as :func:`thirdhand.se3.quat_multiply`
+    and :func:`thirdhand.se3.quat_to_rotvec` compute them.
+    """
+    x2, y2, z2, w2 = -q[0], -q[1], -q[2], q[3]
+    x1, y1, z1, w1 = g[0], g[1], g[2], g[3]
+    px = w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2
+    py = w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2
+    pz = w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2
+    pw = w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2
+    if pw < 0.0:
+        px, py, pz, pw = -px, -py, -pz, -pw
+    sn = math.sqrt(px * px + py * py + pz * pz)
+    scale = 2.0 * math.atan2(sn, pw) / sn if sn > 1e-12 else 2.0
+    wdot[0] = k_tau2 * (px * scale) - d_tau * w[0] + drive[0]
+    wdot[1] = k_tau2 * (py * scale) - d_tau * w[1] + drive[1]
+    wdot[2] = k_tau2 * (pz * scale) - d_tau * w[2] + drive[2]
+    ax, ay, az = w[0], w[1], w[2]
+    bx, by, bz, bw = q[0], q[1], q[2], q[3]
+    qdot[0] = 0.5 * (ax * bw + ay * bz - az * by)
+    qdot[1] = 0.5 * (-ax * bz + ay * bw + az * bx)
+    qdot[2] = 0.5 * (ax * by - ay * bx + az * bw)
+    qdot[3] = 0.5 * (-ax * bx - ay * by - az * bz)
+
+
+@numba.njit(cache=True, nogil=True)
+def _integrate(  # pragma: no cover - compiled
+    q0: FloatArray,
+    w0: FloatArray,
+    g: FloatArray,
+    drive: FloatArray,
+    k_tau2: float,
+    d_tau: float,
+    h: float,
+    n: int,
+    m: int,
+) -> tuple[FloatArray, FloatArray]:
+    """RK4 on ``(q, ω)`` with ``m`` substeps of ``h`` per output step, renormalised.
+
+    Parameters
+    ----------
+    q0 : ndarray, shape (b, 4)
+        Start orientations x y z w.
+    w0 : ndarray, shape (b, 3)
+        Start angular velocities, rad/s.
+    g : ndarray, shape (4,)
+    drive : ndarray, shape (2 m (n − 1) + 1, b, 3)
+        The forcing minus the start-offset term on the half-substep grid, over tau².
+
+    Returns
+    -------
+    q : ndarray, shape (n, b, 4)
+    w : ndarray, shape (n, b, 3)
+    """
+    b = q0.shape[0]
+    q_out = np.empty((n, b, 4))
+    w_out = np.empty((n, b, 3))
+    kq = np.empty((4, 4))
+    kw = np.empty((4, 3))
+    qs = np.empty(4)
+    ws = np.empty(3)
+    q = np.empty(4)
+    w = np.empty(3)
+    for r in range(b):
+        q[:] = q0[r]
+        w[:] = w0[r]
+        q_out[0, r] = q
+        w_out[0, r] = w
+        for i in range(1, n):
+            for sub in range(m):
+                j = 2 * ((i - 1) * m + sub)
+                _derivative(q, w, g, drive[j, r], k_tau2, d_tau, kq[0], kw[0])
+                for c in range(4):
+                    qs[c] = q[c] + 0.5 * h * kq[0, c]
+                for c in range(3):
+                    ws[c] = w[c] + 0.5 * h * kw[0, c]
+                _derivative(qs, ws, g, drive[j + 1, r], k_tau2, d_tau, kq[1], kw[1])
+                for c in range(4):
+                    qs[c] = q[c] + 0.5 * h * kq[1, c]
+                for c in range(3):
+                    ws[c] = w[c] + 0.5 * h * kw[1, c]
+                _derivative(qs, ws, g, drive[j + 1, r], k_tau2, d_tau, kq[2], kw[2])
+                for c in range(4):
+                    qs[c] = q[c] + h * kq[2, c]
+                for c in range(3):
+                    ws[c] = w[c] + h * kw[2, c]
+                _derivative(qs, ws, g, drive[j + 2, r], k_tau2, d_tau, kq[3], kw[3])
+                for c in range(4):
+                    q[c] = q[c] + h / 6.0 * (kq[0, c] + 2 * kq[1, c] + 2 * kq[2, c] + kq[3, c])
+                for c in range(3):
+                    w[c] = w[c] + h / 6.0 * (kw[0, c] + 2 * kw[1, c] + 2 * kw[2, c] + kw[3, c])
+                norm = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+                for c in range(4):
+                    q[c] /= norm
+            q_out[i, r] = q
+            w_out[i, r] = w
+    return q_out, w_out
 
 
 def angular_velocity(s: FloatArray, q: FloatArray) -> FloatArray:
@@ -175,28 +289,19 @@ class QuaternionDMP(TransformationSystem):
         gate = tail_gate(fine, tau)[:, None, None]
         drive = gate * (fx[:, None, :] - k * e0[None] * x[:, None, None]) / tau**2
         h = (s[1] - s[0]) / m
-        g_b = np.broadcast_to(g, q.shape)
-
-        def deriv(qq: FloatArray, ww: FloatArray, j: int) -> tuple[FloatArray, FloatArray]:
-            e = 2.0 * quat_log(se3.quat_multiply(g_b, se3.quat_conjugate(qq)))
-            wdot = k / tau**2 * e - d / tau * ww + drive[j]
-            qdot = 0.5 * se3.quat_multiply(np.concatenate([ww, np.zeros((len(ww), 1))], 1), qq)
-            return qdot, wdot
-
-        q_out = np.empty((n, *q.shape))
-        w_out = np.empty((n, *w.shape))
-        q_out[0], w_out[0] = q, w
-        for i in range(1, n):
-            for sub in range(m):
-                j = 2 * ((i - 1) * m + sub)
-                k1q, k1w = deriv(q, w, j)
-                k2q, k2w = deriv(q + 0.5 * h * k1q, w + 0.5 * h * k1w, j + 1)
-                k3q, k3w = deriv(q + 0.5 * h * k2q, w + 0.5 * h * k2w, j + 1)
-                k4q, k4w = deriv(q + h * k3q, w + h * k3w, j + 2)
-                q = q + h / 6.0 * (k1q + 2 * k2q + 2 * k3q + k4q)
-                w = w + h / 6.0 * (k1w + 2 * k2w + 2 * k3w + k4w)
-                q /= np.linalg.norm(q, axis=1, keepdims=True)
-            q_out[i], w_out[i] = q, w
+        # The RK4 loop is compiled (numba): a 60-s constraint motion is ~3,000 steps of
+        # 4 stages, 2.5 s per rollout in numpy against milliseconds compiled.
+        q_out, w_out = _integrate(
+            np.ascontiguousarray(q),
+            np.ascontiguousarray(w),
+            np.ascontiguousarray(g),
+            np.ascontiguousarray(drive),
+            k / tau**2,
+            d / tau,
+            float(h),
+            n,
+            m,
+        )
         if not batched:
             return s, q_out[:, 0], w_out[:, 0]
         return s, q_out, w_out

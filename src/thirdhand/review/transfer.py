@@ -33,7 +33,6 @@ its box is the source box scaled to the mesh's extents about the body origin.
 from __future__ import annotations
 
 import functools
-import json
 import os
 import re
 from collections.abc import Sequence
@@ -44,7 +43,7 @@ from typing import Any
 import numpy as np
 
 from thirdhand.errors import ThirdhandError
-from thirdhand.task.meshes import align_bounds
+from thirdhand.task.meshes import align_bounds, mesh_scale
 from thirdhand.task.model import TaskFile, TaskObject
 
 #: Names of the same role in different object sets.
@@ -150,7 +149,7 @@ def _mesh_bounds(path: Path) -> tuple[np.ndarray, np.ndarray, float]:
     if not tri.size:
         raise TransferError(f"{path}: mesh has no triangles")
     lo, hi = tri.min(axis=0), tri.max(axis=0)
-    scale = 1e-3 if float(np.max(hi - lo)) > 5.0 else 1.0
+    scale = mesh_scale(lo, hi)
     return lo * scale, hi * scale, scale
 
 
@@ -181,19 +180,14 @@ def _mesh_set(name: str, entries: list[tuple[str, Path]]) -> TargetSet:
 
 
 def _scene_file(path: Path) -> TargetSet:
+    from thirdhand.errors import FormatError
+    from thirdhand.task.scene_file import read_scene
+
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise TransferError(f"{path}: cannot read 3rdHand scene file: {exc}") from None
-    objs = data.get("objects") if isinstance(data, dict) else None
-    if not isinstance(objs, dict) or not objs:
-        raise TransferError(f'{path}: expected {{"objects": {{name: {{"mesh": ...}}}}}}')
-    entries = []
-    for key, spec in objs.items():
-        if not isinstance(spec, dict) or not isinstance(spec.get("mesh"), str):
-            raise TransferError(f"{path}: objects.{key}: expected a mesh file name")
-        entries.append((_key(key)[0], path.parent / spec["mesh"]))
-    return _mesh_set(str(path), entries)
+        objs = read_scene(path)
+    except FormatError as exc:
+        raise TransferError(str(exc)) from None
+    return _mesh_set(str(path), [(_key(key)[0], obj.mesh) for key, obj in objs.items()])
 
 
 @functools.lru_cache(maxsize=8)

@@ -49,6 +49,20 @@ MESH_BOUNDS_MM: dict[str, tuple[tuple[float, float, float], tuple[float, float, 
 }
 
 
+def mesh_scale(lo: FloatArray, hi: FloatArray) -> float:
+    """Metres per mesh unit, from the mesh's extent: millimetres when it spans over 5 units.
+
+    A part larger than 5 m is not an assembly part, and one under 5 mm is not
+    either, so the two readings cannot be confused for the parts of this domain.
+
+    Parameters
+    ----------
+    lo, hi : array_like, shape (3,)
+        The mesh's bounding box in file units.
+    """
+    return 1e-3 if float(np.max(np.asarray(hi, float) - np.asarray(lo, float))) > 5.0 else 1.0
+
+
 def mesh_search_path(search: Sequence[str | os.PathLike[str]] = ()) -> list[Path]:
     """The folders searched for mesh files: ``search`` then ``THIRDHAND_MESH_PATH``."""
     folders = [Path(s) for s in search]
