@@ -98,8 +98,13 @@ def test_real_toolbox_with_its_excerpt_keeps_the_plan(shared_data: Path, tmp_pat
         task = res.task()
         assert [(s.parent, s.child) for s in task.plan] == [(s.parent, s.child) for s in alone.plan]
         assert task.stages["plan"]["silent_demos"] == ["excerpt"]
+        assert task.stages["plan"]["support"] == [1]
         # The keyframe comes from the recording that has the step, whichever is first.
         assert task.plan[0].keyframe == alone.plan[0].keyframe != {}
+    from thirdhand.plan.report import write_report
+
+    page = write_report(res, tmp_path / "report").read_text(encoding="utf-8")
+    assert "excerpt: no constraint found; it does not vote" in page
     r = CliRunner().invoke(
         app,
         [

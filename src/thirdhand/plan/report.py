@@ -178,6 +178,17 @@ def write_report(learned: Learned, folder: str | Path) -> Path:
         parts.append(
             "<p>Interchangeable steps: " + ", ".join(f"{i + 1}↔{j + 1}" for i, j in inter) + "</p>"
         )
+    plan = learned.plan
+    for k in plan.silent:
+        parts.append(
+            f"<p>{html.escape(learned.names[k])}: no constraint found; it does not vote on "
+            "the steps.</p>"
+        )
+    for symbol, seen in plan.left_out.items():
+        parts.append(
+            f"<p>Slot <code>{html.escape(symbol)}</code> seen in {seen} of {plan.voters} "
+            "recordings: not a step.</p>"
+        )
     parts.append("<h2>Constraints</h2>" + _constraint_table(learned))
     for k, name in enumerate(learned.names):
         parts.append(f"<h2>{html.escape(name)}</h2>")
