@@ -276,7 +276,10 @@ class HiddenSemiMarkov:
             self.max_duration if self.max_duration is not None else int(np.ceil(1.5 * longest))
         )
         allv = [v for ls in lens for v in ls]
-        pooled = float(np.var(allv)) if len(allv) > 1 else 1.0
+        # within-state variance of log d, pooled over the states
+        dev = [v - np.mean(ls) for ls in lens if ls for v in ls]
+        n_free = len(dev) - sum(1 for ls in lens if ls)
+        pooled = float(np.sum(np.square(dev)) / n_free) if n_free > 0 else 1.0
         self.dur_mu_ = np.array([np.mean(ls) if ls else np.mean(allv) for ls in lens])
         # shrink each state's variance towards the pooled one by one pseudo-run
         self.dur_sd_ = np.array(
