@@ -438,6 +438,10 @@ def evaluate(
                             "heldout_loglik_per_obs": {
                                 str(k): v for k, v in r.selection.heldout.items()
                             },
+                            "heldout_folds": {
+                                str(k): [[ll, n] for ll, n in v]
+                                for k, v in r.selection.folds.items()
+                            },
                         },
                     }
                     for r, s in zip(res.streams, streams, strict=True)

@@ -128,11 +128,14 @@ class KSelection:
     heldout : dict of int to float
         K → held-out log-likelihood per scalar observation (:func:`heldout_scores`).
     chosen : int
+    folds : dict of int to list of (float, int)
+        K → per fold (log-likelihood, observations) (:func:`heldout_folds`).
     """
 
     bic: dict[int, float]
     heldout: dict[int, float]
     chosen: int
+    folds: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -396,7 +399,7 @@ def fit_library(
         chosen = max(held, key=lambda k: held[k])
     else:
         chosen = min(scores, key=lambda k: scores[k])
-    return libs[chosen], KSelection(scores, held, chosen)
+    return libs[chosen], KSelection(scores, held, chosen, per_fold)
 
 
 def evaluate_streams(
@@ -523,7 +526,7 @@ def _hsmm_results(
                 else max(held, key=lambda k: held[k])
             )
             model = _make_hsmm(chosen, cfg).fit_unsupervised([tracks[j][2] for j in train])
-            selection = KSelection({}, held, chosen)
+            selection = KSelection({}, held, chosen, per_fold)
         sub = model.predict(lev)
         fit_s = time.perf_counter() - t0
         idx = np.clip(np.searchsorted(t, s.t, side="right") - 1, 0, t.size - 1)
