@@ -17,9 +17,10 @@ Two kinds of input per arm, chosen by name:
 
 ``zero_ft`` subtracts each arm's mean force and torque over the first
 :data:`ZERO_FT_S` seconds from its force and torque: a force/torque sensor has
-an offset of its own in every recording (on the peeling streams the free arm's
-force reads 0.5 N in one and 1.4 N in the other), and the robot holds still
-before the demonstration starts.
+an offset of its own in every recording (on the peeling streams the peeling
+arm's force reads 1.1 N in one and 2.8 N in the other while it returns to a
+stroke, touching nothing), and the robot holds still before the demonstration
+starts.
 
 Each channel is divided by a fixed unit (:data:`SHAPE_UNITS`, :data:`LEVEL_UNITS`)
 so that a centimetre, a tenth of a radian and a newton weigh about the same in
