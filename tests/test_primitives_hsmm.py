@@ -149,3 +149,16 @@ def test_one_se_rule_arithmetic() -> None:
     assert one_se_choice({2: [(1.0, 10)], 3: [(2.0, 10)]}) == 3
     with pytest.raises(PrimitiveError, match="no K was scored"):
         one_se_choice({})
+
+
+def test_restarts_keep_the_best_training_score(rng: np.random.Generator) -> None:
+    # three overlapping levels in noise: hard EM from different seedings ends differently
+    lab = np.repeat([0, 1, 2, 1, 0, 2, 1, 0], [15, 9, 12, 7, 14, 10, 8, 13])
+    x = (lab + rng.normal(0.0, 0.6, lab.size))[:, None]
+    one = HiddenSemiMarkov(3, seed=5).fit_unsupervised([x])
+    many = HiddenSemiMarkov(3, seed=5).fit_unsupervised([x], n_init=6)
+    # restart 0 of ``many`` is ``one``: the kept restart can only score higher
+    assert many.score_ >= one.score_
+    assert many.score_ == pytest.approx(sum(many.decode(a)[1] for a in [x]))
+    with pytest.raises(PrimitiveError, match="at least 1 restart"):
+        HiddenSemiMarkov(3).fit_unsupervised([x], n_init=0)

@@ -211,6 +211,10 @@ class HiddenSemiMarkov:
         Log-normal of the duration in samples.
     log_trans_ : ndarray, shape (K, K)
     log_init_ : ndarray, shape (K,)
+    history_ : list of float
+        :meth:`fit_unsupervised`: ``Σ log p(x, z*)`` per round of the restart kept.
+    score_ : float
+        :meth:`fit_unsupervised`: that restart's final ``Σ log p(x, z*)``.
     """
 
     def __init__(
@@ -327,45 +331,56 @@ class HiddenSemiMarkov:
         self._fit_from(xa, zs, self.n_states)
         return self
 
-    def fit_unsupervised(self, xs: Sequence[ArrayLike], *, n_iter: int = 20) -> HiddenSemiMarkov:
-        """Hard EM (Viterbi training) from a k-means initialisation of the samples.
+    def fit_unsupervised(
+        self, xs: Sequence[ArrayLike], *, n_iter: int = 20, n_init: int = 1
+    ) -> HiddenSemiMarkov:
+        """Hard EM (Viterbi training) from k-means initialisations of the samples.
 
         Parameters
         ----------
         xs : sequence of array_like, shape (n_i, C)
         n_iter : int
-            At most this many parse → refit rounds (stops when the parse repeats).
+            At most this many parse → refit rounds per restart (stops when the parse
+            repeats).
+        n_init : int
+            Restarts, each from its own k-means++ seeding (``seed + r``); the one whose
+            final parses have the highest ``Σ log p(x, z*)`` on ``xs`` is kept.
         """
         from scipy.cluster.vq import kmeans2
 
         if self.n_states < 1:
             raise PrimitiveError(f"HSMM: at least 1 state, got {self.n_states}")
+        if n_init < 1:
+            raise PrimitiveError(f"HSMM: at least 1 restart, got {n_init}")
         xa = _check_streams(xs)
         x = np.vstack(xa)
         if x.shape[0] < self.n_states:
             raise PrimitiveError(f"HSMM: {x.shape[0]} samples for {self.n_states} states")
         mu, sd = x.mean(axis=0), x.std(axis=0)
         sd[sd == 0] = 1.0
-        best: tuple[float, IntArray] | None = None
-        for r in range(5):
-            cent, lab = kmeans2((x - mu) / sd, self.n_states, minit="++", seed=self.seed + r)
-            cost = float((((x - mu) / sd - cent[lab]) ** 2).sum())
-            if best is None or cost < best[0]:
-                best = (cost, lab.astype(np.int64))
-        assert best is not None
         split = np.cumsum([a.shape[0] for a in xa])[:-1]
-        zs = np.split(best[1], split)
         self.states_ = np.arange(self.n_states)
-        self.history_: list[float] = []
-        for _ in range(n_iter):
+        best: tuple[float, dict[str, object]] | None = None
+        for r in range(n_init):
+            _, lab = kmeans2((x - mu) / sd, self.n_states, minit="++", seed=self.seed + r)
+            zs = np.split(lab.astype(np.int64), split)
+            history: list[float] = []
+            for _ in range(n_iter):
+                self._fit_from(xa, zs, self.n_states)
+                parsed = [self.decode(a) for a in xa]
+                history.append(sum(s for _, s in parsed))
+                new = [p for p, _ in parsed]
+                if all(np.array_equal(a, b) for a, b in zip(new, zs, strict=True)):
+                    break
+                zs = new
             self._fit_from(xa, zs, self.n_states)
-            parsed = [self.decode(a) for a in xa]
-            self.history_.append(sum(s for _, s in parsed))
-            new = [p for p, _ in parsed]
-            if all(np.array_equal(a, b) for a, b in zip(new, zs, strict=True)):
-                break
-            zs = new
-        self._fit_from(xa, zs, self.n_states)
+            score = sum(self.decode(a)[1] for a in xa)
+            if best is None or score > best[0]:
+                state = {k: v for k, v in self.__dict__.items() if k.endswith("_")}
+                best = (score, {**state, "history_": history})
+        assert best is not None
+        self.__dict__.update(best[1])
+        self.score_ = best[0]
         return self
 
     # ------------------------------------------------------------ parsing

@@ -82,6 +82,8 @@ class ParserConfig:
     switch_penalty : float
         Cost of a change of skill in the parse, nats (see :class:`PrimitiveLibrary`).
     n_init : int
+        Restarts of the library's EM, and of the HSMM's hard EM (the best training
+        score is kept).
     seed : int
     model : {"library", "hsmm"}
         ``library``: the primitive-library parser (ProMP skills over candidate
@@ -488,7 +490,8 @@ def hsmm_heldout_folds(
         try:
             for i, held in enumerate(folds):
                 train = [f for j, f in enumerate(folds) if j != i]
-                per.append((_make_hsmm(k, cfg).fit_unsupervised(train).decode(held)[1], held.size))
+                model = _make_hsmm(k, cfg).fit_unsupervised(train, n_init=cfg.n_init)
+                per.append((model.decode(held)[1], held.size))
         except PrimitiveError:
             continue
         out[k] = per
@@ -514,7 +517,9 @@ def _hsmm_results(
                 [tracks[j][2] for j in train], [sub_labels[j] for j in train]
             )
         elif cfg.n_skills is not None:
-            model = _make_hsmm(cfg.n_skills, cfg).fit_unsupervised([tracks[j][2] for j in train])
+            model = _make_hsmm(cfg.n_skills, cfg).fit_unsupervised(
+                [tracks[j][2] for j in train], n_init=cfg.n_init
+            )
         else:
             per_fold = hsmm_heldout_folds([tracks[j][2] for j in train], cfg, cfg.k_range)
             if not per_fold:
@@ -525,7 +530,9 @@ def _hsmm_results(
                 if cfg.select == "onese"
                 else max(held, key=lambda k: held[k])
             )
-            model = _make_hsmm(chosen, cfg).fit_unsupervised([tracks[j][2] for j in train])
+            model = _make_hsmm(chosen, cfg).fit_unsupervised(
+                [tracks[j][2] for j in train], n_init=cfg.n_init
+            )
             selection = KSelection({}, held, chosen, per_fold)
         sub = model.predict(lev)
         fit_s = time.perf_counter() - t0
