@@ -12,7 +12,12 @@ recordings), in one run and on the same channels and subsampling:
   channels, penalty ``β = 3 · d · log n`` (l2) and ``β = log n`` (rbf, whose
   cost is at most 1 per sample), fixed beforehand, not tuned on labels;
 - **KernelCPD, true count**: told the number of true boundaries (an oracle on
-  the count, to show what the cost alone can place).
+  the count, to show what the cost alone can place);
+- **HSMM**: the hidden semi-Markov model over per-sample level channels
+  (:mod:`thirdhand.primitives.hsmm`), fitted without labels, leave one
+  recording out, and KernelCPD on its channels beside it;
+- **HSMM, label-trained** (supervised, not comparable with the rows above): the
+  same model fitted on the other recordings' human labels.
 
 Change-point methods get phase labels by k-means on the segments' mean channels
 (K = number of human labels, :func:`~thirdhand.primitives.label_eval.cluster_segments`),
@@ -53,13 +58,27 @@ from thirdhand.primitives.segment_features import candidate_cuts, smoothed_speed
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "figueroa"
 #: Per file: the parser's channels (chosen in docs/primitives.md).
 CONFIGS = {
-    "circular_wiping.mat": ParserConfig(shape=("pos",), levels=("force",), n_skills=2, n_phases=3),
+    # K selected by the one-SE rule (the default), not given
+    "circular_wiping.mat": ParserConfig(
+        shape=("pos",), levels=("force",), n_skills=None, n_phases=3
+    ),
     "peeling_noobj.mat": ParserConfig(
         shape=("pos",),
         levels=("force", "torque", "speed", "angular"),
         arms=(0, 1),
         n_skills=4,
         switch_penalty=30.0,
+    ),
+}
+#: Per file: the HSMM's channels and number of states.
+HSMM_CONFIGS = {
+    "circular_wiping.mat": ParserConfig(model="hsmm", levels=("force",), zero_ft=True, n_skills=3),
+    "peeling_noobj.mat": ParserConfig(
+        model="hsmm",
+        levels=("force", "torque", "speed", "angular", "relpos"),
+        arms=(0, 1),
+        zero_ft=True,
+        n_skills=3,
     ),
 }
 
@@ -70,9 +89,15 @@ def _features(streams: list[LabelledStream], cfg: ParserConfig) -> list[np.ndarr
     out = []
     for s in streams:
         y, lev = stream_channels(
-            s, shape=cfg.shape, levels=cfg.levels, arms=cfg.arms, window=cfg.window * cfg.subsample
+            s,
+            shape=cfg.shape,
+            levels=cfg.levels,
+            arms=cfg.arms,
+            window=cfg.window * cfg.subsample,
+            zero_ft=cfg.zero_ft,
         )
-        out.append(np.hstack([y, lev])[:: cfg.subsample])
+        x = lev if cfg.model == "hsmm" else np.hstack([y, lev])
+        out.append(x[:: cfg.subsample])
     return out
 
 
@@ -186,12 +211,44 @@ def main() -> None:
             dt = time.perf_counter() - t0
             acc, gacc, b = _score(streams, cfg, feats, cuts, args.tolerance)
             rows.append((name, acc, gacc, b, dt))
+        hcfg = HSMM_CONFIGS.get(path.name, replace(cfg, model="hsmm", n_skills=3))
+        t0 = time.perf_counter()
+        hs = evaluate_streams(streams, hcfg, tolerance=args.tolerance)
+        rows.append(
+            (
+                "HSMM (no labels)",
+                hs.accuracy,
+                hs.global_accuracy,
+                hs.boundaries,
+                time.perf_counter() - t0,
+            )
+        )
+        hfeats = _features(streams, hcfg)
+        t0 = time.perf_counter()
+        cuts = _ruptures(hfeats, "kernel", streams)
+        dt = time.perf_counter() - t0
+        acc, gacc, b = _score(streams, hcfg, hfeats, cuts, args.tolerance)
+        rows.append(("KernelCPD rbf on the HSMM's channels", acc, gacc, b, dt))
+        t0 = time.perf_counter()
+        sup = evaluate_streams(streams, replace(hcfg, label_trained=True), tolerance=args.tolerance)
+        rows.append(
+            (
+                "SUPERVISED: HSMM label-trained",
+                sup.accuracy,
+                sup.global_accuracy,
+                sup.boundaries,
+                time.perf_counter() - t0,
+            )
+        )
         n_true = rows[0][3].n_true
+        k_used = "/".join(str(r.n_skills) for r in res.streams)
         print(
             f"== {path.name}: {len(streams)} recordings, {n_true} true boundaries, "
             f"tolerance {args.tolerance:g} s, channels shape={','.join(cfg.shape)} "
-            f"levels={','.join(cfg.levels) or '-'} arms={cfg.arms or 'all'}, K={cfg.n_skills}, "
-            f"phases={cfg.n_phases or '-'}, switch penalty {cfg.switch_penalty:g}"
+            f"levels={','.join(cfg.levels) or '-'} arms={cfg.arms or 'all'}, K={k_used} "
+            f"({'given' if cfg.n_skills else cfg.select}), "
+            f"phases={cfg.n_phases or '-'}, switch penalty {cfg.switch_penalty:g}; HSMM levels="
+            f"{','.join(hcfg.levels)}{' zero-ft' if hcfg.zero_ft else ''}, K={hcfg.n_skills}"
         )
         head = f"{'acc':>6} {'acc1':>6} {'P':>5} {'R':>5} {'F1':>5} {'pred':>5}"
         head += f" {'time s':>8} {'x parser':>8}"

@@ -235,10 +235,29 @@ def evaluate(
     select: Annotated[
         str,
         typer.Option(
-            help="How K is selected without --skills: heldout (cross-validated log-likelihood "
-            "on the training recordings) or bic; both tables are printed."
+            help="How K is selected without --skills: onese (the smallest K within one "
+            "standard error of the best cross-validated log-likelihood on the training "
+            "recordings), heldout (the best) or bic; the tables are printed."
         ),
-    ] = "heldout",
+    ] = "onese",
+    model: Annotated[
+        str,
+        typer.Option(
+            help="library (ProMP skills over candidate segments) or hsmm (hidden "
+            "semi-Markov model over the level channels, fitted without labels)."
+        ),
+    ] = "library",
+    label_trained: Annotated[
+        bool,
+        typer.Option(
+            help="Supervised: fit an HSMM on the other recordings' human labels and parse "
+            "the held-out one with it (not an unsupervised figure)."
+        ),
+    ] = False,
+    zero_ft: Annotated[
+        bool,
+        typer.Option(help="Subtract each arm's force/torque over the first 0.5 s (sensor offset)."),
+    ] = False,
     shape: Annotated[
         str, typer.Option(help="Shape channels per arm: pos, rot, force, torque (comma list).")
     ] = "pos",
@@ -283,13 +302,15 @@ def evaluate(
     """
     from thirdhand.fileops import write_text
     from thirdhand.io.figueroa import read_labelled_mat
-    from thirdhand.primitives.label_eval import ParserConfig, evaluate_streams
+    from thirdhand.primitives.label_eval import MODELS, SELECTIONS, ParserConfig, evaluate_streams
 
     try:
         if skills is not None:
             options.integer("--skills", skills, low=1, high=100)
-        if select not in ("heldout", "bic"):
-            raise ThirdhandError(f"--select must be heldout or bic, got {select!r}")
+        if select not in SELECTIONS:
+            raise ThirdhandError(f"--select must be onese, heldout or bic, got {select!r}")
+        if model not in MODELS:
+            raise ThirdhandError(f"--model must be library or hsmm, got {model!r}")
         options.finite("--tolerance", tolerance, low=0.0)
         options.finite("--grid", grid, low=0.0)
         options.integer("--subsample", subsample, low=1, high=1000)
@@ -324,6 +345,9 @@ def evaluate(
             n_phases=phases,
             switch_penalty=switch_penalty,
             seed=seed,
+            model="hsmm" if label_trained else model,
+            label_trained=label_trained,
+            zero_ft=zero_ft,
         )
         results = {}
         for f in files:
@@ -338,6 +362,15 @@ def evaluate(
         "files": [],
     }
     for fname, (streams, res) in results.items():
+        if cfg.label_trained:
+            named = sum((r.named_accuracy or 0.0) * r.n_samples for r in res.streams) / sum(
+                r.n_samples for r in res.streams
+            )
+            out.print(
+                f"{fname}: LABEL-TRAINED (supervised) HSMM, each recording parsed by a model "
+                f"fitted on the others' human labels; frame accuracy with labels as named "
+                f"{named:.3f}"
+            )
         out.print(
             f"{fname}: {len(streams)} recordings, K = "
             f"{'/'.join(str(r.n_skills) for r in res.streams)}, frame accuracy "
@@ -365,13 +398,14 @@ def evaluate(
             sel = r.selection
             out.print(
                 f"  without {r.name[:30]}: K = {sel.chosen} by {select}; BIC "
-                + ", ".join(f"{k}: {v:.0f}" for k, v in sel.bic.items())
+                + (", ".join(f"{k}: {v:.0f}" for k, v in sel.bic.items()) or "-")
                 + "; held-out log-lik per obs "
                 + ", ".join(f"{k}: {v:.3f}" for k, v in sel.heldout.items())
             )
         doc["files"].append(
             {
                 "file": fname,
+                "label_trained": cfg.label_trained,
                 "accuracy": res.accuracy,
                 "global_accuracy": res.global_accuracy,
                 "boundaries": _bscore(res.boundaries),
@@ -394,6 +428,7 @@ def evaluate(
                         "n_skills": r.n_skills,
                         "in_sample": r.in_sample,
                         "fit_s": r.fit_s,
+                        "named_accuracy": r.named_accuracy,
                         "k_selection": None
                         if r.selection is None
                         else {
@@ -402,6 +437,10 @@ def evaluate(
                             "bic": {str(k): v for k, v in r.selection.bic.items()},
                             "heldout_loglik_per_obs": {
                                 str(k): v for k, v in r.selection.heldout.items()
+                            },
+                            "heldout_folds": {
+                                str(k): [[ll, n] for ll, n in v]
+                                for k, v in r.selection.folds.items()
                             },
                         },
                     }

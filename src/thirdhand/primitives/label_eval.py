@@ -33,11 +33,17 @@ from thirdhand.primitives.evaluation import (
     change_times,
     match_boundaries,
 )
+from thirdhand.primitives.hsmm import HiddenSemiMarkov
 from thirdhand.primitives.library import PrimitiveLibrary
 from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
 from thirdhand.primitives.segment_features import smoothed_speed
 
 IntArray = NDArray[np.int64]
+
+#: How K is selected without ``--skills`` (see :class:`ParserConfig`).
+SELECTIONS = ("onese", "heldout", "bic")
+#: Models of :func:`evaluate_streams` (see :class:`ParserConfig`).
+MODELS = ("library", "hsmm")
 
 
 @dataclass(frozen=True)
@@ -53,12 +59,14 @@ class ParserConfig:
     n_skills : int or None
         ``K``; None selects it over ``k_range`` on the training recordings (``select``).
     k_range : tuple of int
-    select : {"heldout", "bic"}
-        How ``K`` is selected when not given: the highest held-out log-likelihood
-        (:func:`heldout_scores`: each training recording scored by a library fitted on
+    select : {"onese", "heldout", "bic"}
+        How ``K`` is selected when not given, from the held-out log-likelihood
+        (:func:`heldout_folds`: each training recording scored by a library fitted on
         the other training recordings, or each half of a single training recording by
-        the other half), or the lowest BIC of the library fitted on all of them. Both
-        tables are computed either way.
+        the other half): ``onese`` (default) the smallest K within one standard error
+        of the best (:func:`one_se_choice`), ``heldout`` the best; or ``bic`` the
+        lowest BIC of the library fitted on all of them. All tables are computed
+        either way.
     subsample : int
         Keep every n-th sample (the parse is mapped back to every sample).
     grid : float or None
@@ -74,7 +82,21 @@ class ParserConfig:
     switch_penalty : float
         Cost of a change of skill in the parse, nats (see :class:`PrimitiveLibrary`).
     n_init : int
+        Restarts of the library's EM, and of the HSMM's hard EM (the best training
+        score is kept).
     seed : int
+    model : {"library", "hsmm"}
+        ``library``: the primitive-library parser (ProMP skills over candidate
+        segments); ``hsmm``: a hidden semi-Markov model over the per-sample level
+        channels (:class:`~thirdhand.primitives.hsmm.HiddenSemiMarkov`, fitted without
+        labels by hard EM; ``n_skills`` states).
+    label_trained : bool
+        Fit the HSMM on the training recordings' human labels (its states are the
+        labels) instead of without them: the supervised "label some, parse the
+        rest" mode, reported apart from the unsupervised figures.
+    zero_ft : bool
+        Subtract each arm's force/torque at the start of the recording
+        (:func:`~thirdhand.primitives.channels.stream_channels`).
     """
 
     shape: tuple[str, ...] = ("pos",)
@@ -82,7 +104,7 @@ class ParserConfig:
     arms: tuple[int, ...] | None = None
     n_skills: int | None = 3
     k_range: tuple[int, ...] = (2, 3, 4, 5, 6)
-    select: str = "heldout"
+    select: str = "onese"
     subsample: int = 5
     grid: float | None = 0.5
     threshold: float | None = None
@@ -92,6 +114,9 @@ class ParserConfig:
     switch_penalty: float = 0.0
     n_init: int = 4
     seed: int = 0
+    model: str = "library"
+    label_trained: bool = False
+    zero_ft: bool = False
 
 
 @dataclass(frozen=True)
@@ -105,11 +130,14 @@ class KSelection:
     heldout : dict of int to float
         K → held-out log-likelihood per scalar observation (:func:`heldout_scores`).
     chosen : int
+    folds : dict of int to list of (float, int)
+        K → per fold (log-likelihood, observations) (:func:`heldout_folds`).
     """
 
     bic: dict[int, float]
     heldout: dict[int, float]
     chosen: int
+    folds: dict[int, list[tuple[float, int]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -137,6 +165,9 @@ class StreamResult:
     fit_s : float
     selection : KSelection or None
         How K was chosen on this recording's training recordings (None: K given).
+    named_accuracy : float or None
+        Label-trained parses only: frame accuracy with the predicted labels taken
+        as they are named (no map).
     """
 
     name: str
@@ -153,6 +184,7 @@ class StreamResult:
     in_sample: bool
     fit_s: float
     selection: KSelection | None = None
+    named_accuracy: float | None = None
 
 
 @dataclass(frozen=True)
@@ -210,7 +242,12 @@ def _tracks(
     out = []
     for s in streams:
         y, lev = stream_channels(
-            s, shape=cfg.shape, levels=cfg.levels, arms=cfg.arms, window=cfg.window * cfg.subsample
+            s,
+            shape=cfg.shape,
+            levels=cfg.levels,
+            arms=cfg.arms,
+            window=cfg.window * cfg.subsample,
+            zero_ft=cfg.zero_ft,
         )
         k = cfg.subsample
         out.append((s.t[::k], y[::k], lev[::k]))
@@ -247,13 +284,13 @@ def _halves(
     return [(t[:h], y[:h], lev[:h]), (t[h:], y[h:], lev[h:])]
 
 
-def heldout_scores(
+def heldout_folds(
     tracks: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
     cfg: ParserConfig,
     k_range: Sequence[int],
     threshold: float,
-) -> dict[int, float]:
-    """Held-out log-likelihood per scalar observation of each K, by cross-validation.
+) -> dict[int, list[tuple[float, int]]]:
+    """Held-out log-likelihood of each K on each cross-validation fold.
 
     Each track is scored (:meth:`PrimitiveLibrary.score`) by a library fitted on
     the other tracks; a single track is cut in two halves in time, each scored
@@ -262,23 +299,69 @@ def heldout_scores(
 
     Returns
     -------
+    dict of int to list of (float, int)
+        K → per fold ``(log p(held-out | θ_K), n)``, ``n`` scalar observations held
+        out; K that cannot be fitted on some fold are left out.
+    """
+    folds = list(tracks) if len(tracks) > 1 else _halves(tracks[0])
+    out: dict[int, list[tuple[float, int]]] = {}
+    for k in k_range:
+        per: list[tuple[float, int]] = []
+        try:
+            for i, held in enumerate(folds):
+                train = [f for j, f in enumerate(folds) if j != i]
+                score = _make_library(k, threshold, cfg).fit(train).score([held])
+                per.append((score, int(held[1].size + held[2].size)))
+        except PrimitiveError:
+            continue
+        out[k] = per
+    return out
+
+
+def per_observation(folds: dict[int, list[tuple[float, int]]]) -> dict[int, float]:
+    """K → ``Σ_folds log p / Σ_folds n``: the held-out log-likelihood per scalar observation."""
+    return {k: sum(s for s, _ in v) / sum(n for _, n in v) for k, v in folds.items()}
+
+
+def one_se_choice(folds: dict[int, list[tuple[float, int]]]) -> int:
+    """The smallest K whose held-out score is within one standard error of the best.
+
+    The one-standard-error rule of cross-validation (Breiman et al. 1984; Hastie,
+    Tibshirani & Friedman, *Elements of Statistical Learning* §7.10): the best
+    K's score is an estimate with an error, the spread of its per-fold scores
+    (per observation) over ``√folds``; a K with fewer skills whose score lies
+    within that error of the best is not distinguishable from it, and the
+    simpler model is kept. With one fold there is no spread: the best K.
+
+    Parameters
+    ----------
+    folds : dict of int to list of (float, int)
+        As returned by :func:`heldout_folds`.
+    """
+    if not folds:
+        raise PrimitiveError("one-SE rule: no K was scored")
+    mean = per_observation(folds)
+    best = max(mean, key=lambda k: mean[k])
+    per = np.array([s / n for s, n in folds[best]])
+    se = float(per.std(ddof=1) / np.sqrt(per.size)) if per.size > 1 else 0.0
+    return min(k for k in mean if mean[k] >= mean[best] - se)
+
+
+def heldout_scores(
+    tracks: Sequence[tuple[np.ndarray, np.ndarray, np.ndarray]],
+    cfg: ParserConfig,
+    k_range: Sequence[int],
+    threshold: float,
+) -> dict[int, float]:
+    """Held-out log-likelihood per scalar observation of each K (:func:`heldout_folds`).
+
+    Returns
+    -------
     dict of int to float
         K → ``Σ_folds log p(held-out | θ_K) / n``, ``n`` scalar observations held out;
         K that cannot be fitted on some fold are left out.
     """
-    folds = list(tracks) if len(tracks) > 1 else _halves(tracks[0])
-    n_obs = sum(y.size + lev.size for _, y, lev in folds)
-    out: dict[int, float] = {}
-    for k in k_range:
-        total = 0.0
-        try:
-            for i, held in enumerate(folds):
-                train = [f for j, f in enumerate(folds) if j != i]
-                total += _make_library(k, threshold, cfg).fit(train).score([held])
-        except PrimitiveError:
-            continue
-        out[k] = total / n_obs
-    return out
+    return per_observation(heldout_folds(tracks, cfg, k_range, threshold))
 
 
 def fit_library(
@@ -292,8 +375,8 @@ def fit_library(
     selection : KSelection or None
         None when ``cfg.n_skills`` is given.
     """
-    if cfg.select not in ("heldout", "bic"):
-        raise PrimitiveError(f"K selection must be 'heldout' or 'bic', got {cfg.select!r}")
+    if cfg.select not in SELECTIONS:
+        raise PrimitiveError(f"K selection must be 'onese', 'heldout' or 'bic', got {cfg.select!r}")
     thr = _threshold(tracks, cfg)
     if cfg.n_skills is not None:
         return _make_library(cfg.n_skills, thr, cfg).fit(list(tracks)), None
@@ -310,12 +393,15 @@ def fit_library(
         scores[k] = bic(libs[k], n_obs)
     if not libs:
         raise PrimitiveError(f"no K in {list(cfg.k_range)} could be fitted")
-    held = heldout_scores(tracks, cfg, list(libs), thr)
-    if cfg.select == "heldout" and held:
+    per_fold = heldout_folds(tracks, cfg, list(libs), thr)
+    held = per_observation(per_fold)
+    if cfg.select == "onese" and held:
+        chosen = one_se_choice(per_fold)
+    elif cfg.select == "heldout" and held:
         chosen = max(held, key=lambda k: held[k])
     else:
         chosen = min(scores, key=lambda k: scores[k])
-    return libs[chosen], KSelection(scores, held, chosen)
+    return libs[chosen], KSelection(scores, held, chosen, per_fold)
 
 
 def evaluate_streams(
@@ -324,14 +410,16 @@ def evaluate_streams(
     """Leave-one-recording-out parse of every recording, scored against its labels."""
     if not streams:
         raise PrimitiveError("no labelled recording to evaluate")
+    if cfg.model not in MODELS:
+        raise PrimitiveError(f"model must be one of {', '.join(MODELS)}, got {cfg.model!r}")
+    if cfg.model == "hsmm" or cfg.label_trained:
+        return _finish(_hsmm_results(streams, cfg, tolerance), streams)
     tracks = _tracks(streams, cfg)
     results: list[StreamResult] = []
-    last: KSelection | None = None
     for i, (s, (t, y, lev)) in enumerate(zip(streams, tracks, strict=True)):
         train = [tr for j, tr in enumerate(tracks) if j != i] or [tracks[i]]
         t0 = time.perf_counter()
         lib, selection = fit_library(train, cfg)
-        last = selection or last
         raw = lib.parse(t, y, levels=lev, name=s.name)
         parse = raw.merged()
         if cfg.n_phases is not None:
@@ -358,6 +446,11 @@ def evaluate_streams(
                 selection,
             )
         )
+    return _finish(results, streams)
+
+
+def _finish(results: list[StreamResult], streams: Sequence[LabelledStream]) -> FileResult:
+    """The file's single map, global accuracies and summed boundary scores."""
     mapping, n_ok, n_all = best_label_map([r.skills for r in results], [s.labels for s in streams])
     final = []
     for r, s in zip(results, streams, strict=True):
@@ -367,11 +460,105 @@ def evaluate_streams(
     total, raw_total = final[0].boundaries, final[0].raw_boundaries
     for r in final[1:]:
         total, raw_total = total + r.boundaries, raw_total + r.raw_boundaries
+    last = next((r.selection for r in reversed(final) if r.selection is not None), None)
     bic_table = {} if last is None else last.bic
     held_table = {} if last is None else last.heldout
     return FileResult(
         final, per_map, n_ok / n_all, total, raw_total, mapping, bic_table, held_table
     )
+
+
+def _make_hsmm(k: int, cfg: ParserConfig) -> HiddenSemiMarkov:
+    # each parse sample's level is a mean over ``window`` parse samples: its
+    # evidence is shared with that many neighbours and counted once
+    return HiddenSemiMarkov(k, emission_weight=1.0 / max(cfg.window, 1), seed=cfg.seed)
+
+
+def hsmm_heldout_folds(
+    xs: Sequence[np.ndarray], cfg: ParserConfig, k_range: Sequence[int]
+) -> dict[int, list[tuple[float, int]]]:
+    """Held-out score of each number of HSMM states on each fold (as :func:`heldout_folds`).
+
+    The score of a held-out stream is ``log p(x, z*)`` of its best parse
+    (:meth:`HiddenSemiMarkov.decode`) under a model fitted without labels on the
+    other folds; a single stream is cut in two halves.
+    """
+    folds = list(xs) if len(xs) > 1 else [xs[0][: len(xs[0]) // 2], xs[0][len(xs[0]) // 2 :]]
+    out: dict[int, list[tuple[float, int]]] = {}
+    for k in k_range:
+        per: list[tuple[float, int]] = []
+        try:
+            for i, held in enumerate(folds):
+                train = [f for j, f in enumerate(folds) if j != i]
+                model = _make_hsmm(k, cfg).fit_unsupervised(train, n_init=cfg.n_init)
+                per.append((model.decode(held)[1], held.size))
+        except PrimitiveError:
+            continue
+        out[k] = per
+    return out
+
+
+def _hsmm_results(
+    streams: Sequence[LabelledStream], cfg: ParserConfig, tolerance: float
+) -> list[StreamResult]:
+    """Leave-one-recording-out HSMM parses, unsupervised or label-trained."""
+    tracks = _tracks(streams, cfg)
+    for s, (_, _, lev) in zip(streams, tracks, strict=True):
+        if lev.shape[1] == 0:
+            raise PrimitiveError(f"{s.name}: the HSMM needs level channels (--levels)")
+    sub_labels = [s.labels[:: cfg.subsample] for s in streams]
+    results: list[StreamResult] = []
+    for i, (s, (t, _, lev)) in enumerate(zip(streams, tracks, strict=True)):
+        train = [j for j in range(len(streams)) if j != i] or [i]
+        t0 = time.perf_counter()
+        selection = None
+        if cfg.label_trained:
+            model = _make_hsmm(1, cfg).fit_labelled(
+                [tracks[j][2] for j in train], [sub_labels[j] for j in train]
+            )
+        elif cfg.n_skills is not None:
+            model = _make_hsmm(cfg.n_skills, cfg).fit_unsupervised(
+                [tracks[j][2] for j in train], n_init=cfg.n_init
+            )
+        else:
+            per_fold = hsmm_heldout_folds([tracks[j][2] for j in train], cfg, cfg.k_range)
+            if not per_fold:
+                raise PrimitiveError(f"no number of states in {list(cfg.k_range)} could be fitted")
+            held = per_observation(per_fold)
+            chosen = (
+                one_se_choice(per_fold)
+                if cfg.select == "onese"
+                else max(held, key=lambda k: held[k])
+            )
+            model = _make_hsmm(chosen, cfg).fit_unsupervised(
+                [tracks[j][2] for j in train], n_init=cfg.n_init
+            )
+            selection = KSelection({}, held, chosen, per_fold)
+        sub = model.predict(lev)
+        fit_s = time.perf_counter() - t0
+        idx = np.clip(np.searchsorted(t, s.t, side="right") - 1, 0, t.size - 1)
+        pred = sub[idx]
+        n_runs = int(np.count_nonzero(np.diff(pred)) + 1)
+        results.append(
+            StreamResult(
+                s.name,
+                s.n_samples,
+                pred,
+                match_boundaries(s.boundaries, change_times(s.t, pred), tolerance=tolerance),
+                match_boundaries(s.boundaries, change_times(s.t, pred), tolerance=tolerance),
+                float(best_label_map([pred], [s.labels])[1] / s.n_samples),
+                float("nan"),
+                0,
+                n_runs,
+                n_runs,
+                int(model.n_states),
+                len(streams) == 1,
+                fit_s,
+                selection,
+                float(np.mean(pred == s.labels)) if cfg.label_trained else None,
+            )
+        )
+    return results
 
 
 def _phase_grouper(

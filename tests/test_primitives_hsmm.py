@@ -1,0 +1,164 @@
+"""Hidden semi-Markov model over per-sample channels: exact Viterbi, recovery, K by one SE."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from thirdhand.primitives import PrimitiveError
+from thirdhand.primitives.hsmm import (
+    HiddenSemiMarkov,
+    brute_force_hsmm,
+    hsmm_viterbi,
+    path_score,
+    runs,
+)
+from thirdhand.primitives.label_eval import one_se_choice, per_observation
+
+
+def _compositions(n: int, d_max: int) -> list[list[int]]:
+    """Every way to write n as an ordered sum of parts 1 … d_max."""
+    if n == 0:
+        return [[]]
+    return [[d, *rest] for d in range(1, min(d_max, n) + 1) for rest in _compositions(n - d, d_max)]
+
+
+def _enumerate(e: np.ndarray, dur: np.ndarray, tr: np.ndarray, ini: np.ndarray) -> float:
+    """Best score over segmentations × labellings, consecutive segments of different states."""
+    t_n, k_n = e.shape
+    best = -np.inf
+    for parts in _compositions(t_n, dur.shape[1]):
+        for labs in itertools.product(range(k_n), repeat=len(parts)):
+            if any(a == b for a, b in itertools.pairwise(labs)):
+                continue
+            v, s = float(ini[labs[0]]), 0
+            for h, (d, k) in enumerate(zip(parts, labs, strict=True)):
+                v += dur[k, d - 1] + e[s : s + d, k].sum()
+                if h:
+                    v += tr[labs[h - 1], k]
+                s += d
+            best = max(best, v)
+    return best
+
+
+@pytest.mark.parametrize(("t_n", "k_n", "d_n"), [(1, 1, 1), (5, 2, 3), (7, 3, 4), (8, 3, 8)])
+def test_viterbi_equals_enumeration(t_n: int, k_n: int, d_n: int, rng: np.random.Generator) -> None:
+    for _ in range(5):
+        e = rng.normal(0.0, 2.0, (t_n, k_n))
+        dur = rng.normal(0.0, 1.0, (k_n, d_n))
+        tr = rng.normal(0.0, 1.0, (k_n, k_n))
+        ini = rng.normal(0.0, 1.0, k_n)
+        states, score = hsmm_viterbi(e, dur, tr, ini)
+        assert score == pytest.approx(_enumerate(e, dur, tr, ini), abs=1e-9)
+        # the returned path has the returned score, and so does the module's enumeration
+        assert path_score(states, e, dur, tr, ini) == pytest.approx(score, abs=1e-9)
+        assert brute_force_hsmm(e, dur, tr, ini)[1] == pytest.approx(score, abs=1e-9)
+        assert runs(states)[1].max() <= d_n
+
+
+def test_viterbi_errors() -> None:
+    with pytest.raises(PrimitiveError, match="no labelling of 5 samples"):
+        # one state, durations up to 2: five samples cannot be covered
+        hsmm_viterbi(np.zeros((5, 1)), np.zeros((1, 2)), np.zeros((1, 1)), np.zeros(1))
+    with pytest.raises(PrimitiveError, match="emissions for 2 states"):
+        hsmm_viterbi(np.zeros((5, 2)), np.zeros((3, 2)), np.zeros((2, 2)), np.zeros(2))
+
+
+def _phased_stream(order: list[int], durations: dict[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Noise-free 2-channel stream: state k emits the constant (k, 2k) for durations[k] samples."""
+    labels = np.concatenate([np.full(durations[k], k) for k in order])
+    x = np.stack([labels, 2.0 * labels], axis=1).astype(np.float64)
+    return x, labels
+
+
+def test_label_trained_parse_recovers_labels_and_durations() -> None:
+    durations = {1: 12, 2: 5, 3: 8}
+    order = [1, 2, 3, 2, 3, 2, 3, 1]
+    x, labels = _phased_stream(order, durations)
+    model = HiddenSemiMarkov(reg=1e-2).fit_labelled([x], [labels])
+    assert list(model.states_) == [1, 2, 3]
+    # every run of a label has the same length: the log-normal sits on it
+    np.testing.assert_allclose(np.exp(model.dur_mu_), [12, 5, 8], rtol=1e-12)
+    # transitions counted with one Laplace count: 2 → 3 three times, 2 → 1 never
+    p = np.exp(model.log_trans_)
+    assert p[1, 2] == pytest.approx(4 / 5) and p[1, 0] == pytest.approx(1 / 5)
+    assert np.all(np.diag(p) == 0.0)
+    other, truth = _phased_stream([1, 2, 3, 2, 3, 1], durations)
+    np.testing.assert_array_equal(model.predict(other), truth)
+
+
+def test_unsupervised_parse_recovers_segments_up_to_names() -> None:
+    durations = {0: 10, 1: 6, 2: 9}
+    x, labels = _phased_stream([0, 1, 2, 1, 2, 1, 2, 0], durations)
+    x2, labels2 = _phased_stream([0, 1, 2, 1, 2, 0], durations)
+    model = HiddenSemiMarkov(3, seed=0).fit_unsupervised([x, x2])
+    for xs, truth in ((x, labels), (x2, labels2)):
+        pred = model.predict(xs)
+        # a bijection between found states and true labels explains every sample
+        pairs = set(zip(pred.tolist(), truth.tolist(), strict=True))
+        assert len(pairs) == 3
+        assert len({a for a, _ in pairs}) == len({b for _, b in pairs}) == 3
+
+
+def test_emission_weight_lets_durations_overrule_a_short_blip() -> None:
+    # training: state 0 lasts 40 samples, state 1 four (level 0 and 1)
+    lab_train = np.repeat([0, 1, 0, 1, 0], [40, 4, 40, 4, 40])
+    train = lab_train[:, None].astype(np.float64)
+    # a new stream of 40 samples at level 0 with a 4-sample blip at level 1 in the middle
+    x = np.zeros((40, 1))
+    x[18:22] = 1.0
+    strong = HiddenSemiMarkov(reg=0.05).fit_labelled([train], [lab_train])
+    weak = HiddenSemiMarkov(reg=0.05, emission_weight=0.2).fit_labelled([train], [lab_train])
+    # every sample counted fully, the blip gains 4 × ½ · 1² / 0.05 = 40 nats as state 1,
+    # more than the two short runs of state 0 (18 samples, 0.8 log-units from 40) cost
+    np.testing.assert_array_equal(strong.predict(x), (x[:, 0] > 0.5).astype(int))
+    # weighted by 1/5 it gains 8 nats: one run of 40, state 0's own duration, wins
+    assert np.all(weak.predict(x) == 0)
+    with pytest.raises(PrimitiveError, match="emission weight"):
+        HiddenSemiMarkov(emission_weight=0.0)
+
+
+def test_hsmm_bad_input() -> None:
+    with pytest.raises(PrimitiveError, match="stream 0 has NaN"):
+        HiddenSemiMarkov(2).fit_unsupervised([np.full((5, 1), np.nan)])
+    with pytest.raises(PrimitiveError, match="3 samples but labels of shape"):
+        HiddenSemiMarkov().fit_labelled([np.zeros((3, 1))], [np.zeros(4, dtype=int)])
+    with pytest.raises(PrimitiveError, match="at least 1 state"):
+        HiddenSemiMarkov(0).fit_unsupervised([np.zeros((5, 1))])
+    model = HiddenSemiMarkov().fit_labelled([np.zeros((4, 2))], [np.array([0, 0, 1, 1])])
+    with pytest.raises(PrimitiveError, match="3 channels, the model has 2"):
+        model.predict(np.zeros((4, 3)))
+
+
+def test_one_se_rule_arithmetic() -> None:
+    # per-observation fold scores: K=2 → 0.40, 0.44; K=3 → 0.40, 0.50 (best, mean 0.45);
+    # K=3's fold spread: sd 0.0707, SE 0.05 → anything ≥ 0.40 is within one SE
+    folds = {
+        2: [(40.0, 100), (44.0, 100)],
+        3: [(40.0, 100), (50.0, 100)],
+        4: [(30.0, 100), (30.0, 100)],
+    }
+    assert per_observation(folds) == pytest.approx({2: 0.42, 3: 0.45, 4: 0.30})
+    assert one_se_choice(folds) == 2
+    # a tighter best (both folds 0.45): K=2's 0.42 is now outside one SE (0)
+    folds[3] = [(45.0, 100), (45.0, 100)]
+    assert one_se_choice(folds) == 3
+    # one fold: no spread, the best K
+    assert one_se_choice({2: [(1.0, 10)], 3: [(2.0, 10)]}) == 3
+    with pytest.raises(PrimitiveError, match="no K was scored"):
+        one_se_choice({})
+
+
+def test_restarts_keep_the_best_training_score(rng: np.random.Generator) -> None:
+    # three overlapping levels in noise: hard EM from different seedings ends differently
+    lab = np.repeat([0, 1, 2, 1, 0, 2, 1, 0], [15, 9, 12, 7, 14, 10, 8, 13])
+    x = (lab + rng.normal(0.0, 0.6, lab.size))[:, None]
+    one = HiddenSemiMarkov(3, seed=5).fit_unsupervised([x])
+    many = HiddenSemiMarkov(3, seed=5).fit_unsupervised([x], n_init=6)
+    # restart 0 of ``many`` is ``one``: the kept restart can only score higher
+    assert many.score_ >= one.score_
+    assert many.score_ == pytest.approx(sum(many.decode(a)[1] for a in [x]))
+    with pytest.raises(PrimitiveError, match="at least 1 restart"):
+        HiddenSemiMarkov(3).fit_unsupervised([x], n_init=0)
