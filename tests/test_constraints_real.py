@@ -56,6 +56,13 @@ def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
     assert abs(c.axis[2]) > 0.98
     assert 0.3 < c.radius < 0.45
     assert 70.0 < np.degrees(np.ptp(c.ranges[3])) < 115.0
+    if index == 2:
+        # The last 17 frames leave the arc smoothly (a real outlier stretch, no jump): the
+        # circle calls them outliers at 2.2 mm of noise, far from its 1 cm ceiling, and is
+        # kept (``saturated_joint`` passes over only a joint near its ceiling).
+        assert c.outlier_fraction == pytest.approx(17 / 112)
+        assert c.sigma_pos < 0.5 * 0.01
+        assert not c.notes
 
 
 @pytest.mark.parametrize("index", range(1, 11))
@@ -79,7 +86,10 @@ def test_drawer_one_004_is_prismatic_by_the_bow_test(shared_data: Path) -> None:
     varying error leaves about 8 effective samples: the revolute is passed over, as a
     turn the track does not resolve (it was chosen, at 0.59-0.79, until the bow had to be
     resolved). With the tracker's error capped at 5 mm the prismatic fit gives the whole
-    terminal regime, and only it, to the outlier class, and wins at a confidence under 0.8.
+    terminal regime, and only it, to the outlier class; it then needs nearly its largest
+    noise (4.3 of 5 mm) and calls a smooth stretch outliers, which is no joint
+    (``saturated_joint``): under that cap the call is free, with notes for both joints
+    (it was prismatic at a confidence under 0.8 until issue 15 round 4).
     """
     pos, _ = _track(shared_data / "articulation" / "drawer_one" / "004.log")
     c = fit_constraint(pos)
@@ -90,11 +100,11 @@ def test_drawer_one_004_is_prismatic_by_the_bow_test(shared_data: Path) -> None:
     p, _ = prepare_track(pos, None)
     capped = dataclasses.replace(estimate_noise(p).noise_model(), pos_ceiling=0.005)
     c5 = fit_constraint(pos, noise=capped)
-    assert c5.type == "prismatic"
-    assert c5.confidence < 0.8
-    assert type_probabilities(c5.scores)["revolute"] > 0.2
+    assert c5.type == "free"
+    assert any(n.startswith("prismatic not chosen") and "near the ceiling" in n for n in c5.notes)
     fit = fit_model("prismatic", p, None, noise=capped)
     assert fit is not None
+    assert fit.sigma_pos > 0.8 * 0.005
     np.testing.assert_array_equal(np.flatnonzero(~fit.inlier), np.arange(84, p.shape[0]))
     # Without the slide it is a drawer under the camera preset; the slide is real: the
     # tail sits 5 cm off the stroke's line.
@@ -133,8 +143,9 @@ def test_stapler_relative_tracks_are_revolute(shared_data: Path) -> None:
     fits = {k: fit_constraint(p, q) for k, (p, q) in tracks.items()}
     for name, c in fits.items():
         assert c.type == "revolute", (name, c.scores)
-        # The 2 cm slide along the hinge keeps a cylindrical joint in the running.
-        assert c.confidence > 0.6
+        # The 2 cm slide along the hinge keeps a cylindrical joint in the running (0.59-0.78
+        # at round 4's calibration, temperature 6.31; 0.62-0.86 at round 3's 3.98).
+        assert c.confidence > 0.55
         assert c.scores["revolute"] < c.scores["cylindrical"]
         assert fit_constraint(*tracks[name], noise=CAMERA).type == "revolute"
         # The stapler opens by about 160°.

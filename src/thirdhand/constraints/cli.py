@@ -87,9 +87,7 @@ def _print_table(path: Path, where: str, c: JointFit) -> None:
     )
     table = Table("model", "BIC", "probability")
     excluded = {note.split()[0] for note in c.notes}
-    weights = type_probabilities(
-        {k: (math.inf if k in excluded else v) for k, v in c.scores.items()}
-    )
+    weights = type_probabilities(c.scores, passed_over=excluded)
     for name, score in sorted(c.scores.items(), key=lambda kv: kv[1]):
         table.add_row(name, f"{score:.1f}", f"{weights[name]:.3f}")
     out.print(table)
