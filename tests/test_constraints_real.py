@@ -74,12 +74,16 @@ def test_drawer_one_is_prismatic(shared_data: Path, index: int) -> None:
     # Drawers open along the camera's x axis by about 45 cm; 004's line is tilted by 9°
     # towards the 5 cm its grasp slides sideways at the end stop (frames 84 on).
     assert abs(c.axis[0]) > (0.98 if index == 4 else 0.99)
+    if index != 4:
+        # An arc that bows by under 3 % of its chord is the line's motion: no weight.
+        assert c.confidence > 0.99
     assert 0.43 < np.ptp(c.ranges[0]) < 0.47
 
 
 def test_drawer_one_004_is_prismatic_by_the_bow_test(shared_data: Path) -> None:
     """004's grasp slides 5 cm sideways at the end stop (frames 84 on) and creeps along the
-    handle before it; why it is prismatic, and how close the call is.
+    handle before it; why it is prismatic, and how close the call is (a confidence of
+    0.53, the arc 0.47).
 
     The arc still scores better (a lower BIC; 0.74 of the weight between the two), but
     its 38 mm bow is under 5 standard errors of a trend in its residuals, whose slowly
@@ -97,6 +101,12 @@ def test_drawer_one_004_is_prismatic_by_the_bow_test(shared_data: Path) -> None:
     assert c.scores["revolute"] < c.scores["prismatic"]
     assert type_probabilities(c.scores)["revolute"] > 0.5
     assert any(n.startswith("revolute not chosen") and "standard errors" in n for n in c.notes)
+    # The confidence says it is a close call: the unresolved arc keeps 0.3 of its weight
+    # (round 4; round 3 gave it none and the line 0.998).
+    assert 0.4 < c.confidence < 0.7
+    probs = type_probabilities(c.scores, passed_over=("revolute",))
+    assert probs["prismatic"] == pytest.approx(c.confidence)
+    assert probs["revolute"] > 0.3
     p, _ = prepare_track(pos, None)
     capped = dataclasses.replace(estimate_noise(p).noise_model(), pos_ceiling=0.005)
     c5 = fit_constraint(pos, noise=capped)
@@ -143,9 +153,8 @@ def test_stapler_relative_tracks_are_revolute(shared_data: Path) -> None:
     fits = {k: fit_constraint(p, q) for k, (p, q) in tracks.items()}
     for name, c in fits.items():
         assert c.type == "revolute", (name, c.scores)
-        # The 2 cm slide along the hinge keeps a cylindrical joint in the running (0.59-0.78
-        # at round 4's calibration, temperature 6.31; 0.62-0.86 at round 3's 3.98).
-        assert c.confidence > 0.55
+        # The 2 cm slide along the hinge keeps a cylindrical joint in the running.
+        assert c.confidence > 0.6
         assert c.scores["revolute"] < c.scores["cylindrical"]
         assert fit_constraint(*tracks[name], noise=CAMERA).type == "revolute"
         # The stapler opens by about 160°.

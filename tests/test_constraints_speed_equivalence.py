@@ -30,7 +30,7 @@ from thirdhand import se3_compiled as sc
 from thirdhand.constraints import NoiseModel, fit_constraint
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.models import fit_model, prepare_track, to_constraint
-from thirdhand.constraints.select import type_probabilities
+from thirdhand.constraints.select import passed_over_types, type_probabilities
 from thirdhand.datasets.joint_tracks import random_joint_track
 
 NAN = math.nan
@@ -913,8 +913,8 @@ def test_fit_matches_reference(
         chosen = kind
         got = _fit(seed, kind, oriented, outliers, only=expected["type"])
     # Joints passed over (a prismatic's huge-radius arc, a saturated circle) do not compete.
-    excluded = {note.split()[0] for note in got["notes"]}
-    weights = type_probabilities(expected["scores"], passed_over=excluded)
+    names, straight = passed_over_types(got["notes"])
+    weights = type_probabilities(expected["scores"], passed_over=names, straight=straight)
     assert got["confidence"] == pytest.approx(weights[chosen], rel=RTOL, abs=ATOL)
     assert got["n_samples"] == expected["n_samples"]
     assert list(got["scores"]) == list(expected["scores"])

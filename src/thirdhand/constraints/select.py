@@ -51,13 +51,12 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 #: errors are not white and the BIC's evidence grows with the number of samples as
 #: if they were; a track with slowly varying error can be wrong by hundreds of BIC
 #: units, which no temperature alone makes honest. The three values minimise the
-#: log loss of the true type on the calibration seeds of the sweep (6.31 is 10^0.8
-#: on its grid; round 3 shipped 3.98 and no uniform share, and gave a type passed
-#: over probability 0, which the log loss charges as 27.6 nats where it was the
-#: truth).
-CONFIDENCE_TEMPERATURE = 6.31
+#: log loss of the true type on the calibration seeds of the sweep (3.98 is 10^0.6
+#: on its grid). Round 3 (3.98, no uniform share) gave a type passed over
+#: probability 0, which the log loss charges as 27.6 nats where it was the truth.
+CONFIDENCE_TEMPERATURE = 3.98
 CONFIDENCE_FLOOR = 0.005
-PASSED_OVER_WEIGHT = 0.1
+PASSED_OVER_WEIGHT = 0.3
 #: An arc that bows away from its chord by less than this fraction of the chord
 #: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
 #: turn from positions alone: real trackers bend a straight stroke by 1-2 % of its
@@ -100,6 +99,7 @@ def type_probabilities(
     scores: dict[str, float],
     *,
     passed_over: Collection[str] = (),
+    straight: Collection[str] = (),
     temperature: float = CONFIDENCE_TEMPERATURE,
     floor: float = CONFIDENCE_FLOOR,
     passed_over_weight: float = PASSED_OVER_WEIGHT,
@@ -113,12 +113,15 @@ def type_probabilities(
     renormalised, and ``K`` the number of candidates with a finite score. A type
     passed over keeps a share of its weight: the test that passed it over can be
     wrong, and a close call (a better-scoring joint passed over) should read as
-    one.
+    one. A turn whose path is ``straight`` (it bows by less than
+    :data:`MIN_SAGITTA_RATIO` of its chord, a radius far beyond the track) keeps
+    none: it describes the line's motion, not another one, and its weight is no
+    evidence against the line (only its share of the floor).
     """
     w = bic_weights(scores, temperature)
     for name in passed_over:
         if name in w:
-            w[name] *= passed_over_weight
+            w[name] *= 0.0 if name in straight else passed_over_weight
     total = sum(w.values())
     if total > 0.0:
         w = {k: v / total for k, v in w.items()}
@@ -223,9 +226,26 @@ def degenerate_joint(
         )
     return (
         f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) bows "
-        f"the path by {100 * ratio:.1f} % of its chord, under {100 * MIN_SAGITTA_RATIO:.0f} %"
+        f"the path by {100 * ratio:.1f} {STRAIGHT_NOTE}, under {100 * MIN_SAGITTA_RATIO:.0f} %"
         + ("" if not oriented else ", and the orientations do not resolve it")
     )
+
+
+#: How a note of :func:`degenerate_joint` says the path is straight (a turn that bows
+#: it by less than :data:`MIN_SAGITTA_RATIO` of its chord).
+STRAIGHT_NOTE = "% of its chord"
+
+
+def passed_over_types(notes: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The types a fit's notes pass over, and those of them whose path is straight.
+
+    Each note of :func:`degenerate_joint` and :func:`saturated_joint` starts with the
+    type's name; a straight path's note holds :data:`STRAIGHT_NOTE`. For
+    :func:`type_probabilities` (``passed_over`` and ``straight``).
+    """
+    names = tuple(note.split()[0] for note in notes)
+    straight = tuple(note.split()[0] for note in notes if STRAIGHT_NOTE in note)
+    return names, straight
 
 
 def saturated_joint(
@@ -353,7 +373,8 @@ def fit_constraint(
         if name != best and scores[name] < scores[best]:
             passed_over.append(name)
             notes.append(why)
-    weights = type_probabilities(scores, passed_over=passed_over)
+    names, straight = passed_over_types(notes)
+    weights = type_probabilities(scores, passed_over=names, straight=straight)
     c = to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
     return dataclasses.replace(
         c,

@@ -27,6 +27,7 @@ from thirdhand.constraints.select import (
     CONFIDENCE_TEMPERATURE,
     PASSED_OVER_WEIGHT,
     fit_constraint,
+    passed_over_types,
     type_probabilities,
 )
 from thirdhand.constraints.types import NoiseModel
@@ -104,6 +105,7 @@ class Trial:
     motion_ratio: float
     axis_error: float
     dof_ratio: float = math.inf
+    straight: tuple[str, ...] = ()
 
     @property
     def correct(self) -> bool:
@@ -120,6 +122,7 @@ class Trial:
         return type_probabilities(
             self.scores,
             passed_over=self.excluded,
+            straight=self.straight,
             temperature=temperature,
             floor=floor,
             passed_over_weight=passed_over_weight,
@@ -229,10 +232,11 @@ def run_sweep(
                     predicted=c.type,
                     confidence=c.confidence,
                     scores=dict(c.scores),
-                    excluded=tuple(note.split()[0] for note in c.notes),
+                    excluded=passed_over_types(c.notes)[0],
                     motion_ratio=_motion_ratio(kind, clean, cond.total_noise),
                     axis_error=err,
                     dof_ratio=_dof_ratio(kind, oriented, track, clean, cond),
+                    straight=passed_over_types(c.notes)[1],
                 )
 
 
