@@ -913,8 +913,8 @@ def test_fit_matches_reference(
         chosen = kind
         got = _fit(seed, kind, oriented, outliers, only=expected["type"])
     # Joints passed over (a prismatic's huge-radius arc, a saturated circle) do not compete.
-    names, straight = passed_over_types(got["notes"])
-    weights = type_probabilities(expected["scores"], passed_over=names, straight=straight)
+    names, void = passed_over_types(got["notes"])
+    weights = type_probabilities(expected["scores"], passed_over=names, void=void)
     assert got["confidence"] == pytest.approx(weights[chosen], rel=RTOL, abs=ATOL)
     assert got["n_samples"] == expected["n_samples"]
     assert list(got["scores"]) == list(expected["scores"])

@@ -87,8 +87,8 @@ def _print_table(path: Path, where: str, c: JointFit) -> None:
         )
     )
     table = Table("model", "BIC", "probability")
-    names, straight = passed_over_types(c.notes)
-    weights = type_probabilities(c.scores, passed_over=names, straight=straight)
+    names, void = passed_over_types(c.notes)
+    weights = type_probabilities(c.scores, passed_over=names, void=void)
     for name, score in sorted(c.scores.items(), key=lambda kv: kv[1]):
         table.add_row(name, f"{score:.1f}", f"{weights[name]:.3f}")
     out.print(table)

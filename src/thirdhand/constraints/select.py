@@ -51,10 +51,10 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 #: errors are not white and the BIC's evidence grows with the number of samples as
 #: if they were; a track with slowly varying error can be wrong by hundreds of BIC
 #: units, which no temperature alone makes honest. The three values minimise the
-#: log loss of the true type on the calibration seeds of the sweep (3.98 is 10^0.6
+#: log loss of the true type on the calibration seeds of the sweep (3.16 is 10^0.5
 #: on its grid). Round 3 (3.98, no uniform share) gave a type passed over
 #: probability 0, which the log loss charges as 27.6 nats where it was the truth.
-CONFIDENCE_TEMPERATURE = 3.98
+CONFIDENCE_TEMPERATURE = 3.16
 CONFIDENCE_FLOOR = 0.005
 PASSED_OVER_WEIGHT = 0.3
 #: An arc that bows away from its chord by less than this fraction of the chord
@@ -99,7 +99,7 @@ def type_probabilities(
     scores: dict[str, float],
     *,
     passed_over: Collection[str] = (),
-    straight: Collection[str] = (),
+    void: Collection[str] = (),
     temperature: float = CONFIDENCE_TEMPERATURE,
     floor: float = CONFIDENCE_FLOOR,
     passed_over_weight: float = PASSED_OVER_WEIGHT,
@@ -113,15 +113,16 @@ def type_probabilities(
     renormalised, and ``K`` the number of candidates with a finite score. A type
     passed over keeps a share of its weight: the test that passed it over can be
     wrong, and a close call (a better-scoring joint passed over) should read as
-    one. A turn whose path is ``straight`` (it bows by less than
-    :data:`MIN_SAGITTA_RATIO` of its chord, a radius far beyond the track) keeps
-    none: it describes the line's motion, not another one, and its weight is no
-    evidence against the line (only its share of the floor).
+    one. A ``void`` type keeps none of its weight (only its share of the floor):
+    a turn whose path is straight (it bows by less than :data:`MIN_SAGITTA_RATIO`
+    of its chord, a radius far beyond the track) describes the line's motion, not
+    another one; a saturated joint (:func:`saturated_joint`) describes none, its
+    error is the part's motion.
     """
     w = bic_weights(scores, temperature)
     for name in passed_over:
         if name in w:
-            w[name] *= 0.0 if name in straight else passed_over_weight
+            w[name] *= 0.0 if name in void else passed_over_weight
     total = sum(w.values())
     if total > 0.0:
         w = {k: v / total for k, v in w.items()}
@@ -232,20 +233,28 @@ def degenerate_joint(
 
 
 #: How a note of :func:`degenerate_joint` says the path is straight (a turn that bows
-#: it by less than :data:`MIN_SAGITTA_RATIO` of its chord).
+#: it by less than :data:`MIN_SAGITTA_RATIO` of its chord), and how one of
+#: :func:`saturated_joint` says the joint's noise is near its ceiling.
 STRAIGHT_NOTE = "% of its chord"
+SATURATED_NOTE = "is near the ceiling"
 
 
 def passed_over_types(notes: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
-    """The types a fit's notes pass over, and those of them whose path is straight.
+    """The types a fit's notes pass over, and those of them whose weight is void.
 
     Each note of :func:`degenerate_joint` and :func:`saturated_joint` starts with the
-    type's name; a straight path's note holds :data:`STRAIGHT_NOTE`. For
-    :func:`type_probabilities` (``passed_over`` and ``straight``).
+    type's name. Void (:func:`type_probabilities`): a straight path's
+    (:data:`STRAIGHT_NOTE`) and a saturated joint's (:data:`SATURATED_NOTE`).
+
+    Returns
+    -------
+    passed_over, void : tuple of str
     """
     names = tuple(note.split()[0] for note in notes)
-    straight = tuple(note.split()[0] for note in notes if STRAIGHT_NOTE in note)
-    return names, straight
+    void = tuple(
+        note.split()[0] for note in notes if STRAIGHT_NOTE in note or SATURATED_NOTE in note
+    )
+    return names, void
 
 
 def saturated_joint(
@@ -271,9 +280,9 @@ def saturated_joint(
     if smooth == 0:
         return None
     return (
-        f"{fit.kernel.name} not chosen: its noise ({1e3 * fit.sigma_pos:.1f} mm) is near the "
-        f"ceiling ({1e3 * ceiling:.1f} mm) and it calls {smooth} samples outliers that are no "
-        "jumps (smooth motion)"
+        f"{fit.kernel.name} not chosen: its noise ({1e3 * fit.sigma_pos:.1f} mm) "
+        f"{SATURATED_NOTE} ({1e3 * ceiling:.1f} mm) and it calls {smooth} samples outliers "
+        "that are no jumps (smooth motion)"
     )
 
 
@@ -373,8 +382,8 @@ def fit_constraint(
         if name != best and scores[name] < scores[best]:
             passed_over.append(name)
             notes.append(why)
-    names, straight = passed_over_types(notes)
-    weights = type_probabilities(scores, passed_over=names, straight=straight)
+    names, void = passed_over_types(notes)
+    weights = type_probabilities(scores, passed_over=names, void=void)
     c = to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
     return dataclasses.replace(
         c,

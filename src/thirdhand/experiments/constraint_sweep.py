@@ -105,7 +105,7 @@ class Trial:
     motion_ratio: float
     axis_error: float
     dof_ratio: float = math.inf
-    straight: tuple[str, ...] = ()
+    void: tuple[str, ...] = ()
 
     @property
     def correct(self) -> bool:
@@ -122,7 +122,7 @@ class Trial:
         return type_probabilities(
             self.scores,
             passed_over=self.excluded,
-            straight=self.straight,
+            void=self.void,
             temperature=temperature,
             floor=floor,
             passed_over_weight=passed_over_weight,
@@ -236,7 +236,7 @@ def run_sweep(
                     motion_ratio=_motion_ratio(kind, clean, cond.total_noise),
                     axis_error=err,
                     dof_ratio=_dof_ratio(kind, oriented, track, clean, cond),
-                    straight=passed_over_types(c.notes)[1],
+                    void=passed_over_types(c.notes)[1],
                 )
 
 
