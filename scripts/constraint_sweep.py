@@ -31,7 +31,11 @@ from collections import defaultdict
 
 import numpy as np
 
-from thirdhand.constraints.select import CONFIDENCE_FLOOR, CONFIDENCE_TEMPERATURE
+from thirdhand.constraints.select import (
+    CONFIDENCE_FLOOR,
+    CONFIDENCE_TEMPERATURE,
+    PASSED_OVER_WEIGHT,
+)
 from thirdhand.experiments.constraint_sweep import (
     CASES,
     Condition,
@@ -151,10 +155,11 @@ def axis_table(trials: list[Trial]) -> None:
 
 def calibration(fit_on: list[Trial], held_out: list[Trial]) -> None:
     """Fitted calibration and reliability tables on the held-out seeds, Markdown."""
-    temp, floor = fit_calibration(fit_on)
+    temp, floor, weight = fit_calibration(fit_on)
     print(
         f"Calibration of least log loss on the calibration seeds: temperature {temp:.2f}, "
-        f"floor {floor:g} (shipped: {CONFIDENCE_TEMPERATURE:g}, {CONFIDENCE_FLOOR:g})\n"
+        f"floor {floor:g}, passed-over weight {weight:g} (shipped: "
+        f"{CONFIDENCE_TEMPERATURE:g}, {CONFIDENCE_FLOOR:g}, {PASSED_OVER_WEIGHT:g})\n"
     )
     plain = [
         t
@@ -162,14 +167,19 @@ def calibration(fit_on: list[Trial], held_out: list[Trial]) -> None:
         if t.condition.drift == 0.0 and t.condition.bias == 0.0 and t.condition.colour == 0.0
     ]
     for label, trials in (("every condition", held_out), ("without the slow error", plain)):
-        for t_name, t, f in (
-            ("plain BIC weights", 1.0, 0.0),
-            ("shipped calibration", CONFIDENCE_TEMPERATURE, CONFIDENCE_FLOOR),
+        for t_name, t, f, e in (
+            ("plain BIC weights", 1.0, 0.0, 0.0),
+            (
+                "shipped calibration",
+                CONFIDENCE_TEMPERATURE,
+                CONFIDENCE_FLOOR,
+                PASSED_OVER_WEIGHT,
+            ),
         ):
-            table, ece = reliability(trials, temperature=t, floor=f)
+            table, ece = reliability(trials, temperature=t, floor=f, passed_over_weight=e)
             print(
                 f"Held-out seeds, {label}, {t_name}: ECE {ece:.3f}, "
-                f"log loss {log_loss(trials, t, f):.3f}\n"
+                f"log loss {log_loss(trials, t, f, e):.3f}\n"
             )
             print("| confidence bin | mean confidence | accuracy | tracks |")
             print("|---|---|---|---|")

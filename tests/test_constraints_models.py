@@ -25,7 +25,9 @@ from thirdhand.constraints import (
     fit_screw,
 )
 from thirdhand.constraints import geometry as g
-from thirdhand.constraints.select import DEFAULT_MODELS
+from thirdhand.constraints.models import fit_model, prepare_track
+from thirdhand.constraints.noise import estimate_noise
+from thirdhand.constraints.select import DEFAULT_MODELS, NEAR_CEILING, saturated_joint
 from thirdhand.datasets.joint_tracks import JointTrack, random_joint_track
 from thirdhand.demonstration import BodyInfo, Demonstration
 
@@ -481,6 +483,34 @@ def test_residual_correlation_time() -> None:
     m = mixed - mixed.mean(axis=0)
     rho1 = float((m[1:] * m[:-1]).sum() / (m * m).sum())
     assert _correlation_time(mixed, mixed, False, ones, 1.0, 1.0) > 5.0 * (1 + rho1) / (1 - rho1)
+
+
+def test_free_part_is_no_saturated_circle() -> None:
+    """A position-only free part (1 cm of white noise, a 30 cm wander) reads best as a
+    circle whose noise is near its ceiling and which calls a fifth of the samples
+    outliers, none of them a jump: that circle is passed over, the part is free. The
+    same circle within its bounds (a ceiling of 10 cm) is no longer near the ceiling."""
+    rng = np.random.default_rng([11, 100000, 8])  # the sweep's white 10 mm free·p seed 11
+    track = random_joint_track("free", rng, pos_noise=0.01, rot_noise=math.radians(5.0))
+    c = fit_constraint(track.pos)
+    assert c.type == "free"
+    assert c.scores["revolute"] < c.scores["free"]
+    note = next(n for n in c.notes if n.startswith("revolute not chosen"))
+    assert "near the ceiling" in note
+    p, _ = prepare_track(track.pos, None)
+    est = estimate_noise(p)
+    nm = est.noise_model()
+    fit = fit_model("revolute", p, None, noise=nm)
+    assert fit is not None
+    assert fit.sigma_pos >= NEAR_CEILING * nm.pos_ceiling
+    assert est.gross is not None and not est.gross.any()
+    assert 0.1 < fit.outlier_fraction <= 0.25
+    assert saturated_joint(fit, ceiling=0.1, gross=est.gross) is None
+    # A part whose noise is far from its ceiling keeps its joint.
+    assert (
+        saturated_joint(fit, ceiling=fit.sigma_pos / NEAR_CEILING * 1.01, gross=est.gross) is None
+    )
+    assert saturated_joint(fit, ceiling=fit.sigma_pos, gross=est.gross) is not None
 
 
 def test_slide_under_pose_dependent_error_is_not_a_cylinder() -> None:

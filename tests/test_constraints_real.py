@@ -56,6 +56,13 @@ def test_cabinet_one_is_revolute(shared_data: Path, index: int) -> None:
     assert abs(c.axis[2]) > 0.98
     assert 0.3 < c.radius < 0.45
     assert 70.0 < np.degrees(np.ptp(c.ranges[3])) < 115.0
+    if index == 2:
+        # The last 17 frames leave the arc smoothly (a real outlier stretch, no jump): the
+        # circle calls them outliers at 2.2 mm of noise, far from its 1 cm ceiling, and is
+        # kept (``saturated_joint`` passes over only a joint near its ceiling).
+        assert c.outlier_fraction == pytest.approx(17 / 112)
+        assert c.sigma_pos < 0.5 * 0.01
+        assert not c.notes
 
 
 @pytest.mark.parametrize("index", range(1, 11))
@@ -67,19 +74,26 @@ def test_drawer_one_is_prismatic(shared_data: Path, index: int) -> None:
     # Drawers open along the camera's x axis by about 45 cm; 004's line is tilted by 9°
     # towards the 5 cm its grasp slides sideways at the end stop (frames 84 on).
     assert abs(c.axis[0]) > (0.98 if index == 4 else 0.99)
+    if index != 4:
+        # An arc that bows by under 3 % of its chord is the line's motion: no weight.
+        assert c.confidence > 0.99
     assert 0.43 < np.ptp(c.ranges[0]) < 0.47
 
 
 def test_drawer_one_004_is_prismatic_by_the_bow_test(shared_data: Path) -> None:
     """004's grasp slides 5 cm sideways at the end stop (frames 84 on) and creeps along the
-    handle before it; why it is prismatic, and how close the call is.
+    handle before it; why it is prismatic, and how close the call is (a confidence of
+    0.46; the arc, passed over, keeps 0.3 of its weight: 0.53).
 
     The arc still scores better (a lower BIC; 0.74 of the weight between the two), but
     its 38 mm bow is under 5 standard errors of a trend in its residuals, whose slowly
     varying error leaves about 8 effective samples: the revolute is passed over, as a
     turn the track does not resolve (it was chosen, at 0.59-0.79, until the bow had to be
     resolved). With the tracker's error capped at 5 mm the prismatic fit gives the whole
-    terminal regime, and only it, to the outlier class, and wins at a confidence under 0.8.
+    terminal regime, and only it, to the outlier class; it then needs nearly its largest
+    noise (4.3 of 5 mm) and calls a smooth stretch outliers, which is no joint
+    (``saturated_joint``): under that cap the call is free, with notes for both joints
+    (it was prismatic at a confidence under 0.8 until issue 15 round 4).
     """
     pos, _ = _track(shared_data / "articulation" / "drawer_one" / "004.log")
     c = fit_constraint(pos)
@@ -87,14 +101,21 @@ def test_drawer_one_004_is_prismatic_by_the_bow_test(shared_data: Path) -> None:
     assert c.scores["revolute"] < c.scores["prismatic"]
     assert type_probabilities(c.scores)["revolute"] > 0.5
     assert any(n.startswith("revolute not chosen") and "standard errors" in n for n in c.notes)
+    # The confidence says it is a close call: the unresolved arc keeps 0.3 of its weight
+    # (round 4; round 3 gave it none and the line 0.998). The call is the bow test's,
+    # not the likelier type's: the arc's probability is the larger.
+    assert 0.4 < c.confidence < 0.7
+    probs = type_probabilities(c.scores, passed_over=("revolute",))
+    assert probs["prismatic"] == pytest.approx(c.confidence)
+    assert probs["revolute"] > 0.3
     p, _ = prepare_track(pos, None)
     capped = dataclasses.replace(estimate_noise(p).noise_model(), pos_ceiling=0.005)
     c5 = fit_constraint(pos, noise=capped)
-    assert c5.type == "prismatic"
-    assert c5.confidence < 0.8
-    assert type_probabilities(c5.scores)["revolute"] > 0.2
+    assert c5.type == "free"
+    assert any(n.startswith("prismatic not chosen") and "near the ceiling" in n for n in c5.notes)
     fit = fit_model("prismatic", p, None, noise=capped)
     assert fit is not None
+    assert fit.sigma_pos > 0.8 * 0.005
     np.testing.assert_array_equal(np.flatnonzero(~fit.inlier), np.arange(84, p.shape[0]))
     # Without the slide it is a drawer under the camera preset; the slide is real: the
     # tail sits 5 cm off the stroke's line.

@@ -17,6 +17,7 @@ is still the numpy reference's, to 1e-9).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any
 
@@ -28,8 +29,8 @@ from thirdhand import se3
 from thirdhand import se3_compiled as sc
 from thirdhand.constraints import NoiseModel, fit_constraint
 from thirdhand.constraints import geometry as g
-from thirdhand.constraints.models import prepare_track
-from thirdhand.constraints.select import type_probabilities
+from thirdhand.constraints.models import fit_model, prepare_track, to_constraint
+from thirdhand.constraints.select import passed_over_types, type_probabilities
 from thirdhand.datasets.joint_tracks import random_joint_track
 
 NAN = math.nan
@@ -844,7 +845,10 @@ REFERENCE: list[tuple[int, str, bool, float, dict[str, Any]]] = [(0,
 # fmt: on
 
 
-def _fit(seed: int, kind: str, oriented: bool, outliers: float) -> dict[str, Any]:
+def _fit(
+    seed: int, kind: str, oriented: bool, outliers: float, *, only: str | None = None
+) -> dict[str, Any]:
+    """The fit's fields; with ``only``, those of that model's fit rather than the chosen one."""
     rng = np.random.default_rng(100 + seed)
     noise_free = seed == 20
     track = random_joint_track(
@@ -859,6 +863,14 @@ def _fit(seed: int, kind: str, oriented: bool, outliers: float) -> dict[str, Any
     c = fit_constraint(
         track.pos, track.quat if oriented else None, models=models, noise=NoiseModel()
     )
+    if only is not None:
+        p, q = prepare_track(track.pos, track.quat if oriented else None)
+        fit = fit_model(only, p, q, noise=NoiseModel())
+        assert fit is not None
+        c = dataclasses.replace(
+            to_constraint(fit, p, q, confidence=c.confidence, scores=c.scores),
+            notes=c.notes,
+        )
     return {
         "type": c.type,
         "axis": c.axis,
@@ -889,12 +901,21 @@ def test_fit_matches_reference(
     seed: int, kind: str, oriented: bool, outliers: float, expected: dict[str, Any]
 ) -> None:
     got = _fit(seed, kind, oriented, outliers)
-    assert got["type"] == expected["type"]
-    # Joints passed over as degenerate (a prismatic's huge-radius arc) do not compete.
-    excluded = {note.split()[0] for note in got["notes"]}
-    allowed = {k: (math.inf if k in excluded else v) for k, v in expected["scores"].items()}
-    weights = type_probabilities(allowed)
-    assert got["confidence"] == pytest.approx(weights[expected["type"]], rel=RTOL, abs=ATOL)
+    chosen = expected["type"]
+    if got["type"] != chosen:
+        # Issue 15 round 4: the reference's joint needs nearly its ceiling noise and calls
+        # smooth samples outliers (a free part read as a circle): it is passed over, and
+        # the call is the truth. Its fit still matches the reference, field by field.
+        assert got["type"] == kind
+        assert any(
+            n.startswith(f"{chosen} not chosen") and "near the ceiling" in n for n in got["notes"]
+        )
+        chosen = kind
+        got = _fit(seed, kind, oriented, outliers, only=expected["type"])
+    # Joints passed over (a prismatic's huge-radius arc, a saturated circle) do not compete.
+    names, void = passed_over_types(got["notes"])
+    weights = type_probabilities(expected["scores"], passed_over=names, void=void)
+    assert got["confidence"] == pytest.approx(weights[chosen], rel=RTOL, abs=ATOL)
     assert got["n_samples"] == expected["n_samples"]
     assert list(got["scores"]) == list(expected["scores"])
     for name, score in expected["scores"].items():

@@ -24,6 +24,7 @@ from thirdhand.constraints.select import (
     DEFAULT_MODELS,
     demo_track,
     fit_constraint,
+    passed_over_types,
     type_probabilities,
 )
 from thirdhand.constraints.types import MODEL_TYPES, ConstraintFitError, JointFit, NoiseModel
@@ -86,10 +87,8 @@ def _print_table(path: Path, where: str, c: JointFit) -> None:
         )
     )
     table = Table("model", "BIC", "probability")
-    excluded = {note.split()[0] for note in c.notes}
-    weights = type_probabilities(
-        {k: (math.inf if k in excluded else v) for k, v in c.scores.items()}
-    )
+    names, void = passed_over_types(c.notes)
+    weights = type_probabilities(c.scores, passed_over=names, void=void)
     for name, score in sorted(c.scores.items(), key=lambda kv: kv[1]):
         table.add_row(name, f"{score:.1f}", f"{weights[name]:.3f}")
     out.print(table)

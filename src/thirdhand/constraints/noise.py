@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
@@ -86,12 +86,16 @@ class NoiseEstimate:
         Samples per local fit.
     n_windows : int
         Number of local fits the medians were taken over.
+    gross : ndarray of bool, shape (n,), optional
+        Samples flagged as gross outliers: jumps away from their neighbours in time
+        (:func:`_flag_outliers`, positions and orientations).
     """
 
     sigma_pos: float
     sigma_rot: float
     window: int
     n_windows: int
+    gross: NDArray[np.bool_] | None = field(default=None, compare=False, repr=False)
 
     def noise_model(self, *, max_outliers: float = 0.25) -> NoiseModel:
         """The bounds of the model fits: floors at :data:`FLOOR_FACTOR` times the estimate.
@@ -312,4 +316,5 @@ def estimate_noise(
         sigma_rot=sigma_rot,
         window=w,
         n_windows=int(keep.sum()),
+        gross=bad,
     )

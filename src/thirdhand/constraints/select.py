@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -46,17 +46,17 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 
 #: Calibration of the confidence (``scripts/constraint_sweep.py``, tables in
 #: ``docs/constraints.md``): the temperature that BIC differences are divided by
-#: before they become probabilities, and the share of a uniform guess mixed in.
-#: Real errors are not white and the BIC's evidence grows with the number of
-#: samples as if they were; a track with slowly varying error can be wrong by
-#: hundreds of BIC units, which no temperature alone makes honest. Both values
-#: minimise the log loss of the true type on the calibration seeds of the sweep
-#: (3.98 is 10^0.6 on its grid, and no uniform share; 3.16 and 0.01 before a turn's
-#: bow and a cylindrical joint's slide had to be resolved, :func:`degenerate_joint`; 5
-#: and 0.02 before the effective sample count followed the residuals' whole
-#: correlation time, :func:`effective_samples`).
-CONFIDENCE_TEMPERATURE = 3.98
-CONFIDENCE_FLOOR = 0.0
+#: before they become probabilities, the share of a uniform guess mixed in, and the
+#: factor on the weight of a type passed over (:func:`type_probabilities`). Real
+#: errors are not white and the BIC's evidence grows with the number of samples as
+#: if they were; a track with slowly varying error can be wrong by hundreds of BIC
+#: units, which no temperature alone makes honest. The three values minimise the
+#: log loss of the true type on the calibration seeds of the sweep (3.16 is 10^0.5
+#: on its grid). Round 3 (3.98, no uniform share) gave a type passed over
+#: probability 0, which the log loss charges as 27.6 nats where it was the truth.
+CONFIDENCE_TEMPERATURE = 3.16
+CONFIDENCE_FLOOR = 0.005
+PASSED_OVER_WEIGHT = 0.3
 #: An arc that bows away from its chord by less than this fraction of the chord
 #: (``tan(φ/4)/2`` for a turn of φ: 3 % is a turn of 13.7°) is no evidence of a
 #: turn from positions alone: real trackers bend a straight stroke by 1-2 % of its
@@ -74,6 +74,12 @@ MIN_TURN_FLOORS = 5.0
 #: rotation noise: a precise tracker (a robot's encoders) may still carry a degree of
 #: calibration error (10 and 15 noise floors instead: 96.0 and 96.1 %).
 MIN_TURN = math.radians(7.0)
+#: A constrained fit whose position noise is at least this fraction of its ceiling
+#: and which calls smooth samples outliers (:func:`saturated_joint`) is no joint of
+#: the track. Chosen on the synthetic sweep's calibration seeds
+#: (``docs/constraints.md``): 0.6, 0.7, 0.8, 0.9 and 0.999 (the ceiling itself)
+#: leave 54, 41, 38, 39 and 40 of 2,075 tracks wrong; 0.8 the fewest.
+NEAR_CEILING = 0.8
 
 
 def bic_weights(scores: dict[str, float], temperature: float = 1.0) -> dict[str, float]:
@@ -92,15 +98,37 @@ def bic_weights(scores: dict[str, float], temperature: float = 1.0) -> dict[str,
 def type_probabilities(
     scores: dict[str, float],
     *,
+    passed_over: Collection[str] = (),
+    void: Collection[str] = (),
     temperature: float = CONFIDENCE_TEMPERATURE,
     floor: float = CONFIDENCE_FLOOR,
+    passed_over_weight: float = PASSED_OVER_WEIGHT,
 ) -> dict[str, float]:
     """Calibrated probability of each type from its BIC (infinite scores get 0).
 
     ``(1 - floor) · w + floor / K``, with ``w`` the :func:`bic_weights` at
-    ``temperature`` and ``K`` the number of candidates with a finite score.
+    ``temperature``, those of the ``passed_over`` types (a turn the track does
+    not resolve, :func:`degenerate_joint`; a joint whose error is motion,
+    :func:`saturated_joint`) multiplied by ``passed_over_weight`` and all
+    renormalised, and ``K`` the number of candidates with a finite score. A type
+    passed over keeps a share of its weight: the test that passed it over can be
+    wrong, and a close call (a better-scoring joint passed over) should read as
+    one. A ``void`` type keeps none of its weight (only its share of the floor):
+    a turn whose path is straight (it bows by less than :data:`MIN_SAGITTA_RATIO`
+    of its chord, a radius far beyond the track) describes the line's motion, not
+    another one; a saturated joint (:func:`saturated_joint`) describes none, its
+    error is the part's motion.
     """
     w = bic_weights(scores, temperature)
+    for name in passed_over:
+        if name in w:
+            w[name] *= 0.0 if name in void else passed_over_weight
+    total = sum(w.values())
+    if total > 0.0:
+        w = {k: v / total for k, v in w.items()}
+    else:
+        # Every finite candidate passed over with no weight left: their own weights.
+        w = bic_weights(scores, temperature)
     k = sum(math.isfinite(v) for v in scores.values())
     return {
         name: ((1.0 - floor) * w[name] + floor / k) if math.isfinite(v) else 0.0
@@ -199,8 +227,62 @@ def degenerate_joint(
         )
     return (
         f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) bows "
-        f"the path by {100 * ratio:.1f} % of its chord, under {100 * MIN_SAGITTA_RATIO:.0f} %"
+        f"the path by {100 * ratio:.1f} {STRAIGHT_NOTE}, under {100 * MIN_SAGITTA_RATIO:.0f} %"
         + ("" if not oriented else ", and the orientations do not resolve it")
+    )
+
+
+#: How a note of :func:`degenerate_joint` says the path is straight (a turn that bows
+#: it by less than :data:`MIN_SAGITTA_RATIO` of its chord), and how one of
+#: :func:`saturated_joint` says the joint's noise is near its ceiling.
+STRAIGHT_NOTE = "% of its chord"
+SATURATED_NOTE = "is near the ceiling"
+
+
+def passed_over_types(notes: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The types a fit's notes pass over, and those of them whose weight is void.
+
+    Each note of :func:`degenerate_joint` and :func:`saturated_joint` starts with the
+    type's name. Void (:func:`type_probabilities`): a straight path's
+    (:data:`STRAIGHT_NOTE`) and a saturated joint's (:data:`SATURATED_NOTE`).
+
+    Returns
+    -------
+    passed_over, void : tuple of str
+    """
+    names = tuple(note.split()[0] for note in notes)
+    void = tuple(
+        note.split()[0] for note in notes if STRAIGHT_NOTE in note or SATURATED_NOTE in note
+    )
+    return names, void
+
+
+def saturated_joint(
+    fit: ModelFit, *, ceiling: float, gross: NDArray[np.bool_] | None
+) -> str | None:
+    """Why a constrained fit is no joint of the track (its error is motion), or None.
+
+    A fixed, prismatic, revolute, cylindrical or screw fit whose position noise is
+    near its ceiling (at least :data:`NEAR_CEILING` of it: the ceiling is the
+    largest error the tracker may have) and which still gives to the outlier
+    class samples that are no gross outliers — no jump away from their
+    neighbours in time (``gross``, the flags of the noise estimate,
+    :func:`~thirdhand.constraints.noise.estimate_noise`) — explains smooth motion
+    away: a part moving freely, whose path a joint follows only with nearly its
+    largest noise and a share of it called outliers (position-only free parts:
+    a circle with a quarter of the samples as outliers). A joint well inside its
+    noise bounds may still give a smooth stretch to the outlier class (the last
+    15 % of ``cabinet_one/002``, at 2.2 mm of noise: a real outlier stretch).
+    """
+    if fit.kernel.name == "free" or gross is None or fit.sigma_pos < NEAR_CEILING * ceiling:
+        return None
+    smooth = int(np.count_nonzero(~fit.inlier & ~gross))
+    if smooth == 0:
+        return None
+    return (
+        f"{fit.kernel.name} not chosen: its noise ({1e3 * fit.sigma_pos:.1f} mm) "
+        f"{SATURATED_NOTE} ({1e3 * ceiling:.1f} mm) and it calls {smooth} samples outliers "
+        "that are no jumps (smooth motion)"
     )
 
 
@@ -279,17 +361,29 @@ def fit_constraint(
         if not (name in _NEEDS_ORIENTATION and q is None)
     }
     notes = []
-    allowed = dict(scores)
+    passed_over = []
+    saturated = {}
     for name, fit in fits.items():
         why = degenerate_joint(fit, oriented=q is not None, rot_floor=nm.rot_floor, n_eff=n_eff)
-        if why is not None:
-            allowed[name] = math.inf
+        if why is None:
+            why = saturated_joint(fit, ceiling=nm.pos_ceiling, gross=est.gross)
+            if why is not None:
+                saturated[name] = why
+            continue
+        passed_over.append(name)
+        notes.append(why)
+    # The best score among the joints not passed over (all of them if every one was:
+    # only degenerate joints were asked for, the best of them with its note). A
+    # saturated joint is passed over (and noted) when it scores better than that.
+    left = [k for k in fits if k not in passed_over and k not in saturated]
+    left = left or [k for k in fits if k not in passed_over] or list(fits)
+    best = min(left, key=lambda k: scores[k])
+    for name, why in saturated.items():
+        if name != best and scores[name] < scores[best]:
+            passed_over.append(name)
             notes.append(why)
-    if not any(math.isfinite(allowed[k]) for k in fits):
-        # Only degenerate joints were asked for: the best of them, with its note.
-        allowed = dict(scores)
-    weights = type_probabilities(allowed)
-    best = min(fits, key=lambda k: allowed[k])
+    names, void = passed_over_types(notes)
+    weights = type_probabilities(scores, passed_over=names, void=void)
     c = to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
     return dataclasses.replace(
         c,

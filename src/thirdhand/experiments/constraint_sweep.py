@@ -5,9 +5,10 @@ slowly varying error, opening angle); :func:`run_sweep` fits every joint type,
 oriented and position-only, under each condition and returns one :class:`Trial`
 per track with the truth, the fit and its motion-to-noise ratio.
 :func:`reliability` bins the confidences, :func:`fit_calibration` finds the
-temperature and floor that make them calibrated (the two numbers
-:data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE` and
-:data:`~thirdhand.constraints.select.CONFIDENCE_FLOOR` hold).
+temperature, floor and passed-over weight that make them calibrated (the three
+numbers :data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE`,
+:data:`~thirdhand.constraints.select.CONFIDENCE_FLOOR` and
+:data:`~thirdhand.constraints.select.PASSED_OVER_WEIGHT` hold).
 """
 
 from __future__ import annotations
@@ -24,7 +25,9 @@ from thirdhand.constraints.robust import fit_model
 from thirdhand.constraints.select import (
     CONFIDENCE_FLOOR,
     CONFIDENCE_TEMPERATURE,
+    PASSED_OVER_WEIGHT,
     fit_constraint,
+    passed_over_types,
     type_probabilities,
 )
 from thirdhand.constraints.types import NoiseModel
@@ -102,6 +105,7 @@ class Trial:
     motion_ratio: float
     axis_error: float
     dof_ratio: float = math.inf
+    void: tuple[str, ...] = ()
 
     @property
     def correct(self) -> bool:
@@ -109,13 +113,20 @@ class Trial:
         return self.predicted == self.kind
 
     def probability(
-        self, temperature: float = CONFIDENCE_TEMPERATURE, floor: float = CONFIDENCE_FLOOR
+        self,
+        temperature: float = CONFIDENCE_TEMPERATURE,
+        floor: float = CONFIDENCE_FLOOR,
+        passed_over_weight: float = PASSED_OVER_WEIGHT,
     ) -> dict[str, float]:
-        """The type probabilities at a calibration (degenerate joints excluded)."""
-        allowed = {k: (math.inf if k in self.excluded else v) for k, v in self.scores.items()}
-        if not any(math.isfinite(v) for v in allowed.values()):
-            allowed = dict(self.scores)
-        return type_probabilities(allowed, temperature=temperature, floor=floor)
+        """The type probabilities at a calibration (the noted joints passed over)."""
+        return type_probabilities(
+            self.scores,
+            passed_over=self.excluded,
+            void=self.void,
+            temperature=temperature,
+            floor=floor,
+            passed_over_weight=passed_over_weight,
+        )
 
 
 def _motion_ratio(kind: str, clean_pos: FloatArray, pos_noise: float) -> float:
@@ -221,10 +232,11 @@ def run_sweep(
                     predicted=c.type,
                     confidence=c.confidence,
                     scores=dict(c.scores),
-                    excluded=tuple(note.split()[0] for note in c.notes),
+                    excluded=passed_over_types(c.notes)[0],
                     motion_ratio=_motion_ratio(kind, clean, cond.total_noise),
                     axis_error=err,
                     dof_ratio=_dof_ratio(kind, oriented, track, clean, cond),
+                    void=passed_over_types(c.notes)[1],
                 )
 
 
@@ -233,6 +245,7 @@ def reliability(
     *,
     temperature: float = CONFIDENCE_TEMPERATURE,
     floor: float = CONFIDENCE_FLOOR,
+    passed_over_weight: float = PASSED_OVER_WEIGHT,
 ) -> tuple[list[tuple[float, float, float, int]], float]:
     """Reliability table and expected calibration error of the chosen types' confidence.
 
@@ -244,7 +257,9 @@ def reliability(
     ece : float
         Count-weighted mean of ``|accuracy - confidence|`` over the bins.
     """
-    conf = np.array([t.probability(temperature, floor)[t.predicted] for t in trials])
+    conf = np.array(
+        [t.probability(temperature, floor, passed_over_weight)[t.predicted] for t in trials]
+    )
     ok = np.array([t.correct for t in trials], dtype=np.float64)
     edges = np.array([0.0, 0.6, 0.8, 0.9, 0.99, 1.01])
     table = []
@@ -258,11 +273,17 @@ def reliability(
     return table, ece / max(len(trials), 1)
 
 
-def log_loss(trials: Sequence[Trial], temperature: float, floor: float) -> float:
-    """Mean negative log probability of the true type at a calibration."""
+def log_loss(
+    trials: Sequence[Trial],
+    temperature: float,
+    floor: float,
+    passed_over_weight: float = PASSED_OVER_WEIGHT,
+) -> float:
+    """Mean negative log probability of the true type at a calibration (at least 1e-12)."""
     total = 0.0
     for t in trials:
-        total -= math.log(max(t.probability(temperature, floor).get(t.kind, 0.0), 1e-12))
+        p = t.probability(temperature, floor, passed_over_weight).get(t.kind, 0.0)
+        total -= math.log(max(p, 1e-12))
     return total / max(len(trials), 1)
 
 
@@ -271,9 +292,21 @@ def fit_calibration(
     *,
     temperatures: Sequence[float] | None = None,
     floors: Sequence[float] | None = None,
-) -> tuple[float, float]:
-    """The temperature (1 to 100) and floor (0 to 0.3) of least :func:`log_loss`, on grids."""
+    passed_over_weights: Sequence[float] | None = None,
+) -> tuple[float, float, float]:
+    """The temperature (1 to 100), floor (0 to 0.3) and passed-over weight (0 to 1) of
+    least :func:`log_loss`, on grids."""
     ts = list(temperatures) if temperatures is not None else list(np.geomspace(1.0, 100.0, 21))
-    fs = list(floors) if floors is not None else [0.0, 0.01, 0.02, 0.05, 0.1, 0.15, 0.2, 0.3]
-    best = min(((t, f) for t in ts for f in fs), key=lambda tf: log_loss(trials, *tf))
-    return float(best[0]), float(best[1])
+    fs = (
+        list(floors)
+        if floors is not None
+        else [0.0, 0.005, 0.01, 0.02, 0.03, 0.05, 0.1, 0.15, 0.2, 0.3]
+    )
+    es = (
+        list(passed_over_weights)
+        if passed_over_weights is not None
+        else [0.0, 0.001, 0.01, 0.03, 0.1, 0.3, 1.0]
+    )
+    grid = [(t, f, e) for t in ts for f in fs for e in es]
+    best = min(grid, key=lambda tfe: log_loss(trials, *tfe))
+    return float(best[0]), float(best[1]), float(best[2])
