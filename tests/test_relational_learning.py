@@ -57,6 +57,22 @@ def test_expert_and_random_pairs() -> None:
     assert d.min() >= 0 and d.max() < mdp.n_pairs
 
 
+def test_noisy_wait_does_not_end_the_episode() -> None:
+    # The noise corrupts actions, not episodes: a wait drawn by the noise outside
+    # the goal is recorded and the episode goes on from the same state; every
+    # episode ends with the expert's own (optimal) wait.
+    mdp = blocks_mdp(4)
+    r = blocks_reward(mdp, "stack")
+    e = expert_pairs(mdp, r, 40, np.random.default_rng(0), noise=0.5)
+    _, q = value_iteration(mdp, r, 0.9)
+    opt = optimal_pairs(mdp, q)
+    is_wait = mdp.pair_kind[e] == wait_kind(mdp)
+    noisy_waits = np.flatnonzero(is_wait & ~opt[e])
+    assert noisy_waits.size > 0 and noisy_waits[-1] < e.size - 1
+    assert np.array_equal(mdp.pair_state[e[noisy_waits + 1]], mdp.pair_state[e[noisy_waits]])
+    assert int((is_wait & opt[e]).sum()) >= 40 and is_wait[-1] and opt[e[-1]]
+
+
 def test_perf_of_true_reward_is_one() -> None:
     mdp = blocks_mdp(4)
     r = blocks_reward(mdp, "stack")
