@@ -213,7 +213,7 @@ def test_weighted_expert_transitions_stop_the_goal_cycle() -> None:
     # A rare failure of RCSI+cma-shaping at 10 % noise (seed 30017, the
     # tables' data): unweighted, the depth-4 reward tree spends its tests on
     # the spread of the 300 random moves' targets (−5 … 0) and puts waiting in
-    # the goal into a leaf with bad moves, so in 90 % of the goal states the
+    # the goal into a leaf with bad moves, so in every goal state the
     # learned policy leaves the tower (a cycle pays more than waiting).
     # Weighing D_E to D_NE's total (balance=True, also in CMA-ES's entropy)
     # keeps the expert's transitions apart on this seed: the policy waits in
@@ -239,7 +239,7 @@ def test_weighted_expert_transitions_stop_the_goal_cycle() -> None:
         waits_in_goal[balance] = float(np.mean(mdp.pair_kind[policy[goal]] == wait))
         p = perf_of_reward(mdp, reward, r, 0.9, states)
         assert (p < 0.2) if not balance else (p > 0.95), (balance, p)
-    # Unweighted, it leaves 90 % of the 120 goal states (measured: waits in 12).
+    # Unweighted, it leaves every one of the 120 goal states (measured: waits in 0).
     assert waits_in_goal[False] < 0.5 and waits_in_goal[True] == 1.0
 
 
