@@ -27,9 +27,12 @@ def expert_pairs(
     """Pairs visited by ``n_episodes`` expert episodes, concatenated, shape (n,).
 
     Each episode starts in a state drawn from P_state and follows an optimal
-    action (uniformly among the optimal ones) until the first ``wait`` (included);
-    with probability ``noise`` an action is drawn uniformly among the applicable
-    ones instead.
+    action (uniformly among the optimal ones) until the expert's first ``wait``
+    (included); with probability ``noise`` an action is drawn uniformly among
+    the applicable ones instead. The noise corrupts actions, not the episode:
+    a ``wait`` drawn by the noise is recorded and the episode goes on (the
+    expert has not finished the task), so a noisy episode still ends where the
+    expert rests.
     """
     _, q = value_iteration(mdp, reward, gamma)
     opt = optimal_pairs(mdp, q, tol=1e-9)
@@ -38,13 +41,14 @@ def expert_pairs(
     for s in mdp.sample_states(n_episodes, rng):
         for _ in range(max_steps):
             lo, hi = int(mdp.ptr[s]), int(mdp.ptr[s + 1])
-            if noise > 0 and rng.random() < noise:
+            noisy = noise > 0 and rng.random() < noise
+            if noisy:
                 p = int(rng.integers(lo, hi))
             else:
                 best = lo + np.flatnonzero(opt[lo:hi])
                 p = int(best[rng.integers(best.size)])
             out.append(p)
-            if mdp.pair_kind[p] == wait:
+            if mdp.pair_kind[p] == wait and not noisy:
                 break
             s = int(mdp.pair_next[p])
     return np.asarray(out, dtype=np.int64)

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import lru_cache
 from itertools import product
 
 import numpy as np
@@ -151,19 +152,22 @@ def extend(
         return np.zeros(b.shape[:1] + b.shape[1:], dtype=bool), all_vars
     n_obj = len(mdp.domain.objects)
     idx: list[NDArray[np.int64]] = [batch.states.reshape(shape)]
-    valid = np.ones(shape, dtype=bool)
+    valid: NDArray[np.bool_] | None = None
     for arg in atom.args:
         if arg.startswith("A"):
             j = int(arg[1:])
             col = batch.args[:, j] if j < batch.args.shape[1] else np.full(n, -1)
-            valid = valid & (col >= 0).reshape(shape)
+            ok = (col >= 0).reshape(shape)
+            valid = ok if valid is None else valid & ok
             idx.append(np.maximum(col, 0).reshape(shape))
         else:
             ax = all_vars.index(arg)
             sh = [1] * (k + 1)
             sh[ax + 1] = n_obj
             idx.append(np.arange(n_obj).reshape(sh))
-    out = b & valid & table[tuple(idx)]
+    out = b & table[tuple(idx)]
+    if valid is not None:
+        out &= valid
     # Object identity: a new variable binds an object distinct from every other
     # variable's and from the action's arguments.
     for v in new:
@@ -209,6 +213,30 @@ def candidates(
     variable), so that a chain such as ``on(X0,X1), on(X1,X2)`` or a test
     ``on(A1,X0), on(X0,X1)`` takes one node. ``lookahead=0``: single atoms only.
     """
+    return list(
+        _candidates(
+            tuple(predicates.items()),
+            tuple(actions),
+            n_action_args,
+            tuple(vars_),
+            max_vars,
+            lookahead,
+        )
+    )
+
+
+@lru_cache(maxsize=256)
+def _candidates(
+    pred_items: tuple[tuple[str, int], ...],
+    actions: tuple[str, ...],
+    n_action_args: int,
+    vars_: tuple[str, ...],
+    max_vars: int,
+    lookahead: int,
+) -> tuple[tuple[Atom, ...], ...]:
+    # Every node of every tree asks for the same few lists (they depend on the
+    # bound variables only): built once per process.
+    predicates = dict(pred_items)
     out: list[tuple[Atom, ...]] = [(Atom("@action", (a,)),) for a in actions]
     act = [f"A{j}" for j in range(n_action_args)]
     unary = [p for p, k in predicates.items() if k == 1]
@@ -246,7 +274,7 @@ def candidates(
                     if second not in seen:
                         seen.add(second)
                         out.append((atom, second))
-    return out
+    return tuple(out)
 
 
 @dataclass
