@@ -189,3 +189,19 @@ def test_real_toolbox_learned_with_its_scene_executes(shared_data: Path, tmp_pat
         ],
     )
     assert r.exit_code != 0 and "--scene" in str(r.exception)
+
+
+def test_real_bench_scene_finds_its_renamed_seat_mesh(shared_data: Path) -> None:
+    # scene_bench.json names bench_seating.stl; the file is bench_sitting.stl.
+    scene = shared_data / "3rdhand" / "meshes" / "scene_bench.json"
+    assert not (scene.parent / "bench_seating.stl").exists()
+    geo = scene_geometry(scene, ["/bench/seating", "/bench/leg1"])
+    assert geo["/bench/seating"]["mesh"] == "bench_sitting.stl"
+    # millimetre translations (157.5) read in the mesh's units: the seat's box is
+    # 40 x 300 x 300 mm wherever it sits, and lies within 0.5 m of its sensor
+    lo, hi = (
+        np.asarray(geo["/bench/seating"]["bbox_min"]),
+        np.asarray(geo["/bench/seating"]["bbox_max"]),
+    )
+    assert np.allclose(np.sort(hi - lo), [0.04, 0.3, 0.3], atol=1e-6)
+    assert np.abs(np.concatenate([lo, hi])).max() < 0.5

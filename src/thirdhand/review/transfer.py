@@ -43,18 +43,8 @@ from typing import Any
 import numpy as np
 
 from thirdhand.errors import ThirdhandError
-from thirdhand.task.meshes import align_bounds, mesh_scale
+from thirdhand.task.meshes import ROLE_SYNONYMS, align_bounds, mesh_scale, same_role_mesh
 from thirdhand.task.model import TaskFile, TaskObject
-
-#: Names of the same role in different object sets.
-ROLE_SYNONYMS: dict[str, str] = {
-    "seating": "seat",
-    "sitting": "seat",
-    "seat": "seat",
-    "leg": "leg",
-    "back": "back",
-    "backrest": "back",
-}
 
 
 class TransferError(ThirdhandError):
@@ -153,24 +143,10 @@ def _mesh_bounds(path: Path) -> tuple[np.ndarray, np.ndarray, float]:
     return lo * scale, hi * scale, scale
 
 
-def _same_role_mesh(mesh: Path) -> Path | None:
-    """A mesh next to ``mesh`` named with a synonym (``bench_seating`` -> ``bench_sitting``)."""
-
-    def role(stem: str) -> tuple[str, str]:
-        prefix, _, last = stem.lower().rpartition("_")
-        return prefix, ROLE_SYNONYMS.get(last, last)
-
-    want = role(mesh.stem)
-    if not mesh.parent.is_dir():
-        return None
-    found = [f for f in sorted(mesh.parent.glob("*.stl")) if role(f.stem) == want]
-    return found[0] if len(found) == 1 else None
-
-
 def _mesh_set(name: str, entries: list[tuple[str, Path]]) -> TargetSet:
     objects, bounds = [], {}
     for obj_name, named in entries:
-        mesh = named if named.is_file() else _same_role_mesh(named)
+        mesh = named if named.is_file() else same_role_mesh(named)
         if mesh is None:
             raise TransferError(f"{name}: mesh {named} of object {obj_name!r} not found")
         lo, hi, scale = _mesh_bounds(mesh)

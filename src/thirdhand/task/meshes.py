@@ -49,6 +49,35 @@ MESH_BOUNDS_MM: dict[str, tuple[tuple[float, float, float], tuple[float, float, 
 }
 
 
+#: Names of the same role in different object sets.
+ROLE_SYNONYMS: dict[str, str] = {
+    "seating": "seat",
+    "sitting": "seat",
+    "seat": "seat",
+    "leg": "leg",
+    "back": "back",
+    "backrest": "back",
+}
+
+
+def same_role_mesh(mesh: Path) -> Path | None:
+    """A mesh next to ``mesh`` named with a synonym (``bench_seating`` -> ``bench_sitting``).
+
+    The 3rdHand scene files name meshes that are stored under another word for the
+    same role; the one STL file of the same prefix and role, or None.
+    """
+
+    def role(stem: str) -> tuple[str, str]:
+        prefix, _, last = stem.lower().rpartition("_")
+        return prefix, ROLE_SYNONYMS.get(last, last)
+
+    want = role(mesh.stem)
+    if not mesh.parent.is_dir():
+        return None
+    found = [f for f in sorted(mesh.parent.glob("*.stl")) if role(f.stem) == want]
+    return found[0] if len(found) == 1 else None
+
+
 def mesh_scale(lo: FloatArray, hi: FloatArray) -> float:
     """Metres per mesh unit, from the mesh's extent: millimetres when it spans over 5 units.
 

@@ -49,7 +49,7 @@ from thirdhand import se3
 from thirdhand.errors import FormatError
 from thirdhand.io.stl import read_stl
 from thirdhand.task.geometry import Pose
-from thirdhand.task.meshes import mesh_scale, mesh_search_path
+from thirdhand.task.meshes import mesh_scale, mesh_search_path, same_role_mesh
 
 FloatArray = NDArray[np.float64]
 
@@ -156,7 +156,9 @@ def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[s
     -------
     dict of str to dict
         Per listed body: ``mesh`` (the file name, looked up along the mesh search
-        path like every task mesh), ``scale`` (0.001 for millimetres),
+        path like every task mesh; a missing ``bench_seating.stl`` is the
+        ``bench_sitting.stl`` beside it, :func:`~thirdhand.task.meshes.same_role_mesh`),
+        ``scale`` (0.001 for millimetres),
         ``mesh_to_body`` (the inverse of the file's transformation) and
         ``bbox_min``/``bbox_max`` (the mesh's box in the body frame, metres).
 
@@ -171,11 +173,12 @@ def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[s
         obj = scene.get(name)
         if obj is None:
             continue
-        if not obj.mesh.is_file():
+        mesh = obj.mesh if obj.mesh.is_file() else same_role_mesh(obj.mesh)
+        if mesh is None:
             raise FormatError(path, f"mesh file {obj.mesh} not found", where=f"objects.{name}")
-        vertices = read_stl(obj.mesh).reshape(-1, 3)
+        vertices = read_stl(mesh).reshape(-1, 3)
         if not vertices.size:
-            raise FormatError(obj.mesh, "the mesh has no triangles")
+            raise FormatError(mesh, "the mesh has no triangles")
         scale = mesh_scale(vertices.min(axis=0), vertices.max(axis=0))
         offset, turn = obj.body_to_mesh
         if float(np.max(np.abs(offset))) > MAX_METRES:
@@ -183,7 +186,7 @@ def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[s
         pos, quat = se3.pose_invert(offset, turn)
         in_body = (vertices * scale) @ se3.matrix_from_quat(quat).T + pos
         out[name] = {
-            "mesh": obj.mesh.name,
+            "mesh": mesh.name,
             "scale": scale,
             "mesh_to_body": Pose.model_validate(
                 {"pos": [float(v) for v in pos], "quat": [float(v) for v in quat]}
