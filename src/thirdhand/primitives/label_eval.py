@@ -17,8 +17,9 @@ from __future__ import annotations
 
 import itertools
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -304,14 +305,26 @@ def heldout_folds(
         out; K that cannot be fitted on some fold are left out.
     """
     folds = list(tracks) if len(tracks) > 1 else _halves(tracks[0])
+
+    def score(k: int, train: list[Any], held: Any) -> tuple[float, int]:
+        fitted = _make_library(k, threshold, cfg).fit(train)
+        return fitted.score([held]), int(held[1].size + held[2].size)
+
+    return _cross_validate(folds, k_range, score)
+
+
+def _cross_validate(
+    folds: Sequence[Any],
+    k_range: Sequence[int],
+    score: Callable[[int, list[Any], Any], tuple[float, int]],
+) -> dict[int, list[tuple[float, int]]]:
+    """K → per fold ``score(k, the other folds, the fold)``; K that fail to fit left out."""
     out: dict[int, list[tuple[float, int]]] = {}
     for k in k_range:
         per: list[tuple[float, int]] = []
         try:
             for i, held in enumerate(folds):
-                train = [f for j, f in enumerate(folds) if j != i]
-                score = _make_library(k, threshold, cfg).fit(train).score([held])
-                per.append((score, int(held[1].size + held[2].size)))
+                per.append(score(k, [f for j, f in enumerate(folds) if j != i], held))
         except PrimitiveError:
             continue
         out[k] = per
@@ -484,18 +497,12 @@ def hsmm_heldout_folds(
     other folds; a single stream is cut in two halves.
     """
     folds = list(xs) if len(xs) > 1 else [xs[0][: len(xs[0]) // 2], xs[0][len(xs[0]) // 2 :]]
-    out: dict[int, list[tuple[float, int]]] = {}
-    for k in k_range:
-        per: list[tuple[float, int]] = []
-        try:
-            for i, held in enumerate(folds):
-                train = [f for j, f in enumerate(folds) if j != i]
-                model = _make_hsmm(k, cfg).fit_unsupervised(train, n_init=cfg.n_init)
-                per.append((model.decode(held)[1], held.size))
-        except PrimitiveError:
-            continue
-        out[k] = per
-    return out
+
+    def score(k: int, train: list[Any], held: Any) -> tuple[float, int]:
+        model = _make_hsmm(k, cfg).fit_unsupervised(train, n_init=cfg.n_init)
+        return model.decode(held)[1], int(held.size)
+
+    return _cross_validate(folds, k_range, score)
 
 
 def _hsmm_results(
