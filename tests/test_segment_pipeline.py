@@ -61,6 +61,15 @@ def test_crf_beats_logistic_on_noisy_scenes() -> None:
     assert crf["frame_f1"] >= 0.9
 
 
+def test_hand_split_with_one_hand_labelled_says_what_to_do() -> None:
+    # toolbox_coop_4 carries the left hand's labels only: --split hand cannot test.
+    left_only = [
+        random_pick_place_demo(np.random.default_rng(1), n_parts=2, duration=20.0, hands=("left",))
+    ]
+    with pytest.raises(SegmentationError, match=r"right hand.*--split object or --split time"):
+        table_one(left_only, l2=1.0)
+
+
 def test_result_json_and_model_round_trip(clean_model: SegmentModel, tmp_path: Path) -> None:
     demo = _toys(range(7, 8), **NOISY)[0]
     result = segment_demonstration(demo, clean_model)

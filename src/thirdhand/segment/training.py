@@ -141,7 +141,8 @@ def labelled_sequences(
         side = "" if hand is None or not isinstance(hand, str) else f" of the {hand} hand"
         known = sorted(set().union(*(labelled_hands(d) for d in demos)))
         raise SegmentationError(
-            f"no labelled pair{side} to learn from (labelled hands: {', '.join(known) or 'none'})"
+            f"no labelled pair{side} in the {len(demos)} recording(s) "
+            f"(labelled hands: {', '.join(known) or 'none'})"
         )
     return out
 
@@ -267,8 +268,14 @@ def table_one(
         "frame_f1", "interval_iou", "boundary_error_s", ...}}}``
     """
     config = FeatureConfig() if config is None else config
-    train = labelled_sequences(demos, config, hand=train_hand)
-    test = labelled_sequences(demos, config, hand=test_hand)
+    try:
+        train = labelled_sequences(demos, config, hand=train_hand)
+        test = labelled_sequences(demos, config, hand=test_hand)
+    except SegmentationError as err:
+        raise SegmentationError(
+            f"{err}; --split hand trains on one hand's pairs and tests on the other's: "
+            "with one hand labelled, split within its pairs (--split object or --split time)"
+        ) from None
     for side, data in ((train_hand, train), (test_hand, test)):
         if not any(y.any() for y in data.ys):
             raise SegmentationError(
