@@ -483,3 +483,53 @@ def test_sniff(tmp_path: Path) -> None:
     assert mlr.sniff(folder / "poses.dat")
     assert not mlr.sniff(folder / "meta.kvg")
     assert not mlr.sniff(tmp_path)
+
+
+def _tracks(n: int = 300, sensors: int = 4) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """100 Hz, every sensor still at its own place 0.3–0.6 m from the source."""
+    t = np.arange(n) / 100.0
+    home = 0.3 + 0.1 * np.arange(sensors)
+    pos = np.zeros((n, sensors, 3))
+    pos[:, :, 0] = home
+    return t, pos, np.ones((n, sensors), dtype=bool)
+
+
+def test_acquisition_reports_at_the_source_and_their_settling_are_dropped() -> None:
+    t, pos, seen = _tracks()
+    pos[100:110, 1] = 2e-4  # one sensor reported at the source for 0.1 s
+    pos[110, 1, 0] = 0.15  # its filter on the way back
+    valid, resets = mlr.acquisition_validity(t, pos, seen)
+    assert resets == []  # one sensor of four: no reset
+    gap = ~valid[:, 1]
+    # The reports (frames 100-109) and every sample within 0.1 s of them (frames
+    # 90 and 119 are 0.1 s away: on the edge, either way).
+    assert gap[91:119].all() and not gap[:90].any() and not gap[120:].any()
+    assert valid[:, [0, 2, 3]].all()
+
+
+def test_acquisition_frame_reset_drops_what_came_before() -> None:
+    t, pos, seen = _tracks()
+    pos[100:120] = 1e-4  # every sensor at the source for 0.2 s ...
+    pos[120:, :, :2] = -pos[120:, :, :2]  # ... then back, mirrored: another frame
+    valid, resets = mlr.acquisition_validity(t, pos, seen)
+    assert resets == [pytest.approx(t[119] + mlr.SETTLE_S)]
+    assert not valid[:129].any() and valid[130:].all()
+    # The same episode without a change of frame drops the episode only.
+    t, pos, seen = _tracks()
+    pos[100:120] = 1e-4
+    valid, resets = mlr.acquisition_validity(t, pos, seen)
+    assert resets == []
+    assert valid[:90].all() and not valid[91:129].any() and valid[130:].all()
+
+
+def test_real_start_up_dropout_and_frame_reset(shared_data: Path) -> None:
+    # toolbox_coop_4: every sensor goes to the G4's source at 1.6-2.5 s and comes
+    # back in a mirrored frame; the first 2.6 s are dropped, none after.
+    demo = io.load(shared_data / "3rdhand" / "toolbox_coop_4")
+    (reset,) = demo.meta["mlr"]["frame_resets_s"]
+    assert 2.5 < reset - demo.t[0] < 2.7
+    for b in demo.body_names:
+        p = demo.pos(b)
+        tracked = np.isfinite(p[:, 0])
+        assert not tracked[demo.t <= reset].any()
+        assert np.linalg.norm(p[tracked], axis=1).min() > 0.05  # nothing at the source

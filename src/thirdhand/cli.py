@@ -295,6 +295,13 @@ def info(
         f"labels: {lab['interactions']} interaction intervals, "
         f"{lab['constraints']} constraint events, {lab['plan']} plan steps"
     )
+    tracker = summary.get("tracker")
+    if tracker and tracker["dropped_samples"]:
+        resets = ", ".join(f"{s:.2f} s" for s in tracker["frame_resets_s"])
+        out.print(
+            f"tracker: {tracker['dropped_samples']} samples dropped as reports at the source "
+            "or from before a frame reset" + (f" (reset at {resets})" if resets else "")
+        )
 
 
 def describe(demo: Any, *, fmt: str | None = None, path: Path | None = None) -> dict[str, Any]:
@@ -321,6 +328,21 @@ def describe(demo: Any, *, fmt: str | None = None, path: Path | None = None) -> 
             "constraints": len(demo.labels.constraints),
             "plan": len(demo.labels.plan),
         },
+        **_tracker_summary(demo),
+    }
+
+
+def _tracker_summary(demo: Any) -> dict[str, Any]:
+    """What the reader dropped (MLR: samples at the G4's source, frame resets)."""
+    mlr = demo.meta.get("mlr") if isinstance(demo.meta, dict) else None
+    if not isinstance(mlr, dict) or "dropped_samples" not in mlr:
+        return {}
+    t0 = float(demo.t[0]) if demo.n_frames else 0.0
+    return {
+        "tracker": {
+            "dropped_samples": int(mlr["dropped_samples"]),
+            "frame_resets_s": [float(s) - t0 for s in mlr.get("frame_resets_s", [])],
+        }
     }
 
 

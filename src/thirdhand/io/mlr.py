@@ -4,7 +4,14 @@ Layout of a folder (Polhemus G4 recordings of the MLR group, TU Berlin):
 
 - ``poses.dat``: one ``[ ... ]`` block per frame, one line per sensor row, seven
   numbers per row: position ``x y z`` (metres) then a unit quaternion **w x y z**.
-  A row of zeros is a sensor that was not seen in that frame.
+  A row of zeros is a sensor that was not seen in that frame. So is a row whose
+  position lies within :data:`SOURCE_CLEARANCE_M` of the origin: the G4 reports a
+  sensor it has not yet acquired at its source (``toolbox_coop_4``: 329 rows in
+  frames 153–221, 0.2 mm from the origin, quaternion → (0.5, 0.5, 0.5, 0.5), a
+  60-cm jump from the neighbouring frames), and a sensor cannot sit inside the
+  source's housing; every other row of the shared recordings is ≥ 8 cm away.
+  The samples next to such reports and those before a frame reset are dropped
+  too (:func:`acquisition_validity`; counts and reset times in ``meta["mlr"]``).
 - ``poses.dat.times``: ``frame_number timestamp_s`` per line, one line per block
   (frame numbers count from 1; timestamps are seconds on the recorder's clock).
 - ``meta.kvg``: sections (``agents``, ``objects``) mapping body names to their
@@ -57,6 +64,82 @@ TIMES = "poses.dat.times"
 META = "meta.kvg"
 ANNOTATIONS = "ann_kvg.kvg"
 ELAN = "elan.eaf"
+
+#: A seen row closer than this to the tracker origin (metres) is a sensor the G4
+#: has not acquired (it reports the source's own position), not a measurement.
+SOURCE_CLEARANCE_M = 0.01
+#: Samples of a sensor this close in time (s) to its report at the source are the
+#: G4's filter moving between the source and the true pose (``toolbox_coop_4``:
+#: 48 → 59 → 62 → 63 cm over 46 ms after acquisition, 7.7 cm from the source
+#: 8 ms before a dropout), not measurements.
+SETTLE_S = 0.1
+#: Reports at the source closer than this (s) belong to one acquisition episode.
+EPISODE_GAP_S = 1.0
+#: Median jump (m) of the sensors' positions across an episode in which most of
+#: them were at the source, above which the tracker's frame changed there.
+FRAME_CHANGE_M = 0.05
+
+
+def acquisition_validity(
+    t: NDArray[np.float64], pos: NDArray[np.float64], seen: NDArray[np.bool_]
+) -> tuple[NDArray[np.bool_], list[float]]:
+    """Which samples of a G4 recording are measurements, and where its frame was reset.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n_frames,), seconds
+    pos : ndarray, shape (n_frames, n_sensors, 3), metres, tracker frame
+    seen : ndarray of bool, shape (n_frames, n_sensors)
+        Rows that are not all zero.
+
+    Returns
+    -------
+    valid : ndarray of bool, shape (n_frames, n_sensors)
+        ``seen`` without the reports at the source (:data:`SOURCE_CLEARANCE_M`),
+        the samples within :data:`SETTLE_S` of them, and every sample before a
+        frame reset.
+    resets : list of float
+        Times (s) after which the tracker's frame differs from the one before: an
+        acquisition episode in which at least half of the sensors were reported at
+        the source and across which their positions jump by a median of more than
+        :data:`FRAME_CHANGE_M` (``toolbox_coop_4``: at 1.6–2.2 s every sensor went
+        to the source and came back 33–69 cm away, mirrored; the first 1.6 s are in
+        another frame than the remaining 62 s).
+    """
+    near = seen & (np.linalg.norm(pos, axis=2) < SOURCE_CLEARANCE_M)
+    valid = seen & ~near
+    if not near.any():
+        return valid, []
+    n_sensors = seen.shape[1]
+    for k in range(n_sensors):
+        tn = t[near[:, k]]
+        if tn.size:
+            i = np.clip(np.searchsorted(tn, t), 1, tn.size - 1) if tn.size > 1 else None
+            gap = (
+                np.abs(t - tn[0])
+                if i is None
+                else np.minimum(np.abs(t - tn[i - 1]), np.abs(t - tn[i]))
+            )
+            valid[:, k] &= gap > SETTLE_S
+    frames = np.flatnonzero(near.any(axis=1))
+    cuts = np.flatnonzero(np.diff(t[frames]) > EPISODE_GAP_S) + 1
+    resets: list[float] = []
+    for episode in np.split(frames, cuts):
+        lo, hi = int(episode[0]), int(episode[-1])
+        if 2 * int(near[lo : hi + 1].any(axis=0).sum()) < n_sensors:
+            continue
+        jumps = []
+        for k in range(n_sensors):
+            before = np.flatnonzero(valid[:lo, k])
+            after = np.flatnonzero(valid[hi + 1 :, k])
+            if before.size and after.size:
+                jumps.append(np.linalg.norm(pos[hi + 1 + after[0], k] - pos[before[-1], k]))
+        if jumps and float(np.median(jumps)) > FRAME_CHANGE_M:
+            resets.append(float(t[hi]) + SETTLE_S)
+    if resets:
+        valid[t <= resets[-1]] = False
+    return valid, resets
+
 
 _TOOL_WORDS = frozenset(
     {"tool", "screwdriver", "hammer", "wrench", "spanner", "drill", "pliers", "allen_key"}
@@ -421,7 +504,8 @@ def read(
     -------
     Demonstration
         Time stamps of ``poses.dat.times``; per named sensor row, positions (metres,
-        tracker frame), quaternions x y z w, validity (rows not all zero). ``meta``
+        tracker frame), quaternions x y z w, validity (rows not all zero, and not
+        dropped by :func:`acquisition_validity`). ``meta``
         holds ``format``, ``source``, ``labels_source`` and, under ``"mlr"``, the
         sensor entries (section, row, ``type``, ``hid``, ``sid`` ...) for :func:`write`.
 
@@ -455,11 +539,14 @@ def read(
     t, first_number = _read_times(folder / TIMES, n_frames)
     bodies = [_body_info(s, folder / META) for s in sensors]
     pos, quat, valid = {}, {}, {}
-    for s, b in zip(sensors, bodies, strict=True):
+    used = vals[:, [s.row for s in sensors]]
+    seen = np.any(used != 0, axis=2)
+    ok, resets = acquisition_validity(t, used[..., :3], seen)
+    for k, (s, b) in enumerate(zip(sensors, bodies, strict=True)):
         block = vals[:, s.row]
         pos[b.name] = block[:, :3]
         quat[b.name] = block[:, [4, 5, 6, 3]]
-        valid[b.name] = np.any(block != 0, axis=1)
+        valid[b.name] = ok[:, k]
     lab, source = _read_labels(folder, t, bodies, elan_offset) if labels else (Labels(), None)
     meta = {
         "format": "mlr",
@@ -468,6 +555,8 @@ def read(
         "mlr": {
             "n_rows": n_rows,
             "first_frame_number": first_number,
+            "dropped_samples": int(np.count_nonzero(seen & ~ok)),
+            "frame_resets_s": resets,
             "sensors": {
                 s.name: {"section": s.section, "rn": s.row, **_jsonable(s.fields)} for s in sensors
             },
