@@ -80,6 +80,17 @@ MIN_TURN = math.radians(7.0)
 #: (``docs/constraints.md``): 0.6, 0.7, 0.8, 0.9 and 0.999 (the ceiling itself)
 #: leave 54, 41, 38, 39 and 40 of 2,075 tracks wrong; 0.8 the fewest.
 NEAR_CEILING = 0.8
+#: A joint with more parameters is chosen over a simpler joint only on positive
+#: evidence: a BIC lower by at least this much. Twice the calibrated temperature, so
+#: that the BIC difference over :data:`CONFIDENCE_TEMPERATURE` is at least 2, Kass and
+#: Raftery's "positive" evidence (odds of e : 1 in the calibrated weights). Derived,
+#: not tuned: on the synthetic sweep's calibration seeds a margin of 2, 4, 6.32, 10 and
+#: 15 leaves 23, 24, 21, 19 and 17 of 2,075 tracks wrong, and 136, 139, 138, 141, 146
+#: of every 2,340 (``docs/constraints.md``). Slowly varying error (time drift, a
+#: pose-dependent error) gives a still part a stroke, or a stroke a turn, that wins by
+#: 0-5 BIC units: the effective sample count leaves a few samples, where the BIC's
+#: penalty per parameter (``log n_eff``, 2 for 8 samples) is no stronger than the AIC's.
+EVIDENCE_MARGIN = 2.0 * CONFIDENCE_TEMPERATURE
 
 
 def bic_weights(scores: dict[str, float], temperature: float = 1.0) -> dict[str, float]:
@@ -237,6 +248,9 @@ def degenerate_joint(
 #: :func:`saturated_joint` says the joint's noise is near its ceiling.
 STRAIGHT_NOTE = "% of its chord"
 SATURATED_NOTE = "is near the ceiling"
+#: How a note of :func:`simplest_supported` says a joint's better score is no positive
+#: evidence for its extra parameters.
+EVIDENCE_NOTE = "no positive evidence"
 
 
 def passed_over_types(notes: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -284,6 +298,45 @@ def saturated_joint(
         f"{SATURATED_NOTE} ({1e3 * ceiling:.1f} mm) and it calls {smooth} samples outliers "
         "that are no jumps (smooth motion)"
     )
+
+
+def simplest_supported(
+    scores: dict[str, float], fits: dict[str, ModelFit], candidates: Sequence[str]
+) -> tuple[str, list[str]]:
+    """The joint to choose among ``candidates``, and why more flexible ones are not.
+
+    The best-scoring candidate, unless a joint with fewer parameters
+    (``ModelFit.kernel.n_params``: fixed, prismatic, revolute, cylindrical) scores
+    within :data:`EVIDENCE_MARGIN` of it: then the simplest such joint. Free is no
+    joint (its spread is the motion): when it scores best it is chosen as is.
+
+    Returns
+    -------
+    chosen : str
+    notes : list of str
+        One per candidate with more parameters than ``chosen`` and a better score,
+        starting with its name (a type passed over, :func:`passed_over_types`).
+    """
+    best = min(candidates, key=lambda k: scores[k])
+    if best == "free":
+        return best, []
+    joints = [k for k in candidates if k != "free"]
+
+    def size(k: str) -> int:
+        return fits[k].kernel.n_params[int(fits[k].proj.d2_rot is not None)]
+
+    chosen = min(
+        (k for k in joints if scores[k] < scores[best] + EVIDENCE_MARGIN),
+        key=lambda k: (size(k), scores[k]),
+    )
+    notes = [
+        f"{k} not chosen: its BIC is {scores[chosen] - scores[k]:.1f} below {chosen}'s, "
+        f"under {EVIDENCE_MARGIN:.2f} ({EVIDENCE_NOTE} for {size(k) - size(chosen)} more "
+        "parameters)"
+        for k in joints
+        if size(k) > size(chosen) and scores[k] < scores[chosen]
+    ]
+    return chosen, notes
 
 
 def fit_constraint(
@@ -377,7 +430,9 @@ def fit_constraint(
     # saturated joint is passed over (and noted) when it scores better than that.
     left = [k for k in fits if k not in passed_over and k not in saturated]
     left = left or [k for k in fits if k not in passed_over] or list(fits)
-    best = min(left, key=lambda k: scores[k])
+    best, occam = simplest_supported(scores, fits, left)
+    passed_over += [note.split()[0] for note in occam]
+    notes += occam
     for name, why in saturated.items():
         if name != best and scores[name] < scores[best]:
             passed_over.append(name)
