@@ -211,8 +211,8 @@ def degenerate_joint(
         if slide < MIN_TURN_FLOORS * se:
             return (
                 f"cylindrical not chosen: its slide of {1e3 * slide:.1f} mm is under "
-                f"{MIN_TURN_FLOORS:g} standard errors ({1e3 * se:.1f} mm) of a trend in its "
-                f"residuals ({n_eff:.0f} effective samples)"
+                f"{MIN_TURN_FLOORS:g} standard errors ({1e3 * MIN_TURN_FLOORS * se:.1f} mm) of a "
+                f"trend in its residuals ({n_eff:.0f} effective samples)"
             )
     lat = fit.proj.latent[keep, 0]
     phi = float(np.ptp(lat))
@@ -233,7 +233,8 @@ def degenerate_joint(
         return (
             f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) "
             f"bows the path by {1e3 * bow:.1f} mm, under {MIN_TURN_FLOORS:g} standard errors "
-            f"({1e3 * se:.1f} mm) of a trend in its residuals ({n_eff:.0f} effective samples)"
+            f"({1e3 * MIN_TURN_FLOORS * se:.1f} mm) of a trend in its residuals "
+            f"({n_eff:.0f} effective samples)"
             + ("" if not oriented else ", and the orientations do not resolve it")
         )
     return (
