@@ -3,10 +3,11 @@
 Unless the caller gives a :class:`~thirdhand.constraints.types.NoiseModel`, the
 noise bounds come from the track itself (:mod:`thirdhand.constraints.noise`). A
 joint whose turn the track cannot resolve (:func:`degenerate_joint`) is not
-chosen, whatever its score. The confidence is the posterior probability of the
-chosen type (:func:`type_probabilities`): the BIC scores' weights at the
-temperature :data:`CONFIDENCE_TEMPERATURE`, mixed with :data:`CONFIDENCE_FLOOR`
-of a uniform guess, both calibrated on synthetic tracks.
+chosen, whatever its score, nor one whose score beats a simpler joint's by less
+than :data:`EVIDENCE_MARGIN` (:func:`simplest_supported`). The confidence is the
+posterior probability of the chosen type (:func:`type_probabilities`): the BIC
+scores' weights at the temperature :data:`CONFIDENCE_TEMPERATURE`, mixed with
+:data:`CONFIDENCE_FLOOR` of a uniform guess, both calibrated on synthetic tracks.
 """
 
 from __future__ import annotations
@@ -84,12 +85,13 @@ NEAR_CEILING = 0.8
 #: evidence: a BIC lower by at least this much. Twice the calibrated temperature, so
 #: that the BIC difference over :data:`CONFIDENCE_TEMPERATURE` is at least 2, Kass and
 #: Raftery's "positive" evidence (odds of e : 1 in the calibrated weights). Derived,
-#: not tuned: on the synthetic sweep's calibration seeds a margin of 2, 4, 6.32, 10 and
-#: 15 leaves 23, 24, 21, 19 and 17 of 2,075 tracks wrong, and 136, 139, 138, 141, 146
-#: of every 2,340 (``docs/constraints.md``). Slowly varying error (time drift, a
-#: pose-dependent error) gives a still part a stroke, or a stroke a turn, that wins by
-#: 0-5 BIC units: the effective sample count leaves a few samples, where the BIC's
-#: penalty per parameter (``log n_eff``, 2 for 8 samples) is no stronger than the AIC's.
+#: not tuned: on the synthetic sweep's calibration seeds margins of 0, 2, 4, 6.32, 10
+#: and 15 leave 37, 28, 29, 26, 24 and 22 of 2,074 tracks wrong where the motion is at
+#: least 5x the noise, and 146, 142, 145, 144, 148 and 153 of all 2,340
+#: (``docs/constraints.md``). Slowly varying error (time drift, a pose-dependent error)
+#: gives a still part a stroke, a stroke a turn, a turn a slide, that wins by 0-5 BIC
+#: units: the effective sample count leaves a few samples, where the BIC's penalty per
+#: parameter (``log n_eff``, 2 for 8 samples) is no stronger than the AIC's.
 EVIDENCE_MARGIN = 2.0 * CONFIDENCE_TEMPERATURE
 
 
@@ -375,8 +377,9 @@ def fit_constraint(
         The chosen model; ``scores`` holds the BIC of every candidate (``inf``
         for one that cannot describe the track), ``confidence`` the calibrated
         probability of the chosen type, ``noise_pos`` and ``noise_rot`` the
-        estimated white noise and ``notes`` why a better-scoring degenerate
-        joint was passed over (:func:`degenerate_joint`). A candidate whose BIC
+        estimated white noise and ``notes`` why a better-scoring joint was
+        passed over (:func:`degenerate_joint`, :func:`saturated_joint`,
+        :func:`simplest_supported`). A candidate whose BIC
         falls far behind (by 200 plus 10 %) a model fitted before it stops
         iterating early: its score is then an upper bound, not a converged value.
 
