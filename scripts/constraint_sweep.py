@@ -16,7 +16,9 @@ expected calibration error (ECE) on the held-out seeds, with plain BIC weights
 and with the shipped calibration (the 10° openings left out of both:
 position-only, they are prismatic by design).
 
-Usage: ``python scripts/constraint_sweep.py [--seeds 10]``
+Usage: ``python scripts/constraint_sweep.py [--seeds 10] [--first-seed N]``: the
+held-out seeds are ``N`` to ``N + seeds - 1`` (default ``N = seeds``: 10-19), the
+calibration seeds always ``0`` to ``seeds - 1``.
 """
 
 from __future__ import annotations
@@ -191,10 +193,21 @@ def calibration(fit_on: list[Trial], held_out: list[Trial]) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--seeds", type=int, default=10, help="seeds per cell and split")
+    parser.add_argument(
+        "--first-seed",
+        type=int,
+        default=None,
+        help="first held-out seed (default: --seeds; the calibration seeds are 0 to seeds-1)",
+    )
     args = parser.parse_args()
     conds = conditions()
-    held_out = list(run_sweep(conds, range(args.seeds, 2 * args.seeds)))
-    print(f"{len(held_out)} tracks ({args.seeds} per cell)\n")
+    first = args.seeds if args.first_seed is None else args.first_seed
+    if first < args.seeds:
+        parser.error(f"--first-seed {first} overlaps the calibration seeds 0-{args.seeds - 1}")
+    held_out = list(run_sweep(conds, range(first, first + args.seeds)))
+    print(
+        f"{len(held_out)} tracks ({args.seeds} per cell, seeds {first}-{first + args.seeds - 1})\n"
+    )
     accuracy_table(held_out)
     dof_table(held_out)
     axis_table(held_out)

@@ -7,6 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from thirdhand.constraints import NoiseModel
+from thirdhand.constraints.robust import fit_model
 from thirdhand.constraints.select import (
     CONFIDENCE_FLOOR,
     CONFIDENCE_TEMPERATURE,
@@ -16,6 +18,7 @@ from thirdhand.constraints.select import (
 )
 from thirdhand.datasets.joint_tracks import random_joint_track
 from thirdhand.experiments.constraint_sweep import (
+    ROT_PER_POS,
     Condition,
     _bow,
     _dof_ratio,
@@ -110,6 +113,22 @@ def test_distinguishing_motion_of_the_sweep() -> None:
     cyl = random_joint_track("cylindrical", np.random.default_rng(1))
     r = _dof_ratio("cylindrical", True, cyl, cyl.pos, cond)
     assert 0.0 < r < np.ptp(cyl.ranges[0]) / cond.total_noise
+    # ... and no more than its turn, measured as a revolute joint's (the larger of its
+    # bow over the position noise and its turn over the rotation noise): a 10° turn at
+    # 1 cm of noise (5° of rotation noise) is 2 noise levels, as a revolute joint's is.
+    wide = Condition("1 cm", 1e-2)
+    ten = random_joint_track("cylindrical", np.random.default_rng(3), span=np.radians(10.0))
+    turn = max(_bow(ten.pos) / 1e-2, np.ptp(ten.ranges[3]) / (ROT_PER_POS * 1e-2))
+    assert turn == pytest.approx(2.0, rel=1e-9)
+    assert _dof_ratio("cylindrical", True, ten, ten.pos, wide) == pytest.approx(turn, rel=1e-12)
+    # Its slide alone (round 4's reading) would count it inside the bar.
+    circle = fit_model(
+        "revolute", ten.pos, None, noise=NoiseModel(pos_floor=1e-9, pos_ceiling=1.0, max_outliers=0)
+    )
+    assert circle is not None
+    assert math.sqrt(float(circle.proj.d2_pos.max())) / 1e-2 > 5.0
+    rev = random_joint_track("revolute", np.random.default_rng(3), span=np.radians(10.0))
+    assert _dof_ratio("revolute", True, rev, rev.pos, wide) == pytest.approx(2.0, rel=1e-9)
 
 
 def test_free_wander_is_not_absorbed_by_a_joint() -> None:

@@ -155,10 +155,14 @@ def _dof_ratio(
     The motion the nearest simpler type cannot reproduce. Prismatic: the stroke
     (against fixed); revolute: the path's bow away from its chord (against
     prismatic, in positions), or with orientations the turn over the rotation
-    noise if larger; cylindrical: the largest distance of its path from the best
-    circle through it (against revolute: a slide along the axis that a tilted
-    circle follows is no evidence of one); free: the extent; fixed: infinite.
-    Noise is the whole error (:attr:`Condition.total_noise`, the same for rotations).
+    noise if larger; cylindrical: the smaller of its two distinguishing motions,
+    the largest distance of its path from the best circle through it (against
+    revolute: a slide along the axis that a tilted circle follows is no evidence
+    of one) and its turn measured as a revolute joint's (against prismatic: a
+    cylindrical joint that turns 10° at 5° of rotation noise is a slide whose turn
+    is under 5 noise levels, as a revolute joint's would be); free: the extent;
+    fixed: infinite. Noise is the whole error (:attr:`Condition.total_noise`, the
+    same for rotations).
     """
     if kind == "fixed":
         return math.inf
@@ -170,13 +174,14 @@ def _dof_ratio(
     stroke = float(np.ptp(track.ranges[0])) / sp
     if kind == "prismatic":
         return stroke
-    if kind == "cylindrical":
-        exact = NoiseModel(pos_floor=1e-9, pos_ceiling=1.0, max_outliers=0.0)
-        circle = fit_model("revolute", clean, None, noise=exact)
-        return math.sqrt(float(circle.proj.d2_pos.max())) / sp if circle is not None else stroke
     turn = _bow(clean) / sp
     if oriented:
         turn = max(turn, float(np.ptp(track.ranges[3])) / sr)
+    if kind == "cylindrical":
+        exact = NoiseModel(pos_floor=1e-9, pos_ceiling=1.0, max_outliers=0.0)
+        circle = fit_model("revolute", clean, None, noise=exact)
+        slide = math.sqrt(float(circle.proj.d2_pos.max())) / sp if circle is not None else stroke
+        return min(slide, turn)
     return turn
 
 
