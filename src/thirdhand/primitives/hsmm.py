@@ -192,20 +192,13 @@ def _check_streams(xs: Sequence[ArrayLike]) -> list[FloatArray]:
     return out
 
 
-def _with_ends(z: IntArray, k_all: int) -> IntArray:
-    """A parse into ``k_all − 2`` states relabelled: its first run the entry (0), its last
-    the exit (``k_all − 1``), the rest shifted by one; a parse of fewer than three runs
-    gives its first and last third of the samples to the entry and the exit."""
-    out = np.asarray(z, dtype=np.int64) + 1
+def _ends_of(z: IntArray) -> tuple[int, int]:
+    """Samples of a parse's first and last run (its first and last third with < 3 runs)."""
     st, ln, _ = runs(z)
     if st.size >= 3:
-        out[: ln[0]] = 0
-        out[st[-1] :] = k_all - 1
-    else:
-        third = out.size // 3
-        out[:third] = 0
-        out[out.size - third :] = k_all - 1
-    return out
+        return int(ln[0]), int(ln[-1])
+    third = max(z.size // 3, 1)
+    return third, third
 
 
 class HiddenSemiMarkov:
@@ -440,7 +433,9 @@ class HiddenSemiMarkov:
 
         With ``ends``, each restart first fits the ``K`` states alone (as without
         ``ends``), then takes the first segment of every stream's parse as the entry
-        and the last as the exit, and continues hard EM under the entry/exit topology.
+        and the last as the exit, seeds the ``K`` states again by k-means on the
+        samples between them (so that none of them stays spent on the approach or
+        withdrawal), and continues hard EM under the entry/exit topology.
 
         Parameters
         ----------
@@ -475,9 +470,30 @@ class HiddenSemiMarkov:
                 xa, np.split(lab.astype(np.int64), split), self.n_states, False, n_iter
             )
             if self.ends:
-                zs, more = self._hard_em(
-                    xa, [_with_ends(z, k_all) for z in zs], k_all, True, n_iter
+                # the first and last run of each stream's parse are the entry and exit; the
+                # K states keep their parse between them, and, as a second start, are seeded
+                # again by k-means on those samples only (none then stays spent on the
+                # approach or withdrawal); the better training score of the two is kept
+                cut = [_ends_of(z) for z in zs]
+                inner = np.vstack(
+                    [a[h : a.shape[0] - e] for a, (h, e) in zip(xa, cut, strict=True)]
                 )
+                _, lab_in = kmeans2(
+                    (inner - mu) / sd, self.n_states, minit="++", seed=self.seed + r
+                )
+                sizes = [a.shape[0] - h - e for a, (h, e) in zip(xa, cut, strict=True)]
+                seeded = np.split(lab_in.astype(np.int64) + 1, np.cumsum(sizes)[:-1])
+                kept = [z[h : z.size - e] + 1 for z, (h, e) in zip(zs, cut, strict=True)]
+                tries = []
+                for middle in (kept, seeded):
+                    start = [
+                        np.concatenate([np.zeros(h, np.int64), m, np.full(e, k_all - 1, np.int64)])
+                        for m, (h, e) in zip(middle, cut, strict=True)
+                    ]
+                    got, more = self._hard_em(xa, start, k_all, True, n_iter)
+                    tries.append((sum(self.decode(a)[1] for a in xa), got, more))
+                _, zs, more = max(tries, key=lambda v: v[0])
+                self._fit_from(xa, zs, k_all, True)
                 history += more
             score = sum(self.decode(a)[1] for a in xa)
             if best is None or score > best[0]:
