@@ -258,3 +258,15 @@ def test_ends_bad_input() -> None:
         HiddenSemiMarkov(1, ends=True).fit_unsupervised([np.zeros((2, 1)), np.zeros((5, 1))])
     with pytest.raises(PrimitiveError, match="covariance prior must be ≥ 0 runs"):
         HiddenSemiMarkov(cov_prior_runs=-1.0)
+
+
+def test_decode_lengthens_durations_when_no_path_fits_within_them() -> None:
+    # one work state between entry and exit: a stream with a work run three times longer
+    # than any seen cannot be covered by durations up to 1.5 × the longest run
+    x, _ = _ends_stream(1)
+    model = HiddenSemiMarkov(1, ends=True, seed=0).fit_unsupervised([x])
+    assert model.max_duration_ == 21  # 1.5 × the work run of 6 + 8 samples
+    long = np.vstack([np.full((10, 1), 5.0), np.zeros((60, 1)), np.full((12, 1), 5.0)])
+    pred, score = model.decode(long)
+    np.testing.assert_array_equal(pred, np.repeat([0, 1, 2], [10, 60, 12]))
+    assert np.isfinite(score)

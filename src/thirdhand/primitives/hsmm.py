@@ -522,23 +522,32 @@ class HiddenSemiMarkov:
             )
         return out
 
-    def log_durations(self) -> FloatArray:
-        """``log p(d | k)``, shape (S, D): the log-normal discretised on ``d = 1 … D``."""
-        d = np.arange(1, self.max_duration_ + 1, dtype=np.float64)
+    def log_durations(self, d_max: int | None = None) -> FloatArray:
+        """``log p(d | k)``, shape (S, D): the log-normal discretised on ``d = 1 … D``.
+
+        ``D`` is ``max_duration_`` unless ``d_max`` is given.
+        """
+        d = np.arange(1, (d_max or self.max_duration_) + 1, dtype=np.float64)
         z = (np.log(d)[None, :] - self.dur_mu_[:, None]) / self.dur_sd_[:, None]
         lp = -0.5 * z**2 - np.log(d)[None, :]
         top = lp.max(axis=1, keepdims=True)
         return lp - top - np.log(np.exp(lp - top).sum(axis=1, keepdims=True))
 
     def decode(self, x: ArrayLike) -> tuple[IntArray, float]:
-        """Most likely state index (0 … S−1) of every sample, and its ``log p(x, z)``."""
-        return hsmm_viterbi(
-            self.emission_weight * self.log_emissions(x),
-            self.log_durations(),
-            self.log_trans_,
-            self.log_init_,
-            self.log_final_,
-        )
+        """Most likely state index (0 … S−1) of every sample, and its ``log p(x, z)``.
+
+        Durations are cut at ``max_duration_`` for speed; a stream that no path can
+        cover within it (e.g. entry, one work state and exit, each at most ``D``, on a
+        stream longer than ``3 D``) is parsed again with durations up to its length.
+        """
+        emit = self.emission_weight * self.log_emissions(x)
+        args = (self.log_trans_, self.log_init_, self.log_final_)
+        try:
+            return hsmm_viterbi(emit, self.log_durations(), *args)
+        except PrimitiveError:
+            if emit.shape[0] <= self.max_duration_:
+                raise
+        return hsmm_viterbi(emit, self.log_durations(emit.shape[0]), *args)
 
     def predict(self, x: ArrayLike) -> IntArray:
         """Most likely label (:attr:`states_`) of every sample, shape (n,)."""
