@@ -271,3 +271,11 @@ def test_decode_lengthens_durations_when_no_path_fits_within_them() -> None:
     pred, score = model.decode(long)
     np.testing.assert_array_equal(pred, np.repeat([0, 1, 2], [10, 60, 12]))
     assert np.isfinite(score)
+
+
+def test_ends_on_a_stream_with_fewer_work_samples_than_states() -> None:
+    # three samples: one for the entry, one for the work, one for the exit; the k-means
+    # reseeding of two work states on one sample is skipped, the fit still completes
+    model = HiddenSemiMarkov(2, ends=True).fit_unsupervised([np.array([[5.0], [0.0], [5.0]])])
+    pred = model.predict(np.array([[5.0], [0.0], [0.0], [5.0]]))
+    assert pred[0] == 0 and pred[-1] == 3 and set(pred[1:-1].tolist()) <= {1, 2}

@@ -18,6 +18,11 @@ Two ways to fit it:
 - :meth:`HiddenSemiMarkov.fit_unsupervised` — without labels, by hard EM
   (Viterbi training): states initialised by k-means on the samples, then
   parse → refit from the parse → parse, until the parse no longer changes.
+
+With ``ends=True`` the ``K`` states are the repeated phases of the work, and an
+*entry* state (only a stream's first segment) and an *exit* state (only its
+last) are added around them: approach, work, withdrawal. The Viterbi takes the
+topology as ``−inf`` initial, transition and final weights (``log_final``).
 """
 
 from __future__ import annotations
@@ -433,9 +438,11 @@ class HiddenSemiMarkov:
 
         With ``ends``, each restart first fits the ``K`` states alone (as without
         ``ends``), then takes the first segment of every stream's parse as the entry
-        and the last as the exit, seeds the ``K`` states again by k-means on the
-        samples between them (so that none of them stays spent on the approach or
-        withdrawal), and continues hard EM under the entry/exit topology.
+        and the last as the exit and continues hard EM under the entry/exit topology
+        from two starts — the ``K`` states' parse in between kept, and the ``K``
+        states seeded again by k-means on the samples in between only (so that none
+        of them stays spent on the approach or withdrawal) — keeping the one with the
+        better training score.
 
         Parameters
         ----------
@@ -478,14 +485,16 @@ class HiddenSemiMarkov:
                 inner = np.vstack(
                     [a[h : a.shape[0] - e] for a, (h, e) in zip(xa, cut, strict=True)]
                 )
-                _, lab_in = kmeans2(
-                    (inner - mu) / sd, self.n_states, minit="++", seed=self.seed + r
-                )
-                sizes = [a.shape[0] - h - e for a, (h, e) in zip(xa, cut, strict=True)]
-                seeded = np.split(lab_in.astype(np.int64) + 1, np.cumsum(sizes)[:-1])
                 kept = [z[h : z.size - e] + 1 for z, (h, e) in zip(zs, cut, strict=True)]
+                middles = [kept]
+                if inner.shape[0] >= self.n_states:
+                    _, lab_in = kmeans2(
+                        (inner - mu) / sd, self.n_states, minit="++", seed=self.seed + r
+                    )
+                    sizes = [a.shape[0] - h - e for a, (h, e) in zip(xa, cut, strict=True)]
+                    middles.append(np.split(lab_in.astype(np.int64) + 1, np.cumsum(sizes)[:-1]))
                 tries = []
-                for middle in (kept, seeded):
+                for middle in middles:
                     start = [
                         np.concatenate([np.zeros(h, np.int64), m, np.full(e, k_all - 1, np.int64)])
                         for m, (h, e) in zip(middle, cut, strict=True)
