@@ -279,3 +279,25 @@ def test_ends_on_a_stream_with_fewer_work_samples_than_states() -> None:
     model = HiddenSemiMarkov(2, ends=True).fit_unsupervised([np.array([[5.0], [0.0], [5.0]])])
     pred = model.predict(np.array([[5.0], [0.0], [0.0], [5.0]]))
     assert pred[0] == 0 and pred[-1] == 3 and set(pred[1:-1].tolist()) <= {1, 2}
+
+
+def test_open_start_and_end_for_parts_cut_from_a_recording() -> None:
+    (x1, l1), (x2, _) = _ends_stream(3), _ends_stream(2)
+    model = HiddenSemiMarkov(2, ends=True, seed=0).fit_unsupervised([x1, x2])
+    prefix, truth_p = x1[:40], l1[:40]  # entry, then strokes: no exit
+    suffix, truth_s = x1[10:], l1[10:]  # strokes, then exit: no entry
+    open_p = model.decode(prefix, open_end=True)[0]
+    np.testing.assert_array_equal(open_p == 0, truth_p == 0)
+    assert 3 not in open_p
+    assert model.decode(prefix)[0][-1] == 3  # closed, it must end in the exit
+    open_s = model.decode(suffix, open_start=True)[0]
+    np.testing.assert_array_equal(open_s == 3, truth_s == 3)
+    assert 0 not in open_s
+    assert model.decode(suffix)[0][0] == 0  # closed, it must start in the entry
+    # fitted on a prefix and a suffix with their open ends: the stroke states stay strokes
+    cut = HiddenSemiMarkov(2, ends=True, seed=0).fit_unsupervised(
+        [prefix, suffix], open_ends=[(False, True), (True, False)]
+    )
+    assert set(cut.decode(prefix, open_end=True)[0][truth_p > 0].tolist()) <= {1, 2}
+    with pytest.raises(PrimitiveError, match="2 streams but 1 open-end flags"):
+        HiddenSemiMarkov(2, ends=True).fit_unsupervised([x1, x2], open_ends=[(True, True)])

@@ -197,13 +197,15 @@ def _check_streams(xs: Sequence[ArrayLike]) -> list[FloatArray]:
     return out
 
 
-def _ends_of(z: IntArray) -> tuple[int, int]:
-    """Samples of a parse's first and last run (its first and last third with < 3 runs)."""
+def _ends_of(z: IntArray, open_start: bool = False, open_end: bool = False) -> tuple[int, int]:
+    """Samples of a parse's first and last run (its first and last third with < 3 runs);
+    0 at an open start or end (a stream cut from a longer one has no entry or exit there)."""
     st, ln, _ = runs(z)
     if st.size >= 3:
-        return int(ln[0]), int(ln[-1])
-    third = max(z.size // 3, 1)
-    return third, third
+        h, e = int(ln[0]), int(ln[-1])
+    else:
+        h = e = max(z.size // 3, 1)
+    return (0 if open_start else h), (0 if open_end else e)
 
 
 class HiddenSemiMarkov:
@@ -379,6 +381,7 @@ class HiddenSemiMarkov:
             self.log_trans_ = np.log(np.where(rows > 0, trans / np.where(rows > 0, rows, 1), 0.0))
             self.log_init_ = np.log(init / init.sum())
             self.log_final_ = np.log(allow_final)
+        self.ends_ = ends
 
     def fit_labelled(
         self, xs: Sequence[ArrayLike], labels: Sequence[ArrayLike]
@@ -416,13 +419,22 @@ class HiddenSemiMarkov:
         return self
 
     def _hard_em(
-        self, xa: Sequence[FloatArray], zs: list[IntArray], k_n: int, ends: bool, n_iter: int
+        self,
+        xa: Sequence[FloatArray],
+        zs: list[IntArray],
+        k_n: int,
+        ends: bool,
+        n_iter: int,
+        opens: Sequence[tuple[bool, bool]],
     ) -> tuple[list[IntArray], list[float]]:
         """Parse → refit rounds until the parse repeats (at most ``n_iter``)."""
         history: list[float] = []
         for _ in range(n_iter):
             self._fit_from(xa, zs, k_n, ends)
-            parsed = [self.decode(a) for a in xa]
+            parsed = [
+                self.decode(a, open_start=o, open_end=c)
+                for a, (o, c) in zip(xa, opens, strict=True)
+            ]
             history.append(sum(s for _, s in parsed))
             new = [p for p, _ in parsed]
             if all(np.array_equal(a, b) for a, b in zip(new, zs, strict=True)):
@@ -432,7 +444,12 @@ class HiddenSemiMarkov:
         return zs, history
 
     def fit_unsupervised(
-        self, xs: Sequence[ArrayLike], *, n_iter: int = 20, n_init: int = 1
+        self,
+        xs: Sequence[ArrayLike],
+        *,
+        n_iter: int = 20,
+        n_init: int = 1,
+        open_ends: Sequence[tuple[bool, bool]] | None = None,
     ) -> HiddenSemiMarkov:
         """Hard EM (Viterbi training) from k-means initialisations of the samples.
 
@@ -453,6 +470,9 @@ class HiddenSemiMarkov:
         n_init : int
             Restarts, each from its own k-means++ seeding (``seed + r``); the one whose
             final parses have the highest ``Σ log p(x, z*)`` on ``xs`` is kept.
+        open_ends : sequence of (bool, bool), optional
+            Per stream, whether its start and its end are open (see :meth:`decode`):
+            a part cut from a longer recording, e.g. a half in cross-validation.
         """
         from scipy.cluster.vq import kmeans2
 
@@ -461,6 +481,9 @@ class HiddenSemiMarkov:
         if n_init < 1:
             raise PrimitiveError(f"HSMM: at least 1 restart, got {n_init}")
         xa = _check_streams(xs)
+        opens = [(False, False)] * len(xa) if open_ends is None else list(open_ends)
+        if len(opens) != len(xa):
+            raise PrimitiveError(f"HSMM: {len(xa)} streams but {len(opens)} open-end flags")
         x = np.vstack(xa)
         if x.shape[0] < self.n_states:
             raise PrimitiveError(f"HSMM: {x.shape[0]} samples for {self.n_states} states")
@@ -474,14 +497,14 @@ class HiddenSemiMarkov:
         for r in range(n_init):
             _, lab = kmeans2((x - mu) / sd, self.n_states, minit="++", seed=self.seed + r)
             zs, history = self._hard_em(
-                xa, np.split(lab.astype(np.int64), split), self.n_states, False, n_iter
+                xa, np.split(lab.astype(np.int64), split), self.n_states, False, n_iter, opens
             )
             if self.ends:
                 # the first and last run of each stream's parse are the entry and exit; the
                 # K states keep their parse between them, and, as a second start, are seeded
                 # again by k-means on those samples only (none then stays spent on the
                 # approach or withdrawal); the better training score of the two is kept
-                cut = [_ends_of(z) for z in zs]
+                cut = [_ends_of(z, o, c) for z, (o, c) in zip(zs, opens, strict=True)]
                 inner = np.vstack(
                     [a[h : a.shape[0] - e] for a, (h, e) in zip(xa, cut, strict=True)]
                 )
@@ -499,12 +522,12 @@ class HiddenSemiMarkov:
                         np.concatenate([np.zeros(h, np.int64), m, np.full(e, k_all - 1, np.int64)])
                         for m, (h, e) in zip(middle, cut, strict=True)
                     ]
-                    got, more = self._hard_em(xa, start, k_all, True, n_iter)
-                    tries.append((sum(self.decode(a)[1] for a in xa), got, more))
+                    got, more = self._hard_em(xa, start, k_all, True, n_iter, opens)
+                    tries.append((self._total(xa, opens), got, more))
                 _, zs, more = max(tries, key=lambda v: v[0])
                 self._fit_from(xa, zs, k_all, True)
                 history += more
-            score = sum(self.decode(a)[1] for a in xa)
+            score = self._total(xa, opens)
             if best is None or score > best[0]:
                 state = {k: v for k, v in self.__dict__.items() if k.endswith("_")}
                 best = (score, {**state, "history_": history})
@@ -542,15 +565,33 @@ class HiddenSemiMarkov:
         top = lp.max(axis=1, keepdims=True)
         return lp - top - np.log(np.exp(lp - top).sum(axis=1, keepdims=True))
 
-    def decode(self, x: ArrayLike) -> tuple[IntArray, float]:
+    def _total(self, xa: Sequence[FloatArray], opens: Sequence[tuple[bool, bool]]) -> float:
+        """``Σ log p(x, z*)`` over streams with their open ends."""
+        return sum(
+            self.decode(a, open_start=o, open_end=c)[1] for a, (o, c) in zip(xa, opens, strict=True)
+        )
+
+    def decode(
+        self, x: ArrayLike, *, open_start: bool = False, open_end: bool = False
+    ) -> tuple[IntArray, float]:
         """Most likely state index (0 … S−1) of every sample, and its ``log p(x, z)``.
 
         Durations are cut at ``max_duration_`` for speed; a stream that no path can
         cover within it (e.g. entry, one work state and exit, each at most ``D``, on a
         stream longer than ``3 D``) is parsed again with durations up to its length.
+        ``open_start`` / ``open_end``: the stream is cut from a longer one there, so
+        with ``ends`` it may start in any state but the entry (equally likely) / end
+        in any state.
         """
         emit = self.emission_weight * self.log_emissions(x)
-        args = (self.log_trans_, self.log_init_, self.log_final_)
+        s_n = emit.shape[1]
+        init, final = self.log_init_, self.log_final_
+        if open_start and self.ends_:
+            init = np.full(s_n, -np.log(s_n - 1))
+            init[0] = -np.inf
+        if open_end:
+            final = np.zeros(s_n)
+        args = (self.log_trans_, init, final)
         try:
             return hsmm_viterbi(emit, self.log_durations(), *args)
         except PrimitiveError:

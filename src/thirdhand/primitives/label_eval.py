@@ -540,13 +540,23 @@ def hsmm_heldout_folds(
 
     The score of a held-out stream is ``log p(x, z*)`` of its best parse
     (:meth:`HiddenSemiMarkov.decode`) under a model fitted without labels on the
-    other folds; a single stream is cut in two halves.
+    other folds; a single stream is cut in two halves, the first with an open end
+    and the second with an open start (no exit / no entry with ``ends``).
     """
-    folds = list(xs) if len(xs) > 1 else [xs[0][: len(xs[0]) // 2], xs[0][len(xs[0]) // 2 :]]
+    if len(xs) > 1:
+        folds = [(x, (False, False)) for x in xs]
+    else:
+        h = len(xs[0]) // 2
+        # a half is a prefix (its end open) or a suffix (its start open): with entry and
+        # exit states it has only one of them
+        folds = [(xs[0][:h], (False, True)), (xs[0][h:], (True, False))]
 
     def score(k: int, train: list[Any], held: Any) -> tuple[float, int]:
-        model = _make_hsmm(k, cfg).fit_unsupervised(train, n_init=cfg.n_init)
-        return model.decode(held)[1], int(held.size)
+        model = _make_hsmm(k, cfg).fit_unsupervised(
+            [x for x, _ in train], n_init=cfg.n_init, open_ends=[o for _, o in train]
+        )
+        x, (o, c) = held
+        return model.decode(x, open_start=o, open_end=c)[1], int(x.size)
 
     return _cross_validate(folds, k_range, score)
 
