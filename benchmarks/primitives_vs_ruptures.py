@@ -16,6 +16,9 @@ recordings), in one run and on the same channels and subsampling:
 - **HSMM**: the hidden semi-Markov model over per-sample level channels
   (:mod:`thirdhand.primitives.hsmm`), fitted without labels, leave one
   recording out, and KernelCPD on its channels beside it;
+- **HSMM with entry and exit**: the same with an entry state only at the start
+  and an exit state only at the end of a recording around the K states of the
+  work (``ends``; wiping: K by the one-SE rule over 1…6, peeling: K = 3);
 - **HSMM, label-trained** (supervised, not comparable with the rows above): the
   same model fitted on the other recordings' human labels.
 
@@ -80,6 +83,14 @@ HSMM_CONFIGS = {
         zero_ft=True,
         n_skills=3,
     ),
+}
+
+#: Per file: the HSMM with entry and exit states (``ends``).
+HSMM_ENDS_CONFIGS = {
+    "circular_wiping.mat": replace(
+        HSMM_CONFIGS["circular_wiping.mat"], ends=True, n_skills=None, k_range=(1, 2, 3, 4, 5, 6)
+    ),
+    "peeling_noobj.mat": replace(HSMM_CONFIGS["peeling_noobj.mat"], ends=True),
 }
 
 
@@ -220,6 +231,19 @@ def main() -> None:
                 hs.accuracy,
                 hs.global_accuracy,
                 hs.boundaries,
+                time.perf_counter() - t0,
+            )
+        )
+        ecfg = HSMM_ENDS_CONFIGS.get(path.name, replace(hcfg, ends=True))
+        t0 = time.perf_counter()
+        he = evaluate_streams(streams, ecfg, tolerance=args.tolerance)
+        k_ends = "/".join(str(r.n_skills) for r in he.streams)
+        rows.append(
+            (
+                f"HSMM entry/exit (no labels), K={k_ends}",
+                he.accuracy,
+                he.global_accuracy,
+                he.boundaries,
                 time.perf_counter() - t0,
             )
         )

@@ -342,6 +342,9 @@ def test_evaluate_selects_k_by_heldout_likelihood_and_reports_bic(
         (["--levels", "force,relpos"], "level 'relpos' needs two arms"),
         (["--shape", "speed"], "unknown shape channel 'speed'"),
         (["--arms", "3"], "no arm 3"),
+        (["--normalise", "rank"], "--normalise must be none, scale or zscore"),
+        (["--ends"], "--ends is an option of the unsupervised HSMM"),
+        (["--ends", "--label-trained"], "--ends is an option of the unsupervised HSMM"),
     ],
 )
 def test_evaluate_bad_options_one_line(
@@ -492,3 +495,33 @@ def test_evaluate_label_trained_command_says_supervised(
     f = json.loads(out.read_text())["files"][0]
     assert f["label_trained"] is True
     assert all(r["named_accuracy"] > 0.95 for r in f["recordings"])
+
+
+def test_unsupervised_hsmm_with_ends_parses_held_out_wiping() -> None:
+    from thirdhand.primitives.label_eval import ParserConfig, evaluate_streams
+
+    streams = [_stream_from(*_wiping_like(s), f"demo{s}") for s in range(3)]
+    cfg = ParserConfig(model="hsmm", ends=True, levels=("force",), zero_ft=True, n_skills=1)
+    res = evaluate_streams(streams, cfg, tolerance=0.5)
+    # reach and lift have the same force (none); without labels, the entry and exit
+    # states tell them apart by where they occur: entry → contact → exit, three states
+    for r in res.streams:
+        assert r.accuracy > 0.95
+        assert r.boundaries.n_matched == r.boundaries.n_true == 2 == r.boundaries.n_pred
+        assert r.n_skills == 1 and len(set(r.skills.tolist())) == 3
+
+
+def test_normalise_levels_per_recording() -> None:
+    from thirdhand.primitives.label_eval import normalise_levels
+
+    lev = np.array([[1.0, 5.0], [3.0, 5.0], [5.0, 5.0], [7.0, 5.0]])
+    scaled = normalise_levels(lev, "scale")
+    np.testing.assert_allclose(scaled[:, 0], lev[:, 0] / np.sqrt(5.0))  # sd of 1, 3, 5, 7
+    np.testing.assert_allclose(scaled[:, 1], 5.0)  # a constant channel is left unscaled
+    z = normalise_levels(lev, "zscore")
+    np.testing.assert_allclose(z[:, 0], (lev[:, 0] - 4.0) / np.sqrt(5.0))
+    np.testing.assert_allclose(z[:, 1], 0.0)
+    np.testing.assert_array_equal(normalise_levels(lev, "none"), lev)
+    assert normalise_levels(lev, "none") is not lev
+    with pytest.raises(PrimitiveError, match="normalisation must be one of"):
+        normalise_levels(lev, "rank")

@@ -258,6 +258,20 @@ def evaluate(
         bool,
         typer.Option(help="Subtract each arm's force/torque over the first 0.5 s (sensor offset)."),
     ] = False,
+    ends: Annotated[
+        bool,
+        typer.Option(
+            help="HSMM: an entry state only at the start of a recording and an exit state only "
+            "at its end (approach, withdrawal) around the K states of the work."
+        ),
+    ] = False,
+    normalise: Annotated[
+        str,
+        typer.Option(
+            help="Level channels per recording: none, scale (divided by the recording's "
+            "standard deviation) or zscore (also centred on its median)."
+        ),
+    ] = "none",
     shape: Annotated[
         str, typer.Option(help="Shape channels per arm: pos, rot, force, torque (comma list).")
     ] = "pos",
@@ -302,7 +316,13 @@ def evaluate(
     """
     from thirdhand.fileops import write_text
     from thirdhand.io.figueroa import read_labelled_mat
-    from thirdhand.primitives.label_eval import MODELS, SELECTIONS, ParserConfig, evaluate_streams
+    from thirdhand.primitives.label_eval import (
+        MODELS,
+        NORMALISATIONS,
+        SELECTIONS,
+        ParserConfig,
+        evaluate_streams,
+    )
 
     try:
         if skills is not None:
@@ -311,6 +331,13 @@ def evaluate(
             raise ThirdhandError(f"--select must be onese, heldout or bic, got {select!r}")
         if model not in MODELS:
             raise ThirdhandError(f"--model must be library or hsmm, got {model!r}")
+        if normalise not in NORMALISATIONS:
+            raise ThirdhandError(f"--normalise must be none, scale or zscore, got {normalise!r}")
+        if ends and (model != "hsmm" or label_trained):
+            raise ThirdhandError(
+                "--ends is an option of the unsupervised HSMM "
+                "(--model hsmm without --label-trained)"
+            )
         options.finite("--tolerance", tolerance, low=0.0)
         options.finite("--grid", grid, low=0.0)
         options.integer("--subsample", subsample, low=1, high=1000)
@@ -348,6 +375,9 @@ def evaluate(
             model="hsmm" if label_trained else model,
             label_trained=label_trained,
             zero_ft=zero_ft,
+            ends=ends,
+            normalise=normalise,
+            k_range=(1, 2, 3, 4, 5, 6) if ends else (2, 3, 4, 5, 6),
         )
         results = {}
         for f in files:

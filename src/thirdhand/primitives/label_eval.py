@@ -98,6 +98,13 @@ class ParserConfig:
     zero_ft : bool
         Subtract each arm's force/torque at the start of the recording
         (:func:`~thirdhand.primitives.channels.stream_channels`).
+    ends : bool
+        Unsupervised HSMM: an entry state only at the start of a recording and an exit
+        state only at its end around the ``n_skills`` states
+        (:class:`~thirdhand.primitives.hsmm.HiddenSemiMarkov` ``ends``).
+    normalise : {"none", "scale", "zscore"}
+        Level channels per recording: as they are, divided by that recording's
+        standard deviation of each channel, or also centred on its median.
     """
 
     shape: tuple[str, ...] = ("pos",)
@@ -118,6 +125,8 @@ class ParserConfig:
     model: str = "library"
     label_trained: bool = False
     zero_ft: bool = False
+    ends: bool = False
+    normalise: str = "none"
 
 
 @dataclass(frozen=True)
@@ -251,8 +260,37 @@ def _tracks(
             zero_ft=cfg.zero_ft,
         )
         k = cfg.subsample
-        out.append((s.t[::k], y[::k], lev[::k]))
+        out.append((s.t[::k], y[::k], normalise_levels(lev[::k], cfg.normalise)))
     return out
+
+
+#: Per-recording normalisations of the level channels (see :class:`ParserConfig`).
+NORMALISATIONS = ("none", "scale", "zscore")
+
+
+def normalise_levels(lev: np.ndarray, how: str) -> np.ndarray:
+    """Level channels of one recording divided by their spread (and centred on their median).
+
+    Parameters
+    ----------
+    lev : ndarray, shape (n, L)
+    how : {"none", "scale", "zscore"}
+
+    Returns
+    -------
+    ndarray, shape (n, L)
+        A new array; a constant channel is left unscaled.
+    """
+    if how not in NORMALISATIONS:
+        raise PrimitiveError(
+            f"normalisation must be one of {', '.join(NORMALISATIONS)}, got {how!r}"
+        )
+    if how == "none" or lev.shape[0] == 0:
+        return lev.copy()
+    sd = lev.std(axis=0)
+    sd[sd == 0] = 1.0
+    centre = np.median(lev, axis=0) if how == "zscore" else 0.0
+    return np.asarray((lev - centre) / sd, dtype=np.float64)
 
 
 def _threshold(tracks: Sequence[tuple[np.ndarray, ...]], cfg: ParserConfig) -> float:
@@ -484,7 +522,15 @@ def _finish(results: list[StreamResult], streams: Sequence[LabelledStream]) -> F
 def _make_hsmm(k: int, cfg: ParserConfig) -> HiddenSemiMarkov:
     # each parse sample's level is a mean over ``window`` parse samples: its
     # evidence is shared with that many neighbours and counted once
-    return HiddenSemiMarkov(k, emission_weight=1.0 / max(cfg.window, 1), seed=cfg.seed)
+    ends = cfg.ends and not cfg.label_trained
+    return HiddenSemiMarkov(
+        k,
+        ends=ends,
+        emission_weight=1.0 / max(cfg.window, 1),
+        # the entry and exit are one run per recording: their covariances need the prior
+        cov_prior_runs=1.0 if ends else 0.0,
+        seed=cfg.seed,
+    )
 
 
 def hsmm_heldout_folds(
@@ -494,13 +540,23 @@ def hsmm_heldout_folds(
 
     The score of a held-out stream is ``log p(x, z*)`` of its best parse
     (:meth:`HiddenSemiMarkov.decode`) under a model fitted without labels on the
-    other folds; a single stream is cut in two halves.
+    other folds; a single stream is cut in two halves, the first with an open end
+    and the second with an open start (no exit / no entry with ``ends``).
     """
-    folds = list(xs) if len(xs) > 1 else [xs[0][: len(xs[0]) // 2], xs[0][len(xs[0]) // 2 :]]
+    if len(xs) > 1:
+        folds = [(x, (False, False)) for x in xs]
+    else:
+        h = len(xs[0]) // 2
+        # a half is a prefix (its end open) or a suffix (its start open): with entry and
+        # exit states it has only one of them
+        folds = [(xs[0][:h], (False, True)), (xs[0][h:], (True, False))]
 
     def score(k: int, train: list[Any], held: Any) -> tuple[float, int]:
-        model = _make_hsmm(k, cfg).fit_unsupervised(train, n_init=cfg.n_init)
-        return model.decode(held)[1], int(held.size)
+        model = _make_hsmm(k, cfg).fit_unsupervised(
+            [x for x, _ in train], n_init=cfg.n_init, open_ends=[o for _, o in train]
+        )
+        x, (o, c) = held
+        return model.decode(x, open_start=o, open_end=c)[1], int(x.size)
 
     return _cross_validate(folds, k_range, score)
 
