@@ -26,7 +26,7 @@ from thirdhand.constraints import (
 )
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.models import fit_model, prepare_track
-from thirdhand.constraints.noise import estimate_noise
+from thirdhand.constraints.noise import MAX_POS_NOISE, estimate_noise
 from thirdhand.constraints.select import (
     CONFIDENCE_TEMPERATURE,
     DEFAULT_MODELS,
@@ -521,6 +521,43 @@ def test_free_part_is_no_saturated_circle() -> None:
         saturated_joint(fit, ceiling=fit.sigma_pos / NEAR_CEILING * 1.01, gross=est.gross) is None
     )
     assert saturated_joint(fit, ceiling=fit.sigma_pos, gross=est.gross) is not None
+
+
+def test_fast_free_part_with_clipped_noise_is_no_line() -> None:
+    """A position-only free part sampled 20 times (1 mm of noise, a 30 cm wander of
+    1-4 cycles) is not locally quadratic: its noise estimate is clipped at the 2 cm
+    cap, and a line fits it with its noise at the 8 cm ceiling, every sample an
+    inlier. Bounds set from a clipped estimate say nothing about the tracker: the
+    line is saturated and the part is free. Given the same bounds (no estimate), the
+    line is chosen as before; a 20-sample stroke's estimate is not clipped."""
+    rng = np.random.default_rng([3, 10000, 8])  # the sweep's 20-sample 1 mm free·p seed 3
+    track = random_joint_track("free", rng, n=20, pos_noise=1e-3, rot_noise=math.radians(0.5))
+    p, _ = prepare_track(track.pos, None)
+    est = estimate_noise(p)
+    assert est.pos_clipped and est.sigma_pos == MAX_POS_NOISE
+    nm = est.noise_model()
+    fit = fit_model("prismatic", p, None, noise=nm)
+    assert fit is not None and fit.sigma_pos >= NEAR_CEILING * nm.pos_ceiling
+    assert fit.inlier.all() and est.gross is not None and not est.gross.any()
+    assert saturated_joint(fit, ceiling=nm.pos_ceiling, gross=est.gross) is None
+    note = saturated_joint(fit, ceiling=nm.pos_ceiling, gross=est.gross, untrusted=True)
+    assert note is not None and "clipped at its cap" in note
+    c = fit_constraint(track.pos)
+    assert c.type == "free"
+    assert c.scores["prismatic"] < c.scores["free"]
+    assert any(n.startswith("prismatic not chosen") and "clipped" in n for n in c.notes)
+    assert passed_over_types(c.notes)[1] == ("prismatic",)
+    given = NoiseModel(
+        pos_floor=nm.pos_floor,
+        pos_ceiling=nm.pos_ceiling,
+        rot_floor=nm.rot_floor,
+        rot_ceiling=nm.rot_ceiling,
+    )
+    assert fit_constraint(track.pos, noise=given).type == "prismatic"
+    rng = np.random.default_rng([3, 10000, 6])  # the same condition's prismatic·p
+    stroke = random_joint_track("prismatic", rng, n=20, pos_noise=1e-3)
+    assert not estimate_noise(stroke.pos).pos_clipped
+    assert fit_constraint(stroke.pos).type == "prismatic"
 
 
 def test_slide_under_pose_dependent_error_is_not_a_cylinder() -> None:

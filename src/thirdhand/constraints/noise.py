@@ -89,6 +89,10 @@ class NoiseEstimate:
     gross : ndarray of bool, shape (n,), optional
         Samples flagged as gross outliers: jumps away from their neighbours in time
         (:func:`_flag_outliers`, positions and orientations).
+    pos_clipped : bool
+        Whether the position level was clipped to :data:`MAX_POS_NOISE`: the
+        residuals are beyond any tracker's noise, motion too fast for the window,
+        and ``sigma_pos`` is the cap, not a measurement.
     """
 
     sigma_pos: float
@@ -96,6 +100,7 @@ class NoiseEstimate:
     window: int
     n_windows: int
     gross: NDArray[np.bool_] | None = field(default=None, compare=False, repr=False)
+    pos_clipped: bool = False
 
     def noise_model(self, *, max_outliers: float = 0.25) -> NoiseModel:
         """The bounds of the model fits: floors at :data:`FLOOR_FACTOR` times the estimate.
@@ -311,10 +316,12 @@ def estimate_noise(
     sigma_rot = math.nan
     if res_r is not None:
         sigma_rot = min(_robust_level(res_r, keep), MAX_ROT_NOISE)
+    level = _robust_level(res_p, keep)
     return NoiseEstimate(
-        sigma_pos=min(_robust_level(res_p, keep), MAX_POS_NOISE),
+        sigma_pos=min(level, MAX_POS_NOISE),
         sigma_rot=sigma_rot,
         window=w,
         n_windows=int(keep.sum()),
         gross=bad,
+        pos_clipped=level >= MAX_POS_NOISE,
     )

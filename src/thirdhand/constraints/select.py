@@ -275,7 +275,11 @@ def passed_over_types(notes: Sequence[str]) -> tuple[tuple[str, ...], tuple[str,
 
 
 def saturated_joint(
-    fit: ModelFit, *, ceiling: float, gross: NDArray[np.bool_] | None
+    fit: ModelFit,
+    *,
+    ceiling: float,
+    gross: NDArray[np.bool_] | None,
+    untrusted: bool = False,
 ) -> str | None:
     """Why a constrained fit is no joint of the track (its error is motion), or None.
 
@@ -290,12 +294,25 @@ def saturated_joint(
     a circle with a quarter of the samples as outliers). A joint well inside its
     noise bounds may still give a smooth stretch to the outlier class (the last
     15 % of ``cabinet_one/002``, at 2.2 mm of noise: a real outlier stretch).
+
+    With ``untrusted`` (the bounds come from a noise estimate clipped at its cap,
+    :attr:`~thirdhand.constraints.noise.NoiseEstimate.pos_clipped`: the track's
+    short-window residuals are beyond any tracker's noise, and the ceiling is the
+    largest the cap allows, not a measured error) a fit near its ceiling is
+    saturated whether or not it calls samples outliers: nothing about the tracker
+    says that it may err by that much.
     """
     if fit.kernel.name == "free" or gross is None or fit.sigma_pos < NEAR_CEILING * ceiling:
         return None
     smooth = int(np.count_nonzero(~fit.inlier & ~gross))
-    if smooth == 0:
+    if smooth == 0 and not untrusted:
         return None
+    if smooth == 0:
+        return (
+            f"{fit.kernel.name} not chosen: its noise ({1e3 * fit.sigma_pos:.1f} mm) "
+            f"{SATURATED_NOTE} ({1e3 * ceiling:.1f} mm), set from a noise estimate "
+            "clipped at its cap (motion too fast for the window)"
+        )
     return (
         f"{fit.kernel.name} not chosen: its noise ({1e3 * fit.sigma_pos:.1f} mm) "
         f"{SATURATED_NOTE} ({1e3 * ceiling:.1f} mm) and it calls {smooth} samples outliers "
@@ -423,7 +440,12 @@ def fit_constraint(
     for name, fit in fits.items():
         why = degenerate_joint(fit, oriented=q is not None, rot_floor=nm.rot_floor, n_eff=n_eff)
         if why is None:
-            why = saturated_joint(fit, ceiling=nm.pos_ceiling, gross=est.gross)
+            why = saturated_joint(
+                fit,
+                ceiling=nm.pos_ceiling,
+                gross=est.gross,
+                untrusted=noise is None and est.pos_clipped,
+            )
             if why is not None:
                 saturated[name] = why
             continue
