@@ -9,10 +9,12 @@ over ``D_E ∪ D_NE`` (expert and random one-step transitions), optionally shape
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.relational.bagging import TreeEnsemble, fit_bagged_tree
 from thirdhand.relational.boosting import BoostedQ, Examples, fit_boosted
 from thirdhand.relational.logic import RelationalError
 from thirdhand.relational.mdp import GroundMDP
@@ -28,14 +30,14 @@ class RCSIModel:
     ----------
     q : BoostedQ
         The classifier's score function (BLMRIL's policy is its argmax).
-    reward : RelationalTree
-        R̂(s, a).
+    reward : RelationalTree or TreeEnsemble
+        R̂(s, a): one tree, or the mean of bagged trees (``reward_bagging``).
     shaping : ndarray, shape (d,)
         Weights of the shaping function f(s) = w·φ(s) (zeros without shaping).
     """
 
     q: BoostedQ
-    reward: RelationalTree
+    reward: RelationalTree | TreeEnsemble
     shaping: NDArray[np.float64]
 
     def reward_of(self, mdp: GroundMDP) -> NDArray[np.float64]:
@@ -103,6 +105,7 @@ def fit_rcsi(
     reward_distinct_from_args: bool = True,
     shaping_features: str = "value+counts",
     shaping_samples: str = "all",
+    reward_bagging: int = 0,
 ) -> RCSIModel:
     """RCSI: the boosted classifier, then the regression of its implied rewards.
 
@@ -150,6 +153,10 @@ def fit_rcsi(
     shaping_samples : {"expert", "all"}
         Transitions whose target entropy CMA-ES minimises: ``D_E`` only, or
         ``D_E ∪ D_NE`` (the regression data).
+    reward_bagging : int
+        With B > 1, the reward is the mean of B trees, each fit to a bootstrap
+        sample of the regression data (:mod:`.bagging`, drawn with ``seed``);
+        0 or 1: one tree on all of it (the paper's).
     """
     if q is None:
         q = fit_boosted(expert, n_trees=n_trees, max_depth=max_depth, max_vars=max_vars)
@@ -203,15 +210,26 @@ def fit_rcsi(
         on = weights * from_expert if shaping_samples == "expert" else weights
         w = fit_shaping(phi, phi_n, targets, gamma, weights=on, seed=seed)
         targets = targets + (phi - gamma * phi_n) @ w
-    tree = fit_tree(
-        data,
-        targets,
-        weights=weights,
-        max_depth=reward_depth,
-        max_vars=max_vars,
-        lookahead=reward_lookahead,
-        min_leaf=reward_min_leaf,
-        significance=reward_significance,
-        distinct_from_args=reward_distinct_from_args,
-    )
-    return RCSIModel(q, tree, w)
+    if reward_bagging < 0:
+        raise RelationalError(f"RCSI: reward_bagging must be >= 0, got {reward_bagging}")
+    tree_options: dict[str, Any] = {
+        "max_depth": reward_depth,
+        "max_vars": max_vars,
+        "lookahead": reward_lookahead,
+        "min_leaf": reward_min_leaf,
+        "significance": reward_significance,
+        "distinct_from_args": reward_distinct_from_args,
+    }
+    reward: RelationalTree | TreeEnsemble
+    if reward_bagging > 1:
+        reward = fit_bagged_tree(
+            data,
+            targets,
+            n_trees=reward_bagging,
+            rng=np.random.default_rng(seed),
+            weights=weights,
+            **tree_options,
+        )
+    else:
+        reward = fit_tree(data, targets, weights=weights, **tree_options)
+    return RCSIModel(q, reward, w)
