@@ -197,12 +197,12 @@ def test_large_experiment_reward_fixes_the_seed_that_failed_on_the_training_size
     # lumps waiting in the tower with moves and fails stack on 5 blocks; the bagged
     # rewards chosen by the demonstrations learn it.
     from thirdhand.experiments.relational_irl import true_reward
-    from thirdhand.experiments.relational_large import fit_task
+    from thirdhand.experiments.relational_large import N_BAGS, fit_task
     from thirdhand.relational.evaluate import perf_of_reward
 
     model, mdps = fit_task("stack", 3017)
     single, _ = fit_task("stack", 3017, n_bags=1, candidates=({"balance": False},))
-    assert isinstance(model.reward, TreeEnsemble) and len(model.reward.trees) == 10
+    assert isinstance(model.reward, TreeEnsemble) and len(model.reward.trees) == N_BAGS
     mdp = mdps["blocks5"]
     r = true_reward(mdp, "stack")
     states = mdp.sample_states(1000, np.random.default_rng(0))
