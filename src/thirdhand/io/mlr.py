@@ -112,15 +112,10 @@ def acquisition_validity(
         return valid, []
     n_sensors = seen.shape[1]
     for k in range(n_sensors):
-        tn = t[near[:, k]]
-        if tn.size:
-            i = np.clip(np.searchsorted(tn, t), 1, tn.size - 1) if tn.size > 1 else None
-            gap = (
-                np.abs(t - tn[0])
-                if i is None
-                else np.minimum(np.abs(t - tn[i - 1]), np.abs(t - tn[i]))
-            )
-            valid[:, k] &= gap > SETTLE_S
+        # Time to the nearest report at the source (infinite when there is none).
+        tn = np.concatenate(([-np.inf], t[near[:, k]], [np.inf]))
+        i = np.searchsorted(tn, t)
+        valid[:, k] &= np.minimum(t - tn[i - 1], tn[i] - t) > SETTLE_S
     frames = np.flatnonzero(near.any(axis=1))
     cuts = np.flatnonzero(np.diff(t[frames]) > EPISODE_GAP_S) + 1
     resets: list[float] = []
