@@ -267,3 +267,14 @@ def test_elan_malformed(tmp_path: Path) -> None:
     txt.write_text("TS a b\t\t1.0\tlater\n")
     with pytest.raises(FormatError, match="not seconds"):
         elan.read_tab(txt)
+
+
+def test_labels_only_folder_is_named_as_such(tmp_path: Path) -> None:
+    from thirdhand.io import detect
+
+    (tmp_path / "elan.eaf").write_text("<ANNOTATION_DOCUMENT/>")
+    with pytest.raises(FormatError, match=r"holds labels \(elan.eaf\) but no poses.dat"):
+        detect(tmp_path)
+    (tmp_path / "elan.eaf").unlink()
+    with pytest.raises(FormatError, match="unrecognised recording format"):
+        detect(tmp_path)

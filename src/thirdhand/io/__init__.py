@@ -65,6 +65,15 @@ def detect(path: str | os.PathLike[str]) -> str:
     for name in FORMATS:
         if format_module(name).sniff(p):
             return name
+    from thirdhand.io.mlr import ANNOTATIONS, ELAN, POSES
+
+    labels = [n for n in (ANNOTATIONS, ELAN) if p.is_dir() and (p / n).is_file()]
+    if labels:
+        raise FormatError(
+            p,
+            f"holds labels ({', '.join(labels)}) but no {POSES}: labels without their "
+            "recording; put them in the recording's folder beside its poses.dat",
+        )
     raise FormatError(
         p, f"unrecognised recording format; readable formats are {', '.join(FORMATS)}"
     )
