@@ -7,13 +7,32 @@ Two kinds of input per arm, chosen by name:
   log map ``log(R_0ᵀ R_t)`` relative to the recording's first sample, radians),
   ``force`` (N), ``torque`` (N m);
 - **level** channels, modelled per sample by each skill's Gaussian (absolute
-  values, not translated): ``force`` and ``torque`` (magnitudes, N and N m),
-  ``speed`` (m/s), ``angular`` (rad/s) and ``velocity`` (the three signed
-  components, m/s, base frame: a move down and a move up differ sample by
-  sample), smoothed over ``window`` samples; and, with two or more arms,
-  ``relpos`` (the first arm's position minus the second's, 3 columns, base
-  frame, once per recording, not per arm): where the tool is relative to the
-  hand holding the object.
+  values, not translated), smoothed over ``window`` samples. Per arm:
+
+  - ``force`` and ``torque`` (magnitudes, N and N m), ``speed`` (m/s),
+    ``angular`` (rad/s);
+  - ``velocity`` (the three signed components, m/s, base frame: a move down and
+    a move up differ sample by sample);
+  - ``forcevec`` and ``torquevec`` (the three signed components, N and N m, in
+    the frame the file reports them in — the force/torque sensor's, which moves
+    with the end effector: pressing and pulling differ);
+  - ``bodyangular`` (the angular velocity about the arm's own end-effector axes,
+    ``log(R_tᵀ R_{t+1}) / dt``, 3 columns, rad/s: a turn of the held object
+    about its own axis reads the same wherever it is held);
+  - ``logforce``, ``logtorque``, ``logspeed``, ``logangular`` (``log1p`` of the
+    magnitude in its linear channel's unit, dimensionless, in units of
+    :data:`LOG_UNIT`: a ratio, not a difference, tells two magnitudes apart).
+
+  And once per recording from its first two arms, the first holding the tool
+  and the second the object (``arms`` gives the order):
+
+  - ``relpos`` (tool position minus holder position, 3 columns, m, base frame);
+  - ``objpos`` (the same vector in the holding arm's end-effector frame,
+    ``R_holderᵀ (p_tool − p_holder)``, m: where the tool is on the object,
+    unchanged by a rigid motion of the whole scene);
+  - ``objvel`` (the time derivative of ``objpos``, m/s, holding arm's frame:
+    the tool's velocity as seen from the object, which also moves when the
+    object turns under a still tool).
 
 ``zero_ft`` subtracts each arm's mean force and torque over the first
 :data:`ZERO_FT_S` seconds from its force and torque: a force/torque sensor has
