@@ -94,7 +94,16 @@ def test_object_frame_and_own_frame_channels_ignore_a_rigid_motion_of_the_scene(
         rng.normal(size=(N, 3)),
     )
     motion, shift = Rotation.from_rotvec(rng.normal(size=3)), rng.normal(size=3)
-    names = ("objpos", "objvel", "forcevec", "torquevec", "bodyangular", "logspeed", "angular")
+    names = (
+        "objpos",
+        "objvel",
+        "holdangular",
+        "forcevec",
+        "torquevec",
+        "bodyangular",
+        "logspeed",
+        "angular",
+    )
     _, before = stream_channels(_stream(tool, holder), levels=names, window=3)
     moved = _stream(_moved(tool, motion, shift), _moved(holder, motion, shift))
     _, after = stream_channels(moved, levels=names, window=3)
@@ -118,6 +127,11 @@ def test_body_angular_velocity_is_about_the_arms_own_axes() -> None:
         lev[:, :3] * LEVEL_UNITS["bodyangular"], [[0.5, 0, 0]] * N, atol=1e-9
     )
     np.testing.assert_allclose(lev[:, 3] * LEVEL_UNITS["angular"], 0.5, atol=1e-9)
+    # as the holder of a pair: the same three columns, once, for the second arm only
+    tool = _still([0.0, 0.0, 0.1], Rotation.from_euler("y", 30, degrees=True))
+    _, pair = stream_channels(_stream(tool, arm), levels=("holdangular",), window=1)
+    assert pair.shape == (N, 3)
+    np.testing.assert_allclose(pair * LEVEL_UNITS["holdangular"], [[0.5, 0, 0]] * N, atol=1e-9)
 
 
 def test_signed_wrench_and_log_magnitudes() -> None:

@@ -32,7 +32,9 @@ Two kinds of input per arm, chosen by name:
     unchanged by a rigid motion of the whole scene);
   - ``objvel`` (the time derivative of ``objpos``, m/s, holding arm's frame:
     the tool's velocity as seen from the object, which also moves when the
-    object turns under a still tool).
+    object turns under a still tool);
+  - ``holdangular`` (``bodyangular`` of the holding arm alone, 3 columns, rad/s,
+    its own axes: the object turned about its own axis).
 
 ``zero_ft`` subtracts each arm's mean force and torque over the first
 :data:`ZERO_FT_S` seconds from its force and torque: a force/torque sensor has
@@ -83,9 +85,10 @@ LEVEL_UNITS = {
     "relpos": 0.02,
     "objpos": 0.02,
     "objvel": 0.02,
+    "holdangular": 0.1,
 }
 #: Level channels computed once per recording from two arms, not per arm.
-PAIR_LEVELS = ("relpos", "objpos", "objvel")
+PAIR_LEVELS = ("relpos", "objpos", "objvel", "holdangular")
 #: Seconds at the start of a recording whose mean force and torque are the sensor's zero.
 ZERO_FT_S = 0.5
 
@@ -171,6 +174,8 @@ def object_frame_position(tool: ArmTrack, holder: ArmTrack) -> FloatArray:
 def _pair_level(tool: ArmTrack, holder: ArmTrack, name: str, dt: float, window: int) -> FloatArray:
     if name == "relpos":
         return _smooth(tool.pos - holder.pos, window)
+    if name == "holdangular":
+        return _smooth(_body_angular(holder.quat, dt), window)
     obj = object_frame_position(tool, holder)
     if name == "objpos":
         return _smooth(obj, window)
