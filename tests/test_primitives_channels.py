@@ -74,6 +74,35 @@ def test_object_frame_velocity_of_a_still_tool_over_a_turning_object() -> None:
     np.testing.assert_allclose(np.linalg.norm(v[1:-1], axis=1), 0.05, rtol=1e-5)
 
 
+def test_cylindrical_object_frame_ignores_a_turn_about_the_holders_flange_axis() -> None:
+    # the holder (tilted 30° about base x) turns about its own z axis at 0.5 rad/s; the
+    # tool, 0.05 m from that axis and 0.2 m along it, turns with the object and also
+    # slides along the axis at 0.1 m/s
+    w = 0.5
+    tilt = Rotation.from_euler("x", 30, degrees=True)
+    rot = tilt * Rotation.from_rotvec(np.outer(w * T, [0.0, 0.0, 1.0]))
+    holder = ArmTrack(np.full((N, 3), 0.3), rot.as_quat(), np.zeros((N, 3)), np.zeros((N, 3)))
+    local = np.column_stack([np.full(N, 0.05), np.zeros(N), 0.2 + 0.1 * T])
+    tool_pos = holder.pos + rot.apply(local)
+    tool = ArmTrack(tool_pos, np.tile([0.0, 0.0, 0.0, 1.0], (N, 1)), holder.force, holder.force)
+    names = ("objpos", "objcyl", "objcylvel")
+    _, lev = stream_channels(_stream(tool, holder), levels=names, window=1)
+    assert lev.shape == (N, 3 + 2 + 2)
+    np.testing.assert_allclose(lev[:, :3] * LEVEL_UNITS["objpos"], local, atol=1e-12)
+    np.testing.assert_allclose(lev[:, 3] * LEVEL_UNITS["objcyl"], 0.05, atol=1e-12)
+    np.testing.assert_allclose(lev[:, 4] * LEVEL_UNITS["objcyl"], local[:, 2], atol=1e-12)
+    np.testing.assert_allclose(lev[:, 5:] * LEVEL_UNITS["objcylvel"], [[0, 0.1]] * N, atol=1e-9)
+    # a turn of the object under a tool still in the base frame moves objpos round the
+    # axis, but neither the distance from the axis nor the position along it
+    still = ArmTrack(np.tile(tool_pos[0], (N, 1)), tool.quat, tool.force, tool.torque)
+    _, lev = stream_channels(_stream(still, holder), levels=names, window=1)
+    obj = lev[:, :3] * LEVEL_UNITS["objpos"]
+    assert np.ptp(obj[:, 0]) > 0.002  # 0.05 m · (1 − cos 1 rad)
+    np.testing.assert_allclose(lev[:, 3] * LEVEL_UNITS["objcyl"], 0.05, atol=1e-12)
+    np.testing.assert_allclose(lev[:, 4] * LEVEL_UNITS["objcyl"], 0.2, atol=1e-12)
+    np.testing.assert_allclose(lev[:, 5:], 0.0, atol=1e-9)
+
+
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_object_frame_and_own_frame_channels_ignore_a_rigid_motion_of_the_scene(seed: int) -> None:
     rng = np.random.default_rng(seed)
@@ -98,6 +127,8 @@ def test_object_frame_and_own_frame_channels_ignore_a_rigid_motion_of_the_scene(
         "objpos",
         "objvel",
         "holdangular",
+        "objcyl",
+        "objcylvel",
         "forcevec",
         "torquevec",
         "bodyangular",

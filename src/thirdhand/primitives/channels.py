@@ -34,7 +34,12 @@ Two kinds of input per arm, chosen by name:
     the tool's velocity as seen from the object, which also moves when the
     object turns under a still tool);
   - ``holdangular`` (``bodyangular`` of the holding arm alone, 3 columns, rad/s,
-    its own axes: the object turned about its own axis).
+    its own axes: the object turned about its own axis);
+  - ``objcyl`` (``objpos`` in cylindrical coordinates about the holding arm's
+    z axis, the flange axis its wrist turns the object about: the distance from
+    that axis and the position along it, 2 columns, m: unchanged by a turn of
+    the object about the flange axis as well) and ``objcylvel`` (their time
+    derivatives, m/s: moving away from the axis against moving along it).
 
 ``zero_ft`` subtracts each arm's mean force and torque over the first
 :data:`ZERO_FT_S` seconds from its force and torque: a force/torque sensor has
@@ -86,9 +91,11 @@ LEVEL_UNITS = {
     "objpos": 0.02,
     "objvel": 0.02,
     "holdangular": 0.1,
+    "objcyl": 0.02,
+    "objcylvel": 0.02,
 }
 #: Level channels computed once per recording from two arms, not per arm.
-PAIR_LEVELS = ("relpos", "objpos", "objvel", "holdangular")
+PAIR_LEVELS = ("relpos", "objpos", "objvel", "holdangular", "objcyl", "objcylvel")
 #: Seconds at the start of a recording whose mean force and torque are the sensor's zero.
 ZERO_FT_S = 0.5
 
@@ -179,6 +186,13 @@ def _pair_level(tool: ArmTrack, holder: ArmTrack, name: str, dt: float, window: 
     obj = object_frame_position(tool, holder)
     if name == "objpos":
         return _smooth(obj, window)
+    if name in ("objcyl", "objcylvel"):
+        # distance from the holder's z (flange) axis and position along it: unchanged
+        # when the object is turned about that axis
+        cyl = np.column_stack([np.hypot(obj[:, 0], obj[:, 1]), obj[:, 2]])
+        if name == "objcylvel":
+            cyl = np.gradient(cyl, dt, axis=0)
+        return _smooth(cyl, window)
     # objvel: the tool's velocity as seen from the (possibly turning) object
     return _smooth(np.gradient(obj, dt, axis=0), window)
 
