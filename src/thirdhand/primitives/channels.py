@@ -14,8 +14,9 @@ Two kinds of input per arm, chosen by name:
   - ``velocity`` (the three signed components, m/s, base frame: a move down and
     a move up differ sample by sample);
   - ``forcevec`` and ``torquevec`` (the three signed components, N and N m, in
-    the frame the file reports them in — the force/torque sensor's, which moves
-    with the end effector: pressing and pulling differ);
+    the frame the file reports them in — read as the force/torque sensor's, which
+    moves with the end effector, from how gravity shows off contact; the files do
+    not say: pressing and pulling differ);
   - ``bodyangular`` (the angular velocity about the arm's own end-effector axes,
     ``log(R_tᵀ R_{t+1}) / dt``, 3 columns, rad/s: a turn of the held object
     about its own axis reads the same wherever it is held);
