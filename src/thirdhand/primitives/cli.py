@@ -277,7 +277,11 @@ def evaluate(
     ] = "pos",
     levels: Annotated[
         str,
-        typer.Option(help="Level channels per arm: force, torque, speed, angular ('' for none)."),
+        typer.Option(
+            help="Level channels: force, torque, speed, angular, velocity, forcevec, "
+            "torquevec, bodyangular, logforce, logtorque, logspeed, logangular per arm; "
+            "relpos, objpos, objvel per pair of arms ('' for none)."
+        ),
     ] = "force",
     arms: Annotated[
         str | None, typer.Option(help="Arms to use, e.g. 0 or 0,1 (default all).")
