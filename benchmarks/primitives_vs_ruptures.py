@@ -93,6 +93,15 @@ HSMM_ENDS_CONFIGS = {
     "peeling_noobj.mat": replace(HSMM_CONFIGS["peeling_noobj.mat"], ends=True),
 }
 
+#: Per file: the same with the log-magnitude level channels (the best on both files).
+HSMM_LOG_CONFIGS = {
+    "circular_wiping.mat": replace(HSMM_ENDS_CONFIGS["circular_wiping.mat"], levels=("logforce",)),
+    "peeling_noobj.mat": replace(
+        HSMM_ENDS_CONFIGS["peeling_noobj.mat"],
+        levels=("logforce", "logtorque", "logspeed", "logangular", "relpos"),
+    ),
+}
+
 
 def _features(streams: list[LabelledStream], cfg: ParserConfig) -> list[np.ndarray]:
     from thirdhand.primitives.channels import stream_channels
@@ -244,6 +253,19 @@ def main() -> None:
                 he.accuracy,
                 he.global_accuracy,
                 he.boundaries,
+                time.perf_counter() - t0,
+            )
+        )
+        lcfg = HSMM_LOG_CONFIGS.get(path.name, replace(ecfg, levels=("logforce",)))
+        t0 = time.perf_counter()
+        hl = evaluate_streams(streams, lcfg, tolerance=args.tolerance)
+        k_log = "/".join(str(r.n_skills) for r in hl.streams)
+        rows.append(
+            (
+                f"HSMM entry/exit, log levels, K={k_log}",
+                hl.accuracy,
+                hl.global_accuracy,
+                hl.boundaries,
                 time.perf_counter() - t0,
             )
         )
