@@ -301,3 +301,30 @@ def test_open_start_and_end_for_parts_cut_from_a_recording() -> None:
     assert set(cut.decode(prefix, open_end=True)[0][truth_p > 0].tolist()) <= {1, 2}
     with pytest.raises(PrimitiveError, match="2 streams but 1 open-end flags"):
         HiddenSemiMarkov(2, ends=True).fit_unsupervised([x1, x2], open_ends=[(True, True)])
+
+
+def test_adapt_is_a_fixed_point_on_the_fitted_streams_and_pools_a_new_one() -> None:
+    durations = {1: 12, 2: 5, 3: 8}
+    a, lab_a = _phased_stream([1, 2, 3, 2, 3, 2, 3, 1], durations)
+    model = HiddenSemiMarkov(reg=1e-2).fit_labelled([a], [lab_a])
+    means, mu = model.means_.copy(), model.dur_mu_.copy()
+    # on the streams it was fitted on, the model's own parse is its labels: nothing moves
+    model.adapt([a])
+    np.testing.assert_array_equal(model.means_, means)
+    np.testing.assert_array_equal(model.dur_mu_, mu)
+    # a recording whose every channel reads 0.3 higher (a sensor offset): parsed right,
+    # and each state's mean becomes the mean of its samples in both recordings
+    b, lab_b = _phased_stream([1, 2, 3, 2, 3, 1], durations)
+    b = b + 0.3
+    model.adapt([a, b])
+    assert list(model.states_) == [1, 2, 3]
+    np.testing.assert_array_equal(model.predict(b), lab_b)
+    for i, k in enumerate((1, 2, 3)):
+        pooled = np.vstack([a[lab_a == k], b[lab_b == k]]).mean(axis=0)
+        np.testing.assert_allclose(model.means_[i], pooled, rtol=0, atol=1e-12)
+
+
+def test_adapt_needs_a_fitted_model() -> None:
+    x, _ = _phased_stream([1, 2, 1], {1: 4, 2: 3})
+    with pytest.raises(PrimitiveError, match="adapt needs a fitted model"):
+        HiddenSemiMarkov(2).adapt([x])

@@ -345,6 +345,7 @@ def test_evaluate_selects_k_by_heldout_likelihood_and_reports_bic(
         (["--normalise", "rank"], "--normalise must be none, scale or zscore"),
         (["--ends"], "--ends is an option of the unsupervised HSMM"),
         (["--ends", "--label-trained"], "--ends is an option of the unsupervised HSMM"),
+        (["--adapt"], "--adapt is an option of the HSMM"),
     ],
 )
 def test_evaluate_bad_options_one_line(

@@ -265,6 +265,13 @@ def evaluate(
             "at its end (approach, withdrawal) around the K states of the work."
         ),
     ] = False,
+    adapt: Annotated[
+        bool,
+        typer.Option(
+            help="HSMM: after fitting on the other recordings, adapt the model to the one "
+            "parsed by hard EM on its samples (never its labels); transductive, report apart."
+        ),
+    ] = False,
     normalise: Annotated[
         str,
         typer.Option(
@@ -280,7 +287,7 @@ def evaluate(
         typer.Option(
             help="Level channels: force, torque, speed, angular, velocity, forcevec, "
             "torquevec, bodyangular, logforce, logtorque, logspeed, logangular per arm; "
-            "relpos, objpos, objvel per pair of arms ('' for none)."
+            "relpos, objpos, objvel, holdangular, objcyl, objcylvel per pair of arms ('' for none)."
         ),
     ] = "force",
     arms: Annotated[
@@ -342,6 +349,10 @@ def evaluate(
                 "--ends is an option of the unsupervised HSMM "
                 "(--model hsmm without --label-trained)"
             )
+        if adapt and model != "hsmm" and not label_trained:
+            raise ThirdhandError(
+                "--adapt is an option of the HSMM (--model hsmm or --label-trained)"
+            )
         options.finite("--tolerance", tolerance, low=0.0)
         options.finite("--grid", grid, low=0.0)
         options.integer("--subsample", subsample, low=1, high=1000)
@@ -381,6 +392,7 @@ def evaluate(
             zero_ft=zero_ft,
             ends=ends,
             normalise=normalise,
+            adapt=adapt,
             k_range=(1, 2, 3, 4, 5, 6) if ends else (2, 3, 4, 5, 6),
         )
         results = {}

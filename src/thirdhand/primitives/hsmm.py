@@ -537,6 +537,34 @@ class HiddenSemiMarkov:
         self.score_ = best[0]
         return self
 
+    def adapt(self, xs: Sequence[ArrayLike], *, n_iter: int = 20) -> HiddenSemiMarkov:
+        """Continue hard EM on ``xs``, starting from this fitted model's parses of them.
+
+        Unsupervised adaptation to new recordings: pass the training streams and
+        the new ones together; their Viterbi parses under the current parameters
+        are the starting state sequences, and parse → refit rounds follow until the
+        parses repeat. No label is used, and the states keep their meaning (each
+        starts from its own fitted parameters), so a state → label map learned
+        before still applies. Every stream is a whole recording (closed ends).
+
+        Parameters
+        ----------
+        xs : sequence of array_like, shape (n_i, C)
+        n_iter : int
+            At most this many parse → refit rounds.
+        """
+        if not hasattr(self, "means_"):
+            raise PrimitiveError(
+                "HSMM: adapt needs a fitted model (fit_labelled or fit_unsupervised first)"
+            )
+        xa = _check_streams(xs)
+        opens = [(False, False)] * len(xa)
+        zs = [self.decode(a)[0] for a in xa]
+        zs, history = self._hard_em(xa, zs, self.means_.shape[0], self.ends_, n_iter, opens)
+        self.history_ = list(getattr(self, "history_", [])) + history
+        self.score_ = self._total(xa, opens)
+        return self
+
     # ------------------------------------------------------------ parsing
     def log_emissions(self, x: ArrayLike) -> FloatArray:
         """Per-sample emission log-likelihood, shape (n, K)."""

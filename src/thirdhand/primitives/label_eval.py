@@ -105,6 +105,12 @@ class ParserConfig:
     normalise : {"none", "scale", "zscore"}
         Level channels per recording: as they are, divided by that recording's
         standard deviation of each channel, or also centred on its median.
+    adapt : bool
+        HSMM: after fitting on the training recordings, continue hard EM on them
+        together with the recording to parse (its samples, never its labels;
+        :meth:`~thirdhand.primitives.hsmm.HiddenSemiMarkov.adapt`). Transductive:
+        the parsed recording is then part of the fit, which strict leave-one-out
+        excludes, so its figures are reported apart.
     """
 
     shape: tuple[str, ...] = ("pos",)
@@ -127,6 +133,7 @@ class ParserConfig:
     zero_ft: bool = False
     ends: bool = False
     normalise: str = "none"
+    adapt: bool = False
 
 
 @dataclass(frozen=True)
@@ -597,6 +604,8 @@ def _hsmm_results(
                 [tracks[j][2] for j in train], n_init=cfg.n_init
             )
             selection = KSelection({}, held, chosen, per_fold)
+        if cfg.adapt:
+            model.adapt([tracks[j][2] for j in train if j != i] + [lev])
         sub = model.predict(lev)
         fit_s = time.perf_counter() - t0
         idx = np.clip(np.searchsorted(t, s.t, side="right") - 1, 0, t.size - 1)
