@@ -224,8 +224,9 @@ def stream_channels(
     Returns
     -------
     shape : ndarray, shape (n, 3 · len(shape) · arms), in channel units
-    levels : ndarray, shape (n, L), in channel units (3 columns for ``velocity``, else 1, per
-        arm; then 3 for ``relpos``)
+    levels : ndarray, shape (n, L), in channel units: the per-arm channels of each arm in
+        turn (3 columns for a vector channel, 1 for a magnitude), then the pair channels
+        (3 columns each, 2 for ``objcyl`` / ``objcylvel``), in the order given
     """
     if not shape:
         raise PrimitiveError("at least one shape channel is needed (pos, rot, force, torque)")
