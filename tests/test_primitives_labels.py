@@ -526,3 +526,26 @@ def test_normalise_levels_per_recording() -> None:
     assert normalise_levels(lev, "none") is not lev
     with pytest.raises(PrimitiveError, match="normalisation must be one of"):
         normalise_levels(lev, "rank")
+
+
+def test_evaluate_adapt_says_transductive_and_stores_it(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _write_proc(tmp_path / "w.mat", [_wiping_like(s) for s in range(3)])
+    out = tmp_path / "ad.json"
+    rc, so, se = call(
+        capsys,
+        "primitives",
+        "evaluate",
+        str(tmp_path / "w.mat"),
+        "--label-trained",
+        "--adapt",
+        "--json",
+        str(out),
+    )
+    assert rc == 0, se
+    assert "ADAPTED (transductive)" in so
+    doc = json.loads(out.read_text())
+    assert doc["config"]["adapt"] is True
+    # the synthetic recordings look alike: adapting keeps the labelled phases
+    assert all(r["named_accuracy"] > 0.95 for r in doc["files"][0]["recordings"])

@@ -417,6 +417,11 @@ def evaluate(
                 f"fitted on the others' human labels; frame accuracy with labels as named "
                 f"{named:.3f}"
             )
+        if cfg.adapt:
+            out.print(
+                f"{fname}: ADAPTED (transductive): each recording parsed by a model fitted on "
+                "the others, then adapted to it by hard EM on its samples (not its labels)"
+            )
         out.print(
             f"{fname}: {len(streams)} recordings, K = "
             f"{'/'.join(str(r.n_skills) for r in res.streams)}, frame accuracy "
