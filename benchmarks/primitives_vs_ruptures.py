@@ -244,31 +244,23 @@ def main() -> None:
             )
         )
         ecfg = HSMM_ENDS_CONFIGS.get(path.name, replace(hcfg, ends=True))
-        t0 = time.perf_counter()
-        he = evaluate_streams(streams, ecfg, tolerance=args.tolerance)
-        k_ends = "/".join(str(r.n_skills) for r in he.streams)
-        rows.append(
-            (
-                f"HSMM entry/exit (no labels), K={k_ends}",
-                he.accuracy,
-                he.global_accuracy,
-                he.boundaries,
-                time.perf_counter() - t0,
-            )
-        )
         lcfg = HSMM_LOG_CONFIGS.get(path.name, replace(ecfg, levels=("logforce",)))
-        t0 = time.perf_counter()
-        hl = evaluate_streams(streams, lcfg, tolerance=args.tolerance)
-        k_log = "/".join(str(r.n_skills) for r in hl.streams)
-        rows.append(
-            (
-                f"HSMM entry/exit, log levels, K={k_log}",
-                hl.accuracy,
-                hl.global_accuracy,
-                hl.boundaries,
-                time.perf_counter() - t0,
+        for label, c in (
+            ("HSMM entry/exit (no labels)", ecfg),
+            ("HSMM entry/exit, log levels", lcfg),
+        ):
+            t0 = time.perf_counter()
+            he = evaluate_streams(streams, c, tolerance=args.tolerance)
+            k_ends = "/".join(str(r.n_skills) for r in he.streams)
+            rows.append(
+                (
+                    f"{label}, K={k_ends}",
+                    he.accuracy,
+                    he.global_accuracy,
+                    he.boundaries,
+                    time.perf_counter() - t0,
+                )
             )
-        )
         hfeats = _features(streams, hcfg)
         t0 = time.perf_counter()
         cuts = _ruptures(hfeats, "kernel", streams)

@@ -477,8 +477,9 @@ def test_label_trained_hsmm_parses_held_out_wiping_by_the_labels_names() -> None
     assert res.mapping == {1: 1, 2: 2, 3: 3}
 
 
+@pytest.mark.parametrize("adapt", [False, True])
 def test_evaluate_label_trained_command_says_supervised(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], adapt: bool
 ) -> None:
     _write_proc(tmp_path / "w.mat", [_wiping_like(s) for s in range(3)])
     out = tmp_path / "sup.json"
@@ -488,13 +489,18 @@ def test_evaluate_label_trained_command_says_supervised(
         "evaluate",
         str(tmp_path / "w.mat"),
         "--label-trained",
+        *(["--adapt"] if adapt else []),
         "--json",
         str(out),
     )
     assert rc == 0, se
     assert "LABEL-TRAINED (supervised)" in so
-    f = json.loads(out.read_text())["files"][0]
+    assert ("ADAPTED (transductive)" in so) is adapt
+    doc = json.loads(out.read_text())
+    assert doc["config"]["adapt"] is adapt
+    f = doc["files"][0]
     assert f["label_trained"] is True
+    # the synthetic recordings look alike: adapting to the parsed one keeps the phases
     assert all(r["named_accuracy"] > 0.95 for r in f["recordings"])
 
 
@@ -526,26 +532,3 @@ def test_normalise_levels_per_recording() -> None:
     assert normalise_levels(lev, "none") is not lev
     with pytest.raises(PrimitiveError, match="normalisation must be one of"):
         normalise_levels(lev, "rank")
-
-
-def test_evaluate_adapt_says_transductive_and_stores_it(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    _write_proc(tmp_path / "w.mat", [_wiping_like(s) for s in range(3)])
-    out = tmp_path / "ad.json"
-    rc, so, se = call(
-        capsys,
-        "primitives",
-        "evaluate",
-        str(tmp_path / "w.mat"),
-        "--label-trained",
-        "--adapt",
-        "--json",
-        str(out),
-    )
-    assert rc == 0, se
-    assert "ADAPTED (transductive)" in so
-    doc = json.loads(out.read_text())
-    assert doc["config"]["adapt"] is True
-    # the synthetic recordings look alike: adapting keeps the labelled phases
-    assert all(r["named_accuracy"] > 0.95 for r in doc["files"][0]["recordings"])
