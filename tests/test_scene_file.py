@@ -160,6 +160,11 @@ def test_real_toolbox_learned_with_its_scene_executes(shared_data: Path, tmp_pat
     assert r.exit_code == 0, r.output
     objects = {o["name"]: o for o in json.loads(task.read_text())["objects"]}
     assert [objects[n]["mesh"] for n in BOARDS] == ["ToolboxPart2.stl", "ToolboxPart3.stl"]
+    # without --demo the board lying on the table has no collision-free generic grasp:
+    # a failure names the recording the task was learned from
+    r = runner.invoke(app, ["execute", str(task), "--meshes", str(folder / "meshes")])
+    flat = " ".join(r.output.split())
+    assert r.exit_code == 0 or f"--demo {folder / 'toolbox_coop_4'} takes the grasps" in flat
     r = runner.invoke(
         app,
         [
@@ -205,3 +210,21 @@ def test_real_bench_scene_finds_its_renamed_seat_mesh(shared_data: Path) -> None
     )
     assert np.allclose(np.sort(hi - lo), [0.04, 0.3, 0.3], atol=1e-6)
     assert np.abs(np.concatenate([lo, hi])).max() < 0.5
+
+
+def test_learned_from_finds_the_first_readable_recording(tmp_path: Path) -> None:
+    from thirdhand.execute.cli import learned_from
+    from thirdhand.synth import make_scene
+    from thirdhand.task.model import InputFile, TaskFile
+
+    rec = tmp_path / "rec.parquet"
+    io.save(make_scene("drawer", seed=0, sensor=None).slice(0.0, 1.0), rec)
+    scene = tmp_path / "scene.json"
+    scene.write_text("{}")
+    task = tmp_path / "task.json"
+    inputs = [InputFile(path=str(tmp_path / "gone.parquet"), sha256="0" * 64)]
+    inputs.append(InputFile(path=str(scene), sha256="0" * 64))
+    assert learned_from(TaskFile.new(inputs=inputs), task) is None
+    # a relative path is found beside the task file
+    inputs.append(InputFile(path="rec.parquet", sha256="0" * 64))
+    assert learned_from(TaskFile.new(inputs=inputs), task) == tmp_path / "rec.parquet"

@@ -12,13 +12,16 @@ step fails.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated
+from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from thirdhand.errors import ThirdhandError
+
+if TYPE_CHECKING:
+    from thirdhand.task.model import TaskFile
 
 
 def execute_command(
@@ -186,4 +189,27 @@ def execute_command(
     verdict = "every step succeeded" if result.success else "some steps failed"
     console.print(f"{verdict}; {result.n_collisions} configurations in collision (dense check)")
     if not result.success:
+        if demo is None and (source := learned_from(t, task)) is not None:
+            console.print(
+                f"hint: no grasp came from a demonstration; the task was learned from {source}: "
+                f"--demo {source} takes the grasps from its fingers"
+            )
         raise typer.Exit(1)
+
+
+def learned_from(t: TaskFile, task: Path) -> Path | None:
+    """The first recording the task's provenance lists that is still readable, or None.
+
+    A relative path is tried as written (from the current folder) and beside the task file.
+    """
+    from thirdhand import io
+
+    for inp in t.provenance.inputs:
+        raw = Path(inp.path)
+        for p in (raw,) if raw.is_absolute() else (raw, task.parent / raw):
+            try:
+                io.detect(p)
+            except ThirdhandError:
+                continue
+            return p
+    return None
