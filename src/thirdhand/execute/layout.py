@@ -29,8 +29,8 @@ the robot's base); for the bench it lays the seat flat with its legs pointing up
 
 Start layouts (:func:`start_layout`): every other part lies on the table within
 the robot's reach, a rod (one long axis) on its side spun at random about its
-axis, any other part with the face up that is up at its goal, turned about the
-vertical at random; none overlaps another, the assembly's footprint or the
+axis (a flat one, a board, with the side up that is up at its goal), any other
+part with the face up that is up at its goal, turned about the vertical at random; none overlaps another, the assembly's footprint or the
 robot's base.
 """
 
@@ -583,18 +583,52 @@ def _is_rod(v: FloatArray) -> int | None:
     return None
 
 
+def _is_flat_bar(v: FloatArray, long_axis: int) -> bool:
+    """Whether a rod's cross-section is flat (a board, not a leg).
+
+    Flat as a plate in :func:`thirdhand.execute.grasps.shape_grasps`: the thinner side of
+    the cross-section under 0.35 times the wider one.
+    """
+    ext = v.max(axis=0) - v.min(axis=0)
+    a, b = ext[(long_axis + 1) % 3], ext[(long_axis + 2) % 3]
+    return bool(min(a, b) < 0.35 * max(a, b))
+
+
+def _flat_bar_spin(long_axis: int, goal_rotation: FloatArray) -> float:
+    """The spin about a flat bar's long axis that puts up its side that is up at its goal.
+
+    Of the two cross-section axes, the one nearest to up at the goal (``goal_rotation``,
+    world) is turned to world up with the same sign, so the edge (or face) free above the
+    bar at its goal is free above it on the table too. In :func:`rest_rotation`'s frame
+    the body axis ``long_axis + 2`` is up at spin 0 and ``long_axis + 1`` at spin π/2.
+    """
+    a, b = (long_axis + 1) % 3, (long_axis + 2) % 3
+    up = goal_rotation[2]  # world z in body coordinates
+    if abs(up[b]) >= abs(up[a]):
+        return 0.0 if up[b] > 0 else float(np.pi)
+    return float(np.pi / 2) if up[a] > 0 else float(-np.pi / 2)
+
+
 def rest_rotation(v: FloatArray, goal_rotation: FloatArray, rng: np.random.Generator) -> FloatArray:
     """A random resting orientation (3, 3) on the table for a part with body vertices ``v``.
 
-    A rod lies on its side spun about its axis; any other part keeps up the body
-    axis nearest to up at its goal (``goal_rotation``, world), turned at random
-    about the vertical.
+    A rod lies on its side spun at random about its axis, unless its cross-section
+    is flat (a board, :func:`_is_flat_bar`): then it stands on the edge, or lies on
+    the face, that puts up its side that is up at its goal (:func:`_flat_bar_spin`);
+    any other part keeps up the body axis nearest to up at its goal
+    (``goal_rotation``, world). Every part is turned at random about the vertical.
+    A board propped on a long edge at a random tilt is not a resting pose, and its
+    grasps from above there came from below or the side at its goal, where the
+    wrist hit the table (the toolbox's boards, 1.7 cm thick); a board lying flat has
+    no grasp at all (the fingertips go into the table).
     """
     long_axis = _is_rod(v)
     yaw = rng.uniform(-np.pi, np.pi)
     rz = rot_z(yaw)
     if long_axis is not None:
         spin = rng.uniform(-np.pi, np.pi)
+        if _is_flat_bar(v, long_axis):
+            spin = _flat_bar_spin(long_axis, goal_rotation)
         axis = np.zeros(3)
         axis[long_axis] = 1.0
         from scipy.spatial.transform import Rotation
