@@ -30,8 +30,8 @@ the robot's base); for the bench it lays the seat flat with its legs pointing up
 Start layouts (:func:`start_layout`): every other part lies on the table within
 the robot's reach, a rod (one long axis) on its side spun at random about its
 axis (a flat one, a board, with the side up that is up at its goal), any other
-part with the face up that is up at its goal, turned about the vertical at random; none overlaps another, the assembly's footprint or the
-robot's base.
+part with the face up that is up at its goal, turned about the vertical at
+random; none overlaps another, the assembly's footprint or the robot's base.
 """
 
 from __future__ import annotations
