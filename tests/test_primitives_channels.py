@@ -192,3 +192,14 @@ def test_object_frame_position_function_and_pair_channel_errors() -> None:
     )
     with pytest.raises(PrimitiveError, match="level 'objvel' needs two arms, got 1"):
         stream_channels(_stream(tool, holder), levels=("objvel",), arms=(0,))
+
+
+def test_cli_levels_help_names_every_level_channel() -> None:
+    import inspect
+
+    from thirdhand.primitives import channels
+    from thirdhand.primitives.cli import evaluate
+
+    help_text = inspect.signature(evaluate).parameters["levels"].annotation
+    words = set(str(help_text).replace(",", " ").replace(";", " ").split())
+    assert set(channels.LEVEL_UNITS) <= words

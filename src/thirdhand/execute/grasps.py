@@ -38,6 +38,11 @@ FloatArray = NDArray[np.float64]
 
 #: How far inside a face the tool frame sits for a face or end grasp, metres.
 GRASP_DEPTH_M = 0.015
+#: A part is a rod when its longest extent is at least this many times the next.
+ROD_RATIO = 1.8
+#: A part (or a rod's cross-section) is flat when its thinnest extent is under this
+#: fraction of the next.
+FLAT_RATIO = 0.35
 
 
 @dataclass(frozen=True)
@@ -110,7 +115,7 @@ def shape_grasps(bbox_min: ArrayLike, bbox_max: ArrayLike, *, n_around: int = 12
     order = np.argsort(-ext, kind="stable")
     e = np.eye(3)
     out: list[Grasp] = []
-    if ext[order[0]] >= 1.8 * ext[order[1]]:
+    if ext[order[0]] >= ROD_RATIO * ext[order[1]]:
         a, b, c = (int(i) for i in order)
         for f in (0.85, 0.7, 0.5, 0.3, 0.15):
             p = centre.copy()
@@ -126,7 +131,7 @@ def shape_grasps(bbox_min: ArrayLike, bbox_max: ArrayLike, *, n_around: int = 12
             t = tool_frame(p, -sign * e[a], e[b])
             out += [Grasp(r, "shape", "end") for r in _rolls(t, 4)]
         return out
-    if ext[order[2]] < 0.35 * ext[order[1]]:
+    if ext[order[2]] < FLAT_RATIO * ext[order[1]]:
         n_ax, u, v = int(order[2]), int(order[0]), int(order[1])
         for sign in (1.0, -1.0):
             for fu in (-0.3, 0.0, 0.3):
@@ -276,7 +281,7 @@ def rod_turns(
     hi = np.asarray(bbox_max, dtype=np.float64)
     ext = hi - lo
     order = np.argsort(-ext, kind="stable")
-    if ext[order[0]] < 1.8 * ext[order[1]]:
+    if ext[order[0]] < ROD_RATIO * ext[order[1]]:
         return list(grasps)
     a = int(order[0])
     centre = (lo + hi) / 2.0

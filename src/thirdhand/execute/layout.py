@@ -47,6 +47,7 @@ from numpy.typing import NDArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.collision_check import coal_transform
 from thirdhand.execute.goals import goal_pose, sweep_dofs, vary
+from thirdhand.execute.grasps import FLAT_RATIO, ROD_RATIO
 from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.meshes import object_triangles
@@ -578,7 +579,7 @@ def make_workcell(
 def _is_rod(v: FloatArray) -> int | None:
     """Index of the long axis of a rod-shaped vertex cloud, or None."""
     ext = np.sort(v.max(axis=0) - v.min(axis=0))[::-1]
-    if ext[0] >= 1.8 * ext[1]:
+    if ext[0] >= ROD_RATIO * ext[1]:
         return int(np.argmax(v.max(axis=0) - v.min(axis=0)))
     return None
 
@@ -587,11 +588,11 @@ def _is_flat_bar(v: FloatArray, long_axis: int) -> bool:
     """Whether a rod's cross-section is flat (a board, not a leg).
 
     Flat as a plate in :func:`thirdhand.execute.grasps.shape_grasps`: the thinner side of
-    the cross-section under 0.35 times the wider one.
+    the cross-section under :data:`~thirdhand.execute.grasps.FLAT_RATIO` times the wider one.
     """
     ext = v.max(axis=0) - v.min(axis=0)
     a, b = ext[(long_axis + 1) % 3], ext[(long_axis + 2) % 3]
-    return bool(min(a, b) < 0.35 * max(a, b))
+    return bool(min(a, b) < FLAT_RATIO * max(a, b))
 
 
 def _flat_bar_spin(long_axis: int, goal_rotation: FloatArray) -> float:
