@@ -30,8 +30,8 @@ test: $(STAMP) lint
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/python -m pytest -n 2 --dist loadfile
 
 lint: $(STAMP)
-	$(BIN)/ruff check src tests benchmarks scripts
-	$(BIN)/ruff format --check src tests benchmarks scripts
+	$(BIN)/ruff check src tests research benchmarks conftest.py
+	$(BIN)/ruff format --check src tests research benchmarks conftest.py
 	$(BIN)/mypy
 
 clean:

@@ -1,6 +1,6 @@
 """Joint type of the real tracks: thirdhand against a naive line-vs-circle fit and a peer.
 
-On the 25 real tracks of ``../shared/data`` (see ``scripts/constraint_type_table.py``),
+On the 25 real tracks of ``../shared/data`` (see ``research/scripts/constraint_type_table.py``),
 with default flags, prints each method's type accuracy and its fits per second.
 
 - **thirdhand**: :func:`thirdhand.constraints.fit_constraint` (noise estimated).
@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 
 from thirdhand.constraints import fit_constraint
 
-sys.path.insert(0, str(Path(__file__).parents[1] / "scripts"))
+sys.path.insert(0, str(Path(__file__).parents[1] / "research" / "scripts"))
 from constraint_type_table import real_tracks
 
 FloatArray = NDArray[np.float64]

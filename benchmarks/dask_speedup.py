@@ -1,8 +1,8 @@
-"""Speed-up of ``thirdhand irl experiment noise`` on a Dask cluster of 2 workers against serial.
+"""Speed-up of ``python -m research irl noise`` on a Dask cluster of 2 workers against serial.
 
 Starts a ``dask scheduler`` and two single-threaded ``dask worker`` processes on
 127.0.0.1 (:func:`thirdhand.batch.dask_processes`, as in docs/cluster.md), runs
-``thirdhand irl experiment noise --runs N --json …`` serially and then with
+``python -m research irl noise --runs N --json …`` serially and then with
 ``--scheduler tcp://127.0.0.1:PORT`` on the cluster (the same trials as Dask
 tasks), checks that both JSON tables and both printed tables are identical, and
 prints both wall times and their ratio. The cluster's start-up is timed apart.
@@ -31,10 +31,14 @@ from thirdhand.batch import dask_processes
 
 def run_cli(runs: int, target: Path, *extra: str) -> tuple[str, list[str], float]:
     """The JSON text, the printed table rows and the wall time of one CLI run."""
-    cmd = [sys.executable, "-m", "thirdhand", "irl", "experiment", "noise", "--runs", str(runs)]
+    cmd = [sys.executable, "-m", "research", "irl", "noise", "--runs", str(runs)]
     start = time.perf_counter()
     done = subprocess.run(
-        [*cmd, "--json", str(target), *extra], capture_output=True, text=True, check=False
+        [*cmd, "--json", str(target), *extra],
+        capture_output=True,
+        text=True,
+        check=False,
+        cwd=Path(__file__).resolve().parents[1],  # the repository root: `python -m research`
     )
     seconds = time.perf_counter() - start
     if done.returncode != 0:

@@ -14,7 +14,12 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from thirdhand.experiments.primitive_library import dp_check, library_scaling
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: `research`
+
+from research.primitive_library import dp_check, library_scaling
 
 
 def main() -> None:

@@ -12,16 +12,20 @@ Usage: ``python benchmarks/rcsi.py [--repeats 10] [--noise-runs 100] [--jobs 2]`
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from thirdhand.experiments.relational_irl import (
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: `research`
+
+from research.irl_tables import run_experiment
+from research.relational_irl import (
     BALANCE,
     REWARD_DISTINCT_FROM_ARGS,
     REWARD_LOOKAHEAD,
     SHAPING,
-    run_experiment,
 )
 from thirdhand.relational.csi import fit_rcsi
 from thirdhand.relational.data import expert_pairs, random_pairs

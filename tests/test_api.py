@@ -103,7 +103,7 @@ def test_stages_do_not_import_the_synthetic_world() -> None:
         "import thirdhand.plan.learn, thirdhand.segment, thirdhand.constraints\n"
         "import thirdhand.primitives, thirdhand.execute, thirdhand.review\n"
         "import thirdhand.task_learning\n"
-        "edges = ('thirdhand.synth', 'thirdhand.experiments', 'thirdhand.datasets')\n"
+        "edges = ('thirdhand.synth', 'research', 'thirdhand.datasets')\n"
         "print([m for m in sys.modules if m.startswith(edges)])\n"
     )
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -8,24 +8,17 @@ serial one exactly.
 
 from __future__ import annotations
 
-import json
-import os
 import socket
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from cli_helpers import call
-from thirdhand.batch import CONNECT_TIMEOUT_S, check_scheduler, dask_processes, parallel_map
+from thirdhand.batch import CONNECT_TIMEOUT_S, check_scheduler, parallel_map
 from thirdhand.errors import OptionError
 
 distributed = pytest.importorskip("distributed")
-
-#: Seeds per row of the compared ``irl experiment noise`` tables: 8 rows x 2 seeds =
-#: 16 trials of ~5 s each, run twice (serial, then on the cluster).
-RUNS = 2
 
 
 def _square(x: int) -> int:
@@ -38,17 +31,6 @@ def _fail_on_three(x: int) -> int:
     return x
 
 
-@pytest.fixture(scope="module")
-def cluster() -> Iterator[str]:
-    """Address of a ``dask scheduler`` with two single-threaded ``dask worker`` processes."""
-    # The workers (and the scheduler, which unpickles the graph) import this test
-    # module's helpers by name, as they would import thirdhand's own functions.
-    path = os.pathsep.join([str(Path(__file__).parent), os.environ.get("PYTHONPATH", "")])
-    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "PYTHONPATH": path}
-    with dask_processes(2, env=env, timeout=120) as address:
-        yield address
-
-
 def test_parallel_map_in_order_on_the_cluster(cluster: str) -> None:
     assert list(parallel_map(_square, range(20), scheduler=cluster)) == [x * x for x in range(20)]
 
@@ -58,41 +40,6 @@ def test_a_failing_unit_is_one_error(cluster: str) -> None:
 
     with pytest.raises(BatchError, match="unit 3 of 5 failed on a Dask worker: ValueError"):
         list(parallel_map(_fail_on_three, range(5), scheduler=cluster))
-
-
-@pytest.mark.slow
-def test_irl_noise_table_on_two_workers_equals_serial(
-    cluster: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    serial, dask = tmp_path / "serial.json", tmp_path / "dask.json"
-    args = ["irl", "experiment", "noise", "--runs", str(RUNS)]
-    rc, out_serial, err = call(capsys, *args, "--json", str(serial))
-    assert rc == 0, err
-    rc, out_dask, err = call(capsys, *args, "--json", str(dask), "--scheduler", cluster)
-    assert rc == 0, err
-    a, b = json.loads(serial.read_text()), json.loads(dask.read_text())
-    assert a == b  # every mean and standard error, bit for bit
-    assert a["runs"] == RUNS and len(a["rows"]) == 8
-    table = [line for line in out_serial.splitlines() if "noise" in line and "%" in line]
-    assert table and table == [
-        line for line in out_dask.splitlines() if "noise" in line and "%" in line
-    ]
-
-
-def test_unreachable_scheduler_is_one_error_nothing_written(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
-) -> None:
-    with socket.socket() as s:  # a free port: bound, then closed, nobody listens
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    target = tmp_path / "t.json"
-    rc, _, err = call(
-        capsys, "irl", "experiment", "noise", "--runs", "2", "--json", str(target),
-        "--scheduler", f"tcp://127.0.0.1:{port}",
-    )  # fmt: skip
-    assert rc == 1
-    assert err.count("\n") == 1 and "no Dask scheduler answers" in err
-    assert not target.exists()
 
 
 def test_silent_port_times_out_instead_of_hanging() -> None:
@@ -161,11 +108,3 @@ def test_segment_batch_on_the_cluster_writes_the_serial_files(
     assert rc == 0, err
     for name in ("d1.phases.json", "d2.phases.json"):
         assert (tmp_path / "dask" / name).read_bytes() == (tmp_path / "serial" / name).read_bytes()
-
-
-def test_experiment_units_on_the_cluster_give_the_serial_table(cluster: str) -> None:
-    """``thirdhand experiment corrections --scheduler``: each seed a Dask task, same rows."""
-    from thirdhand.experiments.plan_accuracy import corrections_table
-
-    kw = {"scenes": ("bench",), "seeds": [0, 1], "scale": None}
-    assert corrections_table(**kw, scheduler=cluster) == corrections_table(**kw)  # type: ignore[arg-type]

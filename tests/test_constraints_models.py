@@ -566,7 +566,7 @@ def test_slide_under_pose_dependent_error_is_not_a_cylinder() -> None:
     reads as a slide. The residuals' correlation time says the slide is within that
     error: the revolute is chosen and the note says why. A real 15 mm slide seen by the
     same tracker without the error stays cylindrical."""
-    from thirdhand.experiments.constraint_sweep import Condition, run_sweep
+    from research.constraint_sweep import Condition, run_sweep
 
     trials = run_sweep(
         [Condition("precise", 5e-5, bias=40.0)], [4, 5, 8], cases=[("revolute", True)]
@@ -592,7 +592,7 @@ def test_bow_under_slow_error_is_not_a_turn() -> None:
     why. The stroke stays prismatic where its evidence over fixed is positive (seed 1:
     a stroke of 6.9 noise levels beats fixed by 4.3 BIC units, under the margin, and
     reads fixed). A white-noise arc of the same noise keeps its turn."""
-    from thirdhand.experiments.constraint_sweep import Condition, run_sweep
+    from research.constraint_sweep import Condition, run_sweep
 
     trials = list(
         run_sweep([Condition("drift", 1e-2, drift=2.0)], [0, 1, 2], cases=[("prismatic", False)])

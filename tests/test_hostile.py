@@ -149,7 +149,6 @@ CASES: list[tuple[str, str]] = [
     ("irl learn --synth 100000", "--synth"),
     ("irl learn {cycle}", "cycle"),
     ("irl learn {task} --json {task}", "also an input"),
-    ("irl experiment dynamics --runs 2 --jobs 0 --json {dir}/e.json", "--jobs"),
     ("execute {task} --step-time nan", "--step-time"),
     ("execute {task} --plan-time -1", "--plan-time"),
     ("execute {task} --seed -1", "--seed"),

@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 
 from cli_helpers import call
+from research.merge_synthetic import make_pair, motion
 from thirdhand import io, se3
 from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.io import rosbag
 from thirdhand.merge import MergeError, merge
-from thirdhand.merge.synthetic import make_pair, motion
 
 MS = 1e-3
 MM = 1e-3

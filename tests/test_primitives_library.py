@@ -68,23 +68,6 @@ def test_normalisation_rotates_start_to_end_on_x() -> None:
     assert ang[0] == pytest.approx(np.pi / 4)
 
 
-def test_sine_experiment_finds_three_skills() -> None:
-    train = sine_tracks(10, seed=0)
-    lib = PrimitiveLibrary(3, threshold=0.05, seed=0).fit([(t, y) for t, y, _, _ in train])
-    assert np.all(lib.mixture_.weights_ > 0.1)
-    mapping: dict[int, int] = {}
-    for t, y, bounds, labels in sine_tracks(10, seed=100):
-        p = lib.parse(t, y)
-        assert p.bounds.size == bounds.size
-        assert np.abs(p.bounds - bounds).max() <= 2
-        # the candidates over-segment: every bump's top was a candidate and was merged
-        assert p.candidates.size > p.cuts.size
-        for found, true in zip(p.labels, labels, strict=True):
-            assert mapping.setdefault(int(found), int(true)) == true
-    assert sorted(mapping.values()) == [0, 1, 2]
-    assert len(lib.skills()) == 3
-
-
 def test_library_bad_input() -> None:
     t = np.linspace(0, 1, 50)
     y = np.sin(t)[:, None]
@@ -95,14 +78,6 @@ def test_library_bad_input() -> None:
         PrimitiveLibrary(2, threshold=0.1).fit([])
     with pytest.raises(PrimitiveError, match=r"at least 5 samples .*window.*got 2"):
         PrimitiveLibrary(2, threshold=0.1).fit([(t[:2], y[:2])])
-
-
-def test_two_hundred_candidate_cuts_parse_exactly() -> None:
-    from thirdhand.experiments.primitive_library import library_scaling
-
-    r = library_scaling()
-    assert r["n_candidates"] >= 200
-    assert r["n_cuts"] == r["true_cuts"]
 
 
 def test_library_e_step_equals_enumeration_on_a_real_track() -> None:

@@ -278,16 +278,3 @@ def test_fast_blocks_successors_equal_the_rules() -> None:
     dom = blocks_domain(3)
     odd = blocks_grounding((3,), np.random.default_rng(0)) | {Atom("on", ("b1", "floor"))}
     assert dom.successors(odd) == dom.rule_successors(odd)
-
-
-@pytest.mark.slow
-def test_large_experiment_table() -> None:
-    from thirdhand.experiments.relational_irl import format_table
-    from thirdhand.experiments.relational_large import ABSTRACT, EXACT, large_experiment
-
-    res = large_experiment(1, 1, sizes=(7,), tasks=("unstack",))
-    rows = {r["label"]: r["values"] for r in res["rows"]}
-    assert list(rows) == ["unstack, 5 blocks", "unstack, 7 blocks"]
-    assert EXACT in rows["unstack, 5 blocks"] and EXACT not in rows["unstack, 7 blocks"]
-    assert rows["unstack, 7 blocks"][ABSTRACT][0] >= 0.9
-    assert res["wall_seconds"] > 0 and "unstack, 7 blocks" in format_table(res)

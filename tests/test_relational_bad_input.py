@@ -77,15 +77,6 @@ def test_legs_out_of_range(tmp_path: Path, legs: str) -> None:
         chair_domain(-1)
 
 
-def test_experiment_bad_name_and_runs() -> None:
-    res = CliRunner().invoke(app, ["experiment", "huge", "--runs", "2"])
-    assert isinstance(res.exception, RelationalError) and "unknown experiment 'huge'" in str(
-        res.exception
-    )
-    res = CliRunner().invoke(app, ["experiment", "large", "--runs", "0"])
-    assert res.exit_code != 0
-
-
 def test_blocks_in_a_cycle_are_rejected_not_looped_on() -> None:
     from thirdhand.relational.domains.blocks import tower_heights
 
@@ -97,22 +88,3 @@ def test_blocks_in_a_cycle_are_rejected_not_looped_on() -> None:
     hang = frozenset({Atom("on", ("b1", "b2")), Atom("on", ("b2", "b1")), Atom("on", ("b3", "b1"))})
     with pytest.raises(RelationalError, match="does not stand on the floor"):
         tower_heights(hang)
-
-
-def test_large_experiment_refuses_checkpoints(tmp_path: Path) -> None:
-    ck = tmp_path / "ck.jsonl"
-    res = CliRunner().invoke(
-        app,
-        [
-            "experiment",
-            "large",
-            "--runs",
-            "2",
-            "--checkpoint",
-            str(ck),
-            "--json",
-            str(tmp_path / "o.json"),
-        ],
-    )
-    assert isinstance(res.exception, RelationalError)
-    assert "--checkpoint and --tabulate are not supported" in str(res.exception)

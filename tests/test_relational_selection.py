@@ -189,22 +189,3 @@ def test_select_reward_prefers_the_demonstrated_task_and_ties_go_first() -> None
     no_wait = np.array([p for p in expert[0][1] if mdp.pair_kind[p] != wait_kind(mdp)][:1])
     with pytest.raises(RelationalError, match="no expert episode"):
         select_reward([stack], [(mdp, no_wait)], GAMMA)
-
-
-@pytest.mark.slow
-def test_large_experiment_reward_fixes_the_seed_that_failed_on_the_training_size() -> None:
-    # Seed 3017 (docs/relational_results.md, "Per failing seed"): one unweighted tree
-    # lumps waiting in the tower with moves and fails stack on 5 blocks; the bagged
-    # rewards chosen by the demonstrations learn it.
-    from thirdhand.experiments.relational_irl import true_reward
-    from thirdhand.experiments.relational_large import N_BAGS, fit_task
-    from thirdhand.relational.evaluate import perf_of_reward
-
-    model, mdps = fit_task("stack", 3017)
-    single, _ = fit_task("stack", 3017, n_bags=1, candidates=({"balance": False},))
-    assert isinstance(model.reward, TreeEnsemble) and len(model.reward.trees) == N_BAGS
-    mdp = mdps["blocks5"]
-    r = true_reward(mdp, "stack")
-    states = mdp.sample_states(1000, np.random.default_rng(0))
-    assert perf_of_reward(mdp, single.reward_of(mdp), r, GAMMA, states) < 0.2
-    assert perf_of_reward(mdp, model.reward_of(mdp), r, GAMMA, states) > 0.99

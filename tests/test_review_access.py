@@ -13,8 +13,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from tests.test_review_gui import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, Review
 
+from tests.test_review_gui import CHROMIUM, CHROMIUM_ARGS, TIMEOUT_MS, Review
 from thirdhand.review.access import (
     REFUSED_CODE,
     AccessGate,

@@ -933,7 +933,6 @@ def test_execution_replay_moves_the_held_part(open_review: Any, chair: Any, tmp_
     """An execution record on the same scene: play/pause, and the time slider puts the
     carried part and the tool frame at their recorded poses; the failed step is said."""
     from tests.review_records import CARRY_FROM, TOOL_OFFSET, write_record
-
     from thirdhand import io
     from thirdhand.review.dofs import world_poses
     from thirdhand.review.playback import ROBOT_RGB

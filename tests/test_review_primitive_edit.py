@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+
 from tests.test_review_gui import (  # noqa: F401  (fixtures)
     TIMEOUT_MS,
     Review,
@@ -24,7 +25,6 @@ from tests.test_review_gui import (  # noqa: F401  (fixtures)
     chromium_browser,
     open_review,
 )
-
 from thirdhand.review.edits import EditError, SetPrimitivePoint, apply_edit
 from thirdhand.review.primitive_edit import (
     KEY_FRACTIONS,

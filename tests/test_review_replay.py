@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from tests.review_records import CARRY_FROM, partial_order, write_record
 
+from tests.review_records import CARRY_FROM, partial_order, write_record
 from thirdhand.review.edits import EditError, MoveStep, apply_edit, order_conflict
 from thirdhand.synth import make_scene
 from thirdhand.synth.task import truth_task

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 import pytest
+
 from tests.test_review_gui import (  # noqa: F401  (fixtures)
     Review,
     chair,
@@ -18,7 +19,6 @@ from tests.test_review_gui import (  # noqa: F401  (fixtures)
     open_review,
     review,
 )
-
 from thirdhand.review.panels import fmt_value
 from thirdhand.review.scene3d import framed_view
 from thirdhand.review.shortcuts import SHORTCUTS, shortcuts_html

@@ -119,11 +119,6 @@ LAZY: dict[str, LazyCommand] = {
         "attention_command",
         "Which object a tracked head attends to, as intervals.",
     ),
-    "experiment": LazyCommand(
-        "thirdhand.plan.cli",
-        "experiment_app",
-        "Accuracy experiments on synthetic scenes, beside the report's numbers.",
-    ),
 }
 
 

@@ -15,7 +15,7 @@ disagree, or a free range differs by more than 5 mm / 5° at either end. A
 constraint that was not detected at all counts all its 6 parameters as wrong.
 
 Used by ``thirdhand learn``'s report (against a recording's labels) and by the
-experiments in :mod:`thirdhand.experiments.plan_accuracy`.
+experiments in :mod:`research.plan_accuracy`.
 """
 
 from __future__ import annotations

@@ -45,7 +45,7 @@ FloatArray = NDArray[np.float64]
 DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrical", "free")
 
 
-#: Calibration of the confidence (``scripts/constraint_sweep.py``, tables in
+#: Calibration of the confidence (``research/scripts/constraint_sweep.py``, tables in
 #: ``docs/constraints.md``): the temperature that BIC differences are divided by
 #: before they become probabilities, the share of a uniform guess mixed in, and the
 #: factor on the weight of a type passed over (:func:`type_probabilities`). Real

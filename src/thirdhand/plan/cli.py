@@ -1,7 +1,7 @@
-"""``thirdhand learn`` and ``thirdhand experiment constraints|plan|corrections``.
+"""``thirdhand learn``: recordings to one task file (every stage that needs no robot).
 
-The integrator mounts :data:`learn_command` as ``thirdhand learn`` and
-:data:`experiment_app` as ``thirdhand experiment``.
+The integrator mounts :data:`learn_command` as ``thirdhand learn``. The accuracy
+experiments that used to live here are in the repository's ``research/`` folder.
 """
 
 from __future__ import annotations
@@ -12,7 +12,6 @@ from typing import TYPE_CHECKING, Annotated
 
 import typer
 from rich.console import Console
-from rich.table import Table
 
 from thirdhand import options
 from thirdhand.demonstration import Demonstration
@@ -28,20 +27,14 @@ if TYPE_CHECKING:
 out = Console(highlight=False, soft_wrap=True)
 
 app = typer.Typer(
-    help="Learn a task file from recordings; accuracy experiments.",
-    no_args_is_help=True,
-    add_completion=False,
-    pretty_exceptions_enable=False,
-)
-experiment_app = typer.Typer(
-    help="Accuracy experiments on synthetic scenes, beside the report's numbers.",
+    help="Learn a task file from recordings.",
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
 )
 
 
-#: ``--jobs`` and ``--scheduler`` of the experiments: each seeded run is a unit of its own.
+#: ``--jobs`` and ``--scheduler`` of ``learn``: each recording's own stages are a unit.
 JobsOption = Annotated[int, typer.Option(help="Run the units in this many local processes.")]
 SchedulerOption = Annotated[
     str | None,
@@ -251,85 +244,3 @@ def learn_command(
         from thirdhand.plan.report import write_report
 
         out.print(f"report → {write_report(result.learned, report)}")
-
-
-def _table(title: str, rows: list, ours: str = "thirdhand") -> None:
-    t = Table(title=title)
-    t.add_column("case")
-    t.add_column(ours)
-    t.add_column("report (its own data)")
-    for r in rows:
-        t.add_row(r.label, r.ours, r.report)
-    out.print(t)
-
-
-@experiment_app.command("constraints")
-def experiment_constraints(
-    seeds: Annotated[int, typer.Option(help="Seeds per scene and noise level.")] = 5,
-    jobs: JobsOption = 1,
-    scheduler: SchedulerOption = None,
-) -> None:
-    """Constraint pose error on the synthetic chair and bench across noise levels."""
-    from thirdhand.experiments.plan_accuracy import constraint_error_table
-
-    options.integer("--seeds", seeds, low=1, high=100_000)
-    _check_batch(jobs, scheduler)
-    rows = constraint_error_table(seeds=range(seeds), jobs=jobs, scheduler=scheduler)
-    _table("Constraint pose error", rows)
-
-
-@experiment_app.command("plan")
-def experiment_plan(
-    runs: Annotated[int, typer.Option(help="Seeded runs.")] = 96,
-    scene: Annotated[str, typer.Option(help="Synthetic scene.")] = "chair",
-    noise: Annotated[
-        float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
-    ] = 1.0,
-    jobs: JobsOption = 1,
-    scheduler: SchedulerOption = None,
-) -> None:
-    """Plan success with 1–4 demonstrations."""
-    from thirdhand.experiments.plan_accuracy import plan_success_table
-
-    options.integer("--runs", runs, low=1, high=100_000)
-    options.finite("--noise", noise, low=0.0, high=1000.0)
-    _check_scene(scene)
-    _check_batch(jobs, scheduler)
-    rows = plan_success_table(
-        scene=scene,
-        runs=runs,
-        scale=noise if noise > 0 else None,
-        jobs=jobs,
-        scheduler=scheduler,
-    )
-    _table(f"Plan success ({scene}, noise x{noise:g})", rows)
-
-
-@experiment_app.command("corrections")
-def experiment_corrections(
-    seeds: Annotated[int, typer.Option(help="Seeds per scene.")] = 4,
-    noise: Annotated[
-        float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
-    ] = 1.0,
-    jobs: JobsOption = 1,
-    scheduler: SchedulerOption = None,
-) -> None:
-    """Constraint parameters a user would still correct (chair of 30, bench of 24)."""
-    from thirdhand.experiments.plan_accuracy import corrections_table
-
-    options.integer("--seeds", seeds, low=1, high=100_000)
-    options.finite("--noise", noise, low=0.0, high=1000.0)
-    _check_batch(jobs, scheduler)
-    rows = corrections_table(
-        seeds=range(seeds), scale=noise if noise > 0 else None, jobs=jobs, scheduler=scheduler
-    )
-    _table(f"Parameters to correct (noise x{noise:g})", rows)
-
-
-def _check_scene(scene: str) -> None:
-    from thirdhand.synth import SCENES
-
-    if scene not in SCENES:
-        raise ThirdhandError(
-            f"--scene: unknown scene {scene!r}; expected one of {', '.join(SCENES)}"
-        )

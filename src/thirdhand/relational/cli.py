@@ -1,11 +1,7 @@
 """``thirdhand irl``: relational inverse reinforcement learning (RCSI, BLMRIL).
 
-``thirdhand irl experiment {datasize,noise,transfer,dynamics,chair} [--runs N] [--jobs J]
-[--scheduler tcp://HOST:PORT] [--checkpoint FILE]`` reproduces a table of Munzer et al.
-(IJCAI 2015), ours beside the paper's, and writes it as JSON (``--scheduler``: the
-trials as Dask tasks, the same table; see ``docs/cluster.md``). ``thirdhand irl
-experiment large`` plans rewards learned on 4+5 blocks (and the 4-legged chair) on
-10, 15 and 20 blocks (6, 7, 8 legs) over relational configurations.
+The paper's tables (Munzer et al., IJCAI 2015) are reproduced by the repository's
+``research/`` folder (``python -m research irl NAME``), not by the package.
 ``thirdhand irl learn TASK.json...`` learns a relational reward from the plans of
 task files (or of synthetic chairs with ``--synth``) and plans a bench and chairs
 with other numbers of legs with it.
@@ -14,7 +10,6 @@ with other numbers of legs with it.
 from __future__ import annotations
 
 import json
-import time
 from dataclasses import asdict
 from pathlib import Path
 from typing import Annotated
@@ -23,7 +18,6 @@ import typer
 from rich.console import Console
 
 from thirdhand import options
-from thirdhand.experiments.relational_irl import EXPERIMENTS, format_table, run_experiment
 from thirdhand.fileops import check_output, write_text
 from thirdhand.relational.assembly import (
     learn_assembly,
@@ -52,61 +46,6 @@ MAX_SYNTH = 100
 @app.callback()
 def _group() -> None:
     """Relational inverse reinforcement learning (RCSI, BLMRIL)."""
-
-
-@app.command()
-def experiment(
-    name: Annotated[str, typer.Argument(help=f"One of: {', '.join(EXPERIMENTS)}.")],
-    runs: Annotated[int, typer.Option(help="Repetitions per row.", min=2)] = 100,
-    jobs: Annotated[int, typer.Option(help="Worker processes.", min=1)] = 1,
-    scheduler: Annotated[
-        str | None,
-        typer.Option(
-            help="Run the trials as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or "
-            "'local' (a local cluster of --jobs workers). Needs the dask extra."
-        ),
-    ] = None,
-    json_out: Annotated[
-        Path | None, typer.Option("--json", help="Output JSON (default irl_<name>.json).")
-    ] = None,
-    checkpoint: Annotated[
-        Path | None,
-        typer.Option(help="JSON-lines file: each trial appended when done; a rerun resumes."),
-    ] = None,
-    tabulate: Annotated[
-        bool, typer.Option(help="Only tabulate the trials in --checkpoint, run nothing.")
-    ] = False,
-    force: Annotated[
-        bool, typer.Option(help="Replace an existing JSON output (kept as a numbered .bak).")
-    ] = False,
-) -> None:
-    """Run one of the paper's experiments and print its table beside the paper's."""
-    if name not in EXPERIMENTS:
-        raise RelationalError(
-            f"unknown experiment {name!r}, expected one of {', '.join(EXPERIMENTS)}"
-        )
-    path = json_out if json_out is not None else Path(f"irl_{name}.json")
-    check_output(path, force=force, inputs=[checkpoint] if checkpoint else [])
-    options.integer("--runs", runs, low=2, high=100000)
-    options.integer("--jobs", jobs, low=1, high=1024)
-    if scheduler is not None:
-        from thirdhand.batch import check_scheduler
-
-        check_scheduler(scheduler)
-    start = time.perf_counter()
-    if tabulate and checkpoint is None:
-        raise RelationalError("irl experiment: --tabulate needs --checkpoint")
-    result = run_experiment(
-        name,
-        runs=runs,
-        jobs=jobs,
-        out=path,
-        checkpoint=checkpoint,
-        tabulate_only=tabulate,
-        scheduler=scheduler,
-    )
-    out.print(format_table(result))
-    out.print(f"{time.perf_counter() - start:.1f} s; written {path}")
 
 
 @app.command()

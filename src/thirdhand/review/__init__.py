@@ -11,7 +11,6 @@ Everything here is plain functions and small classes on the task model
 - :mod:`~thirdhand.review.clarify`: questions ordered by the system's uncertainty.
 - :mod:`~thirdhand.review.dofs`: world poses, DOF animations and classes.
 - :mod:`~thirdhand.review.transfer`: a task mapped onto another object set.
-- :mod:`~thirdhand.review.scripted_user`: the minimal corrections to a reference task.
 """
 
 from thirdhand.review.clarify import Question, clarification_queue
@@ -32,7 +31,6 @@ from thirdhand.review.edits import (
 )
 from thirdhand.review.effort import OPERATIONS, EffortLog, changed_parameters
 from thirdhand.review.history import History
-from thirdhand.review.scripted_user import ScriptedResult, scripted_corrections
 from thirdhand.review.session import ConflictError, ReviewSession
 from thirdhand.review.transfer import TransferError, TransferResult, transfer, transfer_task
 
@@ -47,7 +45,6 @@ __all__ = [
     "MoveStep",
     "Question",
     "ReviewSession",
-    "ScriptedResult",
     "SetDofRange",
     "SetParent",
     "SetPose",
@@ -62,7 +59,6 @@ __all__ = [
     "classify_dof",
     "dof_animation",
     "parse_number",
-    "scripted_corrections",
     "transfer",
     "transfer_task",
     "world_poses",

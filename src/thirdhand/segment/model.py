@@ -42,7 +42,7 @@ FORMAT = "thirdhand.segment/1"
 DEFAULT_MODEL_RESOURCE = "segment_default.json"
 #: Models shipped with the package, by name: ``default`` (synthetic scenes plus
 #: the real labelled pairs of ``toolbox_coop_4``) and ``synthetic`` (synthetic
-#: scenes only), both from ``scripts/train_default_segmenter.py``.
+#: scenes only), both from ``research/scripts/train_default_segmenter.py``.
 BUILTIN_MODELS = {"default": DEFAULT_MODEL_RESOURCE, "synthetic": "segment_synthetic.json"}
 
 
@@ -212,7 +212,7 @@ def builtin_model(name: str) -> SegmentModel:
     except (FileNotFoundError, OSError):
         raise ModelFileError(
             f"the built-in segmentation model {resource} is not installed; "
-            "run scripts/train_default_segmenter.py or pass a model"
+            "run research/scripts/train_default_segmenter.py or pass a model"
         ) from None
     return SegmentModel.from_dict(json.loads(text), source=resource)
 
