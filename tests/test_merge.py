@@ -240,7 +240,7 @@ def test_cli_no_shared_body_one_error_nothing_written(
         (["--offset", "1", "--offset", "2"], "given 2 times"),
         (["--same", "nope"], "expected REF=OTHER"),
         (["--via", "hand"], "not tracked by both"),
-        (["--rate", "inf"], "--rate"),
+        (["--config", "{cfg}"], "[merge] rate: Input should be less than or equal to 100000"),
     ],
 )
 def test_cli_bad_options_one_error(
@@ -250,6 +250,9 @@ def test_cli_bad_options_one_error(
     a = _save(ref, tmp_path / "a.parquet")
     b = _save(other, tmp_path / "b.parquet")
     target = tmp_path / "m.parquet"
+    cfg = tmp_path / "settings.toml"
+    cfg.write_text("[merge]\nrate = inf\n")
+    extra = [e.format(cfg=cfg) for e in extra]
     rc, _, err = call(capsys, "merge", str(a), str(b), "-o", str(target), *extra)
     assert rc in (1, 2)
     assert err.count("\n") == 1 and message in err, err
@@ -265,8 +268,10 @@ def test_cli_same_renames_a_body(tmp_path: Path, capsys: pytest.CaptureFixture[s
     a = _save(ref, tmp_path / "a.parquet")
     b = _save(other, tmp_path / "b.parquet")
     target = tmp_path / "m.parquet"
+    cfg = tmp_path / "settings.yaml"
+    cfg.write_text("merge:\n  drift: false\n")
     rc, out, err = call(
-        capsys, "merge", str(a), str(b), "-o", str(target), "--same", "b=tag7", "--no-drift"
+        capsys, "merge", str(a), str(b), "-o", str(target), "--same", "b=tag7", "--config", str(cfg)
     )
     assert rc == 0, err
     assert "b: " in out

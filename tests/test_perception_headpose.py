@@ -150,8 +150,11 @@ def test_headpose_cli(faces: Path, tmp_path: Path, capsys: pytest.CaptureFixture
 
     out_json = tmp_path / "pose.json"
     strip = tmp_path / "strip.png"
-    args = ["headpose", str(faces / "single_face.mp4"), "--stop", "24", "--json", str(out_json),
-            "--overlay", str(strip), "--calibrate", "2"]  # fmt: skip
+    first = {n: tmp_path / f"first{n}.toml" for n in (5, 10, 24)}
+    for n, path in first.items():
+        path.write_text(f"[headpose]\nstop = {n}\n")
+    args = ["headpose", str(faces / "single_face.mp4"), "--config", str(first[24]), "--json",
+            str(out_json), "--overlay", str(strip), "--calibrate", "2"]  # fmt: skip
     with pytest.raises(SystemExit) as done:
         app(args, prog_name="thirdhand")
     assert done.value.code == 0
@@ -165,12 +168,13 @@ def test_headpose_cli(faces: Path, tmp_path: Path, capsys: pytest.CaptureFixture
     assert done.value.code == 1
     assert "exists" in capsys.readouterr().err
     with pytest.raises(SystemExit) as done:
-        app(["headpose", str(faces / "no_face.mp4"), "--stop", "5"], prog_name="thirdhand")
+        app(["headpose", str(faces / "no_face.mp4"), "--config", str(first[5])],
+            prog_name="thirdhand")  # fmt: skip
     assert done.value.code == 1
     assert "no face found in any of the 5 frames" in capsys.readouterr().err
     video = tmp_path / "overlay.mp4"
     with pytest.raises(SystemExit) as done:
-        app(["headpose", str(faces / "single_face.mp4"), "--stop", "10", "--overlay", str(video)],
-            prog_name="thirdhand")  # fmt: skip
+        app(["headpose", str(faces / "single_face.mp4"), "--config", str(first[10]), "--overlay",
+             str(video)], prog_name="thirdhand")  # fmt: skip
     assert done.value.code == 0
     assert video_info(video).n_frames == 10

@@ -216,7 +216,9 @@ def test_gestures_and_attention_cli(tmp_path: Path, capsys: pytest.CaptureFixtur
         app(["attention", str(rec)], prog_name="thirdhand")
     assert done.value.code == 0
     assert "attention intervals" in capsys.readouterr().out
+    settings = tmp_path / "settings.toml"
+    settings.write_text("[attention]\nforward = [1, 0]\n")
     with pytest.raises(SystemExit) as done:
-        app(["attention", str(rec), "--forward", "1,0"], prog_name="thirdhand")
+        app(["attention", str(rec), "--config", str(settings)], prog_name="thirdhand")
     assert done.value.code == 1
-    assert "--forward: expected three numbers" in capsys.readouterr().err
+    assert "[attention] forward" in capsys.readouterr().err

@@ -462,6 +462,29 @@ def demo(
     write_text(output / "summary.json", json.dumps(summary, indent=2, default=str))
 
 
+@app.command("config")
+def config_command(
+    command: Annotated[
+        str | None,
+        typer.Argument(help="A command (e.g. execute, 'segment evaluate'); default: every one."),
+    ] = None,
+) -> None:
+    """The settings of the commands, with their defaults, as a file for --config (TOML)."""
+    from thirdhand.config import REGISTRY, defaults_toml
+
+    if command is None:
+        names = list(REGISTRY)
+    else:
+        key = ".".join(command.split())
+        if key not in REGISTRY:
+            raise ThirdhandError(
+                f"config: {command!r} has no settings; commands with settings: "
+                + ", ".join(k.replace(".", " ") for k in REGISTRY)
+            )
+        names = [key]
+    typer.echo("\n\n".join(defaults_toml(n) for n in names))
+
+
 # The imports are done: a program that imports this module (and never calls
 # main) keeps Python's own Ctrl-C behaviour.
 if signal.getsignal(signal.SIGINT) is _interrupted_at_start_up:

@@ -10,7 +10,9 @@ import typer
 from rich.console import Console
 
 from thirdhand import options
+from thirdhand.config import ConfigOption, load_settings
 from thirdhand.fileops import check_output
+from thirdhand.merge.settings import MergeSettings
 
 out = Console(highlight=False, soft_wrap=True)
 
@@ -64,28 +66,18 @@ def merge_command(
             help="Known world transform 'x y z qx qy qz qw' (x_ref = R x + p) per later recording."
         ),
     ] = None,
-    drift: Annotated[bool, typer.Option(help="Estimate a clock drift rate.")] = True,
-    smooth: Annotated[
-        bool,
-        typer.Option(
-            help="Fit the clock last on smoothed tracks (noisy, slow, evenly sampled "
-            "trackers; docs/merge.md)."
-        ),
-    ] = False,
-    rate: Annotated[
-        float | None, typer.Option(help="Output rate, Hz (default the highest).")
-    ] = None,
-    max_gap: Annotated[
-        float, typer.Option(help="Longest interval interpolated across, seconds.")
-    ] = 0.1,
     report: Annotated[
         Path | None, typer.Option(help="Write the alignments and residuals as JSON.")
     ] = None,
     force: Annotated[
         bool, typer.Option(help="Replace existing outputs (kept as numbered .bak).")
     ] = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Merge recordings of one session by different capture systems into one."""
+    """Merge recordings of one session by different capture systems into one.
+
+    Settings (``[merge]`` of ``--config``): ``drift``, ``smooth``, ``rate``, ``max_gap``.
+    """
     from thirdhand import io
     from thirdhand.fileops import write_text
     from thirdhand.merge.align import MergeError
@@ -93,9 +85,7 @@ def merge_command(
 
     if len(recordings) < 2:
         raise MergeError("merge needs at least two recordings")
-    if rate is not None:
-        options.finite("--rate", rate, low=0.0, high=100000.0, low_open=True)
-    options.finite("--max-gap", max_gap, low=0.0, high=3600.0)
+    settings = load_settings(config, "merge", MergeSettings)
     k = len(recordings) - 1
     offsets = [
         None if v is None else options.finite("--offset", _float("--offset", v))
@@ -111,8 +101,9 @@ def merge_command(
             raise MergeError(f"--same {item!r}: expected REF=OTHER")
         mapping[other_name] = ref_name
     outputs = [output, *([report] if report else [])]
+    inputs = [*recordings, *([config] if config else [])]
     for o in outputs:
-        check_output(o, force=force, inputs=recordings)
+        check_output(o, force=force, inputs=inputs)
     demos = [io.load(p) for p in recordings]
     demos = [demos[0]] + [
         rename(d, {a: b for a, b in mapping.items() if a in d}) for d in demos[1:]
@@ -122,14 +113,14 @@ def merge_command(
         via=via,
         offsets=offsets,
         transforms=transforms,
-        fit_drift=drift,
-        smooth=smooth,
-        rate=rate,
-        max_gap=max_gap,
+        fit_drift=settings.drift,
+        smooth=settings.smooth,
+        rate=settings.rate,
+        max_gap=settings.max_gap,
         sources=[str(p) for p in recordings],
     )
     for o in outputs:
-        check_output(o, force=force, inputs=recordings)
+        check_output(o, force=force, inputs=inputs)
     io.save(merged, output)
     for path, al in zip(recordings[1:], alignments, strict=True):
         out.print(_summary(path, al))

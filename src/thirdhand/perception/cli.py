@@ -17,8 +17,9 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from thirdhand import options
+from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
+from thirdhand.perception.settings import AttentionSettings, GestureSettings, HeadposeSettings
 
 app = typer.Typer(
     help="Head pose from video; attention and pointing gestures from motion capture.",
@@ -84,32 +85,22 @@ def headpose_command(
         Path | None,
         typer.Option("--overlay", help="Annotated video (.mp4, .avi) or image strip (.png)."),
     ] = None,
-    start: Annotated[int, typer.Option(help="First frame.")] = 0,
-    stop: Annotated[int | None, typer.Option(help="Stop before this frame.")] = None,
-    step: Annotated[int, typer.Option(help="Process every step-th frame.")] = 1,
-    focal: Annotated[
-        float | None, typer.Option("--focal", help="Focal length, pixels (default: width).")
-    ] = None,
-    static: Annotated[
-        bool, typer.Option("--static", help="Detect in each frame alone (no tracking).")
-    ] = False,
     force: ForceOpt = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Per-frame head yaw, pitch and roll (degrees from a calibration frame) of a video."""
+    """Per-frame head yaw, pitch and roll (degrees from a calibration frame) of a video.
+
+    Settings (``[headpose]`` of ``--config``): ``start``, ``stop``, ``step``, ``focal``, ``static``.
+    """
     from thirdhand.perception.track import track_head
 
     try:
-        if start < 0 or step < 1:
-            raise ThirdhandError(f"bad frame range --start {start} --step {step}")
-        if stop is not None and stop <= start:
-            raise ThirdhandError(f"--stop {stop}: expected a frame after --start {start}")
-        if focal is not None:
-            options.finite("--focal", focal, low=0.0, low_open=True)
-        _check_output(json_out, force, [video])
-        _check_output(overlay, force, [video, json_out])
+        cfg = load_settings(config, "headpose", HeadposeSettings)
+        _check_output(json_out, force, [video, config])
+        _check_output(overlay, force, [video, json_out, config])
         track = track_head(
-            video, calibrate=calibrate, start=start, stop=stop, step=step, static=static,
-            focal_px=focal,
+            video, calibrate=calibrate, start=cfg.start, stop=cfg.stop, step=cfg.step,
+            static=cfg.static, focal_px=cfg.focal,
         )  # fmt: skip
         _write_json(track.to_dict(), json_out, force)
         if track.n_found == 0:
@@ -149,21 +140,20 @@ def _save_events(task_path: Path, **events: Any) -> None:
 def gestures_command(
     recording: Annotated[Path, typer.Argument(help="Recording with tracked fingertips.")],
     json_out: JsonOpt = None,
-    ray: Annotated[str, typer.Option(help="Pointing ray: auto, index or head.")] = "auto",
-    dwell: Annotated[float, typer.Option(help="Shortest held posture, seconds.")] = 0.4,
-    cone: Annotated[float, typer.Option(help="Half-angle of the target cone, degrees.")] = 15.0,
     task: TaskOpt = None,
     force: ForceOpt = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Pointing gestures pointed(hand, object, t0, t1) from thumb, index and middle fingertips."""
+    """Pointing gestures pointed(hand, object, t0, t1) from thumb, index and middle fingertips.
+
+    Settings (``[gestures]`` of ``--config``): ``ray``, ``dwell``, ``cone``.
+    """
     from thirdhand.perception.pointing import detect_pointing
 
     try:
-        if ray not in ("auto", "index", "head"):
-            raise ThirdhandError(f"--ray: expected auto, index or head, got {ray!r}")
-        options.finite("--dwell", dwell, low=0.0)
-        options.finite("--cone", cone, low=0.0, low_open=True, high=90.0)
-        _check_output(json_out, force, [recording, task])
+        cfg = load_settings(config, "gestures", GestureSettings)
+        ray, dwell, cone = cfg.ray, cfg.dwell, cfg.cone
+        _check_output(json_out, force, [recording, task, config])
         demo = _load(recording)
         events = detect_pointing(demo, ray=ray, dwell=dwell, cone_deg=cone)
         data = {
@@ -194,31 +184,22 @@ def attention_command(
     recording: Annotated[Path, typer.Argument(help="Recording with a tracked head.")],
     json_out: JsonOpt = None,
     head: Annotated[str | None, typer.Option(help="Head body (default: the only one).")] = None,
-    forward: Annotated[
-        str, typer.Option(help="Viewing axis in the head frame, 'x,y,z'.")
-    ] = "1,0,0",
-    cone: Annotated[float, typer.Option(help="Half-angle of the cone, degrees.")] = 15.0,
-    hysteresis: Annotated[float, typer.Option(help="Switching margin, degrees.")] = 3.0,
-    min_duration: Annotated[float, typer.Option(help="Shortest interval, seconds.")] = 0.2,
     task: TaskOpt = None,
     force: ForceOpt = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Which object a motion-captured head attends to over time, as intervals."""
+    """Which object a motion-captured head attends to over time, as intervals.
+
+    Settings (``[attention]`` of ``--config``): ``forward``, ``cone``, ``hysteresis``,
+    ``min_duration``.
+    """
     from thirdhand.perception.attention import attended_objects
 
     try:
-        try:
-            axis = [float(v) for v in forward.split(",")]
-        except ValueError:
-            axis = []
-        if len(axis) != 3 or not any(axis) or not np.all(np.isfinite(axis)):
-            raise ThirdhandError(
-                f"--forward: expected three numbers 'x,y,z', finite, not all zero; got {forward!r}"
-            )
-        options.finite("--cone", cone, low=0.0, low_open=True, high=90.0)
-        options.finite("--hysteresis", hysteresis, low=0.0, high=90.0)
-        options.finite("--min-duration", min_duration, low=0.0)
-        _check_output(json_out, force, [recording, task])
+        cfg = load_settings(config, "attention", AttentionSettings)
+        axis = list(cfg.forward)
+        cone, hysteresis, min_duration = cfg.cone, cfg.hysteresis, cfg.min_duration
+        _check_output(json_out, force, [recording, task, config])
         demo = _load(recording)
         intervals = attended_objects(
             demo, head, forward=axis, cone_deg=cone, hysteresis_deg=hysteresis,

@@ -25,6 +25,7 @@ from rich.console import Console
 from rich.table import Table
 from typer.core import TyperGroup
 
+from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
 from thirdhand.fileops import atomic_output, check_output, write_text
 
@@ -173,25 +174,26 @@ def train(
         list[Path] | None,
         typer.Option("--labels", help="Label file (.kvg, .eaf, ELAN .txt), one per demo."),
     ] = None,
-    l2: Annotated[float, typer.Option(help="L2 penalty on the weights.")] = 1.0,
-    latent_rate: Annotated[float, typer.Option(help="Latent steps per second, Hz.")] = 10.0,
-    window: Annotated[int, typer.Option(help="Window length, latent steps.")] = 5,
     force: Annotated[
         bool, typer.Option(help="Replace an existing model (kept as a numbered .bak).")
     ] = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Train a segmentation model on labelled recordings."""
-    from thirdhand import options
+    """Train a segmentation model on labelled recordings.
+
+    Settings (``[segment.train]`` of ``--config``): ``l2``, ``latent_rate``, ``window``.
+    """
     from thirdhand.segment.design import FeatureConfig
+    from thirdhand.segment.settings import TrainSettings
     from thirdhand.segment.training import fit_model
 
-    check_output(output, force=force, inputs=[*demos, *(labels or [])])
-    options.finite("--l2", l2, low=0.0)
-    options.finite("--latent-rate", latent_rate, low=0.0, low_open=True, high=1000.0)
-    options.integer("--window", window, low=1, high=1000)
+    settings = load_settings(config, "segment.train", TrainSettings)
+    check_output(
+        output, force=force, inputs=[*demos, *(labels or []), *([config] if config else [])]
+    )
     ds = _with_labels(demos, labels)
-    cfg = FeatureConfig(latent_rate=latent_rate, window=window)
-    model = fit_model(ds, cfg, l2=l2, training={"demonstrations": [str(p) for p in demos]})
+    cfg = FeatureConfig(latent_rate=settings.latent_rate, window=settings.window)
+    model = fit_model(ds, cfg, l2=settings.l2, training={"demonstrations": [str(p) for p in demos]})
     model.save(output)
     info = model.training
     out.print(
@@ -207,28 +209,30 @@ def evaluate(
         list[Path] | None,
         typer.Option("--labels", help="Label file (.kvg, .eaf, ELAN .txt), one per demo."),
     ] = None,
-    l2: Annotated[float, typer.Option(help="L2 penalty on the weights.")] = 1.0,
-    latent_rate: Annotated[float, typer.Option(help="Latent steps per second, Hz.")] = 10.0,
-    window: Annotated[int, typer.Option(help="Window length, latent steps.")] = 5,
-    train_hand: Annotated[str, typer.Option(help="Hand whose pairs train.")] = "left",
-    test_hand: Annotated[str, typer.Option(help="Hand whose pairs test.")] = "right",
     split: Annotated[
         str,
         typer.Option(
-            help="hand: train on --train-hand, test on --test-hand; object: leave one "
-            "object out within --train-hand's pairs; time: first vs second half."
+            help="hand: train on one hand's pairs, test on the other's; object: leave one "
+            "object out within one hand's pairs; time: first vs second half; auto: hand "
+            "when both hands are labelled, else object."
         ),
-    ] = "hand",
+    ] = "auto",
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the table as JSON.")
     ] = None,
     force: Annotated[
         bool, typer.Option(help="Replace an existing --json file (kept as a numbered .bak).")
     ] = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Table I protocol: logistic regression vs CRF, trained on one hand, tested on the other."""
-    from thirdhand import options
+    """Table I protocol: logistic regression vs CRF, trained on one hand, tested on the other.
+
+    Settings (``[segment.evaluate]`` of ``--config``): ``l2``, ``latent_rate``,
+    ``window``, ``train_hand``, ``test_hand``.
+    """
     from thirdhand.segment.design import FeatureConfig
+    from thirdhand.segment.pipeline import labelled_hands
+    from thirdhand.segment.settings import EvaluateSettings
     from thirdhand.segment.training import (
         labelled_sequences,
         split_folds,
@@ -236,18 +240,25 @@ def evaluate(
         table_one_folds,
     )
 
+    settings = load_settings(config, "segment.evaluate", EvaluateSettings)
     if json_out is not None:
-        check_output(json_out, force=force, inputs=[*demos, *(labels or [])])
-    options.finite("--l2", l2, low=0.0)
-    options.finite("--latent-rate", latent_rate, low=0.0, low_open=True, high=1000.0)
-    options.integer("--window", window, low=1, high=1000)
-    for option, hand in (("--train-hand", train_hand), ("--test-hand", test_hand)):
-        if hand not in ("left", "right"):
-            raise ThirdhandError(f"{option}: expected left or right, got {hand!r}")
-    if split not in ("hand", "object", "time"):
-        raise ThirdhandError(f"--split: expected hand, object or time, got {split!r}")
+        check_output(
+            json_out, force=force, inputs=[*demos, *(labels or []), *([config] if config else [])]
+        )
+    if split not in ("auto", "hand", "object", "time"):
+        raise ThirdhandError(f"--split: expected auto, hand, object or time, got {split!r}")
     ds = _with_labels(demos, labels)
-    cfg = FeatureConfig(latent_rate=latent_rate, window=window)
+    hands = set().union(*(labelled_hands(d) for d in ds))
+    train_hand = settings.train_hand
+    if train_hand == "auto":
+        train_hand = "left" if "left" in hands or not hands else sorted(hands)[0]
+    test_hand = settings.test_hand
+    if test_hand == "auto":
+        test_hand = "right" if train_hand == "left" else "left"
+    if split == "auto":
+        split = "hand" if {train_hand, test_hand} <= hands else "object"
+    l2 = settings.l2
+    cfg = FeatureConfig(latent_rate=settings.latent_rate, window=settings.window)
     if split == "hand":
         tab = table_one(ds, cfg, l2=l2, train_hand=train_hand, test_hand=test_hand)
         title = f"train: {train_hand} hand pairs, test: {test_hand} hand pairs"
@@ -304,40 +315,33 @@ def calibrate(
             help="Use only this part of each recording: START END, seconds from its start."
         ),
     ] = None,
-    prior: Annotated[
-        float, typer.Option(help="Weight of the prior that keeps the fit near the model.")
-    ] = 1.0,
-    keep_scale: Annotated[
-        bool, typer.Option("--keep-scale", help="Refit the score offset only, not its scale.")
-    ] = False,
-    keep_transitions: Annotated[
-        bool, typer.Option("--keep-transitions", help="Keep the trained transition weights.")
-    ] = False,
     force: Annotated[
         bool, typer.Option(help="Replace an existing model (kept as a numbered .bak).")
     ] = False,
+    config: ConfigOption = None,
 ) -> None:
     """Refit a model's score offset, scale and transitions to your rig from labelled intervals.
 
     Label every interaction of the pairs you name (within --span when given):
-    the other steps of those pairs are taken as "not interacting".
+    the other steps of those pairs are taken as "not interacting". Settings
+    (``[segment.calibrate]`` of ``--config``): ``prior``, ``keep_scale``, ``keep_transitions``.
     """
-    from thirdhand import options
     from thirdhand.segment.calibrate import calibrate as run_calibration
+    from thirdhand.segment.settings import CalibrateSettings
 
-    inputs = [*demos, *(labels or [])]
+    settings = load_settings(config, "segment.calibrate", CalibrateSettings)
+    inputs = [*demos, *(labels or []), *([config] if config else [])]
     if model is not None and model.exists():
         inputs.append(model)
     check_output(output, force=force, inputs=inputs)
-    options.finite("--prior", prior, low=0.0, low_open=True)
     ds = _with_labels(demos, labels)
     calibrated, report = run_calibration(
         _model(model),
         ds,
         span=span,
-        prior=prior,
-        scale=not keep_scale,
-        transitions=not keep_transitions,
+        prior=settings.prior,
+        scale=not settings.keep_scale,
+        transitions=not settings.keep_transitions,
     )
     calibrated.save(output)
     for kind, r in report.items():

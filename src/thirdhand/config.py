@@ -1,0 +1,173 @@
+"""Settings of the commands: typed records, and ``--config FILE`` to change them.
+
+The command line holds a user's decisions (inputs, outputs, the robot, a seed);
+the tuning knobs of a command are fields of a :class:`Settings` record whose
+defaults are the best settings the docs report. ``--config FILE`` reads one
+TOML, YAML or JSON file with a table per command, named by its path::
+
+    [execute]
+    step_time = 120.0
+    max_grasps = 48
+
+    [segment.evaluate]
+    l2 = 0.5
+
+A command reads only its own table; a file without it leaves every default.
+An unknown key, a value of the wrong type or out of range is one
+:class:`~thirdhand.errors.OptionError` naming the file, the table and the key.
+``thirdhand config`` prints every command's settings with their defaults.
+"""
+
+from __future__ import annotations
+
+import importlib
+import json
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+from pydantic import BaseModel, ConfigDict, ValidationError
+
+from thirdhand.errors import OptionError
+
+#: Largest configuration file read (bytes): a settings file is a few hundred bytes.
+MAX_CONFIG_BYTES = 1 << 20
+
+
+class Settings(BaseModel):
+    """Base of the commands' settings records: unknown keys are errors, values immutable."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+S = TypeVar("S", bound=Settings)
+
+#: The ``--config FILE`` option every command with settings takes.
+ConfigOption = Annotated[
+    Path | None,
+    typer.Option(
+        "--config",
+        help="TOML, YAML or JSON file of settings; this command's table "
+        "(see `thirdhand config`) changes its defaults.",
+    ),
+]
+
+#: Command path -> "module:Class" of its settings record (imported only when asked for).
+REGISTRY: dict[str, str] = {
+    "merge": "thirdhand.merge.settings:MergeSettings",
+    "segment.train": "thirdhand.segment.settings:TrainSettings",
+    "segment.evaluate": "thirdhand.segment.settings:EvaluateSettings",
+    "segment.calibrate": "thirdhand.segment.settings:CalibrateSettings",
+    "headpose": "thirdhand.perception.settings:HeadposeSettings",
+    "gestures": "thirdhand.perception.settings:GestureSettings",
+    "attention": "thirdhand.perception.settings:AttentionSettings",
+}
+
+
+def settings_class(command: str) -> type[Settings]:
+    """The settings record of ``command`` (a key of :data:`REGISTRY`)."""
+    module, _, name = REGISTRY[command].partition(":")
+    cls = getattr(importlib.import_module(module), name)
+    assert issubclass(cls, Settings)
+    return cls
+
+
+def read_config(path: Path) -> dict[str, Any]:
+    """The whole settings file as nested tables (TOML, YAML or JSON by extension).
+
+    Raises
+    ------
+    OptionError
+        Not a regular file, too large, unreadable or not a table of tables.
+    """
+    where = f"--config {path}"
+    if not path.is_file():
+        raise OptionError(f"{where}: not a file")
+    size = path.stat().st_size
+    if size > MAX_CONFIG_BYTES:
+        raise OptionError(f"{where}: {size} bytes; a settings file is at most {MAX_CONFIG_BYTES}")
+    with path.open("rb") as fh:
+        raw = fh.read(MAX_CONFIG_BYTES + 1)
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".toml":
+            import tomllib
+
+            data: Any = tomllib.loads(raw.decode("utf-8"))
+        elif suffix in (".yaml", ".yml"):
+            import yaml
+
+            data = yaml.safe_load(raw.decode("utf-8"))
+        elif suffix == ".json":
+            data = json.loads(raw.decode("utf-8"))
+        else:
+            raise OptionError(f"{where}: expected a .toml, .yaml, .yml or .json file")
+    except OptionError:
+        raise
+    except RecursionError:
+        raise OptionError(f"{where}: nested too deeply") from None
+    except Exception as exc:  # the parsers' own errors (line and column in the message)
+        raise OptionError(f"{where}: {' '.join(str(exc).split())}") from None
+    if data is None:
+        data = {}
+    if not isinstance(data, dict):
+        raise OptionError(f"{where}: expected tables of settings, one per command")
+    return data
+
+
+def load_settings(path: Path | None, command: str, cls: type[S]) -> S:
+    """``cls`` with its defaults changed by the table ``command`` of the file at ``path``.
+
+    Parameters
+    ----------
+    path : Path or None
+        The ``--config`` file; ``None``: the defaults.
+    command : str
+        The command's path, dotted (``"segment.evaluate"``).
+    cls : type
+        Its :class:`Settings` record.
+    """
+    if path is None:
+        return cls()
+    table: Any = read_config(path)
+    for key in command.split("."):
+        table = table.get(key, {}) if isinstance(table, dict) else None
+        if table is None:
+            break
+    if not isinstance(table, dict):
+        raise OptionError(f"--config {path}: [{command}] is not a table of settings")
+    try:
+        return cls.model_validate(table)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        key = ".".join(str(p) for p in err["loc"]) or "?"
+        if err["type"] == "extra_forbidden":
+            known = ", ".join(cls.model_fields)
+            raise OptionError(
+                f"--config {path}: [{command}] unknown setting {key!r}; expected one of {known}"
+            ) from None
+        raise OptionError(f"--config {path}: [{command}] {key}: {err['msg']}") from None
+
+
+def defaults_toml(command: str) -> str:
+    """The table of ``command`` with every default, as TOML with each field's description."""
+    cls = settings_class(command)
+    lines = [f"[{command}]"]
+    for name, field in cls.model_fields.items():
+        if field.description:
+            lines.append(f"# {field.description}")
+        value = field.get_default(call_default_factory=True)
+        lines.append(f"{name} = {_toml_value(value)}" if value is not None else f"# {name} =")
+    return "\n".join(lines)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int | float):
+        return repr(value)
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    return json.dumps(str(value))
