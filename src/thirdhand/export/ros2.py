@@ -283,7 +283,7 @@ def robot_joints(robot: str) -> tuple[str, dict[str, float]]:
     children = {j.find("child").get("link") for j in urdf.findall("joint")}  # type: ignore[union-attr]
     roots = [link.get("name") for link in urdf.findall("link") if link.get("name") not in children]
     movable = [
-        j.get("name")
+        str(j.get("name"))
         for j in urdf.findall("joint")
         if j.get("type") in ("revolute", "prismatic", "continuous")
     ]
@@ -349,9 +349,10 @@ def _messages(
         ]
         if transforms:
             out.append((ns, "/tf", types[_TFMESSAGE](transforms=transforms)))
-    point_t, dur_t = types["trajectory_msgs/msg/JointTrajectoryPoint"], types[
-        "builtin_interfaces/msg/Duration"
-    ]
+    point_t, dur_t = (
+        types["trajectory_msgs/msg/JointTrajectoryPoint"],
+        types["builtin_interfaces/msg/Duration"],
+    )
     for step in run.steps:
         sl = slice(step.first, step.stop)
         since = np.round((run.t[sl] - run.t[step.first]) * _NS).astype(np.int64).tolist()
