@@ -17,11 +17,11 @@ from typing import Any
 
 import numpy as np
 import pytest
-from cli_helpers import call
 
+from cli_helpers import call
 from thirdhand import io
 from thirdhand.demonstration import BodyInfo, Demonstration
-from thirdhand.export.behavior_tree import ACTIONS, STEP_TREE, layers
+from thirdhand.export.behavior_tree import ACTIONS, layers
 from thirdhand.export.pddl_task import domain_path
 from thirdhand.export.ros2 import ORIGIN_NS, WORLD_FRAME
 from thirdhand.taskfile import TaskFile, save_task
@@ -270,7 +270,7 @@ def test_behavior_tree_runs_in_btcpp(tmp_path, capsys, partial) -> None:
     if partial:
         task = _partial(task)
     src = _write_task(task, tmp_path / "chair.task.json")
-    rc, out, err = call(capsys, "convert", str(src), str(tmp_path / "chair.xml"))
+    rc, _, err = call(capsys, "convert", str(src), str(tmp_path / "chair.xml"))
     assert rc == 0, err
     xml = (tmp_path / "chair.xml").read_text()
     root = ET.fromstring(xml)
@@ -342,7 +342,7 @@ def test_pddl_parses_and_a_planner_solves_it(tmp_path, capsys) -> None:
     )
     src = _write_task(task, tmp_path / "box.task.json")
     target = tmp_path / "box.pddl"
-    rc, out, err = call(capsys, "convert", str(src), str(target))
+    rc, _, err = call(capsys, "convert", str(src), str(target))
     assert rc == 0, err
     domain = tmp_path / "box.domain.pddl"
     assert domain_path(target) == domain and domain.is_file()
