@@ -40,7 +40,8 @@ def _run(folder: Path, *, success: bool = True) -> tuple[Path, dict[str, Any], D
     segments = [
         {"step": 0, "segment": "approach", "motion": "planner", "t_start": 0.0, "t_end": 0.48},
         {"step": 0, "segment": "insert", "motion": "straight", "t_start": 0.5, "t_end": 0.98},
-        {"step": 2, "segment": "approach", "motion": "planner", "t_start": 1.0, "t_end": 1.98},
+        {"step": 2, "segment": "approach", "motion": "planner", "t_start": 1.0, "t_end": 1.78},
+        {"step": -1, "segment": "home", "motion": "planner", "t_start": 1.8, "t_end": 1.98},
     ]
     steps = [
         {"index": 0, "parent": "seat", "child": "leg 1", "constraint": "c1", "status": "done"},
@@ -113,7 +114,8 @@ def test_mcap_decodes_with_mcap_ros2(run_mcap: dict[str, Any]) -> None:
     # one trajectory per step the arm did (the person's step has none), in time order
     trajs = topics["/joint_trajectory"]
     assert len(trajs) == 2
-    spans = [(0, 50, [0, 24, 25, 49]), (50, 100, [0, 49])]
+    # the return home (step -1) ends the last step's trajectory
+    spans = [(0, 50, [0, 24, 25, 49]), (50, 100, [0, 39, 40, 49])]
     for (log, msg, _), (lo, hi, ends) in zip(trajs, spans, strict=True):
         assert msg.joint_names == PANDA
         assert log == _ns(msg.header.stamp) == ORIGIN_NS + round(t[lo] * NS)
@@ -315,6 +317,12 @@ def test_layers_respect_the_partial_order() -> None:
     assert layers([[], [0], [1]]) == [[0], [1], [2]]
 
 
+def _goal_atoms(problem: Any) -> list[Any]:
+    """The goal's atoms (the parser turns a conjunction of one into the atom)."""
+    goal = problem.goal
+    return list(goal.operands) if hasattr(goal, "operands") else [goal]
+
+
 def _solve(domain: Path, problem: Path) -> list[tuple[str, ...]]:
     from pyperplan.planner import HEURISTICS, SEARCHES, search_plan
 
@@ -381,7 +389,7 @@ def test_pddl_of_the_chair_has_one_action_per_step(tmp_path, capsys) -> None:
     assert rc == 0, err
     pddl.parse_domain(tmp_path / "chair.domain.pddl")
     prob = pddl.parse_problem(tmp_path / "chair.pddl")
-    assert len(prob.goal.operands) == len(task.plan)
+    assert len(_goal_atoms(prob)) == len(task.plan)
     plan = _solve(tmp_path / "chair.domain.pddl", tmp_path / "chair.pddl")
     assert sorted(step[2:] for step in plan) == sorted((s.child, s.constraint) for s in task.plan)
 
@@ -446,3 +454,67 @@ def test_existing_outputs_need_force(tmp_path, capsys) -> None:
     assert (tmp_path / "chair.domain.pddl.bak").read_text() == "mine"
     rc, _, err = call(capsys, "convert", str(src), str(tmp_path / "x.xml"), "--to", "native")
     assert rc == 1 and "--to: not for a .xml target" in err
+
+
+# --- end to end: a learned task, executed with --record, to all three ------------------
+
+
+def _export_all(capsys, task: Path, run: Path, folder: Path) -> dict[str, Any]:
+    """Convert a run and its task to the three formats and read each back."""
+    import pddl
+
+    for src, name in ((run, "run.mcap"), (task, "plan.xml"), (task, "plan.pddl")):
+        rc, _, err = call(capsys, "convert", str(src), str(folder / name))
+        assert rc == 0, err
+    doc = json.loads(run.read_text())
+    plan = json.loads(task.read_text())["plan"]
+    topics = _decoded(folder / "run.mcap")
+    trajs = [m for _, m, _ in topics["/joint_trajectory"]]
+    done = [s for s in doc["steps"] if s["status"] == "done"]
+    assert len(trajs) == len(done) > 0
+    assert all(m.joint_names == doc["joint_names"] for m in trajs)
+    assert sum(len(m.points) for m in trajs) == len(doc["t"])
+    root = ET.fromstring((folder / "plan.xml").read_text())
+    assert root.get("BTCPP_format") == "4"
+    assert len(root.findall(".//BehaviorTree[@ID='Assembly']//SubTree")) == len(plan)
+    _check_model(root)
+    assert len(_bt_run((folder / "plan.xml").read_text())) == 3 * len(plan)
+    pddl.parse_domain(folder / "plan.domain.pddl")
+    assert len(_goal_atoms(pddl.parse_problem(folder / "plan.pddl"))) == len(plan)
+    assert len(_solve(folder / "plan.domain.pddl", folder / "plan.pddl")) == len(plan)
+    return {"trajectories": trajs, "doc": doc}
+
+
+@pytest.mark.slow
+def test_learned_chair_executed_and_exported(tmp_path, capsys) -> None:
+    rec, task, run = tmp_path / "chair.parquet", tmp_path / "chair.task.json", tmp_path / "run"
+    assert call(capsys, "synth", "chair", "-o", str(rec), "--noise-free")[0] == 0
+    fast = ("--no-segment", "--no-primitives", "--no-reward")
+    assert call(capsys, "learn", str(rec), "-o", str(task), *fast)[0] == 0
+    rc, _, err = call(capsys, "execute", str(task), "--record", str(run))
+    assert rc == 0, err
+    got = _export_all(capsys, task, tmp_path / "run.json", tmp_path)
+    assert got["doc"]["success"] and len(got["trajectories"]) == 5
+    assert all(m.joint_names == PANDA for m in got["trajectories"])
+
+
+@pytest.mark.slow
+def test_real_toolbox_learned_with_its_scene_exports(tmp_path, capsys, shared_data) -> None:
+    folder = shared_data / "3rdhand"
+    task, run = tmp_path / "toolbox.task.json", tmp_path / "run"
+    fast = ("--no-segment", "--no-primitives", "--no-reward")
+    scene = str(folder / "meshes" / "scene_toolbox_coop.json")
+    rc, _, err = call(
+        capsys, "learn", str(folder / "toolbox_coop_4"), "-o", str(task), "--scene", scene, *fast
+    )
+    assert rc == 0, err
+    rc, _, err = call(capsys, "execute", str(task), "--record", str(run))
+    assert rc == 0, err
+    got = _export_all(capsys, task, tmp_path / "run.json", tmp_path)
+    assert len(got["trajectories"]) >= 1
+    frames = {
+        tr.child_frame_id
+        for _, m, _ in _decoded(tmp_path / "run.mcap")["/tf"][-1:]
+        for tr in m.transforms
+    }
+    assert {"toolbox/side_front", "toolbox/side_left"} <= frames

@@ -10,7 +10,8 @@ into the topics a ROS 2 integrator plays back with ``ros2 bag play``:
     the arm's joints named as in its URDF (``panda_joint1`` … ``panda_joint7``;
     Baxter's ``right_s0`` … ``right_w2``), the points at the record's rate with
     ``time_from_start`` from the timing law (seconds from the step's start),
-    positions and velocities (each motion segment starts and ends at rest).
+    positions and velocities (each motion segment starts and ends at rest); the
+    arm's return home after the last step ends that step's trajectory.
 ``/joint_states``
     ``sensor_msgs/msg/JointState`` at every sample: the arm joints and the joints
     the simulation held still (the Panda's fingers open at 0.04 m, Baxter's
@@ -200,12 +201,16 @@ def read_execution(path: PathLike) -> ExecutionRecord:
         raise FormatError(p, f"'base_pose.quat' is not a unit quaternion (norm {norm:.4g})")
     velocity = np.zeros_like(q)
     span_of: dict[int, list[int]] = {}
+    last: int | None = None
     for k, seg in enumerate(segments):
         try:
             lo, hi = np.searchsorted(t, [seg["t_start"] - 1e-6, seg["t_end"] + 1e-6])
             step = int(seg["step"])
         except (KeyError, TypeError, ValueError):
             raise FormatError(p, f"segments[{k}]: expected step, t_start and t_end") from None
+        if step < 0 and last is not None:
+            step = last  # the return home (step -1) ends the last step's trajectory
+        last = step
         if hi - lo >= 3:
             velocity[lo + 1 : hi - 1] = (q[lo + 2 : hi] - q[lo : hi - 2]) / (
                 t[lo + 2 : hi] - t[lo : hi - 2]
