@@ -38,10 +38,10 @@ def _run(folder: Path, *, success: bool = True) -> tuple[Path, dict[str, Any], D
     t = np.round(np.arange(100) * 0.02, 6)
     q = 0.1 * np.sin(np.outer(t, np.arange(1, 8)) + np.arange(7))
     segments = [
-        {"step": 0, "segment": "approach", "motion": "planner", "t_start": 0.0, "t_end": 0.48},
-        {"step": 0, "segment": "insert", "motion": "straight", "t_start": 0.5, "t_end": 0.98},
-        {"step": 2, "segment": "approach", "motion": "planner", "t_start": 1.0, "t_end": 1.78},
-        {"step": -1, "segment": "home", "motion": "planner", "t_start": 1.8, "t_end": 1.98},
+        {"step": 0, "segment": "approach", "t_start": 0.0, "t_end": 0.48, "attached": None},
+        {"step": 0, "segment": "insert", "t_start": 0.5, "t_end": 0.98, "attached": "leg 1"},
+        {"step": 2, "segment": "approach", "t_start": 1.0, "t_end": 1.78, "attached": None},
+        {"step": -1, "segment": "home", "t_start": 1.8, "t_end": 1.98, "attached": None},
     ]
     steps = [
         {"index": 0, "parent": "seat", "child": "leg 1", "constraint": "c1", "status": "done"},
@@ -150,6 +150,22 @@ def test_mcap_decodes_with_mcap_ros2(run_mcap: dict[str, Any]) -> None:
     r = base.transform.rotation
     assert [r.x, r.y, r.z, r.w] == [0.0, 0.0, 0.6, 0.8]
     assert "transient_local" in static[2].metadata["offered_qos_profiles"]
+    # the gripper: open at the start, closed on leg 1 while it is held, open again
+    grip = topics["/gripper_command"]
+    assert [log for log, _, _ in grip] == [ORIGIN_NS + k * NS // 2 for k in range(3)]
+    assert [m.position for _, m, _ in grip] == [0.04, 0.0, 0.04]
+
+
+def test_a_record_without_held_parts_has_no_gripper_commands(tmp_path) -> None:
+    from thirdhand.export.ros2 import write_mcap
+
+    path, doc, _ = _run(tmp_path)
+    for seg in doc["segments"]:
+        del seg["attached"]
+    path.write_text(json.dumps(doc))
+    counts = write_mcap(path, tmp_path / "run.mcap")
+    assert "/gripper_command" not in counts
+    assert set(_decoded(tmp_path / "run.mcap")) == set(counts)
 
 
 def test_mcap_reads_back_with_rosbags_and_ours(run_mcap: dict[str, Any]) -> None:
@@ -167,6 +183,7 @@ def test_mcap_reads_back_with_rosbags_and_ours(run_mcap: dict[str, Any]) -> None
         "/joint_trajectory": "trajectory_msgs/msg/JointTrajectory",
         "/joint_states": "sensor_msgs/msg/JointState",
         "/tf": "tf2_msgs/msg/TFMessage",
+        "/gripper_command": "control_msgs/msg/GripperCommand",
     }
     assert [len(m.points) for m in msgs] == [50, 50]
     np.testing.assert_array_equal(msgs[1].points[-1].positions, doc["q"][-1])
@@ -474,6 +491,8 @@ def _export_all(capsys, task: Path, run: Path, folder: Path) -> dict[str, Any]:
     assert len(trajs) == len(done) > 0
     assert all(m.joint_names == doc["joint_names"] for m in trajs)
     assert sum(len(m.points) for m in trajs) == len(doc["t"])
+    closes = [m for _, m, _ in topics["/gripper_command"] if m.position < 0.01]
+    assert len(closes) >= len(done)
     root = ET.fromstring((folder / "plan.xml").read_text())
     assert root.get("BTCPP_format") == "4"
     assert len(root.findall(".//BehaviorTree[@ID='Assembly']//SubTree")) == len(plan)

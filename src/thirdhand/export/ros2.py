@@ -23,6 +23,13 @@ into the topics a ROS 2 integrator plays back with ``ros2 bag play``:
     ``world -> <robot root link>`` (``panda_link0``; Baxter's ``base``), the base
     pose the run was planned for, offered with transient-local durability as
     ``tf_static`` is.
+``/gripper_command``
+    ``control_msgs/msg/GripperCommand`` when the gripper should close on a part
+    (``position`` the finger joint's closed limit: 0 m for the Panda) or open
+    (the simulation's open value, 0.04 m), ``max_effort`` 0 (the gripper
+    controller's default). The simulation attaches a held part to the tool; its
+    fingers stay open in ``/joint_states``. Runs recorded before segments said
+    what they held have no gripper commands.
 
 Every header stamp and log time is on one clock: the run's ``t = 0`` is 1 s
 after the Unix epoch (as :func:`thirdhand.io.rosbag.write` without a start
@@ -73,6 +80,19 @@ _NS = 1_000_000_000
 _JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 _JOINT_STATE = "sensor_msgs/msg/JointState"
 _TFMESSAGE = "tf2_msgs/msg/TFMessage"
+_GRIPPER = "control_msgs/msg/GripperCommand"
+#: ``control_msgs/msg/GripperCommand`` (not in rosbags' store; the definition is embedded).
+_GRIPPER_MSG = "float64 position\nfloat64 max_effort\n"
+#: The finger joint whose position a gripper command sets.
+GRIPPER_JOINT = {"panda": "panda_finger_joint1", "baxter": "r_gripper_l_finger_joint"}
+
+
+@dataclass(frozen=True)
+class GripperEvent:
+    """The gripper closes on ``part`` (or opens, ``part`` None) at ``t`` seconds."""
+
+    t: float
+    part: str | None
 
 
 @dataclass(frozen=True)
@@ -121,6 +141,9 @@ class ExecutionRecord:
         The steps the arm did, in the order it did them.
     n_person_steps : int
         Steps a person did (no arm motion).
+    gripper : list of GripperEvent
+        The first (open or holding) and every change of what the gripper holds,
+        in time order; empty for a record whose segments do not say.
     """
 
     robot: str
@@ -132,6 +155,7 @@ class ExecutionRecord:
     velocity: FloatArray
     steps: list[StepMotion]
     n_person_steps: int
+    gripper: list[GripperEvent]
 
 
 def _num_array(p: Path, doc: dict[str, Any], key: str, ndim: int) -> FloatArray:
@@ -235,6 +259,12 @@ def read_execution(path: PathLike) -> ExecutionRecord:
             )
         )
     motions.sort(key=lambda m: m.first)
+    gripper: list[GripperEvent] = []
+    if segments and all("attached" in seg for seg in segments):
+        for seg in segments:
+            part = seg["attached"] if isinstance(seg["attached"], str) else None
+            if not gripper or gripper[-1].part != part:
+                gripper.append(GripperEvent(t=float(seg["t_start"]), part=part))
     return ExecutionRecord(
         robot=str(doc.get("robot")),
         base_pos=base_pos,
@@ -245,6 +275,7 @@ def read_execution(path: PathLike) -> ExecutionRecord:
         velocity=velocity,
         steps=motions,
         n_person_steps=sum(s.get("status") == "done by person" for s in steps),
+        gripper=gripper,
     )
 
 
@@ -269,8 +300,17 @@ def frame_ids(names: Sequence[str]) -> list[str]:
     return out
 
 
-def robot_joints(robot: str) -> tuple[str, dict[str, float]]:
-    """The robot's root link and the joints the simulation held still, with their values.
+def robot_joints(robot: str) -> tuple[str, dict[str, float], tuple[float, float]]:
+    """The robot's root link, the joints the simulation held still, the gripper's range.
+
+    Returns
+    -------
+    root_link : str
+    held : dict of str to float
+        Joint name to its value in the simulation (rad or m).
+    gripper : (float, float)
+        :data:`GRIPPER_JOINT`'s open (the simulation's) and closed (its other
+        limit) positions.
 
     Raises
     ------
@@ -293,7 +333,12 @@ def robot_joints(robot: str) -> tuple[str, dict[str, float]]:
         if j.get("type") in ("revolute", "prismatic", "continuous")
     ]
     held = {n: float(spec.locked.get(n, 0.0)) for n in movable if n not in spec.arm_joints}
-    return str(roots[0]), held
+    finger = GRIPPER_JOINT[robot]
+    limit = next(j.find("limit") for j in urdf.findall("joint") if j.get("name") == finger)
+    bounds = [float(limit.get(k, "0")) for k in ("lower", "upper")]  # type: ignore[union-attr]
+    opened = held[finger]
+    closed = max(bounds, key=lambda b: abs(b - opened))
+    return str(roots[0]), held, (opened, closed)
 
 
 def _stamp(store: Typestore, ns: int) -> Any:
@@ -325,6 +370,7 @@ def _messages(
     *,
     root_link: str,
     held: dict[str, float],
+    gripper: tuple[float, float],
 ) -> list[tuple[int, str, Any]]:
     """``(log time ns, topic, message)`` sorted by time (``/tf_static`` first)."""
     types = store.types
@@ -376,7 +422,17 @@ def _messages(
             header=_header(store, ns, WORLD_FRAME), joint_names=run.joint_names, points=points
         )
         out.append((ns, "/joint_trajectory", msg))
-    order = {"/tf_static": 0, "/joint_trajectory": 1, "/joint_states": 2, "/tf": 3}
+    for ev in run.gripper:
+        ns = ORIGIN_NS + round(ev.t * _NS)
+        position = gripper[0] if ev.part is None else gripper[1]
+        out.append((ns, "/gripper_command", types[_GRIPPER](position=position, max_effort=0.0)))
+    order = {
+        "/tf_static": 0,
+        "/gripper_command": 1,
+        "/joint_trajectory": 2,
+        "/joint_states": 3,
+        "/tf": 4,
+    }
     out.sort(key=lambda m: (m[0], order[m[1]]))
     return out
 
@@ -415,7 +471,7 @@ def write_mcap(execution: PathLike, target: PathLike) -> dict[str, int]:
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
     from rosbags.interfaces import QosTime as _QosTime
     from rosbags.rosbag2 import StoragePlugin, Writer
-    from rosbags.typesys import Stores, get_typestore
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     from thirdhand import io
 
@@ -426,10 +482,11 @@ def write_mcap(execution: PathLike, target: PathLike) -> dict[str, int]:
             execution, f"no replay {replay_file.name} beside it (execute --record writes both)"
         )
     replay = io.load(replay_file)
-    root_link, held = robot_joints(run.robot)
+    root_link, held, gripper = robot_joints(run.robot)
     store = get_typestore(Stores.LATEST)
+    store.register(get_types_from_msg(_GRIPPER_MSG, _GRIPPER))
     try:
-        messages = _messages(run, replay, store, root_link=root_link, held=held)
+        messages = _messages(run, replay, store, root_link=root_link, held=held, gripper=gripper)
     except FormatError as exc:
         raise FormatError(replay_file, exc.message) from None
     never = _QosTime(sec=0, nsec=0)
@@ -450,6 +507,8 @@ def write_mcap(execution: PathLike, target: PathLike) -> dict[str, int]:
         "/joint_states": _JOINT_STATE,
         "/tf": _TFMESSAGE,
     }
+    if run.gripper:
+        types["/gripper_command"] = _GRIPPER
     counts = dict.fromkeys(types, 0)
     target = Path(target)
     with atomic_output(target) as built:
