@@ -33,7 +33,9 @@ NS = 1_000_000_000
 # --- a hand-made run: exact values to compare against --------------------------------
 
 
-def _run(folder: Path, *, success: bool = True) -> tuple[Path, dict[str, Any], Demonstration]:
+def _run(
+    folder: Path, *, success: bool = True, joints: list[str] = PANDA
+) -> tuple[Path, dict[str, Any], Demonstration]:
     """A Panda run of 3 steps (the 2nd by a person) at 50 Hz, with its replay."""
     t = np.round(np.arange(100) * 0.02, 6)
     q = 0.1 * np.sin(np.outer(t, np.arange(1, 8)) + np.arange(7))
@@ -51,9 +53,9 @@ def _run(folder: Path, *, success: bool = True) -> tuple[Path, dict[str, Any], D
     steps[1]["status"] = "done by person" if success else "no reachable goal (place IK failed)"
     doc = {
         "schema": "thirdhand.trajectory/1",
-        "robot": "panda",
+        "robot": "panda" if joints == PANDA else "baxter",
         "base_pose": {"pos": [0.1, -0.2, 0.75], "quat": [0.0, 0.0, 0.6, 0.8]},
-        "joint_names": PANDA,
+        "joint_names": joints,
         "rate_hz": 50.0,
         "t": t.tolist(),
         "q": q.tolist(),
@@ -154,6 +156,21 @@ def test_mcap_decodes_with_mcap_ros2(run_mcap: dict[str, Any]) -> None:
     grip = topics["/gripper_command"]
     assert [log for log, _, _ in grip] == [ORIGIN_NS + k * NS // 2 for k in range(3)]
     assert [m.position for _, m, _ in grip] == [0.04, 0.0, 0.04]
+
+
+def test_baxter_run_names_its_urdf_joints_and_base(tmp_path) -> None:
+    from thirdhand.export.ros2 import write_mcap
+
+    arm = [f"right_{j}" for j in ("s0", "s1", "e0", "e1", "w0", "w1", "w2")]
+    path, _, _ = _run(tmp_path, joints=arm)
+    write_mcap(path, tmp_path / "run.mcap")
+    topics = _decoded(tmp_path / "run.mcap")
+    assert all(m.joint_names == arm for _, m, _ in topics["/joint_trajectory"])
+    assert topics["/tf_static"][0][1].transforms[0].child_frame_id == "base"
+    names = topics["/joint_states"][0][1].name
+    assert names[:7] == arm and {"left_s0", "r_gripper_l_finger_joint"} <= set(names)
+    # the right gripper's finger: open as simulated, closed at its other URDF limit
+    assert [m.position for _, m, _ in topics["/gripper_command"]] == [0.020833, 0.0, 0.020833]
 
 
 def test_a_record_without_held_parts_has_no_gripper_commands(tmp_path) -> None:
@@ -537,3 +554,23 @@ def test_real_toolbox_learned_with_its_scene_exports(tmp_path, capsys, shared_da
         for tr in m.transforms
     }
     assert {"toolbox/side_front", "toolbox/side_left"} <= frames
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        (lambda d: d.update(q=d["q"][:-1]), "'q' has shape (99, 7), expected (100, 7)"),
+        (lambda d: d.update(steps=["done"]), "steps[0]: expected a step report"),
+        (lambda d: d.update(segments=[3]), "segments[0]: expected step, t_start and t_end"),
+        (lambda d: d["base_pose"].update(quat=[0, 0, 0, 2]), "not a unit quaternion"),
+        (lambda d: d.update(success=False), "the run failed, only a successful run"),
+        (lambda d: d.update(t=d["t"][::-1]), "'t' is not strictly increasing"),
+    ],
+)
+def test_malformed_record_is_one_error(tmp_path, capsys, change, message) -> None:
+    path, doc, _ = _run(tmp_path)
+    change(doc)
+    path.write_text(json.dumps(doc))
+    rc, _, err = call(capsys, "convert", str(path), str(tmp_path / "run.mcap"))
+    assert rc == 1 and err.count("\n") == 1 and message in err, err
+    assert not (tmp_path / "run.mcap").exists()

@@ -202,17 +202,24 @@ def read_execution(path: PathLike) -> ExecutionRecord:
     segments = doc.get("segments")
     if not isinstance(steps, list) or not isinstance(segments, list):
         raise FormatError(p, "expected 'steps' and 'segments' lists")
+    for k, s in enumerate(steps):
+        if not isinstance(s, dict) or not isinstance(s.get("index"), int):
+            raise FormatError(p, f"steps[{k}]: expected a step report with an integer 'index'")
+    for k, seg in enumerate(segments):
+        if not isinstance(seg, dict):
+            raise FormatError(p, f"segments[{k}]: expected step, t_start and t_end")
     not_done = [s for s in steps if s.get("status") not in DONE_STATUSES]
     if not_done or doc.get("success") is not True or not steps:
         detail = "; ".join(
-            f"step {s.get('index')} ({s.get('child')} -> {s.get('parent')}): {s.get('status')}"
+            f"step {s['index']} ({s.get('child')} -> {s.get('parent')}): {s.get('status')}"
             for s in not_done[:3]
         )
         more = f" and {len(not_done) - 3} more" if len(not_done) > 3 else ""
+        why = "no step" if not steps else f"success is {doc.get('success')!r}"
         raise FormatError(
             p,
             "the run failed, only a successful run is exported to a robot"
-            + (f" ({detail}{more})" if detail else " (no step done)"),
+            + (f" ({detail}{more})" if detail else f" ({why})"),
         )
     base = doc.get("base_pose") or {}
     try:
