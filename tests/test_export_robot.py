@@ -565,6 +565,7 @@ def test_real_toolbox_learned_with_its_scene_exports(tmp_path, capsys, shared_da
         (lambda d: d["base_pose"].update(quat=[0, 0, 0, 2]), "not a unit quaternion"),
         (lambda d: d.update(success=False), "the run failed, only a successful run"),
         (lambda d: d.update(t=d["t"][::-1]), "'t' is not strictly increasing"),
+        (lambda d: d.update(robot="ur5"), "'robot' 'ur5' is not a robot thirdhand simulates"),
     ],
 )
 def test_malformed_record_is_one_error(tmp_path, capsys, change, message) -> None:

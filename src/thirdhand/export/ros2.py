@@ -328,7 +328,7 @@ def robot_joints(robot: str) -> tuple[str, dict[str, float], tuple[float, float]
 
     spec = ROBOTS.get(robot)
     if spec is None:
-        raise FormatError(robot, f"unknown robot, expected one of {sorted(ROBOTS)}")
+        raise FormatError(robot, f"{robot!r} is not a robot thirdhand simulates ({sorted(ROBOTS)})")
     import xml.etree.ElementTree as ET
 
     urdf = ET.parse(robots_dir() / spec.urdf).getroot()
@@ -399,11 +399,14 @@ def _messages(
         out.append((ns, "/joint_states", msg))
     parts = [b.name for b in replay.bodies if b.kind == "part"]
     frames = dict(zip(parts, frame_ids(parts), strict=True))
+    pos = {n: replay.pos(n) for n in parts}
+    quat = {n: replay.quat(n) for n in parts}
+    seen = {
+        n: np.all(np.isfinite(pos[n]), axis=1) & np.all(np.isfinite(quat[n]), axis=1) for n in parts
+    }
     for i, ns in enumerate(_replay_stamps(replay, run).tolist()):
         transforms = [
-            _transform(store, ns, frames[n], replay.pos(n)[i], replay.quat(n)[i])
-            for n in parts
-            if np.all(np.isfinite(replay.pos(n)[i])) and np.all(np.isfinite(replay.quat(n)[i]))
+            _transform(store, ns, frames[n], pos[n][i], quat[n][i]) for n in parts if seen[n][i]
         ]
         if transforms:
             out.append((ns, "/tf", types[_TFMESSAGE](transforms=transforms)))
@@ -489,7 +492,10 @@ def write_mcap(execution: PathLike, target: PathLike) -> dict[str, int]:
             execution, f"no replay {replay_file.name} beside it (execute --record writes both)"
         )
     replay = io.load(replay_file)
-    root_link, held, gripper = robot_joints(run.robot)
+    try:
+        root_link, held, gripper = robot_joints(run.robot)
+    except FormatError as exc:
+        raise FormatError(execution, f"'robot' {exc.message}") from None
     store = get_typestore(Stores.LATEST)
     store.register(get_types_from_msg(_GRIPPER_MSG, _GRIPPER))
     try:
