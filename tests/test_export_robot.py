@@ -575,3 +575,17 @@ def test_malformed_record_is_one_error(tmp_path, capsys, change, message) -> Non
     rc, _, err = call(capsys, "convert", str(path), str(tmp_path / "run.mcap"))
     assert rc == 1 and err.count("\n") == 1 and message in err, err
     assert not (tmp_path / "run.mcap").exists()
+
+
+def test_step_without_constraint_id_uses_the_pair_or_is_one_error(tmp_path, capsys) -> None:
+    task = _chair()
+    plan = [s.model_copy(update={"constraint": None}) for s in task.plan]
+    src = _write_task(task.model_copy(update={"plan": plan}), tmp_path / "t.json")
+    assert call(capsys, "convert", str(src), str(tmp_path / "t.xml"))[0] == 0
+    ids = [s.get("constraint") for s in ET.parse(tmp_path / "t.xml").iter("SubTree")]
+    assert ids[: len(plan)] == [s.constraint for s in task.plan]
+    bare = task.model_copy(update={"plan": plan, "constraints": task.constraints[1:]})
+    src = _write_task(bare, tmp_path / "bare.json")
+    rc, _, err = call(capsys, "convert", str(src), str(tmp_path / "bare.xml"))
+    assert rc == 1 and err.count("\n") == 1 and "the tree needs its goal pose" in err
+    assert not (tmp_path / "bare.xml").exists()
