@@ -364,19 +364,29 @@ def convert(
         Path | None, typer.Option(help=".rrd: an executed run, OUT.json of execute --record.")
     ] = None,
 ) -> None:
-    """Convert a recording between formats, or write a Rerun recording (``out.rrd``).
+    """Convert a recording between formats, or export a task or a run to a robot or a viewer.
 
     ``convert REC|TASK out.rrd`` writes the bodies' poses on a timeline, the
     interaction phases, keyframes, learned constraints and an execution replay
     (needs the ``rerun`` extra); see ``thirdhand.export.rrd``.
+    ``convert RUN.json out.mcap`` writes an executed run (``execute --record``)
+    as a ROS 2 bag; ``convert TASK out.xml`` the plan as a BehaviorTree.CPP v4
+    tree; ``convert TASK out.pddl`` a PDDL problem and its domain
+    (``out.domain.pddl``); see docs/robot.md.
     """
     from thirdhand import io
 
     extras = {"--task": task, "--demo": demo, "--phases": phases, "--execution": execution}
-    if target.suffix.lower() == ".rrd":
+    suffix = target.suffix.lower()
+    if suffix == ".rrd":
         _convert_rrd(source, target, force=force, **{k[2:]: v for k, v in extras.items()})
         return
     given = [k for k, v in extras.items() if v is not None]
+    if suffix in (".xml", ".pddl") or (suffix == ".mcap" and source.suffix.lower() == ".json"):
+        if given or to is not None:
+            _fail(f"{', '.join(given + ['--to'] * (to is not None))}: not for a {suffix} target")
+        _convert_robot(source, target, force=force)
+        return
     if given:
         _fail(f"{', '.join(given)}: only for a .rrd target")
     check_output(target, force=force, inputs=[source])
@@ -384,6 +394,48 @@ def convert(
     check_output(target, force=force, inputs=[source])
     io.save(recording, target, format=to)
     out.print(f"wrote {target}: {recording}")
+
+
+def _convert_robot(source: Path, target: Path, *, force: bool) -> None:
+    """A run to a ROS 2 MCAP, or a task to a behaviour tree or a PDDL problem and domain."""
+    from thirdhand.errors import TaskFileError
+    from thirdhand.fileops import write_text
+
+    suffix = target.suffix.lower()
+    if suffix == ".mcap":
+        from thirdhand.export.ros2 import replay_path, write_mcap
+
+        check_output(target, force=force, inputs=[source, replay_path(source)])
+        if not target.parent.is_dir():
+            _fail(f"{target}: the folder {target.parent} does not exist")
+        counts = write_mcap(source, target)
+        shown = ", ".join(f"{n} {topic}" for topic, n in counts.items())
+        out.print(f"wrote {target}: {shown}")
+        return
+    from thirdhand.export.pddl_task import domain_path
+    from thirdhand.taskfile import load_task
+
+    outputs = [target, domain_path(target)] if suffix == ".pddl" else [target]
+    for o in outputs:
+        check_output(o, force=force, inputs=[source])
+    if not target.parent.is_dir():
+        _fail(f"{target}: the folder {target.parent} does not exist")
+    task = load_task(source)
+    try:
+        if suffix == ".xml":
+            from thirdhand.export.behavior_tree import tree_xml
+
+            texts = [tree_xml(task)]
+        else:
+            from thirdhand.export.pddl_task import DOMAIN, problem_pddl
+
+            texts = [problem_pddl(task, name=source.stem.removesuffix(".task")), DOMAIN]
+    except TaskFileError as exc:
+        _fail(f"{source}: {exc}")
+    for o, text in zip(outputs[::-1], texts[::-1], strict=True):
+        write_text(o, text)
+    steps = f"{len(task.plan)} plan step{'s' * (len(task.plan) != 1)}"
+    out.print(f"wrote {' and '.join(map(str, outputs))}: {steps}")
 
 
 def _convert_rrd(

@@ -51,8 +51,9 @@ def sample_run(
         Samples per second.
     spans : list, optional
         Filled with one dict per executed segment: ``step``, ``segment``,
-        ``motion`` (``"planner"``, ``"straight"`` or ``"primitive"``) and its
-        ``t_start``, ``t_end`` (s) on the returned clock.
+        ``motion`` (``"planner"``, ``"straight"`` or ``"primitive"``), its
+        ``t_start``, ``t_end`` (s) on the returned clock and ``attached`` (the
+        part the gripper holds during it, or None).
 
     Returns
     -------
@@ -91,6 +92,7 @@ def sample_run(
                     "motion": seg.get("motion", "planner"),
                     "t_start": round(float(t[0]), 6),
                     "t_end": round(float(t[-1]), 6),
+                    "attached": seg["attached"],
                 }
             )
         tool = robot.tool_transforms(q)
