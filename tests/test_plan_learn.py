@@ -172,3 +172,28 @@ def test_toolbox_excerpt_runs_despite_missing_frames(shared_data: Path, tmp_path
     task = learn([demo]).task()
     save_task(task, tmp_path / "task.json")
     assert load_task(tmp_path / "task.json").schema_ == task.schema_
+
+
+def test_report_draws_each_keyframe_with_the_parts_shapes(tmp_path: Path) -> None:
+    """The task's meshes where found, else its boxes; one view per step, the pair named."""
+    from thirdhand.plan.report import _keyframe_views, part_shapes, write_report
+    from thirdhand.task.meshes import box_triangles
+
+    demo = make_scene("chair", seed=2, sensor=None)
+    result = learn([demo], segment=False)
+    task = result.task()
+    # No mesh file beside the task and no search path: every part is its box.
+    boxed = task.model_copy(
+        update={"objects": [o.model_copy(update={"mesh": None}) for o in task.objects]}
+    )
+    shapes = part_shapes(result, 0, boxed, tmp_path / "task.json")
+    with_box = [o for o in boxed.objects if o.bbox_min is not None]
+    assert with_box and set(shapes) == {o.name for o in with_box}
+    for o in with_box:
+        np.testing.assert_array_equal(shapes[o.name], box_triangles(o.bbox_min, o.bbox_max))
+    # Without a task, the recording's own geometry gives the same boxes.
+    own = part_shapes(result, 0)
+    assert set(own) >= {"seating", "leg1", "back"}
+    assert _keyframe_views(result, 0, shapes)  # a PNG
+    page = write_report(result, tmp_path / "report", boxed, tmp_path / "task.json").read_text()
+    assert "<h3>Keyframes</h3>" in page and "(child)" in page

@@ -131,7 +131,7 @@ def _write_task(learned: LearnedTask, out: Path, summary: dict[str, Any]) -> Pat
     block, line = plan_figures(learned.learned)
     summary["plan"] = block
     summary["lines"].append(f"{line} → {path}")
-    index = write_report(learned.learned, out / "report")
+    index = write_report(learned.learned, out / "report", learned.task, path)
     summary["files"].append(str(index))
     summary["lines"].append(f"plan report → {index}")
     if learned.primitives is not None:

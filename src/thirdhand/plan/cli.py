@@ -243,4 +243,4 @@ def learn_command(
     if report is not None:
         from thirdhand.plan.report import write_report
 
-        out.print(f"report → {write_report(result.learned, report)}")
+        out.print(f"report → {write_report(result.learned, report, task, output)}")

@@ -2,8 +2,8 @@
 
 One self-contained ``index.html`` (figures embedded as PNG data) per run:
 the constraint-state plot (per part pair, ``p(constrained)`` over time, and the
-hands' interaction phases when segmentation ran), the keyframe strip (small 3D
-snapshots of every part at each keyframe), the constraint table and the plan with
+hands' interaction phases when segmentation ran), a 3D view of every keyframe
+(the parts' meshes or boxes, the step's pair coloured), the constraint table and the plan with
 its relational trajectory. matplotlib is imported lazily.
 """
 
@@ -13,6 +13,7 @@ import base64
 import html
 import io
 import math
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,7 +24,12 @@ from thirdhand.demonstration import DOF_NAMES
 from thirdhand.fileops import atomic_write_bytes
 
 if TYPE_CHECKING:
+    from numpy.typing import NDArray
+
     from thirdhand.plan.learn import Learned
+    from thirdhand.task.model import TaskFile
+
+    FloatArray = NDArray[np.float64]
 
 
 def _png(fig: Any) -> str:
@@ -63,48 +69,135 @@ def _timeline(learned: Learned, k: int) -> str:
     return _png(fig)
 
 
-def _strip(learned: Learned, k: int, max_frames: int = 8) -> str:
+#: Colours of the keyframe views: the step's child, its parent, parts already
+#: assembled, parts not yet used (drawn faint).
+CHILD, PARENT, DONE, LOOSE = "#e66101", "#2166ac", "#9e9e9e", "#d9d9d9"
+
+
+def part_shapes(
+    learned: Learned,
+    k: int,
+    task: TaskFile | None = None,
+    task_path: str | os.PathLike[str] | None = None,
+) -> dict[str, FloatArray]:
+    """Each part's triangles in its body frame (metres): the task's meshes, else boxes.
+
+    Parameters
+    ----------
+    learned : thirdhand.plan.learn.Learned
+    k : int
+        The demonstration.
+    task : TaskFile, optional
+        Its objects' meshes (looked up beside ``task_path`` and along the mesh
+        search path) or bounding boxes; without it, the recording's own geometry
+        (``meta["geometry"]`` of synthetic scenes and native files).
+
+    Returns
+    -------
+    dict of str to ndarray, shape (n_triangles, 3, 3)
+        Parts with a known shape only.
+    """
+    from thirdhand.task.meshes import object_geometry, object_triangles
+    from thirdhand.task.model import TaskObject
+
+    if task is not None:
+        objects = list(task.objects)
+    else:
+        objects = [
+            TaskObject.model_validate({"name": name, **geo})
+            for name, geo in object_geometry(learned.demos[k]).items()
+        ]
+    shapes = {}
+    for obj in objects:
+        tri = object_triangles(obj, task_path)
+        if tri is not None:
+            shapes[obj.name] = tri
+    return shapes
+
+
+def _keyframe_views(
+    learned: Learned, k: int, shapes: dict[str, FloatArray], columns: int = 3
+) -> str:
+    """Every keyframe as a 3D view of the parts (meshes or boxes), the step's pair coloured.
+
+    The step's child is orange, its parent blue, the parts assembled by earlier
+    steps grey, the others faint; a black line joins the pair's origins. Views
+    share one scale so that the assembly's growth reads from left to right.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    kfs = learned.keyframes[k][:max_frames]
-    parts = {n for i in learned.detections[k].instances for n in (i.parent, i.child)}
+    kfs = learned.keyframes[k]
     if not kfs:
         return ""
-    fig = plt.figure(figsize=(2.2 * len(kfs), 2.4))
+    parts = {n for i in learned.detections[k].instances for n in (i.parent, i.child)}
+    parts |= {n for n in shapes if n in learned.demos[k].body_names}
+
+    def world(name: str, pose: tuple[FloatArray, FloatArray]) -> FloatArray:
+        p, q = pose
+        if name in shapes:
+            return shapes[name] @ se3.matrix_from_quat(q).T + p
+        return np.asarray(p, float)[None, None]
+
+    # One box around the assembly (each step's pair at its keyframe; world frame,
+    # metres), so that the views share a scale and the assembly fills them.
+    points = [
+        world(n, kf.poses[n]).reshape(-1, 3)
+        for kf in kfs
+        for n in (kf.parent, kf.child)
+        if n in kf.poses
+    ]
+    allp = np.concatenate(points)
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    mid = 0.5 * (lo + hi)
+    half = max(0.05, 0.5 * float(np.max(hi - lo))) * 1.1
+    rows = math.ceil(len(kfs) / columns)
+    fig = plt.figure(figsize=(4.2 * min(columns, len(kfs)), 4.2 * rows))
     for j, kf in enumerate(kfs):
-        ax = fig.add_subplot(1, len(kfs), j + 1, projection="3d")
-        half = 0.15
-        shown = [p for n, (p, _) in kf.poses.items() if n in parts]
-        if shown:
-            mid = np.mean(shown, axis=0)
-            half = max(0.15, float(np.max(np.abs(np.asarray(shown) - mid))) + 0.05)
-            ax.set_xlim(mid[0] - half, mid[0] + half)
-            ax.set_ylim(mid[1] - half, mid[1] + half)
-            ax.set_zlim(mid[2] - half, mid[2] + half)
+        ax = fig.add_subplot(rows, min(columns, len(kfs)), j + 1, projection="3d")
+        done = {n for e in kfs[:j] for n in (e.parent, e.child)}
         for name, (p, q) in kf.poses.items():
             if name not in parts:
                 continue
-            m = se3.matrix_from_quat(q)
-            for c, col in enumerate(("r", "g", "b")):
-                e = p + 0.2 * half * m[:, c]
-                ax.plot([p[0], e[0]], [p[1], e[1]], [p[2], e[2]], col, lw=1)
-            hl = name in (kf.parent, kf.child)
-            ax.scatter(*p, s=18 if hl else 6, c="k" if hl else "grey")
-            if hl:
-                ax.text(p[0], p[1], p[2], name, fontsize=6)
+            if name == kf.child:
+                colour, alpha = CHILD, 0.95
+            elif name == kf.parent:
+                colour, alpha = PARENT, 0.9
+            elif name in done:
+                colour, alpha = DONE, 0.6
+            else:
+                colour, alpha = LOOSE, 0.25
+            tri = world(name, (p, q))
+            if np.any(np.abs(tri.reshape(-1, 3) - mid).max(axis=0) > half):
+                continue  # lying outside the assembly's view
+            if name in shapes:
+                ax.add_collection3d(
+                    Poly3DCollection(
+                        tri,
+                        facecolors=colour,
+                        edgecolors=colour,
+                        linewidths=0.0,
+                        alpha=alpha,
+                        shade=True,
+                    )
+                )
+            else:
+                ax.scatter(*p, s=30, c=colour, alpha=alpha)
+        if kf.parent in kf.poses and kf.child in kf.poses:
+            a, b = kf.poses[kf.parent][0], kf.poses[kf.child][0]
+            ax.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], "k-", lw=1.2)
+        ax.set_xlim(mid[0] - half, mid[0] + half)
+        ax.set_ylim(mid[1] - half, mid[1] + half)
+        ax.set_zlim(mid[2] - half, mid[2] + half)
         ax.set_box_aspect((1, 1, 1))
-        # The constraints made so far, as parent–child links.
-        for done in learned.keyframes[k][: j + 1]:
-            if done.parent in kf.poses and done.child in kf.poses:
-                a, b = kf.poses[done.parent][0], kf.poses[done.child][0]
-                ax.plot([a[0], b[0]], [a[1], b[1]], [a[2], b[2]], "k-", lw=0.8)
-        ax.set_title(f"{kf.time:.1f} s\n{kf.child} → {kf.parent}", fontsize=7)
+        ax.view_init(elev=25, azim=-60)
         ax.set_xticks([])
         ax.set_yticks([])
         ax.set_zticks([])
+        ax.set_title(f"step {j + 1} at {kf.time:.1f} s\n{kf.child} → {kf.parent}", fontsize=11)
     return _png(fig)
 
 
@@ -148,13 +241,20 @@ def _constraint_table(learned: Learned) -> str:
     return f"<table><tr>{head}</tr>{''.join(rows)}</table>"
 
 
-def write_report(learned: Learned, folder: str | Path) -> Path:
+def write_report(
+    learned: Learned,
+    folder: str | Path,
+    task: TaskFile | None = None,
+    task_path: str | os.PathLike[str] | None = None,
+) -> Path:
     """Write ``index.html`` into ``folder`` (created) and return its path.
 
     Parameters
     ----------
     learned : thirdhand.plan.learn.Learned
     folder : path-like
+    task, task_path : TaskFile and its path, optional
+        Where the parts' meshes come from (see :func:`part_shapes`).
     """
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)
@@ -195,9 +295,15 @@ def write_report(learned: Learned, folder: str | Path) -> Path:
         parts.append(
             f"<h3>Segmentation</h3><img src='data:image/png;base64,{_timeline(learned, k)}'>"
         )
-        strip = _strip(learned, k)
-        if strip:
-            parts.append(f"<h3>Keyframes</h3><img src='data:image/png;base64,{strip}'>")
+        views = _keyframe_views(learned, k, part_shapes(learned, k, task, task_path))
+        if views:
+            parts.append(
+                "<h3>Keyframes</h3><p>At each step's keyframe: the part placed "
+                f"<b style='color:{CHILD}'>(child)</b>, the part it is placed on "
+                f"<b style='color:{PARENT}'>(parent)</b>, parts assembled before "
+                f"<b style='color:{DONE}'>(grey)</b>.</p>"
+                f"<img src='data:image/png;base64,{views}' style='max-width:100%'>"
+            )
     style = (
         "<style>body{font-family:sans-serif;margin:2em}table{border-collapse:collapse;"
         "font-size:80%}td,th{border:1px solid #ccc;padding:2px 6px}</style>"
