@@ -226,3 +226,44 @@ def test_compiled_rotation_kernels_match_numpy(q1: np.ndarray, q2: np.ndarray) -
     perp = hint - (hint @ axis) * axis
     if np.linalg.norm(perp) > 1e-6:
         np.testing.assert_allclose(y, perp / np.linalg.norm(perp), atol=1e-6)
+
+
+def test_euler_rotvec_and_matrix_conversions_match_scipy(rng: np.random.Generator) -> None:
+    q = se3.random_quat(rng, 50).reshape(5, 10, 4)
+    r = Rotation.from_quat(q.reshape(-1, 4))
+    for seq in ("xyz", "XYZ", "zyx"):
+        e = se3.euler_from_quat(q, seq)
+        assert e.shape == (5, 10, 3)
+        np.testing.assert_allclose(e.reshape(-1, 3), r.as_euler(seq), atol=1e-9)
+        back = se3.quat_from_euler(e, seq)
+        assert np.all(se3.quat_angle(back, q) < 1e-9)
+        m = se3.matrix_from_euler(e, seq)
+        np.testing.assert_allclose(m.reshape(-1, 3, 3), r.as_matrix(), atol=1e-12)
+        np.testing.assert_allclose(se3.euler_from_matrix(m, seq), e, atol=1e-9)
+    deg = se3.euler_from_quat(q, "xyz", degrees=True)
+    np.testing.assert_allclose(np.radians(deg), se3.euler_from_quat(q, "xyz"), atol=1e-12)
+    rv = r.as_rotvec().reshape(5, 10, 3)
+    np.testing.assert_allclose(
+        se3.matrix_from_rotvec(rv).reshape(-1, 3, 3), r.as_matrix(), atol=1e-12
+    )
+    np.testing.assert_allclose(se3.rotvec_from_matrix(r.as_matrix()), r.as_rotvec(), atol=1e-9)
+
+
+def test_quat_mean_is_sign_blind_and_exact_on_a_symmetric_spread(rng: np.random.Generator) -> None:
+    centre = se3.random_quat(rng)
+    # Rotations ±θ about three axes around the centre: their mean is the centre.
+    offsets = se3.rotvec_to_quat(np.concatenate([np.eye(3), -np.eye(3)]) * 0.3)
+    qs = se3.quat_multiply(centre, offsets)
+    qs[::2] *= -1.0  # either sign of each sample
+    mean = se3.quat_mean(qs)
+    assert float(se3.quat_angle(mean, centre)) < 1e-9 and mean[3] >= 0
+    # Weights pull the mean to the heavier sample, as scipy's weighted mean does.
+    w = np.arange(1.0, 7.0)
+    ref = Rotation.from_quat(qs).mean(weights=w).as_quat()
+    assert float(se3.quat_angle(se3.quat_mean(qs, w), ref)) < 1e-9
+
+
+def test_transform_invert_composes_to_identity(rng: np.random.Generator) -> None:
+    t = se3.pose_to_matrix(rng.normal(size=(7, 3)), se3.random_quat(rng, 7))
+    inv = se3.transform_invert(t)
+    np.testing.assert_allclose(inv @ t, np.broadcast_to(np.eye(4), (7, 4, 4)), atol=1e-12)

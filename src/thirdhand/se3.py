@@ -231,6 +231,73 @@ def matrix_from_quat(q: ArrayLike) -> FloatArray:
     return m
 
 
+def matrix_from_rotvec(rotvec: ArrayLike) -> FloatArray:
+    """Rotation matrices (..., 3, 3) of rotation vectors (..., 3), radians."""
+    return matrix_from_quat(rotvec_to_quat(rotvec))
+
+
+def rotvec_from_matrix(m: ArrayLike) -> FloatArray:
+    """Rotation vectors (..., 3), radians (angle in [0, π]), of rotation matrices (..., 3, 3)."""
+    return quat_to_rotvec(quat_from_matrix(m))
+
+
+def quat_from_euler(angles: ArrayLike, seq: str = "xyz", *, degrees: bool = False) -> FloatArray:
+    """Unit quaternions (..., 4) x y z w of Euler angles (..., 3).
+
+    ``seq`` as in :meth:`scipy.spatial.transform.Rotation.from_euler`: lower case
+    for extrinsic (fixed-axis) rotations, upper case for intrinsic ones.
+    """
+    from scipy.spatial.transform import Rotation
+
+    a = np.asarray(angles, dtype=np.float64)
+    flat = Rotation.from_euler(seq, a.reshape(-1, 3), degrees=degrees).as_quat()
+    return flat.reshape(*a.shape[:-1], 4)
+
+
+def euler_from_quat(q: ArrayLike, seq: str = "xyz", *, degrees: bool = False) -> FloatArray:
+    """Euler angles (..., 3) of unit quaternions (..., 4) x y z w (``seq`` as in scipy)."""
+    from scipy.spatial.transform import Rotation
+
+    qa = np.asarray(q, dtype=np.float64)
+    flat = Rotation.from_quat(qa.reshape(-1, 4)).as_euler(seq, degrees=degrees)
+    return flat.reshape(*qa.shape[:-1], 3)
+
+
+def matrix_from_euler(angles: ArrayLike, seq: str = "xyz", *, degrees: bool = False) -> FloatArray:
+    """Rotation matrices (..., 3, 3) of Euler angles (..., 3) (``seq`` as in scipy)."""
+    return matrix_from_quat(quat_from_euler(angles, seq, degrees=degrees))
+
+
+def euler_from_matrix(m: ArrayLike, seq: str = "xyz", *, degrees: bool = False) -> FloatArray:
+    """Euler angles (..., 3) of rotation matrices (..., 3, 3) (``seq`` as in scipy)."""
+    return euler_from_quat(quat_from_matrix(m), seq, degrees=degrees)
+
+
+def quat_mean(q: ArrayLike, weights: ArrayLike | None = None) -> FloatArray:
+    """The (weighted) mean rotation of unit quaternions (n, 4) x y z w, shape (4,).
+
+    The top eigenvector of ``Σ wᵢ qᵢ qᵢᵀ`` (Markley et al. 2007): the rotation
+    minimising the weighted sum of squared chordal distances, blind to the sign
+    of each ``qᵢ``. Returned with ``w >= 0``.
+    """
+    qa = np.asarray(q, dtype=np.float64).reshape(-1, 4)
+    w = np.ones(len(qa)) if weights is None else np.asarray(weights, dtype=np.float64)
+    _, vec = np.linalg.eigh((qa * w[:, None]).T @ qa)
+    top = vec[:, 3]
+    return np.asarray(top if top[3] >= 0 else -top, dtype=np.float64)
+
+
+def transform_invert(t: ArrayLike) -> FloatArray:
+    """Inverses of rigid transforms (..., 4, 4): ``[Rᵀ, −Rᵀ p; 0, 1]``."""
+    ta = np.asarray(t, dtype=np.float64)
+    out = np.zeros_like(ta)
+    rt = np.swapaxes(ta[..., :3, :3], -1, -2)
+    out[..., :3, :3] = rt
+    out[..., :3, 3] = -np.einsum("...ij,...j->...i", rt, ta[..., :3, 3])
+    out[..., 3, 3] = 1.0
+    return out
+
+
 def pose_invert(p: ArrayLike, q: ArrayLike) -> tuple[FloatArray, FloatArray]:
     """Inverse of pose ``(p_AB, q_AB)``: the pose ``(p_BA, q_BA)`` of A in B."""
     qi = quat_conjugate(q)

@@ -242,6 +242,6 @@ def _pose_field(
 
 
 def _rotvec_matrix(rv: FloatArray) -> FloatArray:
-    from scipy.spatial.transform import Rotation
+    from thirdhand import se3
 
-    return np.asarray(Rotation.from_rotvec(rv).as_matrix(), dtype=np.float64)
+    return se3.matrix_from_rotvec(rv)

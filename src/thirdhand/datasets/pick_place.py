@@ -29,9 +29,7 @@ def _smooth_track(
     waves = np.sum(amps[None] * np.sin(2 * np.pi * freqs[None] * t[:, None, None] + phases), 1)
     pos = np.array([0.5, 0.0, 1.0]) + amplitude * waves[:, :3]
     rotvec = 0.8 * waves[:, 3:]
-    from scipy.spatial.transform import Rotation
-
-    return pos, Rotation.from_rotvec(rotvec).as_quat()
+    return pos, se3.rotvec_to_quat(rotvec)
 
 
 def random_pick_place_demo(
@@ -87,7 +85,6 @@ def random_pick_place_demo(
     Demonstration
         Labels: one :class:`InteractionInterval` ``("carrier", part, start, end)`` per pick.
     """
-    from scipy.spatial.transform import Rotation
 
     n = round(duration * rate)
     t = np.arange(n) / rate
@@ -119,12 +116,12 @@ def random_pick_place_demo(
             continue
         hb = f"{side[0]}h"
         fingers[side] = []
-        r = Rotation.from_quat(q_c)
+        r = q_c
         for i in range(n_fingers):
             name = f"{hb}_f{i}"
             off = np.array([0.03 * i, 0.02, -0.01 * i])
-            pos[name] = p_c + r.apply(off)
-            quat[name] = (r * Rotation.from_rotvec([0.1 * i, 0.0, 0.2])).as_quat()
+            pos[name] = p_c + se3.quat_rotate(r, off)
+            quat[name] = se3.quat_multiply(r, se3.rotvec_to_quat([0.1 * i, 0.0, 0.2]))
             bodies.append(BodyInfo(name, kind="finger", hand=side, hand_body=hb))  # type: ignore[arg-type]
             fingers[side].append(name)
     labels: list[InteractionInterval] = []
@@ -138,7 +135,6 @@ def random_pick_place_demo(
             if who != j:
                 continue
             p_c, q_c = carriers[side]
-            r_c = Rotation.from_quat(q_c)
             i0 = int(np.ceil(s * rate))
             i1 = min(int(np.floor(e * rate)), n - 1)
             p[cur:i0] = rest_p
@@ -146,8 +142,8 @@ def random_pick_place_demo(
             # Grasp offset: the part's pose in the carrier's frame at the pick.
             off_p, off_q = se3.relative_pose(p_c[i0], q_c[i0], rest_p, rest_q)
             seg = slice(i0, i1 + 1)
-            p[seg] = p_c[seg] + r_c[seg].apply(off_p)
-            q[seg] = (r_c[seg] * Rotation.from_quat(off_q)).as_quat()
+            p[seg] = p_c[seg] + se3.quat_rotate(q_c[seg], off_p)
+            q[seg] = se3.quat_multiply(q_c[seg], off_q)
             rest_p, rest_q = p[i1].copy(), q[i1].copy()
             cur = i1 + 1
             labels.extend(
@@ -163,8 +159,8 @@ def random_pick_place_demo(
         if noise_pos > 0:
             pos[name] = pos[name] + noise_pos * rng.standard_normal((n, 3))
         if noise_rot > 0:
-            dr = Rotation.from_rotvec(noise_rot * rng.standard_normal((n, 3)))
-            quat[name] = (Rotation.from_quat(quat[name]) * dr).as_quat()
+            dr = se3.rotvec_to_quat(noise_rot * rng.standard_normal((n, 3)))
+            quat[name] = se3.quat_multiply(quat[name], dr)
         valid[name] = _random_valid(rng, n, missing)
     bodies += [BodyInfo(f"part{j}", kind="part") for j in range(n_parts)]
     labels.sort(key=lambda i: (i.start, i.a))

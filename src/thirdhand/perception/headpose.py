@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
+from thirdhand import se3
 from thirdhand.errors import ThirdhandError
 from thirdhand.perception._canonical_face import CANONICAL_FACE
 from thirdhand.perception._deps import cv2
@@ -104,7 +104,7 @@ class HeadPose:
     @property
     def rvec(self) -> FloatArray:
         """Rotation vector of :attr:`rotation`, shape (3,), radians."""
-        return np.asarray(Rotation.from_matrix(self.rotation).as_rotvec(), dtype=np.float64)
+        return se3.rotvec_from_matrix(self.rotation)
 
     @property
     def confidence(self) -> float:
@@ -163,7 +163,7 @@ def solve_head_pose(
     proj, _ = cv.projectPoints(model, rvec, tvec, k, None)
     rms = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - image) ** 2, axis=1))))
     scale = float(np.linalg.norm(pts[RIGHT_EYE_CORNERS[0]] - pts[LEFT_EYE_CORNERS[1]]))
-    rot = np.asarray(Rotation.from_rotvec(rvec).as_matrix(), dtype=np.float64)
+    rot = se3.matrix_from_rotvec(rvec)
     return HeadPose(rot, tvec, rms, scale)
 
 
@@ -187,7 +187,7 @@ def euler_from_relative(r_rel: ArrayLike) -> FloatArray:
     """
     r = np.asarray(r_rel, dtype=np.float64)
     flat = r.reshape(-1, 3, 3)
-    ax, ay, az = np.asarray(Rotation.from_matrix(flat).as_euler("xyz", degrees=True)).T
+    ax, ay, az = se3.euler_from_matrix(flat, "xyz", degrees=True).T
     return np.stack([-ay, -ax, -az], axis=-1).reshape(*r.shape[:-2], 3)
 
 

@@ -90,12 +90,6 @@ def slot_distance(a: ConstraintInstance, b: ConstraintInstance) -> tuple[float, 
     return dp, float(se3.quat_angle(a.quat, b.quat))
 
 
-def _mean_quat(qs: list[FloatArray]) -> FloatArray:
-    ref = qs[0]
-    m = np.sum([q if q @ ref >= 0 else -q for q in qs], axis=0)
-    return np.asarray(m / np.linalg.norm(m), dtype=np.float64)
-
-
 def assign_symbols(
     instances: Sequence[ConstraintInstance],
     *,
@@ -150,7 +144,7 @@ def assign_symbols(
                 name=name,
                 parent=c[0].parent,
                 pos=np.mean([m.pos for m in c], axis=0),
-                quat=_mean_quat([m.quat for m in c]),
+                quat=se3.quat_mean([m.quat for m in c]),
                 type=typ,
                 frame_pos=with_free[0].frame_pos.copy(),
                 frame_quat=with_free[0].frame_quat.copy(),

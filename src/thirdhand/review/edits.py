@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 from pydantic import ValidationError
-from scipy.spatial.transform import Rotation
 
+from thirdhand import se3
 from thirdhand.errors import ThirdhandError
 from thirdhand.review.dofs import relative, world_poses
 from thirdhand.task.constraint import Constraint, infer_constraint_type
@@ -228,11 +228,11 @@ class _Recorder:
 
 
 def _rpy(quat: Sequence[float]) -> list[float]:
-    return [float(v) for v in Rotation.from_quat(np.asarray(quat, dtype=float)).as_euler("xyz")]
+    return [float(v) for v in se3.euler_from_quat(np.asarray(quat, dtype=float), "xyz")]
 
 
 def _quat_from_rpy(rpy: Sequence[float]) -> tuple[float, float, float, float]:
-    q = Rotation.from_euler("xyz", np.asarray(rpy, dtype=float)).as_quat()
+    q = se3.quat_from_euler(np.asarray(rpy, dtype=float), "xyz")
     return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
 
 

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 import viser
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
+from thirdhand import se3
 from thirdhand.review.scene3d import xyzw
 from thirdhand.se3 import pose_compose, pose_invert
 from thirdhand.task.constraint import Constraint
@@ -65,7 +65,7 @@ def moved_child(
 
 def dominant_operation(pos: FloatArray, quat: FloatArray) -> str:
     """Effort operation of a gizmo motion: its largest translation (m) or rotation (rad x 0.1 m)."""
-    rotvec = Rotation.from_quat(quat).as_rotvec()
+    rotvec = se3.quat_to_rotvec(quat)
     scores = np.concatenate([np.abs(pos), 0.1 * np.abs(rotvec)])
     return ("movex", "movey", "movez", "rotx", "roty", "rotz")[int(np.argmax(scores))]
 

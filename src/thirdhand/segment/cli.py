@@ -231,7 +231,6 @@ def evaluate(
     ``window``, ``train_hand``, ``test_hand``.
     """
     from thirdhand.segment.design import FeatureConfig
-    from thirdhand.segment.pipeline import labelled_hands
     from thirdhand.segment.settings import EvaluateSettings
     from thirdhand.segment.training import (
         labelled_sequences,
@@ -248,11 +247,18 @@ def evaluate(
     if split not in ("auto", "hand", "object", "time"):
         raise ThirdhandError(f"--split: expected auto, hand, object or time, got {split!r}")
     ds = _with_labels(demos, labels)
-    hands = set().union(*(labelled_hands(d) for d in ds))
-    train_hand = settings.train_hand
+    # The sides (left, right) whose hands carry labels.
+    hands = {
+        d.info(body).hand
+        for d in ds
+        for i in d.labels.interactions
+        for body in (i.a, i.b)
+        if body in d and d.info(body).hand
+    }
+    train_hand: str = settings.train_hand
     if train_hand == "auto":
-        train_hand = "left" if "left" in hands or not hands else sorted(hands)[0]
-    test_hand = settings.test_hand
+        train_hand = "left" if "left" in hands or not hands else "right"
+    test_hand: str = settings.test_hand
     if test_hand == "auto":
         test_hand = "right" if train_hand == "left" else "left"
     if split == "auto":
