@@ -32,22 +32,41 @@ from thirdhand.constraints import NoiseModel, demo_track, fit_constraint
 FloatArray = NDArray[np.float64]
 
 
-def real_tracks(data: Path) -> Iterator[tuple[str, str, FloatArray, FloatArray | None]]:
-    """``(name, true type, pos (n, 3), quat (n, 4) or None)`` of every real track."""
+#: The shared real articulation tracks: folder (or file) under ``articulation/``, the
+#: mechanism it records, and the joint type of that mechanism.
+ARTICULATION_SETS: tuple[tuple[str, str, str], ...] = (
+    ("door.txt", "door", "revolute"),
+    ("drawer.txt", "drawer", "prismatic"),
+    ("cabinet_one", "cabinet_one", "revolute"),
+    ("drawer_one", "drawer_one", "prismatic"),
+    ("second_set/drawer", "drawer_two", "prismatic"),
+    ("second_set/left_door", "left_door", "revolute"),
+    ("second_set/right_door", "right_door", "revolute"),
+    ("second_set/sliding_cabinet", "sliding_cabinet", "prismatic"),
+    ("cabinet_two", "cabinet_two", "revolute"),
+)
+
+
+def real_tracks(
+    data: Path,
+) -> Iterator[tuple[str, str, FloatArray, FloatArray | None, str]]:
+    """``(name, true type, pos (n, 3), quat (n, 4) or None, mechanism)`` of every real track.
+
+    The mechanism names the physical object a track records (one cabinet door, one
+    drawer, the stapler): the unit of the leave-one-mechanism-out figures.
+    """
     art = data / "articulation"
-    for name, kind in (("door.txt", "revolute"), ("drawer.txt", "prismatic")):
-        pos, quat, _ = demo_track(io.load(art / name))
-        yield f"articulation/{name}", kind, pos, quat
-    for folder, kind in (("cabinet_one", "revolute"), ("drawer_one", "prismatic")):
-        for path in sorted((art / folder).glob("*.log")):
+    for folder, mechanism, kind in ARTICULATION_SETS:
+        paths = [art / folder] if folder.endswith(".txt") else sorted((art / folder).glob("*.log"))
+        for path in paths:
             pos, quat, _ = demo_track(io.load(path))
-            yield f"articulation/{folder}/{path.name}", kind, pos, quat
+            yield str(path.relative_to(data)), kind, pos, quat, mechanism
     z = np.load(data / "niekum" / "stapler_revolute.npz")
     for key in ("relative1", "relative2"):
-        yield f"niekum/stapler {key}", "revolute", z[key][:, :3], z[key][:, 3:]
+        yield f"niekum/stapler {key}", "revolute", z[key][:, :3], z[key][:, 3:], "stapler"
     o1, o2 = z["object1"], z["object2"]
     p, q = se3.relative_pose(o1[:, :3], o1[:, 3:], o2[:, :3], o2[:, 3:])
-    yield "niekum/stapler object2 in object1", "revolute", p, q
+    yield "niekum/stapler object2 in object1", "revolute", p, q, "stapler"
 
 
 def main() -> None:
@@ -63,7 +82,7 @@ def main() -> None:
     print(header)
     print("-" * len(header))
     right = right_camera = right_mocap = total = 0
-    for name, kind, pos, quat in real_tracks(args.data):
+    for name, kind, pos, quat, _ in real_tracks(args.data):
         c = fit_constraint(pos, quat)
         c_camera = fit_constraint(pos, quat, noise=NoiseModel.camera())
         c_mocap = fit_constraint(pos, quat, noise=NoiseModel())
