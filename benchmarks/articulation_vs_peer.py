@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from thirdhand.constraints import fit_constraint
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "research" / "scripts"))
-from constraint_type_table import real_tracks
+from constraint_type_table import naive_type, real_tracks
 
 FloatArray = NDArray[np.float64]
 
@@ -63,25 +63,6 @@ for key in data.files:
     out[key] = {"xi": np.asarray(xi).tolist(), "seconds": time.perf_counter() - start}
 print(json.dumps(out))
 """
-
-
-def naive_type(pos: FloatArray) -> str:
-    """Line or circle, whichever leaves the smaller rms residual (``fixed`` under 1 cm)."""
-    p = pos[np.all(np.isfinite(pos), axis=1)]
-    c = p - p.mean(axis=0)
-    if np.ptp(p, axis=0).max() < 0.01:
-        return "fixed"
-    _, _, vt = np.linalg.svd(c, full_matrices=False)
-    line = c - np.outer(c @ vt[0], vt[0])
-    rms_line = float(np.sqrt(np.mean(np.sum(line**2, axis=1))))
-    u, v = c @ vt[0], c @ vt[1]
-    a = np.column_stack([2 * u, 2 * v, np.ones_like(u)])
-    sol, *_ = np.linalg.lstsq(a, u**2 + v**2, rcond=None)
-    r = np.sqrt(sol[2] + sol[0] ** 2 + sol[1] ** 2)
-    radial = np.hypot(u - sol[0], v - sol[1]) - r
-    off = c @ vt[2]
-    rms_circle = float(np.sqrt(np.mean(radial**2 + off**2)))
-    return "revolute" if rms_circle < rms_line else "prismatic"
 
 
 def _rate(fn: object, inputs: list[tuple[FloatArray, FloatArray | None]], seconds: float) -> float:

@@ -534,12 +534,18 @@ def fit_constraint(
     names, void = passed_over_types(notes)
     weights = type_probabilities(scores, passed_over=names, void=void)
     c = to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
+    others = [k for k in fits if k != best]
+    runner_up = None
+    if others:
+        second = max(others, key=lambda k: (weights[k], -scores[k]))
+        runner_up = to_constraint(fits[second], p, q, confidence=weights[second], scores=scores)
     return dataclasses.replace(
         c,
         noise_pos=est.sigma_pos,
         noise_rot=est.sigma_rot,
         noise_source="estimated" if noise is None else "given",
         notes=tuple(notes),
+        runner_up=runner_up,
     )
 
 
