@@ -284,7 +284,12 @@ def unphysical_turn(fit: ModelFit, *, n_eff: float) -> str | None:
     ``2 R`` no hinge of radius ``R`` makes. Checked from positions alone (the
     caller skips it when orientations resolve the turn).
     """
-    if fit.kernel.name != "revolute" or fit.geom.lever is None or fit.geom.axis is None:
+    if (
+        fit.kernel.name != "revolute"
+        or fit.geom.lever is None
+        or fit.geom.axis is None
+        or not math.isfinite(MAX_HINGE_RADIUS)
+    ):
         return None
     keep = fit.inlier if np.any(fit.inlier) else np.ones(fit.inlier.shape, dtype=bool)
     phi = min(float(np.ptp(fit.proj.latent[keep, 0])), 2.0 * math.pi)
