@@ -127,7 +127,7 @@ def test_cli_prints_the_runner_up(tmp_path) -> None:  # type: ignore[no-untyped-
 
 def test_two_samples_and_nans_are_one_line_errors() -> None:
     with pytest.raises(ConstraintFitError, match=r"^track: 2 valid sample\(s\) of 2;"):
-        fit_constraint(np.zeros((2, 3)) + [[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]])
+        fit_constraint(np.array([[0.0, 0.0, 0.0], [0.1, 0.0, 0.0]]))
     pos = _arc(0.4, 60.0, 40, 1e-3)
     pos[3:] = np.nan
     with pytest.raises(ConstraintFitError) as err:
@@ -149,4 +149,3 @@ def test_a_million_samples_is_a_result() -> None:
     assert c.n_samples == n
     assert c.runner_up is not None
     assert c.noise_pos == pytest.approx(1e-3, rel=0.05)
-

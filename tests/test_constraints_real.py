@@ -18,8 +18,7 @@ import numpy as np
 import pytest
 
 from thirdhand import io, se3
-from thirdhand.constraints import select
-from thirdhand.constraints import NoiseModel, demo_track, fit_constraint, fit_prismatic
+from thirdhand.constraints import NoiseModel, demo_track, fit_constraint, fit_prismatic, select
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import fit_model, prepare_track
 from thirdhand.constraints.select import HINGE_NOTE, type_probabilities
