@@ -288,7 +288,7 @@ def test_sliding_cabinet_001_is_no_hinge(
 ) -> None:
     """A cabinet door sliding 59 cm sideways, its path stepped by ~2 cm (the tracker
     changes by 2 cm along the stroke, twice): its arc (1.9 m radius, 18°) scores far
-    better than the line, with a bow of 23 mm that is 7 standard errors of its
+    better than the line, with a bow of 23 mm that is 8 standard errors of its
     residuals' trend. No hinge a person opens has that radius: the arc is flatter than
     one of :data:`MAX_HINGE_RADIUS` (1 m) over the same chord by 7.6 standard errors,
     and is void (issue 32; it was revolute at 0.995 before)."""
