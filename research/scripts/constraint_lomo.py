@@ -48,6 +48,7 @@ GRID: dict[str, tuple[float, ...]] = {
     "MAX_HINGE_RADIUS": (0.5, 0.75, 1.0, 1.5, 2.0, 3.0, math.inf),
     "MIN_SAGITTA_RATIO": (0.01, 0.02, 0.03, 0.04, 0.05),
     "MIN_TURN_FLOORS": (3.0, 4.0, 5.0, 6.0, 7.0),
+    "EVIDENCE_MARGIN": (0.0, 2.0, 4.0, select.EVIDENCE_MARGIN, 10.0),
 }
 SHIPPED = {k: float(getattr(select, k)) for k in GRID}
 
