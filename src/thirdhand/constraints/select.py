@@ -419,7 +419,7 @@ def simplest_supported(
         return fits[k].kernel.n_params[int(fits[k].proj.d2_rot is not None)]
 
     chosen = min(
-        (k for k in joints if scores[k] <= scores[best] + EVIDENCE_MARGIN),
+        (k for k in joints if k == best or scores[k] < scores[best] + EVIDENCE_MARGIN),
         key=lambda k: (size(k), scores[k]),
     )
     notes = [
