@@ -317,7 +317,7 @@ def test_cabinet_two_short_arcs(shared_data: Path, index: int) -> None:
     ~42 cm (a 1.2-1.3 m radius), under 5 standard errors (26-29 mm) of a trend in their
     residuals, whose slowly varying error (4-5 mm rms, 8-9 effective samples) is as
     large as drawer_one/004's grasp shift. No grid of the three choices re-fitted by
-    ``scripts/constraint_lomo.py`` calls them revolute without losing another track."""
+    ``research/scripts/constraint_lomo.py`` calls them revolute without losing another track."""
     pos, _ = _track(shared_data / "articulation" / "cabinet_two" / f"{index:03d}.log")
     assert fit_constraint(pos).type == "revolute"
 

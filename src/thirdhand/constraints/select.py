@@ -83,7 +83,7 @@ MIN_TURN = math.radians(7.0)
 #: standard errors of its bow (:func:`unphysical_turn`) is a straight stroke that the
 #: tracker bent (a sliding cabinet door's 59 cm stroke bowed by 2 cm reads as a
 #: 1.9 m radius), not a hinge. The leave-one-mechanism-out table of
-#: ``docs/constraints.md`` (``scripts/constraint_lomo.py``) re-fits it per held-out
+#: ``docs/constraints.md`` (``research/scripts/constraint_lomo.py``) re-fits it per held-out
 #: mechanism.
 MAX_HINGE_RADIUS = 1.0
 #: How a note of :func:`unphysical_turn` says the arc is flatter than any hinge's.
