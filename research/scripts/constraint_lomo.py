@@ -71,7 +71,7 @@ def cached_fits() -> Iterator[None]:
     try:
         yield
     finally:
-        select.fit_model = original  # type: ignore[assignment]
+        select.fit_model = original
 
 
 @contextmanager
