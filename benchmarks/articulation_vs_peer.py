@@ -1,7 +1,8 @@
 """Joint type of the real tracks: thirdhand against a naive line-vs-circle fit and a peer.
 
-On the 25 real tracks of ``../shared/data`` (see ``research/scripts/constraint_type_table.py``),
-with default flags, prints each method's type accuracy and its fits per second.
+On every shared real track of ``../shared/data`` (56: see
+``research/scripts/constraint_type_table.py``), in one run with default flags, prints each
+method's type accuracy and fits per second, per mechanism and in all.
 
 - **thirdhand**: :func:`thirdhand.constraints.fit_constraint` (noise estimated).
 - **naive**: a least-squares line (principal axis) and a least-squares circle
@@ -38,7 +39,7 @@ from numpy.typing import NDArray
 from thirdhand.constraints import fit_constraint
 
 sys.path.insert(0, str(Path(__file__).parents[1] / "research" / "scripts"))
-from constraint_type_table import real_tracks
+from constraint_type_table import naive_type, real_tracks
 
 FloatArray = NDArray[np.float64]
 
@@ -65,25 +66,6 @@ print(json.dumps(out))
 """
 
 
-def naive_type(pos: FloatArray) -> str:
-    """Line or circle, whichever leaves the smaller rms residual (``fixed`` under 1 cm)."""
-    p = pos[np.all(np.isfinite(pos), axis=1)]
-    c = p - p.mean(axis=0)
-    if np.ptp(p, axis=0).max() < 0.01:
-        return "fixed"
-    _, _, vt = np.linalg.svd(c, full_matrices=False)
-    line = c - np.outer(c @ vt[0], vt[0])
-    rms_line = float(np.sqrt(np.mean(np.sum(line**2, axis=1))))
-    u, v = c @ vt[0], c @ vt[1]
-    a = np.column_stack([2 * u, 2 * v, np.ones_like(u)])
-    sol, *_ = np.linalg.lstsq(a, u**2 + v**2, rcond=None)
-    r = np.sqrt(sol[2] + sol[0] ** 2 + sol[1] ** 2)
-    radial = np.hypot(u - sol[0], v - sol[1]) - r
-    off = c @ vt[2]
-    rms_circle = float(np.sqrt(np.mean(radial**2 + off**2)))
-    return "revolute" if rms_circle < rms_line else "prismatic"
-
-
 def _rate(fn: object, inputs: list[tuple[FloatArray, FloatArray | None]], seconds: float) -> float:
     fits = 0
     start = time.perf_counter()
@@ -104,14 +86,14 @@ def main() -> None:
 
     tracks = list(real_tracks(args.data))
     fit_constraint(tracks[0][2], tracks[0][3])  # warm-up (numba compilation)
-    ours = {name: fit_constraint(p, q).type for name, _, p, q in tracks}
-    naive = {name: naive_type(p) for name, _, p, _ in tracks}
+    ours = {name: fit_constraint(p, q).type for name, _, p, q, _ in tracks}
+    naive = {name: naive_type(p) for name, _, p, _, _ in tracks}
     peer: dict[str, str] = {}
     peer_seconds = 0.0
     if args.peer_python is not None:
         oriented = {
             f"t{i}": np.column_stack([p, q])[np.all(np.isfinite(p), axis=1)]
-            for i, (_, _, p, q) in enumerate(tracks)
+            for i, (_, _, p, q, _) in enumerate(tracks)
             if q is not None
         }
         with tempfile.TemporaryDirectory() as tmp:
@@ -132,23 +114,53 @@ def main() -> None:
             peer[name] = "prismatic" if rot < 0.01 * float(np.linalg.norm(xi)) else "revolute"
             peer_seconds += float(v["seconds"])
 
-    print(f"{'track':38s} {'true':10s} {'thirdhand':11s} {'naive':10s} {'peer':10s}")
-    for name, kind, _, _ in tracks:
-        print(f"{name:38s} {kind:10s} {ours[name]:11s} {naive[name]:10s} {peer.get(name, '-'):10s}")
+    print(f"{'track':50s} {'true':10s} {'thirdhand':11s} {'naive':10s} {'peer':10s}")
+    for name, kind, _, _, _ in tracks:
+        print(f"{name:50s} {kind:10s} {ours[name]:11s} {naive[name]:10s} {peer.get(name, '-'):10s}")
+    print()
+    # Per mechanism: accuracy and fits/s of each method on that mechanism's tracks.
+    seconds = args.seconds / 4.0
+    mechanisms = list(dict.fromkeys(t[4] for t in tracks))
+    print(
+        "| mechanism | tracks | thirdhand | naive line-vs-circle | thirdhand fits/s | "
+        "naive fits/s |"
+    )
+    print("|---|---|---|---|---|---|")
+    worse = []
+    for m in mechanisms:
+        sub = [t for t in tracks if t[4] == m]
+        r_ours = sum(ours[k] == t for k, t, _, _, _ in sub)
+        r_naive = sum(naive[k] == t for k, t, _, _, _ in sub)
+        inputs = [(p, q) for _, _, p, q, _ in sub]
+        rate = _rate(fit_constraint, inputs, seconds)
+        rate_naive = _rate(lambda p, q: naive_type(p), inputs, seconds)
+        print(
+            f"| {m} | {len(sub)} | {r_ours}/{len(sub)} | {r_naive}/{len(sub)} | "
+            f"{rate:.1f} | {rate_naive:.1f} |"
+        )
+        if r_ours < r_naive:
+            worse.append(m)
     n = len(tracks)
-    right = sum(ours[k] == t for k, t, _, _ in tracks)
-    right_naive = sum(naive[k] == t for k, t, _, _ in tracks)
-    print(f"thirdhand: {right}/{n}   naive line-vs-circle: {right_naive}/{n}")
-    inputs = [(p, q) for _, _, p, q in tracks]
+    right = sum(ours[k] == t for k, t, _, _, _ in tracks)
+    right_naive = sum(naive[k] == t for k, t, _, _, _ in tracks)
+    inputs = [(p, q) for _, _, p, q, _ in tracks]
     rate = _rate(fit_constraint, inputs, args.seconds)
     rate_naive = _rate(lambda p, q: naive_type(p), inputs, args.seconds)
+    print(
+        f"| **all** | {n} | **{right}/{n}** | {right_naive}/{n} | {rate:.1f} | {rate_naive:.1f} |"
+    )
+    print(
+        f"\nthirdhand: {right}/{n}   naive line-vs-circle: {right_naive}/{n}   "
+        f"ratio of accuracies {right / max(right_naive, 1):.2f}; "
+        + ("thirdhand >= naive on every mechanism" if not worse else f"below naive on {worse}")
+    )
     print(f"thirdhand {rate:8.1f} fits/s   naive {rate_naive:8.1f} fits/s")
     if peer:
-        oriented_names = [k for k, _, _, q in tracks if q is not None]
-        right_peer = sum(peer[k] == t for k, t, _, _ in tracks if k in peer)
-        right_ours = sum(ours[k] == t for k, t, _, _ in tracks if k in peer)
+        oriented_names = [k for k, _, _, q, _ in tracks if q is not None]
+        right_peer = sum(peer[k] == t for k, t, _, _, _ in tracks if k in peer)
+        right_ours = sum(ours[k] == t for k, t, _, _, _ in tracks if k in peer)
         rate_ours = _rate(
-            fit_constraint, [(p, q) for k, _, p, q in tracks if k in peer], args.seconds
+            fit_constraint, [(p, q) for k, _, p, q, _ in tracks if k in peer], args.seconds
         )
         rate_peer = len(oriented_names) / peer_seconds
         print(

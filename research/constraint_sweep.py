@@ -73,6 +73,9 @@ class Condition:
         Noise correlated over about 2 samples, per axis, in units of the white noise.
     span : float or None
         Opening angle of the turning joints, radians (default 40-150°).
+    rail_bow : float
+        A bowed rail or calibration warp, as a fraction of the path's extent
+        (:func:`~thirdhand.datasets.joint_tracks.random_joint_track`).
     """
 
     name: str
@@ -83,6 +86,7 @@ class Condition:
     bias: float = 0.0
     colour: float = 0.0
     span: float | None = None
+    rail_bow: float = 0.0
 
     @property
     def total_noise(self) -> float:
@@ -220,6 +224,7 @@ def run_sweep(
                     rot_bias=cond.bias * rot,
                     colour=cond.colour * cond.pos_noise,
                     rot_colour=cond.colour * rot,
+                    rail_bow=cond.rail_bow,
                 )
                 # The same geometry without noise (the noise is drawn after it).
                 clean = random_joint_track(

@@ -54,6 +54,8 @@ from research.constraint_sweep import (
 )
 
 NOISE = (1e-5, 1e-4, 1e-3, 3e-3, 1e-2, 2e-2)
+#: Bows of the bowed-rail conditions, fractions of the chord.
+BOWS = (0.01, 0.03)
 
 
 def conditions() -> list[Condition]:
@@ -77,6 +79,9 @@ def conditions() -> list[Condition]:
             Condition(f"time drift 2x, {tag}", s, drift=2.0),
             Condition(f"10° opening, {tag}", s, span=math.radians(10.0)),
         ]
+    # Bowed rails / calibration warps as measured on the real prismatic tracks (issue 32):
+    # the median (1 %) and the upper end (3 %) of their bow, as a fraction of the chord.
+    out += [Condition(f"bowed rail {100 * b:g} %, 1 mm", 1e-3, rail_bow=b) for b in BOWS]
     return out
 
 
@@ -214,11 +219,18 @@ def main() -> None:
         f"{len(held_out)} tracks ({args.seeds} per cell, seeds {first}-{first + args.seeds - 1})\n"
     )
     accuracy_table(held_out)
+    old_world = [t.correct for t in held_out if t.dof_ratio >= 5.0 and not t.condition.rail_bow]
+    print(
+        "Distinguishing motion ≥ 5× noise, without the bowed rails (the sweep before "
+        f"issue 32): {sum(old_world)}/{len(old_world)} = {100 * np.mean(old_world):.1f} %\n"
+    )
     dof_table(held_out)
     axis_table(held_out)
     # The 10° openings are left out of the calibration: position-only, they are
     # called prismatic by design (the turn guard), a choice and not noise.
-    typical = [c for c in conds if c.span is None]
+    # The bowed rails are left out too: the calibration stays that of the sweep it was
+    # fitted on (their tracks are in the accuracy tables above).
+    typical = [c for c in conds if c.span is None and not c.rail_bow]
     fit_on = list(run_sweep(typical, range(args.seeds)))
     calibration(fit_on, [t for t in held_out if t.condition.span is None])
 

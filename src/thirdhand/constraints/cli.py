@@ -86,6 +86,21 @@ def _print_table(path: Path, where: str, c: JointFit) -> None:
             or "all locked"
         )
     )
+    ru = c.runner_up
+    if ru is not None:
+        geom = f", axis {_vec(ru.axis, 3)}" if ru.axis is not None else ""
+        if ru.radius is not None:
+            geom += f", radius {ru.radius:.3f} m"
+        ranges = ", ".join(
+            f"{n} [{lo:.3f}, {hi:.3f}] {'m' if n[0] == 't' else 'rad'}"
+            for n, (lo, hi) in zip(DOF_NAMES, ru.ranges, strict=True)
+            if lo != hi
+        )
+        out.print(
+            f"  runner-up   {ru.type}   probability {ru.confidence:.3f}{geom}"
+            + (f", range {ranges}" if ranges and ru.type != "free" else "")
+            + f", residual {1000 * ru.rms_pos:.2f} mm rms"
+        )
     table = Table("model", "BIC", "probability")
     names, void = passed_over_types(c.notes)
     weights = type_probabilities(c.scores, passed_over=names, void=void)

@@ -524,8 +524,12 @@ def _trimmed_start(
     geom: Geometry,
     proj: Projection,
     n_keep: int,
+    force: bool = False,
 ) -> tuple[Geometry | None, Projection, FloatArray, tuple[float, float]]:
     """Concentration steps of a least-trimmed-squares fit, when residuals are heavy-tailed.
+
+    With ``force`` the steps are taken whatever the residuals' tails (the second
+    start of :func:`fit_model`).
 
     A least-squares start is pulled by gross outliers, so far that the EM may not
     tell them apart; refitting on the ``n_keep`` samples of smallest residual
@@ -542,7 +546,7 @@ def _trimmed_start(
             proj.d2_rot if proj.d2_rot is not None else proj.d2_pos,
             oriented,
             n_keep,
-            _HEAVY_TAIL * (2.0 if oriented else 1.0),
+            0.0 if force else _HEAVY_TAIL * (2.0 if oriented else 1.0),
         )
         if not heavy:
             if step == 0:
@@ -603,6 +607,34 @@ def fit_model(
         on a position-only track, a circle through collinear points).
     """
     nm = noise or NoiseModel()
+    fit = _fit_em(name, pos, quat, nm, stop_above, force_trim=False)
+    if (
+        fit is not None
+        and fit.kernel.name != "free"
+        and nm.max_outliers > 0.0
+        and fit.outlier_fraction == 0.0
+        and fit.sigma_pos >= nm.pos_ceiling * (1.0 - 1e-9)
+    ):
+        # Pinned at its ceiling with no outlier: the least-squares start may have been
+        # pulled onto a stretch the model does not describe (a grasp shift at an end
+        # stop) without its residuals looking heavy-tailed. A second start from the
+        # trimmed fit; the higher likelihood is kept.
+        alt = _fit_em(name, pos, quat, nm, stop_above, force_trim=True)
+        if alt is not None and alt.log_likelihood > fit.log_likelihood:
+            return alt
+    return fit
+
+
+def _fit_em(
+    name: str,
+    pos: FloatArray,
+    quat: FloatArray | None,
+    nm: NoiseModel,
+    stop_above: float,
+    *,
+    force_trim: bool,
+) -> ModelFit | None:
+    """The EM of :func:`fit_model` from its least-squares (or, forced, trimmed) start."""
     kernel = KERNELS[name]
     free = name == "free"
     oriented = quat is not None
@@ -633,7 +665,9 @@ def fit_model(
             proj = kernel.project(geom, pos, quat, sp / sr)
         medians = (math.nan, math.nan)
         if it == 0 and max_out:
-            geom, proj, w, medians = _trimmed_start(kernel, pos, quat, geom, proj, n - max_out)
+            geom, proj, w, medians = _trimmed_start(
+                kernel, pos, quat, geom, proj, n - max_out, force_trim
+            )
             if geom is None:
                 return None
         rot = proj.d2_rot is not None

@@ -75,6 +75,19 @@ MIN_TURN_FLOORS = 5.0
 #: rotation noise: a precise tracker (a robot's encoders) may still carry a degree of
 #: calibration error (10 and 15 noise floors instead: 96.0 and 96.1 %).
 MIN_TURN = math.radians(7.0)
+#: Largest distance from a hinge to where people grasp the part, metres: a physical
+#: prior on revolute joints, stated, not fitted. A room door 0.9 m wide is grasped
+#: about 0.85 m from its hinges; kitchen, wardrobe and appliance doors are at most
+#: 0.6 m wide; lids, flaps and the hinged parts of assemblies are smaller. An arc
+#: flatter than one of this radius over the same chord by :data:`MIN_TURN_FLOORS`
+#: standard errors of its bow (:func:`unphysical_turn`) is a straight stroke that the
+#: tracker bent (a sliding cabinet door's 59 cm stroke bowed by 2 cm reads as a
+#: 1.9 m radius), not a hinge. The leave-one-mechanism-out table of
+#: ``docs/constraints.md`` (``research/scripts/constraint_lomo.py``) re-fits it per held-out
+#: mechanism.
+MAX_HINGE_RADIUS = 1.0
+#: How a note of :func:`unphysical_turn` says the arc is flatter than any hinge's.
+HINGE_NOTE = "flatter than a hinge"
 #: A constrained fit whose position noise is at least this fraction of its ceiling
 #: and which calls smooth samples outliers (:func:`saturated_joint`) is no joint of
 #: the track. Chosen on the synthetic sweep's calibration seeds
@@ -228,9 +241,9 @@ def degenerate_joint(
         lever = fit.geom.lever - (fit.geom.lever @ fit.geom.axis) * fit.geom.axis
         radius = float(np.linalg.norm(lever))
     bow = radius * (1.0 - math.cos(0.5 * min(phi, math.pi)))
-    se = fit.sigma_pos * math.sqrt(12.0 / n_eff)
+    se = bow_standard_error(fit, n_eff)
     if ratio >= MIN_SAGITTA_RATIO and not bow < MIN_TURN_FLOORS * se:
-        return None
+        return unphysical_turn(fit, n_eff=n_eff)
     if ratio >= MIN_SAGITTA_RATIO:
         return (
             f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) "
@@ -243,6 +256,63 @@ def degenerate_joint(
         f"{name} not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) bows "
         f"the path by {100 * ratio:.1f} {STRAIGHT_NOTE}, under {100 * MIN_SAGITTA_RATIO:.0f} %"
         + ("" if not oriented else ", and the orientations do not resolve it")
+    )
+
+
+def bow_standard_error(fit: ModelFit, n_eff: float) -> float:
+    """Standard error of a trend in a fit's residuals, metres: ``σ_pos √(12 / n_eff)``.
+
+    The error model is white noise plus a slowly varying (systematic) part: the fit's
+    residual level ``σ_pos`` holds both, and the effective sample count ``n_eff``
+    (:func:`effective_samples`, from the residuals' correlation time) counts the
+    systematic part once per correlation time, so that ``σ_pos² / n_eff`` is
+    ``σ_white² / n + σ_sys² τ_sys / n``: a bow, a slide or a stroke must stand out
+    of both.
+    """
+    return fit.sigma_pos * math.sqrt(12.0 / n_eff)
+
+
+def unphysical_turn(fit: ModelFit, *, n_eff: float) -> str | None:
+    """Why a revolute fit is no hinge a person operates (its radius), or None.
+
+    The fit's arc bows away from its chord ``c`` by ``b``; an arc of the largest
+    hinge radius :data:`MAX_HINGE_RADIUS` ``R`` over the same chord bows by
+    ``R (1 - cos(asin(c / 2R)))``. When ``b`` falls short of that by at least
+    :data:`MIN_TURN_FLOORS` standard errors (:func:`bow_standard_error`) the arc
+    is flatter than any hinge's: a straight stroke bent by the tracker's
+    systematic error (a calibration warp, a flexing runner). A chord longer than
+    ``2 R`` no hinge of radius ``R`` makes. Checked from positions alone (the
+    caller skips it when orientations resolve the turn).
+    """
+    if (
+        fit.kernel.name != "revolute"
+        or fit.geom.lever is None
+        or fit.geom.axis is None
+        or not math.isfinite(MAX_HINGE_RADIUS)
+    ):
+        return None
+    keep = fit.inlier if np.any(fit.inlier) else np.ones(fit.inlier.shape, dtype=bool)
+    phi = min(float(np.ptp(fit.proj.latent[keep, 0])), 2.0 * math.pi)
+    lever = fit.geom.lever - (fit.geom.lever @ fit.geom.axis) * fit.geom.axis
+    radius = float(np.linalg.norm(lever))
+    chord = 2.0 * radius * math.sin(0.5 * min(phi, math.pi))
+    bow = radius * (1.0 - math.cos(0.5 * min(phi, math.pi)))
+    r_max = MAX_HINGE_RADIUS
+    se = bow_standard_error(fit, n_eff)
+    if chord > 2.0 * r_max:
+        return (
+            f"revolute not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) "
+            f"spans a {chord:.2f} m chord: {HINGE_NOTE} of radius {r_max:g} m spans at most "
+            f"{2.0 * r_max:g} m"
+        )
+    bow_max = r_max * (1.0 - math.cos(math.asin(chord / (2.0 * r_max))))
+    if bow_max - bow < MIN_TURN_FLOORS * se:
+        return None
+    return (
+        f"revolute not chosen: its {math.degrees(phi):.1f}° turn (radius {radius:.3g} m) "
+        f"bows the path by {1e3 * bow:.1f} mm, {1e3 * (bow_max - bow):.1f} mm "
+        f"({(bow_max - bow) / se:.1f} standard errors) {HINGE_NOTE} of radius {r_max:g} m "
+        f"over its {1e3 * chord:.0f} mm chord"
     )
 
 
@@ -261,7 +331,8 @@ def passed_over_types(notes: Sequence[str]) -> tuple[tuple[str, ...], tuple[str,
 
     Each note of :func:`degenerate_joint` and :func:`saturated_joint` starts with the
     type's name. Void (:func:`type_probabilities`): a straight path's
-    (:data:`STRAIGHT_NOTE`) and a saturated joint's (:data:`SATURATED_NOTE`).
+    (:data:`STRAIGHT_NOTE`), a saturated joint's (:data:`SATURATED_NOTE`) and an
+    arc flatter than any hinge's (:data:`HINGE_NOTE`, :func:`unphysical_turn`).
 
     Returns
     -------
@@ -269,7 +340,9 @@ def passed_over_types(notes: Sequence[str]) -> tuple[tuple[str, ...], tuple[str,
     """
     names = tuple(note.split()[0] for note in notes)
     void = tuple(
-        note.split()[0] for note in notes if STRAIGHT_NOTE in note or SATURATED_NOTE in note
+        note.split()[0]
+        for note in notes
+        if STRAIGHT_NOTE in note or SATURATED_NOTE in note or HINGE_NOTE in note
     )
     return names, void
 
@@ -346,7 +419,7 @@ def simplest_supported(
         return fits[k].kernel.n_params[int(fits[k].proj.d2_rot is not None)]
 
     chosen = min(
-        (k for k in joints if scores[k] < scores[best] + EVIDENCE_MARGIN),
+        (k for k in joints if k == best or scores[k] < scores[best] + EVIDENCE_MARGIN),
         key=lambda k: (size(k), scores[k]),
     )
     notes = [
@@ -466,12 +539,18 @@ def fit_constraint(
     names, void = passed_over_types(notes)
     weights = type_probabilities(scores, passed_over=names, void=void)
     c = to_constraint(fits[best], p, q, confidence=weights[best], scores=scores)
+    others = [k for k in fits if k != best]
+    runner_up = None
+    if others:
+        second = max(others, key=lambda k: (weights[k], -scores[k]))
+        runner_up = to_constraint(fits[second], p, q, confidence=weights[second], scores=scores)
     return dataclasses.replace(
         c,
         noise_pos=est.sigma_pos,
         noise_rot=est.sigma_rot,
         noise_source="estimated" if noise is None else "given",
         notes=tuple(notes),
+        runner_up=runner_up,
     )
 
 

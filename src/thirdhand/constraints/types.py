@@ -161,6 +161,11 @@ class JointFit:
         when the caller passed a :class:`NoiseModel`.
     notes : tuple of str
         Why a better-scoring model was not chosen (a degenerate joint).
+    runner_up : JointFit or None
+        The most probable other type, fitted (its ``confidence`` is its
+        probability, its own ``runner_up`` None); None when no other model was
+        compared. When two types explain a track about equally, both
+        probabilities are near one half and this says which and with what axis.
     """
 
     type: str
@@ -186,6 +191,7 @@ class JointFit:
     noise_rot: float = math.nan
     noise_source: str = "given"
     notes: tuple[str, ...] = ()
+    runner_up: JointFit | None = None
 
     @property
     def free_dofs(self) -> FreeDofs:
@@ -249,4 +255,24 @@ class JointFit:
                 "sigma_rot": num(self.noise_rot),
             },
             "notes": list(self.notes),
+            "runner_up": None if self.runner_up is None else self.runner_up.summary(),
+        }
+
+    def summary(self) -> dict[str, Any]:
+        """The type, its probability and its geometry (a runner-up's JSON form)."""
+
+        def num(v: float | None) -> float | None:
+            return None if v is None or not math.isfinite(v) else float(v)
+
+        return {
+            "type": self.type,
+            "probability": num(self.confidence),
+            "axis": _floats(self.axis),
+            "origin": _floats(self.origin),
+            "radius": num(self.radius),
+            "pitch": num(self.pitch),
+            "ranges": {n: _floats(r) for n, r in zip(DOF_NAMES, self.ranges, strict=True)},
+            "free_dofs": self.free_dofs.free(),
+            "rms_pos": num(self.rms_pos),
+            "outlier_fraction": num(self.outlier_fraction),
         }

@@ -66,6 +66,7 @@ def random_joint_track(
     colour: float = 0.0,
     rot_colour: float = 0.0,
     colour_width: float = 2.0,
+    rail_bow: float = 0.0,
 ) -> JointTrack:
     """A random track of a fixed, prismatic, revolute, cylindrical, screw or free joint.
 
@@ -110,6 +111,15 @@ def random_joint_track(
         short-window smoother sees little of it: on the real camera tracks of
         ``../shared/data`` the 15- and 21-sample noise estimates are 1.2-2.5 times
         the 7-sample one, which a width of 2 and 2-3 times the white level give.
+    rail_bow : float
+        A bowed rail or a camera's calibration warp, as a fraction of the path's
+        extent: every noise-free position moves, in a random direction
+        perpendicular to the path's principal direction, by ``rail_bow · L ·
+        (1 - u²)``, with ``L`` the extent along that direction and ``u`` in
+        [-1, 1] the position along it: a parabola whose sagitta is ``rail_bow``
+        of the chord. On the real prismatic tracks of ``../shared/data`` the
+        quadratic part of the path bows by 0.1-3 % of the chord (median 1.2 %;
+        ``docs/constraints.md``).
     """
     s = np.linspace(0.0, 1.0, n)
     prog = 0.5 - 0.5 * np.cos(np.pi * s)
@@ -169,6 +179,8 @@ def random_joint_track(
             quat = se3.quat_multiply(
                 se3.quat_from_matrix(_rotvec_matrix(rot_bias * field[:, 3:])), quat
             )
+    if rail_bow > 0.0:
+        pos = pos + _rail_bow(np.random.default_rng(rng.integers(2**63)), pos, rail_bow)
     if colour > 0.0 or rot_colour > 0.0:
         sub = np.random.default_rng(rng.integers(2**63))
         pos = pos + colour * _smooth_noise(sub, n, colour_width)
@@ -196,6 +208,21 @@ def random_joint_track(
         quat[idx] = se3.random_quat(rng, k)
     quat = quat * np.where(rng.random(n) < 0.5, -1.0, 1.0)[:, None]
     return JointTrack(kind, pos, quat, axis, origin, ranges, bad)
+
+
+def _rail_bow(rng: np.random.Generator, pos: FloatArray, bow: float) -> FloatArray:
+    """Displacements of a parabolic bow of sagitta ``bow`` of the chord, shape (n, 3)."""
+    c = pos - pos.mean(axis=0)
+    _, _, vt = np.linalg.svd(c, full_matrices=False)
+    along = c @ vt[0]
+    extent = float(np.ptp(along))
+    if extent <= 0.0:
+        return np.zeros_like(pos)
+    u = 2.0 * (along - along.min()) / extent - 1.0
+    d = rng.standard_normal(3)
+    d -= (d @ vt[0]) * vt[0]
+    d /= np.linalg.norm(d)
+    return np.asarray(bow * extent * (1.0 - u**2)[:, None] * d, dtype=np.float64)
 
 
 def _slow_error(rng: np.random.Generator, n: int) -> FloatArray:
