@@ -607,6 +607,9 @@ def main(argv: list[str] | None = None) -> int:
             raise
         return _usage_error(exc)
     finally:
+        from thirdhand.fileops import forget_checked_outputs
+
+        forget_checked_outputs()
         for signum, old in previous.items():
             signal.signal(signum, old)
     if isinstance(code, int) and code == 130:
