@@ -65,8 +65,23 @@ def _inside(inner: Path, outer: Path) -> bool:
 #: what a command means to write.
 FILE_SUFFIXES = frozenset(
     {
-        ".parquet", ".csv", ".c3d", ".bag", ".mcap", ".log", ".txt", ".json", ".rrd",
-        ".png", ".pdf", ".svg", ".html", ".npz", ".npy", ".mp4", ".stl",
+        ".parquet",
+        ".csv",
+        ".c3d",
+        ".bag",
+        ".mcap",
+        ".log",
+        ".txt",
+        ".json",
+        ".rrd",
+        ".png",
+        ".pdf",
+        ".svg",
+        ".html",
+        ".npz",
+        ".npy",
+        ".mp4",
+        ".stl",
     }
 )
 #: Outputs :func:`check_output` found missing and no ``--force``: the atomic
@@ -394,7 +409,9 @@ def _replace(built: Path, target: Path, *, backup: bool, exclusive: bool = False
         exists = os.path.lexists(target)
         st = _stat(target) if exists else None
         special = None if st is None else _special(st.st_mode)
-        if special or (st is not None and stat.S_ISDIR(st.st_mode) and not thirdhand_folder(target)):
+        if special or (
+            st is not None and stat.S_ISDIR(st.st_mode) and not thirdhand_folder(target)
+        ):
             raise OutputError(
                 f"{target}: is a {special or 'folder that holds no recording'}; it is never "
                 "moved aside (nothing was written)"

@@ -36,6 +36,7 @@ from thirdhand.demonstration import (
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import write_text
 from thirdhand.io.mlr import parse_numeric_rows
+from thirdhand.readlimits import MAX_RECORDING_BYTES, read_input
 
 #: Sampling rate assumed when the caller gives none, Hz.
 DEFAULT_RATE_HZ = 10.0
@@ -91,10 +92,7 @@ def read(path: str | os.PathLike[str], *, rate: float | None = None) -> Demonstr
     hz = DEFAULT_RATE_HZ if rate is None else float(rate)
     if not np.isfinite(hz) or hz <= 0:
         raise FormatError(p, f"rate must be a positive number of Hz, got {rate}")
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise FormatError(p, f"cannot read: {exc}") from None
+    raw = read_input(p, what="articulation track", limit=MAX_RECORDING_BYTES)
     rows = parse_numeric_rows(raw, p, n_cols=COLUMNS)
     vals = rows.values
     valid: np.ndarray = np.asarray(np.isfinite(vals[:, :3]).all(axis=1))

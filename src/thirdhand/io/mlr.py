@@ -58,6 +58,7 @@ from thirdhand.demonstration import (
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output
 from thirdhand.io import elan, kvg
+from thirdhand.readlimits import MAX_RECORDING_BYTES, read_input
 
 POSES = "poses.dat"
 TIMES = "poses.dat.times"
@@ -412,12 +413,9 @@ def sniff(path: Path) -> bool:
 
 
 def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise FormatError(path, f"missing: an MLR recording folder needs {path.name}") from None
-    except OSError as exc:
-        raise FormatError(path, f"cannot read: {exc}") from None
+    if not os.path.lexists(path):
+        raise FormatError(path, f"missing: an MLR recording folder needs {path.name}")
+    return read_input(path, what=f"{path.name} file", limit=MAX_RECORDING_BYTES)
 
 
 def _read_times(path: Path, n_frames: int) -> tuple[NDArray[np.float64], int]:
