@@ -58,7 +58,12 @@ def test_arrays_are_read_only() -> None:
 def test_bad_time_axis(t: list[float], match: str) -> None:
     n = len(t)
     with pytest.raises(DemonstrationError, match=match):
-        Demonstration(t, [BodyInfo("a")], {"a": np.zeros((n, 3))}, {"a": np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))})
+        Demonstration(
+            t,
+            [BodyInfo("a")],
+            {"a": np.zeros((n, 3))},
+            {"a": np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))},
+        )
 
 
 def test_zero_quaternion_names_body_and_frame() -> None:
@@ -72,13 +77,18 @@ def test_unit_mix_up_detected() -> None:
     p = np.zeros((5, 3))
     p[2] = [1500.0, 20.0, 3.0]  # millimetres
     with pytest.raises(DemonstrationError, match=r"frame 2.*millimetres"):
-        Demonstration(np.arange(5.0), [BodyInfo("a")], {"a": p}, {"a": np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))})
+        Demonstration(
+            np.arange(5.0), [BodyInfo("a")], {"a": p}, {"a": np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))}
+        )
 
 
 def test_shape_and_metadata_errors() -> None:
     with pytest.raises(DemonstrationError, match=r"body 'a': positions must have shape \(5, 3\)"):
         Demonstration(
-            np.arange(5.0), [BodyInfo("a")], {"a": np.zeros((4, 3))}, {"a": np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))}
+            np.arange(5.0),
+            [BodyInfo("a")],
+            {"a": np.zeros((4, 3))},
+            {"a": np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))},
         )
     with pytest.raises(DemonstrationError, match="kind must be one of"):
         BodyInfo("a", kind="robot")  # type: ignore[arg-type]

@@ -90,6 +90,7 @@ def read_scene(path: str | os.PathLike[str]) -> dict[str, SceneObject]:
         malformed transformation (one line naming the object and the field).
     """
     p = Path(path)
+
     def error(m: str) -> FormatError:
         return FormatError(p, f"cannot read 3rdHand scene file: {m}")
 
