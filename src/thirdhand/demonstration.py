@@ -637,7 +637,7 @@ def _check_time(t: ArrayLike) -> FloatArray:
 
 
 def clip_labels(labels: Labels, t0: float, t1: float) -> Labels:
-    """Labels clipped to ``[t0, t1]`` s: intervals cut, events and timed plan steps outside dropped."""
+    """Labels clipped to ``[t0, t1]`` s: intervals cut; events and timed steps outside dropped."""
     inter = tuple(
         dataclasses.replace(i, start=max(i.start, t0), end=min(i.end, t1))
         for i in labels.interactions
