@@ -158,6 +158,26 @@ def check_path_shape(path: PathLike, *, what: str = "output") -> Path:
     return p
 
 
+def check_distinct_inputs(paths: Iterable[PathLike], *, what: str = "input") -> None:
+    """Refuse the same file or folder given twice (``rec``, ``./rec``, a link to it).
+
+    Raises
+    ------
+    OutputError
+        Naming both spellings.
+    """
+    seen: list[Path] = []
+    for raw in paths:
+        p = Path(raw)
+        for k, q in enumerate(seen):
+            if _same(p, q):
+                raise OutputError(
+                    f"{p} ({what} {len(seen) + 1}) is the same file as {what} {k + 1} ({q}); "
+                    f"give each {what} once"
+                )
+        seen.append(p)
+
+
 def check_output(
     path: PathLike,
     *,
@@ -570,6 +590,7 @@ __all__ = [
     "atomic_output",
     "atomic_write_bytes",
     "backup_existing",
+    "check_distinct_inputs",
     "check_output",
     "check_path_shape",
     "forget_checked_outputs",

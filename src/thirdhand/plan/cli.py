@@ -6,6 +6,7 @@ experiments that used to live here are in the repository's ``research/`` folder.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -16,7 +17,7 @@ from rich.console import Console
 from thirdhand import options
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import OptionError, ThirdhandError
-from thirdhand.fileops import check_output
+from thirdhand.fileops import check_distinct_inputs, check_output
 from thirdhand.progress import stage_status
 
 if TYPE_CHECKING:
@@ -52,6 +53,46 @@ def _check_batch(jobs: int, scheduler: str | None) -> None:
         from thirdhand.batch import check_scheduler
 
         check_scheduler(scheduler)
+
+
+def check_one_task(demos: Sequence[Demonstration], paths: Sequence[Path]) -> None:
+    """Refuse recordings of different tasks: groups of recordings that share no part.
+
+    Recordings of one task show (some of) the same parts; a recording whose parts
+    appear in no other recording of the group is of another task, and learning
+    from both gives an empty or mixed-up task.
+
+    Raises
+    ------
+    ThirdhandError
+        Naming the groups and their parts.
+    """
+    parts = [{b.name for b in d.bodies if b.kind == "part"} for d in demos]
+    group = list(range(len(demos)))
+
+    def root(i: int) -> int:
+        while group[i] != i:
+            i = group[i]
+        return i
+
+    for i in range(len(demos)):
+        for j in range(i):
+            if parts[i] & parts[j]:
+                group[root(i)] = root(j)
+    groups: dict[int, list[int]] = {}
+    for i in range(len(demos)):
+        groups.setdefault(root(i), []).append(i)
+    if len(groups) > 1:
+        listed = []
+        for members in groups.values():
+            names = sorted(set().union(*(parts[i] for i in members)))
+            files = ", ".join(str(paths[i]) for i in members)
+            listed.append(f"{files} (parts: {', '.join(names) or 'none'})")
+        desc = "; ".join(listed)
+        raise ThirdhandError(
+            f"the recordings show different tasks: no part is shared between {desc}; "
+            "learn each task from its own recordings"
+        )
 
 
 def _load(path: Path) -> Demonstration:
@@ -164,6 +205,7 @@ def learn_command(
             f"--min-support: expected a finite number >= 0 and < 1, got {min_support:g}"
         )
     _check_batch(jobs, scheduler)
+    check_distinct_inputs(demos, what="recording")
     check_output(output, force=force, inputs=demos)
     if report is not None:
         if report.exists() and not report.is_dir():
@@ -177,6 +219,7 @@ def learn_command(
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
+    check_one_task(loaded, demos)
     if scene is None:
         from thirdhand.task.scene_file import find_scene
 
