@@ -155,11 +155,6 @@ def gestures_command(
         ray, dwell, cone = cfg.ray, cfg.dwell, cfg.cone
         _check_output(json_out, force, [recording, task, config])
         demo = _load(recording)
-        if dwell > demo.duration:
-            raise ThirdhandError(
-                f"--dwell {dwell:g} s: longer than the recording ({demo.duration:.3g} s); "
-                "no posture can be held that long"
-            )
         events = detect_pointing(demo, ray=ray, dwell=dwell, cone_deg=cone)
         data = {
             "source": str(recording),
@@ -210,11 +205,6 @@ def attention_command(
             heads = ", ".join(demo.bodies_of_kind("head")) or "none"
             raise ThirdhandError(
                 f"--head {head}: is a {demo.info(head).kind}, not a head (heads: {heads})"
-            )
-        if min_duration > demo.duration:
-            raise ThirdhandError(
-                f"--min-duration {min_duration:g} s: longer than the recording "
-                f"({demo.duration:.3g} s)"
             )
         intervals = attended_objects(
             demo, head, forward=axis, cone_deg=cone, hysteresis_deg=hysteresis,
