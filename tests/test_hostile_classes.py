@@ -404,7 +404,7 @@ def test_force_replaces_only_files_and_recording_folders(tmp_path: Path) -> None
     io.save(demo_of(["seating"], seed=3), tmp_path / "rec")
     assert (tmp_path / "rec.bak" / "poses.dat").is_file()
     (tmp_path / "x.csv").mkdir()
-    with pytest.raises(OutputError, match="is a folder; a .csv output is a file"):
+    with pytest.raises(OutputError, match=r"is a folder; a \.csv output is a file"):
         check_output(tmp_path / "x.csv", force=True)
     os.mkfifo(tmp_path / "pipe")
     with pytest.raises(OutputError, match="FIFO"):
