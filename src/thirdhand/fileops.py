@@ -143,7 +143,8 @@ def check_path_shape(path: PathLike, *, what: str = "output") -> Path:
         raise OutputError(f"an empty {what} path: name a file")
     if p.name in ("", ".", "..") or raw.rstrip("/").endswith(("/.", "/..")):
         raise OutputError(
-            f"{raw!r}: names a folder ('.' or '..'), not a file for the {what}; name a file inside it"
+            f"{raw!r}: names a folder ('.' or '..'), not a file for the {what}; "
+            "name a file inside it"
         )
     if p.name == "-":
         raise OutputError(
