@@ -115,10 +115,16 @@ def _read_tracks(path: Path, body: str | None) -> list[tuple[np.ndarray, np.ndar
     """Tracks from a LASA ``.mat`` (all demos), a CSV/NPY (time, values…) or a recording."""
     suffix = path.suffix.lower()
     if suffix == ".mat":
+        from thirdhand.readlimits import check_regular
+
+        check_regular(path, what="LASA .mat file")
         from thirdhand.datasets.primitive_shapes import lasa_shapes
 
         return lasa_shapes(path.parent, path.stem)
     if suffix in (".csv", ".txt", ".npy"):
+        from thirdhand.readlimits import check_regular
+
+        check_regular(path, what="track file")
         try:
             arr = np.load(path) if suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
         except (OSError, ValueError) as exc:
