@@ -115,9 +115,6 @@ def _read_tracks(path: Path, body: str | None) -> list[tuple[np.ndarray, np.ndar
     """Tracks from a LASA ``.mat`` (all demos), a CSV/NPY (time, values…) or a recording."""
     suffix = path.suffix.lower()
     if suffix == ".mat":
-        from thirdhand.readlimits import check_regular
-
-        check_regular(path, what="LASA .mat file")
         from thirdhand.datasets.primitive_shapes import lasa_shapes
 
         return lasa_shapes(path.parent, path.stem)
