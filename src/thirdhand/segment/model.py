@@ -187,7 +187,11 @@ class SegmentModel:
 def load_model(path: str | os.PathLike[str]) -> SegmentModel:
     """Read a model written by :meth:`SegmentModel.save`."""
     p = Path(path)
-    data = read_input(p, what="segmentation model", error=lambda m: ModelFileError(f"{p}: {m}"))
+    data = read_input(
+        p,
+        what="segmentation model",
+        error=lambda m: ModelFileError(f"{p}: cannot read the model: {m}"),
+    )
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError:

@@ -320,8 +320,8 @@ def segment_demonstration(
     for p in result.pairs:
         _blank_long_gaps(p.probability, p.label, p.evidence, max_steps)
         if not np.any(demo.valid(p.a) & demo.valid(p.b)):
-            # Never tracked together: nothing was observed, so nothing interacts.
-            p.probability = np.zeros_like(p.probability)
+            # Never tracked together: nothing observed (no probability), nothing interacts.
+            p.probability = np.full_like(p.probability, np.nan)
             p.label = np.zeros_like(p.label)
         p.intervals = clip_intervals(intervals_from_labels(p.label, axis.edges), *span)
     result.hands = _hands(demo, result, model.min_fingers, has_truth)
