@@ -202,6 +202,29 @@ def test_case3_motive_csv_carries_kinds_and_labels(tmp_path: Path) -> None:
     )
 
 
+def test_case3_a_real_motive_export_takes_kinds_from_a_sidecar(tmp_path: Path) -> None:
+    from thirdhand.io import motive
+
+    demo = demo_of(["seating"])
+    bare = demo.replace(bodies=[BodyInfo(b.name, oriented=True) for b in demo.bodies])
+    io.save(bare, tmp_path / "rec.csv")  # no kinds stated: like a real Motive export
+    assert io.load(tmp_path / "rec.csv").info("rh_index").kind == "part"
+    side = motive.sidecar_path(tmp_path / "rec.csv")
+    assert side.name == "rec.thirdhand.json"
+    side.write_text(
+        json.dumps(
+            {
+                "format": "thirdhand.motive-extra/1",
+                "bodies": [{"name": "rh_index", "kind": "finger", "hand": "right"}],
+            }
+        )
+    )
+    assert io.load(tmp_path / "rec.csv").bodies == demo.bodies
+    side.write_text('{"format": "thirdhand.motive-extra/1", "bodies": [{"name": "lid"}]}')
+    with pytest.raises(FormatError, match=r"rec\.thirdhand\.json: names body 'lid'"):
+        io.load(tmp_path / "rec.csv")
+
+
 def _rewrite_parquet(path: Path, *, column: str | None = None, value: float = 0.0,
                      meta: Any = None) -> None:  # fmt: skip
     import pyarrow as pa

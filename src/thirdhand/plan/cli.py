@@ -6,7 +6,8 @@ experiments that used to live here are in the repository's ``research/`` folder.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import contextlib
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -16,7 +17,7 @@ from rich.console import Console
 
 from thirdhand import options
 from thirdhand.demonstration import Demonstration
-from thirdhand.errors import OptionError, ThirdhandError
+from thirdhand.errors import OptionError, TaskFileError, ThirdhandError
 from thirdhand.fileops import check_distinct_inputs, check_output
 from thirdhand.progress import stage_status
 
@@ -93,6 +94,29 @@ def check_one_task(demos: Sequence[Demonstration], paths: Sequence[Path]) -> Non
             f"the recordings show different tasks: no part is shared between {desc}; "
             "learn each task from its own recordings"
         )
+
+
+@contextlib.contextmanager
+def _kinds_hint(demos: Sequence[Demonstration], paths: Sequence[Path]) -> Iterator[None]:
+    """Name the likely cause when a task learned from Motive exports without kinds is invalid."""
+    try:
+        yield
+    except TaskFileError as exc:
+        from thirdhand.io.motive import sidecar_path
+
+        bare = [
+            p
+            for d, p in zip(demos, paths, strict=True)
+            if d.meta.get("format") == "motive" and not d.bodies_of_kind("finger", "hand")
+        ]
+        if not bare:
+            raise
+        raise TaskFileError(
+            f"{exc}; {bare[0]} states no body kinds (a Motive export), so every body, fingers "
+            f"too, was read as a part: state them in {sidecar_path(bare[0])} "
+            '({"format": "thirdhand.motive-extra/1", "bodies": [{"name": ..., "kind": '
+            '"finger", "hand": "right"}, ...]})'
+        ) from None
 
 
 def _load(path: Path) -> Demonstration:
@@ -244,7 +268,7 @@ def learn_command(
         detections = [det for _, det in done]
         if not no_segment:
             phases = [ph for ph, _ in done if ph is not None]
-    with stage_status() as say:
+    with stage_status() as say, _kinds_hint(loaded, demos):
         result = learn_task(
             loaded,
             names=[p.name for p in demos],

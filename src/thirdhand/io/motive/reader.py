@@ -26,7 +26,7 @@ from thirdhand.io.motive.block import _as_float, _first_null, _read_block, _time
 from thirdhand.io.motive.columns import _BodySpec, _find_bodies
 from thirdhand.io.motive.constants import _MAGIC, EXTRA_FORMAT, EXTRA_KEY, FloatArray
 from thirdhand.io.motive.header import _Header, _rate, _read_header, _units_per_metre
-from thirdhand.readlimits import loads_json
+from thirdhand.readlimits import loads_json, read_text_input
 
 #: Smallest plausible extent of a capture, metres: every position of every body closer
 #: to the origin than this means metres were exported under a mm/cm label.
@@ -250,16 +250,39 @@ def _body_arrays(
     return pos, quat, valid, reach
 
 
+def sidecar_path(path: Path) -> Path:
+    """``rec.csv`` -> ``rec.thirdhand.json``: body kinds (and labels) of a real Motive export.
+
+    The document is the one thirdhand writes in the first line's ``thirdhand`` key::
+
+        {"format": "thirdhand.motive-extra/1",
+         "bodies": [{"name": "rh_index", "kind": "finger", "hand": "right"}]}
+    """
+    return path.with_name(path.stem + ".thirdhand.json")
+
+
 def _extra(
     path: Path, keys: Mapping[str, str], specs: Sequence[Any]
 ) -> tuple[dict[str, BodyInfo], Labels]:
-    """Body metadata and labels thirdhand stated in the first line's ``thirdhand`` key."""
+    """Body metadata and labels stated in the first line's ``thirdhand`` key, or in a sidecar.
+
+    A real Motive export states no body kinds; the same JSON document in a file
+    ``<stem>.thirdhand.json`` beside the CSV (:func:`sidecar_path`) states them.
+    The key wins over the sidecar.
+    """
     raw = keys.get(EXTRA_KEY)
+    source: Path = path
+    line: int | None = 1
     if raw is None:
-        return {}, Labels()
+        side = sidecar_path(path)
+        if not side.is_file():
+            return {}, Labels()
+        source, line = side, None
+        raw = read_text_input(side, what="body-kinds sidecar")
 
     def error(message: str) -> FormatError:
-        return FormatError(path, message, line=1, where=f"{EXTRA_KEY!r} key")
+        where = f"{EXTRA_KEY!r} key" if source == path else None
+        return FormatError(source, message, line=line, where=where)
 
     doc = loads_json(raw, error=error)
     if not isinstance(doc, dict) or doc.get("format") != EXTRA_FORMAT:
