@@ -95,6 +95,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     out["deep_model"].write_text("[" * 100_000 + "]" * 100_000)
     out["fifo"] = d / "fifo.json"
     os.mkfifo(out["fifo"])
+    out["dwell_config"] = d / "dwell.toml"  # gestures --dwell 1e9, now a setting
+    out["dwell_config"].write_text("[gestures]\ndwell = 1e9\n")
     out["userdir"] = d / "mine"
     out["userdir"].mkdir()
     (out["userdir"] / "notes.txt").write_text("mine")
@@ -128,7 +130,7 @@ CLI_CASES: list[tuple[str, str, str]] = [
     ("14", "execute {task} --meshes /etc/passwd", "not a folder"),
     ("14", "execute {task} --demo {toolbox}", "none of the task's objects"),
     ("14", "convert {chair} -", "standard output"),
-    ("14", "gestures {chair} --dwell 1e9", "--dwell"),
+    ("14", "gestures {chair} --config {dwell_config}", "dwell"),
     ("14", "attention {chair} --head leg1", "not a head"),
 ]
 
