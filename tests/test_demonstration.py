@@ -58,7 +58,12 @@ def test_arrays_are_read_only() -> None:
 def test_bad_time_axis(t: list[float], match: str) -> None:
     n = len(t)
     with pytest.raises(DemonstrationError, match=match):
-        Demonstration(t, [BodyInfo("a")], {"a": np.zeros((n, 3))}, {"a": np.ones((n, 4))})
+        Demonstration(
+            t,
+            [BodyInfo("a")],
+            {"a": np.zeros((n, 3))},
+            {"a": np.tile([0.0, 0.0, 0.0, 1.0], (n, 1))},
+        )
 
 
 def test_zero_quaternion_names_body_and_frame() -> None:
@@ -72,13 +77,18 @@ def test_unit_mix_up_detected() -> None:
     p = np.zeros((5, 3))
     p[2] = [1500.0, 20.0, 3.0]  # millimetres
     with pytest.raises(DemonstrationError, match=r"frame 2.*millimetres"):
-        Demonstration(np.arange(5.0), [BodyInfo("a")], {"a": p}, {"a": np.ones((5, 4))})
+        Demonstration(
+            np.arange(5.0), [BodyInfo("a")], {"a": p}, {"a": np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))}
+        )
 
 
 def test_shape_and_metadata_errors() -> None:
     with pytest.raises(DemonstrationError, match=r"body 'a': positions must have shape \(5, 3\)"):
         Demonstration(
-            np.arange(5.0), [BodyInfo("a")], {"a": np.zeros((4, 3))}, {"a": np.ones((5, 4))}
+            np.arange(5.0),
+            [BodyInfo("a")],
+            {"a": np.zeros((4, 3))},
+            {"a": np.tile([0.0, 0.0, 0.0, 1.0], (5, 1))},
         )
     with pytest.raises(DemonstrationError, match="kind must be one of"):
         BodyInfo("a", kind="robot")  # type: ignore[arg-type]
@@ -87,7 +97,7 @@ def test_shape_and_metadata_errors() -> None:
             np.arange(2.0),
             [BodyInfo("a"), BodyInfo("a")],
             {"a": np.zeros((2, 3))},
-            {"a": np.ones((2, 4))},
+            {"a": np.tile([0.0, 0.0, 0.0, 1.0], (2, 1))},
         )
 
 
@@ -98,7 +108,7 @@ def test_label_naming_unknown_body() -> None:
             np.arange(3.0),
             [BodyInfo("a")],
             {"a": np.zeros((3, 3))},
-            {"a": np.ones((3, 4))},
+            {"a": np.tile([0.0, 0.0, 0.0, 1.0], (3, 1))},
             labels=lab,
         )
 
@@ -107,18 +117,22 @@ def test_valid_mask_and_nan_storage() -> None:
     p = np.ones((4, 3))
     p[1] = np.nan
     d = Demonstration(
-        np.arange(4.0), [BodyInfo("a")], {"a": p}, {"a": np.tile([0, 0, 0, 2.0], (4, 1))}
+        np.arange(4.0), [BodyInfo("a")], {"a": p}, {"a": np.tile([0, 0, 0, 1.005], (4, 1))}
     )
     assert d.valid("a").tolist() == [True, False, True, True]
     assert np.isnan(d.quat("a")[1]).all()
-    np.testing.assert_allclose(d.quat("a")[0], [0, 0, 0, 1])
+    np.testing.assert_allclose(d.quat("a")[0], [0, 0, 0, 1])  # rounding within 0.01 renormalised
+    with pytest.raises(DemonstrationError, match="frame 0: quaternion has norm 149112"):
+        Demonstration(
+            np.arange(4.0), [BodyInfo("a")], {"a": p}, {"a": np.tile([0, 0, 0, 149112], (4, 1))}
+        )
     assert d.missing_fraction("a") == 0.25
     with pytest.raises(DemonstrationError, match="marked valid but pose is not finite"):
         Demonstration(
             np.arange(4.0),
             [BodyInfo("a")],
             {"a": p},
-            {"a": np.ones((4, 4))},
+            {"a": np.tile([0.0, 0.0, 0.0, 1.0], (4, 1))},
             {"a": np.ones(4, bool)},
         )
 

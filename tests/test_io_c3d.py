@@ -81,10 +81,12 @@ def sample_demo(rng: np.random.Generator, n: int = 240) -> Demonstration:
         pos[b.name] = rng.uniform(-1, 1, 3) + np.cumsum(rng.normal(0, 0.004, (n, 3)), axis=0)
         quat[b.name] = Rotation.from_rotvec(np.cumsum(rng.normal(0, 0.05, (n, 3)), 0)).as_quat()
         valid[b.name] = rng.random(n) > 0.1
+    # Label times inside the recording, whatever its length (the core type checks it).
+    start, end = float(t[n // 4]), float(t[n // 2])
     labels = Labels(
-        interactions=(InteractionInterval("seat", "leg 1", 0.5, 1.0),),
-        constraints=(ConstraintEvent(1.0, "seat", "leg 1", "revolute", symbol="c2"),),
-        plan=(PlanStep("seat", "leg 1", "c2", 1.0),),
+        interactions=(InteractionInterval("seat", "leg 1", start, end),),
+        constraints=(ConstraintEvent(end, "seat", "leg 1", "revolute", symbol="c2"),),
+        plan=(PlanStep("seat", "leg 1", "c2", end),),
     )
     meta = {"scene": "chair", "note": "spaces  and \\ backslashes ", "n": 3}
     return Demonstration(t, bodies, pos, quat, valid, labels=labels, meta=meta)

@@ -95,6 +95,9 @@ def test_excerpt_round_trip_exact(excerpt: Path, tmp_path: Path) -> None:
     back = mlr.read(out)
     assert back.equals(demo)
     assert back.bodies == demo.bodies
+    # The copy carries thirdhand's writer mark: read as written, no second G4 repair.
+    assert demo.meta["mlr"].pop("polhemus_repair") is True
+    assert back.meta["mlr"].pop("polhemus_repair") is False
     assert back.meta["mlr"] == demo.meta["mlr"]
     assert _raw_rows(out / "meta.kvg") == _raw_rows(excerpt / "meta.kvg")
     assert _raw_blocks(out / "poses.dat").shape == _raw_blocks(excerpt / "poses.dat").shape
@@ -231,7 +234,9 @@ def test_elan_labels_attach_on_media_time(excerpt: Path, tmp_path: Path) -> None
         (f"/human/lh/{f}", t0 + 0.12, t0 + 0.45) for f in ("thumb", "index", "middle")
     ]
     assert [(c.time, c.removed) for c in demo.labels.constraints] == [(t0 + 0.5, False)]
-    assert mlr.read(folder, elan_offset=0.0).labels.constraints[0].time == 0.5
+    # Media time 0 taken as recording time 0 puts the labels 14 h before the recording.
+    with pytest.raises(FormatError, match="outside the recording"):
+        mlr.read(folder, elan_offset=0.0)
     assert not mlr.read(folder, labels=False).labels
     (folder / "ann_kvg.kvg").write_text(
         " TS /human/lh /toolbox/side_left { lock { from=1  to=2 } }\n"

@@ -483,6 +483,7 @@ def test_round_trip_property(
     pos: np.ndarray, quat: np.ndarray, valid: np.ndarray, start: int
 ) -> None:
     t = (start + np.arange(6)) / 120.0
+    quat = quat / np.linalg.norm(quat, axis=1, keepdims=True)  # a Demonstration holds unit ones
     demo = Demonstration(t, [BodyInfo("b")], {"b": pos}, {"b": quat}, {"b": valid})
     with tempfile.TemporaryDirectory() as tmp:
         p = Path(tmp) / "prop.csv"

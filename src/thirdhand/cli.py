@@ -25,6 +25,7 @@ if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
     signal.signal(signal.SIGINT, _interrupted_at_start_up)
 
 import json  # noqa: E402
+import math  # noqa: E402
 import time  # noqa: E402
 from dataclasses import dataclass  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -275,7 +276,8 @@ def info(
     demo = io.load(path, format=fmt)
     summary = describe(demo, fmt=fmt, path=path)
     if as_json:
-        out.print_json(data=summary)
+        # Strict JSON: a rate or duration that does not exist (one frame) is null, never NaN.
+        out.print_json(json.dumps(json_safe(summary), allow_nan=False))
         return
     out.print(
         f"{path} ({fmt}): {len(demo)} bodies, {demo.n_frames} frames, "
@@ -297,6 +299,17 @@ def info(
             f"tracker: {tracker['dropped_samples']} samples dropped as reports at the source "
             "or from before a frame reset" + (f" (reset at {resets})" if resets else "")
         )
+
+
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float replaced by None (strict JSON has no NaN)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: json_safe(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_safe(v) for v in value]
+    return value
 
 
 def describe(demo: Any, *, fmt: str | None = None, path: Path | None = None) -> dict[str, Any]:
@@ -607,6 +620,9 @@ def main(argv: list[str] | None = None) -> int:
             raise
         return _usage_error(exc)
     finally:
+        from thirdhand.fileops import forget_checked_outputs
+
+        forget_checked_outputs()
         for signum, old in previous.items():
             signal.signal(signum, old)
     if isinstance(code, int) and code == 130:

@@ -8,6 +8,7 @@ labels. Validated on construction, so every later stage can trust its input.
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal
@@ -367,6 +368,7 @@ class Demonstration:
                 f"labels name unknown bod{'y' if len(unknown) == 1 else 'ies'}: "
                 f"{', '.join(sorted(unknown))}"
             )
+        _check_labels(self.labels, self.t)
 
     # ------------------------------------------------------------------ access
     @property
@@ -514,14 +516,7 @@ class Demonstration:
                 f"slice [{start}, {end}] s holds no frame of [{self.t[0]:.6g}, {self.t[-1]:.6g}] s"
             )
         tracks = {n: (tr.pos[m], tr.quat[m], tr.valid[m]) for n, tr in self._tracks.items()}
-        t0, t1 = float(self.t[m][0]), float(self.t[m][-1])
-        inter = tuple(
-            dataclasses.replace(i, start=max(i.start, t0), end=min(i.end, t1))
-            for i in self.labels.interactions
-            if i.end >= t0 and i.start <= t1
-        )
-        cons = tuple(c for c in self.labels.constraints if t0 <= c.time <= t1)
-        lab = dataclasses.replace(self.labels, interactions=inter, constraints=cons)
+        lab = clip_labels(self.labels, float(self.t[m][0]), float(self.t[m][-1]))
         return self.replace(t=self.t[m], tracks=tracks, labels=lab)
 
     def relative_pose(self, a: str, b: str) -> tuple[FloatArray, FloatArray, BoolArray]:
@@ -597,7 +592,10 @@ class Demonstration:
         tracks = {
             n: _interpolate_track(self.t, tr, new_t, max_gap) for n, tr in self._tracks.items()
         }
-        return self.replace(t=new_t, tracks=tracks, meta={**self.meta, "resampled_hz": rate})
+        lab = clip_labels(self.labels, float(new_t[0]), float(new_t[-1]))
+        return self.replace(
+            t=new_t, tracks=tracks, labels=lab, meta={**self.meta, "resampled_hz": rate}
+        )
 
     def equals(self, other: Demonstration, *, atol: float = 0.0) -> bool:
         """True when both hold the same bodies, metadata, labels and arrays (NaN = NaN)."""
@@ -636,6 +634,55 @@ def _check_time(t: ArrayLike) -> FloatArray:
         )
     arr.setflags(write=False)
     return arr
+
+
+def clip_labels(labels: Labels, t0: float, t1: float) -> Labels:
+    """Labels clipped to ``[t0, t1]`` s: intervals cut; events and timed steps outside dropped."""
+    inter = tuple(
+        dataclasses.replace(i, start=max(i.start, t0), end=min(i.end, t1))
+        for i in labels.interactions
+        if i.end >= t0 and i.start <= t1
+    )
+    cons = tuple(c for c in labels.constraints if t0 <= c.time <= t1)
+    plan = tuple(s for s in labels.plan if s.time is None or t0 <= s.time <= t1)
+    return Labels(interactions=inter, constraints=cons, plan=plan)
+
+
+def label_tolerance(t: FloatArray) -> float:
+    """How far (s) a label may lie outside ``[t[0], t[-1]]``: half a frame, 1 µs at least."""
+    step = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+    return 0.5 * step + 1e-6
+
+
+def _check_labels(labels: Labels, t: FloatArray) -> None:
+    """Every label time finite and inside the recording, every interval ordered."""
+    lo, hi = float(t[0]), float(t[-1])
+    tol = label_tolerance(t)
+
+    def inside(x: float, what: str) -> None:
+        if not math.isfinite(x):
+            raise DemonstrationError(f"{what}: time {x} is not finite")
+        if not lo - tol <= x <= hi + tol:
+            raise DemonstrationError(
+                f"{what}: time {x:.9g} s lies outside the recording ({lo:.9g} to {hi:.9g} s)"
+            )
+
+    for i in labels.interactions:
+        what = f"interaction label {i.a}-{i.b} [{i.start:.9g}, {i.end:.9g}] s"
+        inside(i.start, what)
+        inside(i.end, what)
+        if i.start > i.end:
+            raise DemonstrationError(f"{what}: starts after it ends")
+    for c in labels.constraints:
+        inside(c.time, f"constraint label {c.parent}->{c.child}")
+        values = (*c.pos, *c.quat)
+        if not all(math.isfinite(x) for x in values):
+            raise DemonstrationError(
+                f"constraint label {c.parent}->{c.child}: pose {values} is not finite"
+            )
+    for s in labels.plan:
+        if s.time is not None:
+            inside(s.time, f"plan step {s.parent}->{s.child}")
 
 
 def _check_track(
@@ -680,6 +727,15 @@ def _check_track(
             f"body {name!r} frame {i}: position {np.abs(p[i]).max():.6g} m from the origin is "
             f"beyond {MAX_PLAUSIBLE_POSITION_M:g} m; are these millimetres read as metres?"
         )
+    if info.oriented:
+        with np.errstate(invalid="ignore"):
+            bad_norm = np.flatnonzero(v & ~(np.abs(norm - 1.0) <= MAX_QUAT_NORM_ERROR))
+        if bad_norm.size:
+            i = int(bad_norm[0])
+            raise DemonstrationError(
+                f"body {name!r} frame {i}: quaternion has norm {norm[i]:.6g}; expected a unit "
+                f"quaternion (within {MAX_QUAT_NORM_ERROR:g} of 1)"
+            )
     # Renormalise only what is off: a stored unit quaternion must load bit-identical.
     off = v & (np.abs(norm - 1.0) > 1e-12)
     q[off] /= norm[off, None]

@@ -21,13 +21,17 @@ ever sees a complete old or a complete new file.
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import errno
 import os
 import re
 import shutil
+import stat
+import sys
 import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
+from typing import Any
 
 from thirdhand.errors import OutputError
 
@@ -57,6 +61,124 @@ def _inside(inner: Path, outer: Path) -> bool:
     return True
 
 
+#: Extensions of the files thirdhand writes: a folder with one of them is never
+#: what a command means to write.
+FILE_SUFFIXES = frozenset(
+    {
+        ".parquet",
+        ".csv",
+        ".c3d",
+        ".bag",
+        ".mcap",
+        ".log",
+        ".txt",
+        ".json",
+        ".rrd",
+        ".png",
+        ".pdf",
+        ".svg",
+        ".html",
+        ".npz",
+        ".npy",
+        ".mp4",
+        ".stl",
+    }
+)
+#: Outputs :func:`check_output` found missing and no ``--force``: the atomic
+#: rename must then create them exclusively (a concurrent writer that got there
+#: first keeps its file; neither is moved to a backup).
+_NEW_OUTPUTS: set[str] = set()
+
+
+def _key(p: Path) -> str:
+    return os.path.abspath(p)
+
+
+def _special(mode: int) -> str | None:
+    """The name of a file type thirdhand never writes or moves, or None."""
+    if stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        return "device"
+    if stat.S_ISFIFO(mode):
+        return "FIFO (named pipe)"
+    if stat.S_ISSOCK(mode):
+        return "socket"
+    return None
+
+
+def _stat(p: Path) -> os.stat_result | None:
+    """``stat`` of ``p`` following links (a dangling link: the link itself); None if missing."""
+    try:
+        return os.stat(p)
+    except OSError:
+        try:
+            return os.lstat(p)
+        except OSError:
+            return None
+
+
+def thirdhand_folder(p: Path) -> bool:
+    """True for a folder ``--force`` may move aside: empty, or a recording folder.
+
+    thirdhand writes folders only as recordings (an MLR folder holding
+    ``poses.dat`` and ``meta.kvg``, a ROS 2 bag holding ``metadata.yaml``); any
+    other folder is the user's and is never moved.
+    """
+    try:
+        names = set(os.listdir(p))
+    except OSError:
+        return False
+    return not names or {"poses.dat", "meta.kvg"} <= names or "metadata.yaml" in names
+
+
+def check_path_shape(path: PathLike, *, what: str = "output") -> Path:
+    """Refuse a path that cannot name an output file or folder; one line each.
+
+    Empty, ``.``, ``..`` (or ending in them), ``-`` (thirdhand writes no
+    recording or report to standard output, and a file named ``-`` is too easily
+    taken for it), and a path whose parent is a file.
+    """
+    raw = os.fspath(path)
+    p = Path(raw)
+    if not raw.strip():
+        raise OutputError(f"an empty {what} path: name a file")
+    if p.name in ("", ".", "..") or raw.rstrip("/").endswith(("/.", "/..")):
+        raise OutputError(
+            f"{raw!r}: names a folder ('.' or '..'), not a file for the {what}; "
+            "name a file inside it"
+        )
+    if p.name == "-":
+        raise OutputError(
+            f"{raw!r}: thirdhand writes no {what} to standard output, and a file named '-' "
+            "is easily taken for it; name the file (for example out.json)"
+        )
+    for anc in p.parents:
+        if os.path.lexists(anc):
+            if not anc.is_dir():
+                raise OutputError(f"{p}: {anc} is a file, not a folder")
+            break
+    return p
+
+
+def check_distinct_inputs(paths: Iterable[PathLike], *, what: str = "input") -> None:
+    """Refuse the same file or folder given twice (``rec``, ``./rec``, a link to it).
+
+    Raises
+    ------
+    OutputError
+        Naming both spellings.
+    """
+    seen: list[Path] = []
+    for raw in paths:
+        p = Path(raw)
+        for k, q in enumerate(seen):
+            if _same(p, q):
+                raise OutputError(
+                    f"{p} ({what} {len(seen) + 1}) is the same file as {what} {k + 1} ({q}); "
+                    f"give each {what} once"
+                )
+        seen.append(p)
+
+
 def check_output(
     path: PathLike,
     *,
@@ -65,6 +187,14 @@ def check_output(
     option: str = "--force",
 ) -> Path:
     """Check that ``path`` may be written; raise :class:`OutputError` if not.
+
+    The one output-path policy of every command (see ``docs/reliability.md``):
+    the shape of the path (:func:`check_path_shape`), never one of the inputs,
+    never a device, FIFO or socket, never a folder where a file is meant, and an
+    existing output only with ``force``, which moves aside only a regular file
+    or a folder thirdhand wrote (:func:`thirdhand_folder`). An output found
+    missing without ``force`` is created exclusively by :func:`atomic_output`:
+    a concurrent writer that created it meanwhile wins, and this one fails.
 
     Parameters
     ----------
@@ -84,7 +214,7 @@ def check_output(
     pathlib.Path
         ``path``.
     """
-    p = Path(path)
+    p = check_path_shape(path)
     for raw in inputs:
         inp = Path(raw)
         if _same(p, inp):
@@ -93,14 +223,32 @@ def check_output(
             raise OutputError(f"{p}: the output lies inside the input folder {inp}")
         if p.is_dir() and _inside(inp, p):
             raise OutputError(f"{p}: the output folder holds the input {inp}")
-    if os.path.lexists(p) and not force:
-        kind = "folder" if p.is_dir() else "file"
+    st = _stat(p)
+    if st is None:
+        if not force:
+            _NEW_OUTPUTS.add(_key(p))
+        return p
+    _NEW_OUTPUTS.discard(_key(p))
+    special = _special(st.st_mode)
+    if special:
+        raise OutputError(
+            f"{p}: is a {special}, not a regular file; thirdhand writes only files and "
+            f"folders and never moves a {special} aside"
+        )
+    is_dir = stat.S_ISDIR(st.st_mode)
+    if is_dir and p.suffix.lower() in FILE_SUFFIXES:
+        raise OutputError(f"{p}: is a folder; a {p.suffix} output is a file (name a file)")
+    if is_dir and not thirdhand_folder(p):
+        raise OutputError(
+            f"{p}: is a folder that holds no recording; {option} replaces only files and "
+            "recording folders thirdhand wrote (name a new path)"
+        )
+    if not force:
+        kind = "folder" if is_dir else "file"
         raise OutputError(
             f"{p}: the {kind} exists; pass {option} to replace it "
             f"(the old one is kept as {next_backup(p).name})"
         )
-    if p.parent != p and p.parent.exists() and not p.parent.is_dir():
-        raise OutputError(f"{p}: {p.parent} is not a folder")
     return p
 
 
@@ -214,12 +362,81 @@ def backup_existing(path: PathLike) -> Path | None:
         return _copy_backup(p)
 
 
-def _replace(built: Path, target: Path, *, backup: bool) -> Path | None:
-    """Move the complete ``built`` to ``target``; the previous target becomes a backup."""
+def _rename_noreplace(src: Path, dst: Path) -> None:
+    """Rename ``src`` to ``dst`` only if ``dst`` does not exist, in one step.
+
+    Linux ``renameat2(RENAME_NOREPLACE)``; elsewhere a hard link for a file (also
+    exclusive), and for a folder a check then a rename under the folder lock
+    (exclusive among thirdhand's writers). Raises ``FileExistsError``.
+    """
+    libc = _libc()
+    if libc is not None:
+        at_fdcwd, rename_noreplace = -100, 1
+        rc = libc.renameat2(
+            at_fdcwd, os.fsencode(src), at_fdcwd, os.fsencode(dst), rename_noreplace
+        )
+        if rc == 0:
+            return
+        err = ctypes.get_errno()
+        if err == errno.EEXIST:
+            raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(dst))
+        if err not in (errno.EINVAL, errno.ENOSYS, errno.ENOTSUP):
+            raise OSError(err, os.strerror(err), str(dst))
+    if os.path.lexists(dst):
+        raise FileExistsError(errno.EEXIST, os.strerror(errno.EEXIST), str(dst))
+    if src.is_dir():
+        os.rename(src, dst)
+    else:
+        os.link(src, dst)
+        os.unlink(src)
+
+
+_LIBC: list[Any] = []
+
+
+def _libc() -> Any:
+    if not _LIBC:
+        lib = None
+        if sys.platform.startswith("linux"):
+            try:
+                lib = ctypes.CDLL(None, use_errno=True)
+                lib.renameat2  # noqa: B018 - glibc >= 2.28
+            except (OSError, AttributeError):
+                lib = None
+        _LIBC.append(lib)
+    return _LIBC[0]
+
+
+def _replace(built: Path, target: Path, *, backup: bool, exclusive: bool = False) -> Path | None:
+    """Move the complete ``built`` to ``target``; the previous target becomes a backup.
+
+    With ``exclusive`` the target must still be missing (it was when the command
+    checked it): a target another process created meanwhile is kept, and this
+    write fails.
+    """
     bak: Path | None = None
     folder = target.parent if str(target.parent) else Path(".")
     with _folder_lock(folder):
+        if exclusive:
+            try:
+                _rename_noreplace(built, target)
+            except FileExistsError:
+                raise OutputError(
+                    f"{target}: was created by another process while this one ran; it is kept "
+                    "and nothing was written (pass --force to replace it)"
+                ) from None
+            _fsync_dir(folder)
+            return None
         exists = os.path.lexists(target)
+        st = _stat(target) if exists else None
+        special = None if st is None else _special(st.st_mode)
+        if special or (
+            st is not None and stat.S_ISDIR(st.st_mode) and not thirdhand_folder(target)
+        ):
+            raise OutputError(
+                f"{target}: is a {special or 'folder that holds no recording'}; it is never "
+                "moved aside (nothing was written)"
+            )
         if exists and (target.is_dir() or built.is_dir()):
             if backup:
                 bak = next_backup(target)
@@ -278,6 +495,8 @@ def atomic_output(
         ``EFBIG``) or failed for another operating-system reason.
     """
     p = Path(path)
+    exclusive = _key(p) in _NEW_OUTPUTS
+    _NEW_OUTPUTS.discard(_key(p))
     folder = p.parent if str(p.parent) else Path(".")
     created = _missing_folders(folder)
     try:
@@ -296,8 +515,10 @@ def atomic_output(
             _fsync_tree(built)
             if verify is not None:
                 verify(built)
-            _replace(built, p, backup=backup)
+            _replace(built, p, backup=backup, exclusive=exclusive)
             done = True
+        except OutputError:
+            raise
         except OSError as exc:
             raise OutputError(_message(p, exc)) from None
     finally:
@@ -360,12 +581,22 @@ def atomic_write_bytes(path: PathLike, data: bytes, *, backup: bool = True) -> N
     write_bytes(path, data, backup=backup)
 
 
+def forget_checked_outputs() -> None:
+    """Forget the outputs :func:`check_output` found missing (the end of a command)."""
+    _NEW_OUTPUTS.clear()
+
+
 __all__ = [
+    "FILE_SUFFIXES",
     "atomic_output",
     "atomic_write_bytes",
     "backup_existing",
+    "check_distinct_inputs",
     "check_output",
+    "check_path_shape",
+    "forget_checked_outputs",
     "next_backup",
+    "thirdhand_folder",
     "write_bytes",
     "write_text",
 ]

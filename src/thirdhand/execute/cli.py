@@ -98,6 +98,9 @@ def execute_command(
     options.seed(seed)
     options.finite("--step-time", step_time, low=0.0, low_open=True, high=86400.0)
     options.finite("--plan-time", plan_time, low=0.0, low_open=True, high=86400.0)
+    for folder in meshes or []:
+        if not folder.is_dir():
+            raise ThirdhandError(f"--meshes {folder}: not a folder (a folder of part meshes)")
     if record is not None:
         inputs = [task, *([demo] if demo else []), *(meshes or [])]
         for target in record_paths(record):
@@ -125,6 +128,14 @@ def execute_command(
         start_grasps=start_grasps, regrasp=regrasp,
     )  # fmt: skip
     d = io.load(demo) if demo is not None else None
+    if d is not None:
+        shown = {o.name for o in t.objects} & set(d.body_names)
+        if t.objects and not shown:
+            raise ThirdhandError(
+                f"--demo {demo}: shows none of the task's objects "
+                f"({', '.join(sorted(o.name for o in t.objects))}); give a demonstration of "
+                "this task"
+            )
     ex = Executor.for_task(
         t, robot, seed=seed, options=opts, task_path=task, search=search, demo=d,
         assembly_xy=assembly_at,
@@ -194,7 +205,14 @@ def execute_command(
                 f"hint: no grasp came from a demonstration; the task was learned from {source}: "
                 f"--demo {source} takes the grasps from its fingers"
             )
-        raise typer.Exit(1)
+        failed = [r for r in result.steps if not r.success]
+        what = ", ".join(f"{r.constraint}: {r.status}" for r in failed[:5])
+        more = ", …" if len(failed) > 5 else ""
+        raise ThirdhandError(
+            f"{task}: {len(failed)} of {len(result.steps)} steps failed ({what}{more})"
+            if failed
+            else f"{task}: the plan was not completed"
+        )
 
 
 def learned_from(t: TaskFile, task: Path) -> Path | None:

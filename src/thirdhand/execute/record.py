@@ -26,7 +26,7 @@ from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.execute.executor import ExecutionResult
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.timing import time_parametrize
-from thirdhand.fileops import atomic_write_bytes
+from thirdhand.fileops import atomic_write_bytes, check_path_shape
 
 FloatArray = NDArray[np.float64]
 
@@ -177,7 +177,7 @@ def trajectory_document(
 
 def record_paths(out: str | os.PathLike[str]) -> tuple[Path, Path]:
     """The replay (``.parquet``) and trajectory (``.json``) files ``--record out`` writes."""
-    replay = Path(out)
+    replay = check_path_shape(out, what="--record stem")
     if replay.suffix.lower() != ".parquet":
         replay = replay.with_suffix(".parquet")
     return replay, replay.with_suffix(".json")

@@ -39,7 +39,6 @@ axis (``execution_time``: seconds of the executed run).
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -50,6 +49,7 @@ from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import FormatError, OutputError
+from thirdhand.readlimits import loads_json, read_text_input
 
 if TYPE_CHECKING:
     from thirdhand.execute.robot import Robot
@@ -133,10 +133,11 @@ def _pair(a: str, b: str) -> str:
 
 def read_phases(path: Path) -> dict[str, Any]:
     """A ``thirdhand.phases/1`` file (``thirdhand segment --json``), checked."""
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(path, f"not a readable phases JSON file: {exc}") from None
+
+    def error(message: str) -> FormatError:
+        return FormatError(path, f"not a readable phases JSON file: {message}")
+
+    doc = loads_json(read_text_input(path, what="phases file", error=error), error=error)
     if not isinstance(doc, dict) or doc.get("format") != "thirdhand.phases/1":
         raise FormatError(path, "expected a thirdhand.phases/1 file (thirdhand segment --json)")
     t = doc.get("time")
@@ -317,10 +318,11 @@ def _log_meshes(rec: Any, meshes: dict[str, FloatArray], bodies: Sequence[str]) 
 
 def read_execution(path: Path) -> dict[str, Any]:
     """An executed run's ``OUT.json`` (``thirdhand execute --record OUT``), checked."""
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(path, f"not a readable execution JSON file: {exc}") from None
+
+    def error(message: str) -> FormatError:
+        return FormatError(path, f"not a readable execution JSON file: {message}")
+
+    doc = loads_json(read_text_input(path, what="execution file", error=error), error=error)
     if not isinstance(doc, dict) or "t" not in doc or "q" not in doc:
         raise FormatError(path, "expected an execution file with 't' and 'q' (thirdhand execute)")
     t = np.asarray(doc["t"], dtype=np.float64)

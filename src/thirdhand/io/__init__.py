@@ -20,6 +20,7 @@ from typing import Any
 
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import FormatError
+from thirdhand.readlimits import check_regular
 
 #: Format name -> module under ``thirdhand.io``, in detection order.
 FORMATS: dict[str, str] = {
@@ -62,6 +63,8 @@ def detect(path: str | os.PathLike[str]) -> str:
     p = Path(path)
     if not p.exists():
         raise FormatError(p, "no such file or directory")
+    if not p.is_dir():
+        check_regular(p, what="recording file or folder")
     for name in FORMATS:
         if format_module(name).sniff(p):
             return name

@@ -36,6 +36,7 @@ from thirdhand.demonstration import (
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import write_text
 from thirdhand.io.mlr import parse_numeric_rows
+from thirdhand.readlimits import MAX_RECORDING_BYTES, read_input
 
 #: Sampling rate assumed when the caller gives none, Hz.
 DEFAULT_RATE_HZ = 10.0
@@ -91,10 +92,7 @@ def read(path: str | os.PathLike[str], *, rate: float | None = None) -> Demonstr
     hz = DEFAULT_RATE_HZ if rate is None else float(rate)
     if not np.isfinite(hz) or hz <= 0:
         raise FormatError(p, f"rate must be a positive number of Hz, got {rate}")
-    try:
-        raw = p.read_bytes()
-    except OSError as exc:
-        raise FormatError(p, f"cannot read: {exc}") from None
+    raw = read_input(p, what="articulation track", limit=MAX_RECORDING_BYTES)
     rows = parse_numeric_rows(raw, p, n_cols=COLUMNS)
     vals = rows.values
     valid: np.ndarray = np.asarray(np.isfinite(vals[:, :3]).all(axis=1))
@@ -123,6 +121,29 @@ def read(path: str | os.PathLike[str], *, rate: float | None = None) -> Demonstr
         )
     except ThirdhandError as exc:
         raise FormatError(p, str(exc)) from None
+
+
+def _check_carried(demo: Demonstration, p: Path) -> None:
+    """Refuse what an articulation file would not give back (time, name, kind, labels)."""
+    lost = "; choose a format that keeps it (.parquet, .csv)"
+    info = demo.bodies[0]
+    if info.name != p.stem:
+        raise FormatError(
+            p, f"stores no body name: body {info.name!r} would read back as {p.stem!r}" + lost
+        )
+    if info != BodyInfo(p.stem, "part", oriented=info.oriented):
+        raise FormatError(
+            p, f"stores no body kind: {info.name!r} ({info.kind}) would read back as a part" + lost
+        )
+    expected = np.arange(demo.n_frames) / DEFAULT_RATE_HZ
+    if not np.allclose(demo.t, expected, rtol=0, atol=1e-9):
+        raise FormatError(
+            p,
+            f"stores no time: it reads back at {DEFAULT_RATE_HZ:g} Hz from 0 s, the recording "
+            f"runs at {demo.rate:.6g} Hz from {demo.t[0]:.6g} s" + lost,
+        )
+    if demo.labels:
+        raise FormatError(p, "stores no labels" + lost)
 
 
 def _check(vals: np.ndarray, valid: np.ndarray, lines: np.ndarray, path: Path) -> None:
@@ -159,10 +180,17 @@ def write(demo: Demonstration, path: str | os.PathLike[str]) -> None:
     ``%.17g`` so that :func:`read` gives them back exactly; invalid frames are
     ``nan`` rows. The time axis is not stored: :func:`read` gives ``i / rate``.
 
+    The format stores neither time, body name, kind nor labels, so a recording is
+    written only when :func:`read` gives it back as it is: one body named like
+    the file's stem, of kind ``part``, sampled at :data:`DEFAULT_RATE_HZ` from
+    0 s, without labels. Anything else is refused (one line saying what would be
+    lost), never written with it dropped.
+
     Raises
     ------
     FormatError
-        The demonstration does not hold exactly one body.
+        The demonstration does not hold exactly one body, or holds what the format
+        cannot carry.
     """
     p = Path(path)
     if len(demo) != 1:
@@ -171,6 +199,7 @@ def write(demo: Demonstration, path: str | os.PathLike[str]) -> None:
             f"an articulation file holds one body, the demonstration has {len(demo)}: "
             "select one with demo.select([...])",
         )
+    _check_carried(demo, p)
     tr = demo.track(demo.body_names[0])
     cols = [tr.pos] if not tr.info.oriented else [tr.pos, tr.quat]
     width, height = demo.meta.get("width"), demo.meta.get("height")

@@ -32,6 +32,7 @@ from xml.etree.ElementTree import ParseError
 from thirdhand.demonstration import BodyInfo, Labels
 from thirdhand.errors import FormatError
 from thirdhand.io.kvg import Annotation, annotations_to_labels, last_span_end
+from thirdhand.readlimits import check_xml_depth, read_input, read_text_input
 
 _TIER = re.compile(r"^(TS|CE)\s+(\S+)\s+(\S+)\s*$")
 
@@ -70,8 +71,10 @@ def parse_eaf(path: str | os.PathLike[str]) -> list[Annotation]:
     import pympi
 
     p = Path(path)
+    raw = read_input(p, what="ELAN file")
+    check_xml_depth(raw, error=lambda m: FormatError(p, f"not a readable ELAN file: {m}"))
     try:
-        text = p.read_text(encoding="utf-8")
+        text = raw.decode("utf-8")
         eaf = pympi.Elan.Eaf(str(p))
     except (OSError, UnicodeDecodeError, ParseError) as exc:
         raise FormatError(p, f"not a readable ELAN file: {exc}") from None
@@ -107,7 +110,7 @@ def parse_tab(path: str | os.PathLike[str]) -> list[Annotation]:
     """
     p = Path(path)
     try:
-        lines = p.read_text(encoding="utf-8").splitlines()
+        lines = read_text_input(p, what="ELAN tab export").splitlines()
     except (OSError, UnicodeDecodeError) as exc:
         raise FormatError(p, f"cannot read: {exc}") from None
     tiers: dict[str, tuple[int, list[tuple[float, float]]]] = {}

@@ -12,6 +12,10 @@ Layout of a folder (Polhemus G4 recordings of the MLR group, TU Berlin):
   source's housing; every other row of the shared recordings is ≥ 8 cm away.
   The samples next to such reports and those before a frame reset are dropped
   too (:func:`acquisition_validity`; counts and reset times in ``meta["mlr"]``).
+  These repair rules apply to the G4's own files only: a ``meta.kvg`` that
+  starts with thirdhand's mark ``writer = "thirdhand"`` (every folder
+  :func:`write` makes) is read as written, so a Motive recording converted to
+  this format keeps a body that passes the origin.
 - ``poses.dat.times``: ``frame_number timestamp_s`` per line, one line per block
   (frame numbers count from 1; timestamps are seconds on the recorder's clock).
 - ``meta.kvg``: sections (``agents``, ``objects``) mapping body names to their
@@ -58,6 +62,7 @@ from thirdhand.demonstration import (
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output
 from thirdhand.io import elan, kvg
+from thirdhand.readlimits import MAX_RECORDING_BYTES, read_input
 
 POSES = "poses.dat"
 TIMES = "poses.dat.times"
@@ -65,6 +70,13 @@ META = "meta.kvg"
 ANNOTATIONS = "ann_kvg.kvg"
 ELAN = "elan.eaf"
 
+#: The top-level ``meta.kvg`` entry thirdhand writes (``writer = "thirdhand"``).
+#: A folder without it is a Polhemus G4 recording of the MLR group, the only
+#: source of this format, and gets the G4 repair (:func:`acquisition_validity`);
+#: a folder with it holds data thirdhand wrote (already repaired, or from another
+#: tracker) and is read as written.
+WRITER_KEY = "writer"
+WRITER_MARK = "thirdhand"
 #: A seen row closer than this to the tracker origin (metres) is a sensor the G4
 #: has not acquired (it reports the source's own position), not a measurement.
 SOURCE_CLEARANCE_M = 0.01
@@ -317,8 +329,11 @@ class Sensor:
     line: int
 
 
-def _read_meta(path: Path) -> list[Sensor]:
+def _read_meta(path: Path) -> tuple[list[Sensor], bool]:
+    """The sensor entries, and whether thirdhand wrote the file (its ``writer`` mark)."""
     graph = kvg.read(path)
+    mark = graph.find(WRITER_KEY)
+    ours = mark is not None and mark.value == WRITER_MARK
     sensors: list[Sensor] = []
     for section in graph:
         if not isinstance(section.value, kvg.Graph) or len(section.keys) != 1:
@@ -353,7 +368,7 @@ def _read_meta(path: Path) -> list[Sensor]:
                     line=s.line,
                 )
             seen[key] = s
-    return sensors
+    return sensors, ours
 
 
 def derive_body(name: str, section: str, type_: str) -> BodyInfo:
@@ -412,12 +427,9 @@ def sniff(path: Path) -> bool:
 
 
 def _read_bytes(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except FileNotFoundError:
-        raise FormatError(path, f"missing: an MLR recording folder needs {path.name}") from None
-    except OSError as exc:
-        raise FormatError(path, f"cannot read: {exc}") from None
+    if not os.path.lexists(path):
+        raise FormatError(path, f"missing: an MLR recording folder needs {path.name}")
+    return read_input(path, what=f"{path.name} file", limit=MAX_RECORDING_BYTES)
 
 
 def _read_times(path: Path, n_frames: int) -> tuple[NDArray[np.float64], int]:
@@ -516,7 +528,7 @@ def read(
         raise FormatError(folder, f"no such folder (expected a folder holding {POSES})")
     if not (folder / META).is_file():
         raise FormatError(folder / META, "missing: it maps sensor rows to body names")
-    sensors = _read_meta(folder / META)
+    sensors, ours = _read_meta(folder / META)
     poses_path = folder / POSES
     rows = parse_numeric_rows(_read_bytes(poses_path), poses_path, n_cols=(7,), blocks=True)
     n_frames = rows.block_lines.size
@@ -536,7 +548,10 @@ def read(
     pos, quat, valid = {}, {}, {}
     used = vals[:, [s.row for s in sensors]]
     seen = np.any(used != 0, axis=2)
-    ok, resets = acquisition_validity(t, used[..., :3], seen)
+    # The G4's artefacts are repaired in the G4's own files only: a folder thirdhand
+    # wrote holds data already repaired, or another tracker's (a body may pass
+    # within a centimetre of a Motive origin).
+    ok, resets = (seen, []) if ours else acquisition_validity(t, used[..., :3], seen)
     for k, (s, b) in enumerate(zip(sensors, bodies, strict=True)):
         block = vals[:, s.row]
         pos[b.name] = block[:, :3]
@@ -550,6 +565,7 @@ def read(
         "mlr": {
             "n_rows": n_rows,
             "first_frame_number": first_number,
+            "polhemus_repair": not ours,
             "dropped_samples": int(np.count_nonzero(seen & ~ok)),
             "frame_resets_s": resets,
             "sensors": {
@@ -640,7 +656,8 @@ def _meta_text(entries: Sequence[tuple[BodyInfo, str, int, dict[str, Any]]]) -> 
         if not runs or runs[-1][0] != section:
             runs.append((section, []))
         runs[-1][1].append(line)
-    return "\n".join(
+    mark = f"{WRITER_KEY} = {kvg.format_value(WRITER_MARK)}\n\n"
+    return mark + "\n".join(
         f"{kvg.format_value(name)} {{\n" + "\n".join(lines) + "\n}\n" for name, lines in runs
     )
 

@@ -24,6 +24,7 @@ from thirdhand.demonstration import (
 )
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output
+from thirdhand.readlimits import check_regular, loads_json
 
 FORMAT_VERSION = "thirdhand.demonstration/1"
 _META_KEY = b"thirdhand"
@@ -71,7 +72,7 @@ def read(path: str | os.PathLike[str]) -> Demonstration:
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    p = Path(path)
+    p = check_regular(path, what="Parquet file")
     try:
         table = pq.read_table(p)
     except (pa.ArrowInvalid, OSError) as exc:
@@ -79,10 +80,9 @@ def read(path: str | os.PathLike[str]) -> Demonstration:
     raw = (table.schema.metadata or {}).get(_META_KEY)
     if raw is None:
         raise FormatError(p, "Parquet file has no thirdhand metadata (not written by thirdhand)")
-    try:
-        header = json.loads(raw)
-    except json.JSONDecodeError as exc:
-        raise FormatError(p, f"thirdhand metadata is not valid JSON: {exc}") from None
+    header = loads_json(raw, error=lambda m: FormatError(p, f"thirdhand metadata: {m}"))
+    if not isinstance(header, dict):
+        raise FormatError(p, "thirdhand metadata is not a JSON object")
     if header.get("format") != FORMAT_VERSION:
         raise FormatError(
             p, f"unsupported format {header.get('format')!r}, expected {FORMAT_VERSION!r}"

@@ -11,7 +11,7 @@ from rich.console import Console
 
 from thirdhand import options
 from thirdhand.config import ConfigOption, load_settings
-from thirdhand.fileops import check_output
+from thirdhand.fileops import check_distinct_inputs, check_output
 from thirdhand.merge.settings import MergeSettings
 
 out = Console(highlight=False, soft_wrap=True)
@@ -85,6 +85,7 @@ def merge_command(
 
     if len(recordings) < 2:
         raise MergeError("merge needs at least two recordings")
+    check_distinct_inputs(recordings, what="recording")
     settings = load_settings(config, "merge", MergeSettings)
     k = len(recordings) - 1
     offsets = [

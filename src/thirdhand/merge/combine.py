@@ -181,6 +181,37 @@ def alignment_dict(a: Alignment) -> dict[str, Any]:
     return d
 
 
+#: Median position residual (m) of a shared body above which two recordings are
+#: not of one session: sensor noise is millimetres, and a shared body tracked at
+#: points a few centimetres apart in the two systems (docs/merge.md) stays below.
+MAX_SESSION_RESIDUAL_M = 0.05
+
+
+def check_same_session(al: Alignment, what: str) -> None:
+    """Refuse an alignment that matched unrelated motion (two different sessions).
+
+    Raises
+    ------
+    MergeError
+        Naming the residuals and the limit they exceed. (A large fitted drift
+        alone is no evidence: small residuals show the fit found the motion.)
+    """
+    bad = [r for r in al.residuals if r.median_m > MAX_SESSION_RESIDUAL_M]
+    if bad:
+        worst = max(bad, key=lambda r: r.median_m)
+        ang = (
+            ""
+            if worst.angle_median_deg is None
+            else f", orientation median {worst.angle_median_deg:.0f}°"
+        )
+        raise MergeError(
+            f"{what}: not one session: the shared body {worst.body!r} has residuals of "
+            f"{1000 * worst.median_m:.0f} mm median{ang} after the best alignment, far above "
+            f"sensor noise (limit {1000 * MAX_SESSION_RESIDUAL_M:.0f} mm); merge recordings "
+            "of the same take, or name the shared bodies with --via/--same"
+        )
+
+
 def shared_bodies(ref: Demonstration, other: Demonstration) -> list[str]:
     """Bodies tracked in both recordings (by name), in the reference's order."""
     return [n for n in ref.body_names if n in other]
@@ -269,5 +300,6 @@ def merge(
             raise MergeError(f"{names[0]} + {names[i + 1]}: {exc}") from None
         if not shared and offsets[i] is None:
             al = dataclasses.replace(al, time_source="start times")
+        check_same_session(al, f"{names[0]} + {names[i + 1]}")
         alignments.append(al)
     return combine(recordings, alignments, rate=rate, max_gap=max_gap, sources=names), alignments

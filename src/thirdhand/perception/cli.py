@@ -201,6 +201,11 @@ def attention_command(
         cone, hysteresis, min_duration = cfg.cone, cfg.hysteresis, cfg.min_duration
         _check_output(json_out, force, [recording, task, config])
         demo = _load(recording)
+        if head is not None and head in demo and demo.info(head).kind != "head":
+            heads = ", ".join(demo.bodies_of_kind("head")) or "none"
+            raise ThirdhandError(
+                f"--head {head}: is a {demo.info(head).kind}, not a head (heads: {heads})"
+            )
         intervals = attended_objects(
             demo, head, forward=axis, cone_deg=cone, hysteresis_deg=hysteresis,
             min_duration=min_duration,

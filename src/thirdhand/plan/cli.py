@@ -6,6 +6,8 @@ experiments that used to live here are in the repository's ``research/`` folder.
 
 from __future__ import annotations
 
+import contextlib
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated
@@ -15,8 +17,8 @@ from rich.console import Console
 
 from thirdhand import options
 from thirdhand.demonstration import Demonstration
-from thirdhand.errors import OptionError, ThirdhandError
-from thirdhand.fileops import check_output
+from thirdhand.errors import OptionError, TaskFileError, ThirdhandError
+from thirdhand.fileops import check_distinct_inputs, check_output
 from thirdhand.progress import stage_status
 
 if TYPE_CHECKING:
@@ -52,6 +54,69 @@ def _check_batch(jobs: int, scheduler: str | None) -> None:
         from thirdhand.batch import check_scheduler
 
         check_scheduler(scheduler)
+
+
+def check_one_task(demos: Sequence[Demonstration], paths: Sequence[Path]) -> None:
+    """Refuse recordings of different tasks: groups of recordings that share no part.
+
+    Recordings of one task show (some of) the same parts; a recording whose parts
+    appear in no other recording of the group is of another task, and learning
+    from both gives an empty or mixed-up task.
+
+    Raises
+    ------
+    ThirdhandError
+        Naming the groups and their parts.
+    """
+    parts = [{b.name for b in d.bodies if b.kind == "part"} for d in demos]
+    group = list(range(len(demos)))
+
+    def root(i: int) -> int:
+        while group[i] != i:
+            i = group[i]
+        return i
+
+    for i in range(len(demos)):
+        for j in range(i):
+            if parts[i] & parts[j]:
+                group[root(i)] = root(j)
+    groups: dict[int, list[int]] = {}
+    for i in range(len(demos)):
+        groups.setdefault(root(i), []).append(i)
+    if len(groups) > 1:
+        listed = []
+        for members in groups.values():
+            names = sorted(set().union(*(parts[i] for i in members)))
+            files = ", ".join(str(paths[i]) for i in members)
+            listed.append(f"{files} (parts: {', '.join(names) or 'none'})")
+        desc = "; ".join(listed)
+        raise ThirdhandError(
+            f"the recordings show different tasks: no part is shared between {desc}; "
+            "learn each task from its own recordings"
+        )
+
+
+@contextlib.contextmanager
+def _kinds_hint(demos: Sequence[Demonstration], paths: Sequence[Path]) -> Iterator[None]:
+    """Name the likely cause when a task learned from Motive exports without kinds is invalid."""
+    try:
+        yield
+    except TaskFileError as exc:
+        from thirdhand.io.motive import sidecar_path
+
+        bare = [
+            p
+            for d, p in zip(demos, paths, strict=True)
+            if d.meta.get("format") == "motive" and not d.bodies_of_kind("finger", "hand")
+        ]
+        if not bare:
+            raise
+        raise TaskFileError(
+            f"{exc}; {bare[0]} states no body kinds (a Motive export), so every body, fingers "
+            f"too, was read as a part: state them in {sidecar_path(bare[0])} "
+            '({"format": "thirdhand.motive-extra/1", "bodies": [{"name": ..., "kind": '
+            '"finger", "hand": "right"}, ...]})'
+        ) from None
 
 
 def _load(path: Path) -> Demonstration:
@@ -164,6 +229,7 @@ def learn_command(
             f"--min-support: expected a finite number >= 0 and < 1, got {min_support:g}"
         )
     _check_batch(jobs, scheduler)
+    check_distinct_inputs(demos, what="recording")
     check_output(output, force=force, inputs=demos)
     if report is not None:
         if report.exists() and not report.is_dir():
@@ -177,6 +243,7 @@ def learn_command(
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
+    check_one_task(loaded, demos)
     if scene is None:
         from thirdhand.task.scene_file import find_scene
 
@@ -201,7 +268,7 @@ def learn_command(
         detections = [det for _, det in done]
         if not no_segment:
             phases = [ph for ph, _ in done if ph is not None]
-    with stage_status() as say:
+    with stage_status() as say, _kinds_hint(loaded, demos):
         result = learn_task(
             loaded,
             names=[p.name for p in demos],

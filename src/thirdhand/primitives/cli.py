@@ -119,6 +119,9 @@ def _read_tracks(path: Path, body: str | None) -> list[tuple[np.ndarray, np.ndar
 
         return lasa_shapes(path.parent, path.stem)
     if suffix in (".csv", ".txt", ".npy"):
+        from thirdhand.readlimits import check_regular
+
+        check_regular(path, what="track file")
         try:
             arr = np.load(path) if suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
         except (OSError, ValueError) as exc:

@@ -40,6 +40,13 @@ class AssemblyModel:
     rcsi: RCSIModel
 
 
+#: States the relational MDP may enumerate (:func:`thirdhand.relational.mdp` default).
+MAX_STATES = 500_000
+#: Longest plan ``irl learn`` takes: its states are the sets of steps done, up to
+#: ``2**steps``, checked before any work (2**18 = 262,144 <= :data:`MAX_STATES`).
+MAX_PLAN_STEPS = 18
+
+
 def load_trajectory(path: str | os.PathLike[str]) -> Trajectory:
     """The plan of a task file (``thirdhand.task/1``) as a relational trajectory.
 
@@ -56,6 +63,12 @@ def load_trajectory(path: str | os.PathLike[str]) -> Trajectory:
     if not task.plan:
         raise RelationalError(
             f"{os.fspath(path)}: the task has no plan (expected at least one step)"
+        )
+    if len(task.plan) > MAX_PLAN_STEPS:
+        raise RelationalError(
+            f"{os.fspath(path)}: the plan has {len(task.plan)} steps; the relational MDP "
+            f"holds every set of steps done (up to 2^{len(task.plan)} states, limit "
+            f"{MAX_STATES}), so irl learn takes plans of at most {MAX_PLAN_STEPS} steps"
         )
     return trajectory_from_steps([s.model_dump() for s in task.plan], source=os.fspath(path))
 

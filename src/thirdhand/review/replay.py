@@ -15,7 +15,6 @@ held part at its recorded pose.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -27,6 +26,7 @@ import numpy as np
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.record import TOOL_BODY, record_paths
+from thirdhand.readlimits import loads_json, read_text_input
 from thirdhand.review.playback import HandContacts
 from thirdhand.task.model import TaskFile
 
@@ -193,7 +193,10 @@ def load_replay(path: str | os.PathLike[str], task: TaskFile, task_path: Path) -
     success: bool | None = None
     if traj.exists():
         try:
-            doc = json.loads(traj.read_text())
+            doc = loads_json(
+                read_text_input(traj, what="trajectory file", error=ReplayError),
+                error=ReplayError,
+            )
             steps = list(doc.get("steps", []))
             segments = list(doc.get("segments", []))
             success = bool(doc["success"]) if "success" in doc else None

@@ -27,7 +27,7 @@ from typer.core import TyperGroup
 
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
-from thirdhand.fileops import atomic_output, check_output, write_text
+from thirdhand.fileops import atomic_output, check_distinct_inputs, check_output, write_text
 
 DEFAULT_COMMAND = "run"
 
@@ -187,6 +187,7 @@ def train(
     from thirdhand.segment.settings import TrainSettings
     from thirdhand.segment.training import fit_model
 
+    check_distinct_inputs(demos, what="recording")
     settings = load_settings(config, "segment.train", TrainSettings)
     check_output(
         output, force=force, inputs=[*demos, *(labels or []), *([config] if config else [])]

@@ -40,6 +40,13 @@ def intervals_from_labels(labels: IntArray, edges: FloatArray) -> list[tuple[flo
     return [(float(edges[a]), float(edges[b])) for a, b in runs(labels)]
 
 
+def clip_intervals(
+    intervals: Iterable[tuple[float, float]], t0: float, t1: float
+) -> list[tuple[float, float]]:
+    """Intervals cut to the recording ``[t0, t1]`` s (a latent step's edge may lie past it)."""
+    return [(max(s, t0), min(e, t1)) for s, e in intervals if e >= t0 and s <= t1]
+
+
 def labels_from_intervals(
     intervals: Iterable[tuple[float, float]], centres: FloatArray
 ) -> IntArray:
@@ -75,6 +82,7 @@ def to_interaction_intervals(
 
 
 __all__ = [
+    "clip_intervals",
     "intervals_from_labels",
     "labels_from_intervals",
     "pair_intervals",

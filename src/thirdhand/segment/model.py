@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand.errors import ThirdhandError
+from thirdhand.readlimits import check_json_depth, read_input
 from thirdhand.segment.assembly import ClosureConfig
 from thirdhand.segment.crf import PairCRF
 from thirdhand.segment.design import FeatureConfig
@@ -186,12 +187,16 @@ class SegmentModel:
 def load_model(path: str | os.PathLike[str]) -> SegmentModel:
     """Read a model written by :meth:`SegmentModel.save`."""
     p = Path(path)
+    data = read_input(
+        p,
+        what="segmentation model",
+        error=lambda m: ModelFileError(f"{p}: cannot read the model: {m}"),
+    )
     try:
-        text = p.read_text(encoding="utf-8")
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise ModelFileError(f"{p}: not a segmentation model (not UTF-8 JSON text)") from None
-    except OSError as exc:
-        raise ModelFileError(f"{p}: cannot read the model: {exc.strerror or exc}") from None
+    check_json_depth(text, error=lambda m: ModelFileError(f"{p}: not a segmentation model: {m}"))
     try:
         d = json.loads(text)
     except json.JSONDecodeError as exc:

@@ -40,6 +40,7 @@ from thirdhand.segment.design import DemoFeatures
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.hands import aggregate_hand, finger_groups
 from thirdhand.segment.intervals import (
+    clip_intervals,
     intervals_from_labels,
     labels_from_intervals,
     pair_intervals,
@@ -315,10 +316,17 @@ def segment_demonstration(
         result.pairs.append(PairResult(a, b, kind, prob, label, ev, intervals=[], truth=truth))
     if model.closure is not None:
         _close_assembly(result.pairs, feats.gaps, model.closure)
+    span = (float(demo.t[0]), float(demo.t[-1]))
     for p in result.pairs:
         _blank_long_gaps(p.probability, p.label, p.evidence, max_steps)
-        p.intervals = intervals_from_labels(p.label, axis.edges)
+        if not np.any(demo.valid(p.a) & demo.valid(p.b)):
+            # Never tracked together: nothing observed (no probability), nothing interacts.
+            p.probability = np.full_like(p.probability, np.nan)
+            p.label = np.zeros_like(p.label)
+        p.intervals = clip_intervals(intervals_from_labels(p.label, axis.edges), *span)
     result.hands = _hands(demo, result, model.min_fingers, has_truth)
+    for h in result.hands:
+        h.intervals = clip_intervals(h.intervals, *span)
     return result
 
 

@@ -34,7 +34,6 @@ and bench scenes (``280``, ``157.5``). A translation with a component beyond
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -48,6 +47,7 @@ from numpy.typing import NDArray
 from thirdhand import se3
 from thirdhand.errors import FormatError
 from thirdhand.io.stl import read_stl
+from thirdhand.readlimits import loads_json, read_text_input
 from thirdhand.task.geometry import Pose
 from thirdhand.task.meshes import mesh_scale, mesh_search_path, same_role_mesh
 
@@ -90,10 +90,11 @@ def read_scene(path: str | os.PathLike[str]) -> dict[str, SceneObject]:
         malformed transformation (one line naming the object and the field).
     """
     p = Path(path)
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(p, f"cannot read 3rdHand scene file: {exc}") from None
+
+    def error(m: str) -> FormatError:
+        return FormatError(p, f"cannot read 3rdHand scene file: {m}")
+
+    data = loads_json(read_text_input(p, what="scene file", error=error), error=error)
     objs = data.get("objects") if isinstance(data, dict) else None
     if not isinstance(objs, dict) or not objs:
         raise FormatError(p, 'expected {"objects": {name: {"mesh": ...}}}')

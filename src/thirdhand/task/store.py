@@ -17,6 +17,7 @@ from pydantic import ValidationError
 
 from thirdhand.errors import OutputError, TaskFileError
 from thirdhand.fileops import write_text
+from thirdhand.readlimits import check_json_depth, read_text_input
 from thirdhand.task.errors import first_error
 from thirdhand.task.model import TaskFile
 
@@ -51,6 +52,7 @@ def parse_task(text: str, *, name: str = "<task>") -> TaskFile:
         for the first invalid field, e.g.
         ``task.json: constraints[2].child: unknown object 'leg7'``.
     """
+    check_json_depth(text, error=lambda m: TaskFileError(f"{name}: {m}"))
     try:
         data = json.loads(
             text, object_pairs_hook=_reject_duplicate_keys, parse_constant=_reject_constant
@@ -81,10 +83,9 @@ def load_task(path: str | os.PathLike[str]) -> TaskFile:
         the JSON location of the first error).
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise TaskFileError(f"{p}: cannot read task file: {exc}") from None
+    text = read_text_input(
+        p, what="task file", error=lambda m: TaskFileError(f"{p}: cannot read task file: {m}")
+    )
     return parse_task(text, name=str(p))
 
 

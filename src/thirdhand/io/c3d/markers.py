@@ -14,6 +14,7 @@ import numpy as np
 from thirdhand.errors import FormatError
 from thirdhand.io.c3d.constants import FORMAT_VERSION, GROUP, MIN_CLUSTER, UNIT_SCALES, FloatArray
 from thirdhand.io.c3d.structure import _check_structure
+from thirdhand.readlimits import check_json_depth
 
 
 @dataclass
@@ -152,7 +153,9 @@ def _read_doc(
         key = f"DOC{i}"
     where = f"{GROUP}:DOC"
     try:
-        doc = json.loads("".join(parts))
+        text = "".join(parts)
+        check_json_depth(text, error=lambda m: FormatError(p, m, where=where))
+        doc = json.loads(text)
         if doc.get("format") != FORMAT_VERSION:
             raise FormatError(
                 p,

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from thirdhand.errors import FormatError
 from thirdhand.io.kvg.graph import Graph, Node, Value
+from thirdhand.readlimits import MAX_DEPTH, read_text_input
 
 _TOKEN = re.compile(
     r"""(?P<nl>\n)|(?P<ws>[ \t\r\f\v]+)|(?P<comment>\#[^\n]*)
@@ -43,6 +44,7 @@ class _Parser:
         self.tokens = tokens
         self.path = path
         self.i = 0
+        self.depth = 0
 
     def peek(self) -> tuple[str, str, int]:
         if self.i < len(self.tokens):
@@ -110,7 +112,12 @@ class _Parser:
         kind, text, line = self.peek()
         self.i += 1
         if text == "{":
-            return self.graph(opened_at=line)
+            self.depth += 1
+            if self.depth > MAX_DEPTH:
+                raise self.error(f"braces nested more than {MAX_DEPTH} deep; refused", line)
+            graph = self.graph(opened_at=line)
+            self.depth -= 1
+            return graph
         if text == "[":
             items: list[float] = []
             while True:
@@ -172,11 +179,7 @@ def parse(text: str, path: str | os.PathLike[str] = "<string>") -> Graph:
 def read(path: str | os.PathLike[str]) -> Graph:
     """Read and parse a ``.kvg`` file."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise FormatError(p, f"cannot read: {exc}") from None
-    return parse(text, p)
+    return parse(read_text_input(p, what="kvg file"), p)
 
 
 def format_value(value: Value) -> str:

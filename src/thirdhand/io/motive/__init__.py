@@ -31,7 +31,7 @@ Modules
 
 from thirdhand.io.motive.constants import ASSET_TYPES, LENGTH_UNITS
 from thirdhand.io.motive.header import sniff
-from thirdhand.io.motive.reader import read
+from thirdhand.io.motive.reader import read, sidecar_path
 from thirdhand.io.motive.writer import write
 
-__all__ = ["ASSET_TYPES", "LENGTH_UNITS", "read", "sniff", "write"]
+__all__ = ["ASSET_TYPES", "LENGTH_UNITS", "read", "sidecar_path", "sniff", "write"]

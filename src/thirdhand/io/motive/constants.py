@@ -35,3 +35,8 @@ ASSET_TYPES = frozenset(
 _MAGIC = "Format Version"
 
 FloatArray = NDArray[np.float64]
+
+#: First-line key holding what a Motive export cannot state (body kinds, labels),
+#: as JSON; written by thirdhand, read back by :func:`~thirdhand.io.motive.read`.
+EXTRA_KEY = "thirdhand"
+EXTRA_FORMAT = "thirdhand.motive-extra/1"

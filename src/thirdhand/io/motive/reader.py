@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, cast
 
@@ -17,12 +17,16 @@ from thirdhand.demonstration import (
     BodyInfo,
     BodyKind,
     Demonstration,
+    Labels,
+    body_info_from_dict,
+    labels_from_dict,
 )
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.io.motive.block import _as_float, _first_null, _read_block, _time_axis
 from thirdhand.io.motive.columns import _BodySpec, _find_bodies
-from thirdhand.io.motive.constants import _MAGIC, FloatArray
+from thirdhand.io.motive.constants import _MAGIC, EXTRA_FORMAT, EXTRA_KEY, FloatArray
 from thirdhand.io.motive.header import _Header, _rate, _read_header, _units_per_metre
+from thirdhand.readlimits import loads_json, read_text_input
 
 #: Smallest plausible extent of a capture, metres: every position of every body closer
 #: to the origin than this means metres were exported under a mm/cm label.
@@ -126,13 +130,17 @@ def read(
     rates = (rate,) if capture_rate is None else (rate, capture_rate)
     t = _time_axis(p, header, frame, _as_float(block[1]), rates)
 
+    stated, labels = _extra(p, keys, specs)
     bodies, pos, quat, valid = [], {}, {}, {}
     extent = 0.0
     for s in specs:
         pr, qr, v, reach = _body_arrays(p, header, s, block, scale)
         extent = max(extent, reach)
-        kind = cast(BodyKind, kinds.get(s.name, default_kind))
-        bodies.append(BodyInfo(s.name, kind, oriented=s.quat is not None))
+        if s.name in kinds or s.name not in stated:
+            kind = cast(BodyKind, kinds.get(s.name, default_kind))
+            bodies.append(BodyInfo(s.name, kind, oriented=s.quat is not None))
+        else:
+            bodies.append(stated[s.name])
         pos[s.name], quat[s.name], valid[s.name] = pr, qr, v
     if scale != 1.0 and 0.0 < extent < _MIN_PLAUSIBLE_EXTENT_M:
         raise FormatError(
@@ -158,12 +166,12 @@ def read(
         "coordinate_space": keys.get("Coordinate Space", ""),
         "up_axis": up,
         "motive_ids": {s.name: s.ident for s in specs},
-        "motive_header": dict(keys),
+        "motive_header": {k: v for k, v in keys.items() if k != EXTRA_KEY},
     }
     if "Capture Start Time" in keys:
         meta["capture_start_time"] = keys["Capture Start Time"]
     try:
-        return Demonstration(t, bodies, pos, quat, valid, meta=meta)
+        return Demonstration(t, bodies, pos, quat, valid, labels=labels, meta=meta)
     except ThirdhandError as exc:
         raise FormatError(p, str(exc)) from None
 
@@ -240,3 +248,58 @@ def _body_arrays(
     n = pos.shape[0]
     quat = np.column_stack(qcols) if qcols else np.full((n, 4), np.nan)
     return pos, quat, valid, reach
+
+
+def sidecar_path(path: Path) -> Path:
+    """``rec.csv`` -> ``rec.thirdhand.json``: body kinds (and labels) of a real Motive export.
+
+    The document is the one thirdhand writes in the first line's ``thirdhand`` key::
+
+        {"format": "thirdhand.motive-extra/1",
+         "bodies": [{"name": "rh_index", "kind": "finger", "hand": "right"}]}
+    """
+    return path.with_name(path.stem + ".thirdhand.json")
+
+
+def _extra(
+    path: Path, keys: Mapping[str, str], specs: Sequence[Any]
+) -> tuple[dict[str, BodyInfo], Labels]:
+    """Body metadata and labels stated in the first line's ``thirdhand`` key, or in a sidecar.
+
+    A real Motive export states no body kinds; the same JSON document in a file
+    ``<stem>.thirdhand.json`` beside the CSV (:func:`sidecar_path`) states them.
+    The key wins over the sidecar.
+    """
+    raw = keys.get(EXTRA_KEY)
+    source: Path = path
+    line: int | None = 1
+    if raw is None:
+        side = sidecar_path(path)
+        if not side.is_file():
+            return {}, Labels()
+        source, line = side, None
+        raw = read_text_input(side, what="body-kinds sidecar")
+
+    def error(message: str) -> FormatError:
+        where = f"{EXTRA_KEY!r} key" if source == path else None
+        return FormatError(source, message, line=line, where=where)
+
+    doc = loads_json(raw, error=error)
+    if not isinstance(doc, dict) or doc.get("format") != EXTRA_FORMAT:
+        raise error(f"expected a JSON object of format {EXTRA_FORMAT!r}")
+    oriented = {s.name: s.quat is not None for s in specs}
+    stated: dict[str, BodyInfo] = {}
+    try:
+        for d in doc.get("bodies", []):
+            info = body_info_from_dict(d)
+            if info.name not in oriented:
+                raise error(f"names body {info.name!r}, which the file does not hold")
+            if info.oriented != oriented[info.name]:
+                raise error(f"body {info.name!r}: orientation stated and columns disagree")
+            stated[info.name] = info
+        labels = labels_from_dict(doc.get("labels", {}))
+    except ThirdhandError as exc:
+        if isinstance(exc, FormatError):
+            raise
+        raise error(str(exc)) from None
+    return stated, labels

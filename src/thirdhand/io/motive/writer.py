@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 from pathlib import Path
@@ -10,10 +11,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from thirdhand.demonstration import Demonstration
+from thirdhand.demonstration import BodyInfo, Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError
 from thirdhand.fileops import atomic_output
-from thirdhand.io.motive.constants import FloatArray
+from thirdhand.io.motive.constants import EXTRA_FORMAT, EXTRA_KEY, FloatArray
 
 _WRITE_VERSION = "1.23"
 
@@ -107,6 +108,9 @@ def write(
         ("Coordinate Space", "Global"),
         ("Up Axis", up),
     ]
+    extra = extra_key(demo)
+    if extra is not None:
+        first.append((EXTRA_KEY, extra))
     types, names, ids, comps, axes = (
         ["", "Type"],
         ["", "Name"],
@@ -144,6 +148,24 @@ def write(
             fh,
             write_options=pacsv.WriteOptions(include_header=False, quoting_style="none"),
         )
+
+
+def extra_key(demo: Demonstration) -> str | None:
+    """JSON of what a Motive export cannot state (body kinds, labels), or None if nothing.
+
+    Written as the value of the first line's :data:`EXTRA_KEY` key, which
+    :func:`~thirdhand.io.motive.read` reads back; Motive and other CSV readers
+    skip a key they do not know.
+    """
+    bodies = [
+        body_info_to_dict(b) for b in demo.bodies if b != BodyInfo(b.name, oriented=b.oriented)
+    ]
+    if not bodies and not demo.labels:
+        return None
+    doc: dict[str, Any] = {"format": EXTRA_FORMAT, "bodies": bodies}
+    if demo.labels:
+        doc["labels"] = labels_to_dict(demo.labels)
+    return json.dumps(doc, separators=(",", ":"), allow_nan=False, ensure_ascii=True)
 
 
 def _q(cell: str) -> str:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -12,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 from thirdhand.errors import FormatError
 from thirdhand.io.rosbag.classify import _classify, _Spec
 from thirdhand.io.rosbag.constants import _NS, FORMAT_VERSION
+from thirdhand.readlimits import loads_json
 
 if TYPE_CHECKING:
     from rosbags.highlevel import AnyReader
@@ -198,12 +198,9 @@ def _extract(
 
 def _parse_own(text: str, src: Path, topic: str, k: int) -> dict[str, Any]:
     where = f"topic {topic} message {k}"
-    try:
-        own = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise FormatError(
-            src, f"thirdhand metadata is not valid JSON: {exc}", where=where
-        ) from None
+    own = loads_json(
+        text, error=lambda m: FormatError(src, f"thirdhand metadata: {m}", where=where)
+    )
     if not isinstance(own, dict) or own.get("format") != FORMAT_VERSION:
         found = own.get("format") if isinstance(own, dict) else type(own).__name__
         raise FormatError(
