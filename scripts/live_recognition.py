@@ -5,7 +5,7 @@ the recordings replayed are seeds never used in training. Usage::
 
     thirdhand synth chair -o chair1.parquet --seed 1   # ... seeds 1, 2 and the test seeds
     thirdhand learn chair1.parquet chair2.parquet -o chair_task.json --no-primitives --no-reward
-    python scripts/live_recognition.py DIR   # DIR holds {chair,bench}_task.json, {chair,bench}N.parquet
+    python scripts/live_recognition.py DIR   # {chair,bench}_task.json, {chair,bench}N.parquet
 
 Prints, per recording, each constraint's delay (recognised − formed, seconds), whether
 every step was recognised and none early, and the per-frame update latency (wall and CPU).
