@@ -33,6 +33,12 @@ def live_command(
         str | None,
         typer.Option(help="Segmentation model JSON or built-in name (default: the shipped one)."),
     ] = None,
+    assist: Annotated[
+        bool,
+        typer.Option(
+            help="Simulate the robot assist: fetch the next step's part to a hand-over pose."
+        ),
+    ] = False,
     force: Annotated[
         bool, typer.Option(help="Replace an existing --json file (kept as a numbered .bak).")
     ] = False,
@@ -40,7 +46,8 @@ def live_command(
     """Follow a person through a task's plan, live: the step they are in, done, and next."""
     from thirdhand import io
     from thirdhand.fileops import check_output, write_text
-    from thirdhand.live.loop import LiveLoop
+    from thirdhand.live.assist import AssistOptions
+    from thirdhand.live.loop import LiveLoop, LiveOptions
     from thirdhand.live.source import ReplaySource, check_speed
     from thirdhand.live.state import StateEvent
     from thirdhand.segment.model import resolve_model
@@ -52,7 +59,8 @@ def live_command(
     t = load_task(task)
     model = resolve_model(segment_model)
     demo = io.load(recording)
-    loop = LiveLoop(t, demo.bodies, demo.meta, model, source_name=str(recording))
+    opts = LiveOptions(assist=AssistOptions() if assist else None)
+    loop = LiveLoop(t, demo.bodies, demo.meta, model, opts, source_name=str(recording))
     console = Console(highlight=False, stderr=False)
     t0 = float(demo.t[0])
 
@@ -73,6 +81,12 @@ def live_command(
         f"{doc['frames']} frames; update latency median {lat['median']} ms, p99 {lat['p99']} ms, "
         f"max {lat['max']} ms; done {doc['done']} of {len(t.plan)} steps; next {doc['next']}"
     )
+    for a in doc["assists"]:
+        console.print(
+            f"assist step {a['step']}: {a['part']} from {a['start']:.2f} s, ready "
+            f"{a['ready']}, end {a['end']}: {a['outcome']} ({a['collisions']} of "
+            f"{a['checked']} configurations in collision)"
+        )
     if speed > 0:
         late = doc["late_ms"]
         console.print(f"kept up: latest frame processed {late['max']} ms after it arrived")

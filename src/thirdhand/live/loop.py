@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from thirdhand.demonstration import BodyInfo
+from thirdhand.live.assist import AssistOptions, RobotAssist
 from thirdhand.live.filter import SMOOTHER_LAG, OnlinePhases
 from thirdhand.live.source import Frame, FrameSource
 from thirdhand.live.state import (
@@ -50,6 +51,8 @@ class LiveOptions:
         Fixed-lag smoother lag of the CRF, latent steps.
     drop_s : float
         A gap of the stream's clock longer than this is a dropped stream, seconds.
+    assist : AssistOptions or None
+        Run the robot assist (:mod:`thirdhand.live.assist`) with these options; None: off.
     rate_hz : float
         Nominal frame rate, Hz (buffer sizes only).
     """
@@ -57,6 +60,7 @@ class LiveOptions:
     state: StateOptions = field(default_factory=StateOptions)
     smoother_lag: int = SMOOTHER_LAG
     drop_s: float = DROP_S
+    assist: AssistOptions | None = None
     rate_hz: float = 120.0
 
 
@@ -129,6 +133,7 @@ class LiveReport:
     current: list[tuple[float, int | None]] = field(default_factory=list)
     lags: dict[str, float] = field(default_factory=dict)
     assists: list[dict[str, Any]] = field(default_factory=list)
+    assist_time: list[float] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """The ``--json`` document (``"format": "thirdhand.live/1"``)."""
@@ -165,6 +170,7 @@ class LiveReport:
                 for t, s in self.current
             ],
             "assists": self.assists,
+            "assist_ms": _stats(self.assist_time),
         }
 
 
@@ -227,6 +233,17 @@ class LiveLoop:
             "constraint_dwell": opt.state.dwell_s,
         }
         self._rate = rate
+        self.assist: RobotAssist | None = None
+        if opt.assist is not None:
+            root = str(task.stages.get("constraints", {}).get("root") or task.plan[0].parent)
+            self.assist = RobotAssist(
+                names,
+                [b.kind for b in bodies],
+                meta,
+                self.state.slots[0].parent if root not in names else root,
+                opt.assist,
+            )
+        self._assist_step = -1
         self._warm_up(bodies, meta, model, slots, task)
         self._last_t: float | None = None
         self._eval_step = -1
@@ -305,7 +322,17 @@ class LiveLoop:
             rep.late.append(w1 - frame.arrived)
             if events and on_events is not None:
                 on_events(frame.t, events)
+            if self.assist is not None and self._eval_step != self._assist_step:
+                # Once per latent step, after the frame's update (its time is reported apart).
+                self._assist_step = self._eval_step
+                a0 = clock()
+                self.assist.update(
+                    frame.t, frame.pos, frame.quat, frame.valid, self.tracker, self.holding
+                )
+                rep.assist_time.append(clock() - a0)
         self.phases.flush()
+        if self.assist is not None:
+            rep.assists = [a.to_dict() for a in self.assist.assists]
         return rep
 
 
