@@ -61,6 +61,8 @@ class AssistOptions:
         Largest joint speed of the executed motion, rad/s.
     grasp_s : float
         Seconds to close the gripper on the part.
+    lift_m : float
+        Straight lift off the table after the grasp, metres.
     plan_time_s : float
         Time limit of each planning query, seconds.
     hand_size_m : float
@@ -74,6 +76,7 @@ class AssistOptions:
     handover_m: tuple[float, float, float] = (0.2, 0.0, 0.35)
     joint_speed: float = 1.5
     grasp_s: float = 0.5
+    lift_m: float = 0.06
     plan_time_s: float = 1.0
     hand_size_m: float = 0.06
     part_size_m: float = 0.05
@@ -113,6 +116,7 @@ class Assist:
     collisions: int = 0
     held_at_start: set[str] = field(default_factory=set)
     taken: str = ""
+    hits: dict[str, int] = field(default_factory=dict)
     path: FloatArray = field(default_factory=lambda: np.zeros((0, 7)))
     times: FloatArray = field(default_factory=lambda: np.zeros(0))
 
@@ -134,6 +138,7 @@ class Assist:
             "plan_ms": round(self.plan_ms, 1),
             "checked": self.checked,
             "collisions": self.collisions,
+            "colliding_pairs": self.hits,
         }
 
 
@@ -174,6 +179,7 @@ class RobotAssist:
         self._attached = False
         self._carried = -1
         self._grasp_index = 0
+        self._lift: FloatArray | None = None
         self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
         self._robot: Any = None
         self._handover: tuple[FloatArray, FloatArray] | None = None
@@ -347,24 +353,33 @@ class RobotAssist:
             )
             if r1.success:
                 # Lifted off the table it rests on: that contact is not a collision.
+                # A straight lift off the table first (the only motion in which the
+                # part may touch the table it rests on), then a planned path.
                 scene.allow(name, "table")
                 scene.attach(name, q_grasp)
-                assert self._handover is not None
-                q_hand = self._robot.ik(
-                    self._handover, q_grasp, seed=0, n_restarts=16, accept=scene.is_valid
+                grasp_pose = self._robot.fk(q_grasp)
+                lift_pose = (grasp_pose[0] + np.array([0.0, 0.0, opt.lift_m]), grasp_pose[1])
+                q_lift = self._robot.ik(
+                    lift_pose, q_grasp, seed=0, n_restarts=4, accept=scene.is_valid
                 )
-                if q_hand is not None:
+                scene.disallow(name, "table")
+                assert self._handover is not None
+                if q_lift is not None and scene.is_valid(q_lift):
+                    q_hand = self._robot.ik(
+                        self._handover, q_lift, seed=0, n_restarts=16, accept=scene.is_valid
+                    )
+                if q_hand is not None and q_lift is not None:
+                    self._lift = q_lift
                     r2 = plan_motion(
                         self._robot,
                         scene,
-                        q_grasp,
+                        q_lift,
                         q_hand,
                         time_limit=opt.plan_time_s,
                         seed=0,
                         simplify=False,
                     )
                 scene.detach(name, q_grasp)
-                scene.disallow(name, "table")
         a.plan_ms = 1e3 * (time.perf_counter() - w0)
         if q_grasp is None or (r1 is not None and r1.success and q_hand is None):
             a.outcome = "unreachable"
@@ -374,7 +389,7 @@ class RobotAssist:
             a.outcome = "no path"
             a.status = r2.status if r2 is not None else ("" if r1 is None else r1.status)
             return
-        path = np.vstack([r1.path, r2.path])
+        path = np.vstack([r1.path, r2.path])  # r2 starts at the lifted configuration
         seg = np.abs(np.diff(path, axis=0)).max(axis=1) / opt.joint_speed
         seg[len(r1.path) - 1] += opt.grasp_s  # closing the gripper between the two paths
         a.path = path
@@ -396,6 +411,12 @@ class RobotAssist:
             q = a.path[k] + f * (a.path[k + 1] - a.path[k])
         carrying = k >= self._grasp_index
         name = self.names[self._carried]
+        # During the straight lift the part may still touch the table it rested on.
+        lifting = k == self._grasp_index
+        if lifting:
+            self._scene.allow(name, "table")
+        else:
+            self._scene.disallow(name, "table")
         if carrying and not self._attached:
             self._scene.set_object_pose(name, self._carried_pose)
             self._scene.attach(name, a.path[self._grasp_index])
@@ -404,6 +425,9 @@ class RobotAssist:
         a.checked += 1
         if not self._scene.is_valid(q):
             a.collisions += 1
+            for pair in self._scene.collisions(q):
+                key = " - ".join(pair)
+                a.hits[key] = a.hits.get(key, 0) + 1
 
     def _release(self) -> None:
         """The person took a part: the arm lets go (the part leaves the simulated world)."""
