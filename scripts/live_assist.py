@@ -40,8 +40,7 @@ def main(recording: str, task_path: str) -> None:
         print(
             f"step {a['step']} {a['part']}: start {a['start']:.2f} ready {a['ready']} "
             f"reach {reach:.2f} -> {'in time' if ok else a['outcome']} ({a['status']}); "
-            f"{a['collisions']}/{a['checked']} in collision {a['colliding_pairs']}, "
-            f"{a['retreats']} retreats"
+            f"{a['collisions']}/{a['checked']} in collision {a['colliding_pairs']}"
         )
     print(
         f"{in_time} of {len(task.plan)} steps with the part ready before the hand reached; "

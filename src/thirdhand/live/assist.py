@@ -67,9 +67,6 @@ class AssistOptions:
         Time limit of each planning query, seconds.
     hand_size_m : float
         Side of the box that stands for each tracked finger, metres.
-    safety_m : float
-        Holding at the hand-over pose, the arm backs away when a tracked body comes
-        this close, metres.
     part_size_m : float
         Side of the box of a part without a known bounding box, metres.
     """
@@ -82,7 +79,6 @@ class AssistOptions:
     lift_m: float = 0.06
     plan_time_s: float = 1.0
     hand_size_m: float = 0.06
-    safety_m: float = 0.05
     part_size_m: float = 0.05
 
 
@@ -121,7 +117,6 @@ class Assist:
     held_at_start: set[str] = field(default_factory=set)
     taken: str = ""
     hits: dict[str, int] = field(default_factory=dict)
-    retreats: int = 0
     path: FloatArray = field(default_factory=lambda: np.zeros((0, 7)))
     times: FloatArray = field(default_factory=lambda: np.zeros(0))
 
@@ -144,7 +139,6 @@ class Assist:
             "checked": self.checked,
             "collisions": self.collisions,
             "colliding_pairs": self.hits,
-            "retreats": self.retreats,
         }
 
 
@@ -186,8 +180,6 @@ class RobotAssist:
         self._carried = -1
         self._grasp_index = 0
         self._lift: FloatArray | None = None
-        self._safety: Any = None
-        self._motion: tuple[FloatArray, FloatArray, float, float] | None = None
         self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
         self._robot: Any = None
         self._handover: tuple[FloatArray, FloatArray] | None = None
@@ -236,8 +228,7 @@ class RobotAssist:
         # Hand-over: gripper pointing down, its x along the arm's reach.
         self._handover = (hp, _down_quat(away))
 
-    def _make_scene(self, pos: FloatArray, quat: FloatArray, pad: float) -> Any:
-        """The world with every tracked body's box grown by ``pad`` on each side."""
+    def _build_scene(self, pos: FloatArray, quat: FloatArray) -> None:
         from thirdhand.execute.scene import CollisionScene
 
         scene = CollisionScene(self._robot)
@@ -247,31 +238,23 @@ class RobotAssist:
             c, size = self._box(i)
             p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
             q = quat[i] if np.all(np.isfinite(quat[i])) else ident
-            scene.add_object(self.names[i], (p, q), size=size + 2 * pad, box_center=c)
-        s = self.options.hand_size_m + 2 * pad
+            scene.add_object(self.names[i], (p, q), size=size, box_center=c)
+        s = self.options.hand_size_m
         for i in self.fingers:
             p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
             scene.add_box(self.names[i], (p, ident), (s, s, s))
-        return scene
-
-    def _build_scene(self, pos: FloatArray, quat: FloatArray) -> None:
-        self._scene = self._make_scene(pos, quat, 0.0)
-        self._safety = None
+        self._scene = scene
         self._attached = False
-
-    def _scenes(self) -> list[Any]:
-        return [self._scene] + ([self._safety] if self._safety is not None else [])
 
     def _track(self, pos: FloatArray, quat: FloatArray, valid: BoolArray, skip: int) -> None:
         """Move every tracked body of the scene to its pose now (the last one when not seen)."""
         ident = np.array([0.0, 0.0, 0.0, 1.0])
-        for scene in self._scenes():
-            for i in self.parts:
-                if i != skip and valid[i]:
-                    scene.set_object_pose(self.names[i], (pos[i], quat[i]))
-            for i in self.fingers:
-                if valid[i]:
-                    scene.set_object_pose(self.names[i], (pos[i], ident))
+        for i in self.parts:
+            if i != skip and valid[i]:
+                self._scene.set_object_pose(self.names[i], (pos[i], quat[i]))
+        for i in self.fingers:
+            if valid[i]:
+                self._scene.set_object_pose(self.names[i], (pos[i], ident))
 
     # ----------------------------------------------------------------- loop
     def update(
@@ -417,37 +400,28 @@ class RobotAssist:
     def _check(
         self, a: Assist, t: float, pos: FloatArray, quat: FloatArray, valid: BoolArray
     ) -> None:
-        """Move the arm to its configuration at ``t``; check it against the hands and parts now.
-
-        While it holds the part at the hand-over pose, the arm backs away along its
-        path when a hand or a part comes within ``safety_m`` of it (or of the part),
-        and returns when the hand-over pose is clear again.
-        """
+        """Check the arm's configuration at ``t`` against the hands and parts now."""
         if a.path.shape[0] == 0 or t < a.times[0]:
             return
-        name = self.names[self._carried]
         k = int(np.searchsorted(a.times, t, side="right")) - 1
-        holding = k >= len(a.times) - 1
-        if not holding:
+        if k >= len(a.times) - 1:
+            q = a.path[-1]
+        else:
             f = (t - a.times[k]) / max(a.times[k + 1] - a.times[k], 1e-9)
             q = a.path[k] + f * (a.path[k + 1] - a.path[k])
-        else:
-            q = self._motion_at(t, a.path[-1])
         carrying = k >= self._grasp_index
-        lifting = k == self._grasp_index  # the part may still touch the table it rested on
+        name = self.names[self._carried]
+        # During the straight lift the part may still touch the table it rested on.
+        lifting = k == self._grasp_index
+        if lifting:
+            self._scene.allow(name, "table")
+        else:
+            self._scene.disallow(name, "table")
         if carrying and not self._attached:
-            if self._safety is None:
-                self._safety = self._make_scene(pos, quat, self.options.safety_m)
-            for scene in self._scenes():
-                scene.allow(name, "gripper")
-                scene.set_object_pose(name, self._carried_pose)
-                scene.attach(name, a.path[self._grasp_index])
+            self._scene.set_object_pose(name, self._carried_pose)
+            self._scene.attach(name, a.path[self._grasp_index])
             self._attached = True
-        for scene in self._scenes():
-            (scene.allow if lifting else scene.disallow)(name, "table")
         self._track(pos, quat, valid, skip=self._carried)
-        if holding and self._safety is not None:
-            self._react(a, t, q)
         a.checked += 1
         if not self._scene.is_valid(q):
             a.collisions += 1
@@ -455,39 +429,14 @@ class RobotAssist:
                 key = " - ".join(pair)
                 a.hits[key] = a.hits.get(key, 0) + 1
 
-    def _motion_at(self, t: float, default: FloatArray) -> FloatArray:
-        if self._motion is None:
-            return default
-        q0, q1, t0, t1 = self._motion
-        f = min(max((t - t0) / max(t1 - t0, 1e-9), 0.0), 1.0)
-        return np.asarray(q0 + f * (q1 - q0), dtype=np.float64)
-
-    def _react(self, a: Assist, t: float, q: FloatArray) -> None:
-        """Back away from, or return to, the hand-over pose (safety scene, grown boxes)."""
-        target = a.path[-1] if self._motion is None else self._motion[1]
-        at_handover = bool(np.allclose(target, a.path[-1]))
-        safety = self._safety
-        speed = self.options.joint_speed
-        if at_handover and not safety.is_valid(a.path[-1]):
-            lo = self._grasp_index + 1
-            for j in range(len(a.path) - 2, lo - 1, -1):
-                if safety.is_valid(a.path[j]):
-                    dur = float(np.abs(a.path[j] - q).max()) / speed
-                    self._motion = (q.copy(), a.path[j].copy(), t, t + dur)
-                    a.retreats += 1
-                    return
-        elif not at_handover and safety.is_valid(a.path[-1]):
-            dur = float(np.abs(a.path[-1] - q).max()) / speed
-            self._motion = (q.copy(), a.path[-1].copy(), t, t + dur)
-
     def _release(self) -> None:
         """The person took a part: the arm lets go (the part leaves the simulated world)."""
-        self._motion = None
         if self._attached:
             name = self.names[self._carried]
-            for scene in self._scenes():
-                scene.detach(name, self._robot.home)
-                scene.set_object_pose(name, (np.array([0.0, 0.0, -10.0]), np.array([0, 0, 0, 1.0])))
+            self._scene.detach(name, self._robot.home)
+            self._scene.set_object_pose(
+                name, (np.array([0.0, 0.0, -10.0]), np.array([0, 0, 0, 1.0]))
+            )
             self._attached = False
 
 
