@@ -90,6 +90,11 @@ LAZY: dict[str, LazyCommand] = {
         "execute_command",
         "Execute a task's plan on a simulated robot arm with a motion planner.",
     ),
+    "live": LazyCommand(
+        "thirdhand.live.cli",
+        "live_command",
+        "Follow a person through a task's plan, live (a recording replayed as a stream).",
+    ),
     "merge": LazyCommand(
         "thirdhand.merge.cli",
         "merge_command",

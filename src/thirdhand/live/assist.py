@@ -1,0 +1,453 @@
+"""The robot assist: fetch the next step's part and hold it where the person works.
+
+When the plan's next step (an available step, :mod:`thirdhand.live.tracker`)
+has no part in the person's hands, the simulated arm (the execution stage's
+:class:`~thirdhand.execute.robot.Robot`, :class:`~thirdhand.execute.scene.CollisionScene`
+and :func:`~thirdhand.execute.planner.plan_motion`) picks one of the step's
+parts (an unused interchangeable one, the nearest to the arm) with a top-down
+grasp and brings it to a hand-over pose above the assembly's root, on the
+arm's side. The world it plans in holds the table, every other part at its
+tracked pose and the person's tracked fingers as boxes of ``hand_size_m``.
+
+Timing: the arm starts when the assist is decided (stream clock), spends the
+measured planning time, then moves along the planned joint path at
+``joint_speed`` rad/s (the largest joint's motion sets each segment's
+duration), ``grasp_s`` to close the gripper. While it moves and while it holds
+the part, the configuration it has at each latent step is checked against the
+fingers and parts **as tracked at that moment** (they moved since planning):
+every such configuration in collision is counted. The assist ends when a hand
+takes a part of that step (the CRF's hand phases); its outcome is ``ready``
+when the part was at the hand-over pose before that, else ``late``;
+``unreachable`` / ``no path`` when the arm could not do it.
+
+The recording does not know about the robot: the person still picks their own
+part. What is measured is whether the robot's part would have been waiting.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from thirdhand import se3
+from thirdhand.live.tracker import PlanTracker
+from thirdhand.segment.contact import body_box
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class AssistOptions:
+    """How the simulated arm assists (defaults: what was measured on the synthetic chair).
+
+    Attributes
+    ----------
+    robot : str
+        ``"panda"``.
+    base_offset_m : float
+        The arm's base stands this far from the assembly's root, on the side away
+        from the person, metres.
+    handover_m : tuple of 3 floats
+        Hand-over point relative to the root's first position: towards the arm,
+        sideways, up, metres.
+    joint_speed : float
+        Largest joint speed of the executed motion, rad/s.
+    grasp_s : float
+        Seconds to close the gripper on the part.
+    lift_m : float
+        Straight lift off the table after the grasp, metres.
+    plan_time_s : float
+        Time limit of each planning query, seconds.
+    hand_size_m : float
+        Side of the box that stands for each tracked finger, metres.
+    part_size_m : float
+        Side of the box of a part without a known bounding box, metres.
+    """
+
+    robot: str = "panda"
+    base_offset_m: float = 0.45
+    handover_m: tuple[float, float, float] = (0.2, 0.0, 0.35)
+    joint_speed: float = 1.5
+    grasp_s: float = 0.5
+    lift_m: float = 0.06
+    plan_time_s: float = 1.0
+    hand_size_m: float = 0.06
+    part_size_m: float = 0.05
+
+
+@dataclass
+class Assist:
+    """One assist of the robot.
+
+    Attributes
+    ----------
+    step : int
+    part : str
+    start_s, ready_s, end_s : float or None
+        Stream clock: decided, part at the hand-over pose, a hand took a part of
+        the step (None while unknown).
+    outcome : str
+    plan_ms : float
+        Wall-clock planning time.
+    checked, collisions : int
+        Configurations checked along the execution against the tracked hands and
+        parts, and how many of them collided.
+    path : ndarray, shape (m, dof)
+    times : ndarray, shape (m,)
+        Stream time at which the arm reaches each waypoint.
+    """
+
+    step: int
+    part: str
+    start_s: float
+    ready_s: float | None = None
+    end_s: float | None = None
+    outcome: str = "moving"
+    status: str = ""
+    plan_ms: float = 0.0
+    checked: int = 0
+    collisions: int = 0
+    held_at_start: set[str] = field(default_factory=set)
+    taken: str = ""
+    hits: dict[str, int] = field(default_factory=dict)
+    path: FloatArray = field(default_factory=lambda: np.zeros((0, 7)))
+    times: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able record."""
+
+        def r(v: float | None) -> float | None:
+            return None if v is None else round(v, 4)
+
+        return {
+            "step": self.step + 1,
+            "part": self.part,
+            "start": r(self.start_s),
+            "ready": r(self.ready_s),
+            "end": r(self.end_s),
+            "outcome": self.outcome,
+            "taken": self.taken,
+            "status": self.status,
+            "plan_ms": round(self.plan_ms, 1),
+            "checked": self.checked,
+            "collisions": self.collisions,
+            "colliding_pairs": self.hits,
+        }
+
+
+class RobotAssist:
+    """The simulated arm that fetches parts, driven by the live loop.
+
+    Parameters
+    ----------
+    names : sequence of str
+        The stream's bodies (rows).
+    kinds : sequence of str
+        Their kinds (``part``, ``finger``...).
+    meta : mapping
+        The stream's metadata (``geometry`` boxes, ``table_z_m``).
+    root : str
+        The assembly's root part (where the person works).
+    options : AssistOptions, optional
+    """
+
+    def __init__(
+        self,
+        names: Sequence[str],
+        kinds: Sequence[str],
+        meta: Mapping[str, Any],
+        root: str,
+        options: AssistOptions | None = None,
+    ) -> None:
+        self.options = AssistOptions() if options is None else options
+        self.names = list(names)
+        self.parts = [i for i, k in enumerate(kinds) if k in ("part", "tool")]
+        self.fingers = [i for i, k in enumerate(kinds) if k in ("finger", "hand")]
+        self.root = self.names.index(root)
+        self.table_z = float(meta.get("table_z_m", 0.75) or 0.75)
+        self.boxes = {i: body_box(meta, self.names[i]) for i in self.parts}
+        self.assists: list[Assist] = []
+        self.active: Assist | None = None
+        self._scene: Any = None
+        self._attached = False
+        self._carried = -1
+        self._grasp_index = 0
+        self._lift: FloatArray | None = None
+        self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
+        self._robot: Any = None
+        self._handover: tuple[FloatArray, FloatArray] | None = None
+
+    # ----------------------------------------------------------------- world
+    def _box(self, i: int) -> tuple[FloatArray, FloatArray]:
+        """Box centre (in the part frame) and sides, metres."""
+        b = self.boxes.get(i)
+        if b is None:
+            s = self.options.part_size_m
+            return np.zeros(3), np.full(3, s)
+        lo, hi = b
+        return 0.5 * (lo + hi), np.maximum(hi - lo, 1e-3)
+
+    def _setup(self, pos: FloatArray, quat: FloatArray, valid: BoolArray) -> None:
+        from thirdhand.execute.robot import Robot
+
+        opt = self.options
+        root = pos[self.root]
+        hands = pos[self.fingers][valid[self.fingers]]
+        person = hands.mean(axis=0) if len(hands) else root - np.array([0.0, 0.5, 0.0])
+        away = root[:2] - person[:2]
+        away = away / max(float(np.linalg.norm(away)), 1e-9)
+        # The first base pose, turning about the root from the far side, where the arm
+        # at home touches nothing tracked.
+        self._robot = None
+        for ang in (0.0, 0.5, -0.5, 1.0, -1.0, 1.4, -1.4):
+            c, sn = math.cos(ang), math.sin(ang)
+            d = np.array([c * away[0] - sn * away[1], sn * away[0] + c * away[1]])
+            for dist in (opt.base_offset_m, opt.base_offset_m + 0.1):
+                base = np.array([*(root[:2] + dist * d), self.table_z])
+                yaw = math.atan2(-d[1], -d[0])
+                base_q = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
+                self._robot = Robot.load(opt.robot, base_pose=(base, base_q))
+                self._base = base
+                self._build_scene(pos, quat)
+                if self._scene.is_valid(self._robot.home):
+                    break
+            else:
+                continue
+            break
+        away = d
+        side = np.array([-away[1], away[0]])
+        up, toward, lateral = opt.handover_m[2], opt.handover_m[0], opt.handover_m[1]
+        hp = np.array([*(root[:2] + toward * away + lateral * side), root[2] + up])
+        # Hand-over: gripper pointing down, its x along the arm's reach.
+        self._handover = (hp, _down_quat(away))
+
+    def _build_scene(self, pos: FloatArray, quat: FloatArray) -> None:
+        from thirdhand.execute.scene import CollisionScene
+
+        scene = CollisionScene(self._robot)
+        scene.add_table(height=self.table_z, center=(float(self._base[0]), float(self._base[1])))
+        ident = np.array([0.0, 0.0, 0.0, 1.0])
+        for i in self.parts:
+            c, size = self._box(i)
+            p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
+            q = quat[i] if np.all(np.isfinite(quat[i])) else ident
+            scene.add_object(self.names[i], (p, q), size=size, box_center=c)
+        s = self.options.hand_size_m
+        for i in self.fingers:
+            p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
+            scene.add_box(self.names[i], (p, ident), (s, s, s))
+        self._scene = scene
+        self._attached = False
+
+    def _track(self, pos: FloatArray, quat: FloatArray, valid: BoolArray, skip: int) -> None:
+        """Move every tracked body of the scene to its pose now (the last one when not seen)."""
+        ident = np.array([0.0, 0.0, 0.0, 1.0])
+        for i in self.parts:
+            if i != skip and valid[i]:
+                self._scene.set_object_pose(self.names[i], (pos[i], quat[i]))
+        for i in self.fingers:
+            if valid[i]:
+                self._scene.set_object_pose(self.names[i], (pos[i], ident))
+
+    # ----------------------------------------------------------------- loop
+    def update(
+        self,
+        t: float,
+        pos: FloatArray,
+        quat: FloatArray,
+        valid: BoolArray,
+        tracker: PlanTracker,
+        holding: Mapping[tuple[str, str], bool],
+    ) -> None:
+        """One latent step: start, follow or end an assist."""
+        if self._robot is None:
+            if not valid[self.root]:
+                return
+            self._setup(pos, quat, valid)
+        held = {obj for (_, obj), h in holding.items() if h}
+        used = tracker.used_children()
+        a = self.active
+        if a is not None:
+            # Interchangeable parts: the robot's part serves whichever step of its kind
+            # comes next; the assist ends when a hand takes a new part of that kind.
+            parts = set(tracker.candidates_for(a.step)) | {a.part}
+            taken = (held & parts) - a.held_at_start - used
+            needed = any(
+                a.part in tracker.candidates_for(i)
+                for i in range(len(tracker.slots))
+                if i not in tracker.done
+            )
+            if taken or not needed:
+                a.end_s = t
+                a.taken = ", ".join(sorted(taken))
+                if a.outcome == "moving":
+                    a.outcome = "ready" if a.ready_s is not None and a.ready_s <= t else "late"
+                self._release()
+                self.active = None
+            else:
+                self._check(a, t, pos, quat, valid)
+            return
+        # The next part the person will need: the first step not done (those the plan
+        # allows now first) other than the one in progress, with a part nobody holds.
+        order = tracker.available() + [
+            i for i in range(len(tracker.slots)) if i not in tracker.done
+        ]
+        for step in dict.fromkeys(order):
+            if step == tracker.current:
+                continue
+            cands = [c for c in tracker.candidates_for(step) if c not in held]
+            idx = [self.names.index(c) for c in cands if valid[self.names.index(c)]]
+            if not idx:
+                continue
+            part = min(idx, key=lambda i: float(np.linalg.norm(pos[i] - self._base)))
+            self._start(t, step, part, pos, quat, valid)
+            assert self.active is not None
+            self.active.held_at_start = set(held)
+            return
+
+    def _start(
+        self, t: float, step: int, part: int, pos: FloatArray, quat: FloatArray, valid: BoolArray
+    ) -> None:
+        from thirdhand.execute.planner import plan_motion
+
+        opt = self.options
+        a = Assist(step=step, part=self.names[part], start_s=t)
+        self.assists.append(a)
+        self.active = a
+        w0 = time.perf_counter()
+        scene = self._scene
+        self._track(pos, quat, valid, skip=-1)
+        self._carried = part
+        self._carried_pose = (pos[part].copy(), quat[part].copy())
+        c, _ = self._box(part)
+        centre = pos[part] + se3.quat_rotate(quat[part], c)
+        _, size = self._box(part)
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        top = float(np.max(se3.quat_rotate(quat[part], 0.5 * corners * size)[:, 2]))
+        centre = centre + np.array([0.0, 0.0, max(top - 0.02, 0.0)])
+        axis = se3.quat_rotate(quat[part], np.array([1.0, 0.0, 0.0]))
+        home = self._robot.home
+        name = self.names[part]
+        scene.allow(name, "gripper")
+        q_grasp = self._robot.ik(
+            (centre, _down_quat(axis[:2])), home, seed=0, accept=scene.is_valid
+        )
+        r1 = r2 = None
+        q_hand = None
+        if q_grasp is not None:
+            r1 = plan_motion(
+                self._robot,
+                scene,
+                home,
+                q_grasp,
+                time_limit=opt.plan_time_s,
+                seed=0,
+                simplify=False,
+            )
+            if r1.success:
+                # Lifted off the table it rests on: that contact is not a collision.
+                # A straight lift off the table first (the only motion in which the
+                # part may touch the table it rests on), then a planned path.
+                scene.allow(name, "table")
+                scene.attach(name, q_grasp)
+                grasp_pose = self._robot.fk(q_grasp)
+                lift_pose = (grasp_pose[0] + np.array([0.0, 0.0, opt.lift_m]), grasp_pose[1])
+                q_lift = self._robot.ik(
+                    lift_pose, q_grasp, seed=0, n_restarts=4, accept=scene.is_valid
+                )
+                scene.disallow(name, "table")
+                assert self._handover is not None
+                if q_lift is not None and scene.is_valid(q_lift):
+                    q_hand = self._robot.ik(
+                        self._handover, q_lift, seed=0, n_restarts=16, accept=scene.is_valid
+                    )
+                if q_hand is not None and q_lift is not None:
+                    self._lift = q_lift
+                    r2 = plan_motion(
+                        self._robot,
+                        scene,
+                        q_lift,
+                        q_hand,
+                        time_limit=opt.plan_time_s,
+                        seed=0,
+                        simplify=False,
+                    )
+                scene.detach(name, q_grasp)
+        a.plan_ms = 1e3 * (time.perf_counter() - w0)
+        if q_grasp is None or (r1 is not None and r1.success and q_hand is None):
+            a.outcome = "unreachable"
+            a.status = "no collision-free grasp" if q_grasp is None else "no hand-over pose"
+            return
+        if r1 is None or r2 is None or not r2.success or r1.path is None or r2.path is None:
+            a.outcome = "no path"
+            a.status = r2.status if r2 is not None else ("" if r1 is None else r1.status)
+            return
+        path = np.vstack([r1.path, r2.path])  # r2 starts at the lifted configuration
+        seg = np.abs(np.diff(path, axis=0)).max(axis=1) / opt.joint_speed
+        seg[len(r1.path) - 1] += opt.grasp_s  # closing the gripper between the two paths
+        a.path = path
+        a.times = t + a.plan_ms / 1e3 + np.concatenate([[0.0], np.cumsum(seg)])
+        a.ready_s = float(a.times[-1])
+        self._grasp_index = len(r1.path) - 1
+
+    def _check(
+        self, a: Assist, t: float, pos: FloatArray, quat: FloatArray, valid: BoolArray
+    ) -> None:
+        """Check the arm's configuration at ``t`` against the hands and parts now."""
+        if a.path.shape[0] == 0 or t < a.times[0]:
+            return
+        k = int(np.searchsorted(a.times, t, side="right")) - 1
+        if k >= len(a.times) - 1:
+            q = a.path[-1]
+        else:
+            f = (t - a.times[k]) / max(a.times[k + 1] - a.times[k], 1e-9)
+            q = a.path[k] + f * (a.path[k + 1] - a.path[k])
+        carrying = k >= self._grasp_index
+        name = self.names[self._carried]
+        # During the straight lift the part may still touch the table it rested on.
+        lifting = k == self._grasp_index
+        if lifting:
+            self._scene.allow(name, "table")
+        else:
+            self._scene.disallow(name, "table")
+        if carrying and not self._attached:
+            self._scene.set_object_pose(name, self._carried_pose)
+            self._scene.attach(name, a.path[self._grasp_index])
+            self._attached = True
+        self._track(pos, quat, valid, skip=self._carried)
+        a.checked += 1
+        if not self._scene.is_valid(q):
+            a.collisions += 1
+            for pair in self._scene.collisions(q):
+                key = " - ".join(pair)
+                a.hits[key] = a.hits.get(key, 0) + 1
+
+    def _release(self) -> None:
+        """The person took a part: the arm lets go (the part leaves the simulated world)."""
+        if self._attached:
+            name = self.names[self._carried]
+            self._scene.detach(name, self._robot.home)
+            self._scene.set_object_pose(
+                name, (np.array([0.0, 0.0, -10.0]), np.array([0, 0, 0, 1.0]))
+            )
+            self._attached = False
+
+
+def _down_quat(direction: FloatArray) -> FloatArray:
+    """A gripper orientation pointing down (tool z = −world z), tool x along ``direction`` (2,)."""
+    d = np.asarray(direction, dtype=np.float64)
+    n = float(np.linalg.norm(d))
+    x = np.array([1.0, 0.0, 0.0]) if n < 1e-9 else np.array([d[0] / n, d[1] / n, 0.0])
+    z = np.array([0.0, 0.0, -1.0])
+    y = np.cross(z, x)
+    return np.asarray(se3.quat_from_matrix(np.stack([x, y, z], axis=1)), dtype=np.float64)
+
+
+__all__ = ["Assist", "AssistOptions", "RobotAssist"]
