@@ -39,11 +39,10 @@ def main(folder: str, seeds: tuple[int, ...] = (11, 12, 13)) -> None:
             tracker = rep.tracker
             assert tracker is not None, "the task has a plan"
             got = {(r.parent, r.child): r.recognised_s for r in tracker.history}
-            row = []
+            row: list[float] = []
             for c in sorted(demo.labels.constraints, key=lambda e: e.time):
                 t = got.get((c.parent, c.child))
-                d = np.nan if t is None else t - c.time
-                row.append(d)
+                row.append(np.nan if t is None else t - c.time)
             d = np.array(row)
             ok = bool(np.all(np.isfinite(d)) and np.all(d >= 0) and np.all(d <= 1.0))
             ok_all &= ok and len(tracker.history) == len(row)
