@@ -139,11 +139,11 @@ def test_recording_with_task_phases_execution(
         "convert",
         str(scene["rec"]),
         str(out),
-        "--task",
+        "--with",
         str(scene["task"]),
-        "--phases",
+        "--with",
         str(scene["phases"]),
-        "--execution",
+        "--with",
         str(scene["execution"]),
     )
     assert rc == 0, err
@@ -212,8 +212,8 @@ def test_rrd_in_missing_folder_is_one_error(
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--task", "x.json"], "only for a .rrd target"),
-        (["--phases", "x.json"], "only for a .rrd target"),
+        (["--with", "x.json"], "--with: only for a .rrd target"),
+        (["--with", "x.json", "--with", "y.json"], "--with: only for a .rrd target"),
     ],
 )
 def test_rrd_options_on_other_targets(
@@ -235,8 +235,17 @@ def test_bad_phases_file_one_error_nothing_written(
     bad = tmp_path / "p.json"
     bad.write_text('{"format": "other"}')
     target = tmp_path / "out.rrd"
-    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--phases", str(bad))
-    assert rc == 1 and "thirdhand.phases/1" in err and err.count("\n") == 1
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--with", str(bad))
+    assert rc == 1 and "not a task, phases or run file" in err and err.count("\n") == 1
+    assert not target.exists()
+    # A phases file by its format key, but malformed: the phases reader's error.
+    bad.write_text('{"format": "thirdhand.phases/1"}')
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--with", str(bad))
+    assert rc == 1 and "'time' list" in err and err.count("\n") == 1
+    # Two files of one kind.
+    twice = ["--with", str(scene["task"]), "--with", str(scene["task"])]
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), *twice)
+    assert rc == 1 and "a second task file" in err and err.count("\n") == 1
     assert not target.exists()
 
 
@@ -298,9 +307,7 @@ def test_execution_draws_the_robot_where_it_was(
 
     execution, arm, q = _run_with_robot(tmp_path, stored_base=stored_base)
     out = tmp_path / "robot.rrd"
-    rc, text, err = call(
-        capsys, "convert", str(scene["rec"]), str(out), "--execution", str(execution)
-    )
+    rc, text, err = call(capsys, "convert", str(scene["rec"]), str(out), "--with", str(execution))
     assert rc == 0, err
     shapes = robot_shapes(arm)
     assert f"{len(shapes)} robot shapes" in text
@@ -327,8 +334,6 @@ def test_bad_base_pose_is_one_error(
     doc["base_pose"]["quat"] = [0.0, 0.0, 0.0, 2.0]
     execution.write_text(json.dumps(doc))
     target = tmp_path / "x.rrd"
-    rc, _, err = call(
-        capsys, "convert", str(scene["rec"]), str(target), "--execution", str(execution)
-    )
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--with", str(execution))
     assert rc == 1 and "'base_pose' must be" in err and err.count("\n") == 1
     assert not target.exists()

@@ -369,17 +369,13 @@ def convert(
     force: Annotated[
         bool, typer.Option(help="Replace an existing output (kept as a numbered .bak).")
     ] = False,
-    task: Annotated[
-        Path | None, typer.Option(help=".rrd: a task file whose constraints and plan to show.")
-    ] = None,
-    demo: Annotated[
-        Path | None, typer.Option("--demo", help=".rrd from a TASK: the recording to show.")
-    ] = None,
-    phases: Annotated[
-        Path | None, typer.Option(help=".rrd: a phases file (thirdhand segment --json).")
-    ] = None,
-    execution: Annotated[
-        Path | None, typer.Option(help=".rrd: an executed run, OUT.json of execute --record.")
+    with_: Annotated[
+        list[Path] | None,
+        typer.Option(
+            "--with",
+            help=".rrd: also show this file (repeatable): a task file, a recording (from a "
+            "TASK source), a phases file (segment --json) or a run (execute --record OUT.json).",
+        ),
     ] = None,
 ) -> None:
     """Convert a recording between formats, or export a task or a run to a robot or a viewer.
@@ -394,12 +390,11 @@ def convert(
     """
     from thirdhand import io
 
-    extras = {"--task": task, "--demo": demo, "--phases": phases, "--execution": execution}
     suffix = target.suffix.lower()
     if suffix == ".rrd":
-        _convert_rrd(source, target, force=force, **{k[2:]: v for k, v in extras.items()})
+        _convert_rrd(source, target, force=force, **_classify_extras(with_ or []))
         return
-    given = [k for k, v in extras.items() if v is not None]
+    given = ["--with"] if with_ else []
     if suffix in (".xml", ".pddl") or (suffix == ".mcap" and source.suffix.lower() == ".json"):
         if given or to is not None:
             _fail(f"{', '.join(given + ['--to'] * (to is not None))}: not for a {suffix} target")
@@ -456,6 +451,44 @@ def _convert_robot(source: Path, target: Path, *, force: bool) -> None:
     out.print(f"wrote {' and '.join(map(str, outputs))}: {steps}")
 
 
+def _classify_extras(paths: list[Path]) -> dict[str, Path | None]:
+    """``--with`` files by what they hold: ``task``, ``phases``, ``execution`` or ``demo``.
+
+    A JSON file is recognised by its ``schema``/``format`` key; anything else is a
+    recording. Each kind may be given once.
+    """
+    from thirdhand.errors import FormatError
+    from thirdhand.readlimits import loads_json, read_text_input
+
+    kinds: dict[str, Path | None] = dict.fromkeys(("task", "demo", "phases", "execution"))
+    for path in paths:
+        kind = "demo"
+        if path.suffix.lower() == ".json":
+
+            def error(message: str, path: Path = path) -> FormatError:
+                return FormatError(path, message)
+
+            doc = loads_json(read_text_input(path, what="JSON file", error=error), error=error)
+            tag = str(doc.get("schema") or doc.get("format") or "") if isinstance(doc, dict) else ""
+            if tag.startswith("thirdhand.task/"):
+                kind = "task"
+            elif tag == "thirdhand.phases/1":
+                kind = "phases"
+            elif tag == "thirdhand.trajectory/1" or (
+                isinstance(doc, dict) and "t" in doc and "q" in doc  # records before the schema
+            ):
+                kind = "execution"
+            else:
+                _fail(
+                    f"--with {path}: not a task, phases or run file (no thirdhand schema); "
+                    "a recording is given in its own format"
+                )
+        if kinds[kind] is not None:
+            _fail(f"--with {path}: a second {kind} file (the first: {kinds[kind]})")
+        kinds[kind] = path
+    return kinds
+
+
 def _convert_rrd(
     source: Path,
     target: Path,
@@ -482,12 +515,12 @@ def _convert_rrd(
     task_path = task
     if source.suffix.lower() == ".json" and source.is_file():
         if task is not None:
-            _fail(f"{source} is a task file already; --task is for a recording source")
+            _fail(f"{source} is a task file already; --with a second task is not shown")
         task_path = source
         recording = demo
     else:
         if demo is not None:
-            _fail("--demo is for a TASK source; the source is the recording")
+            _fail("--with a recording is for a TASK source; the source is the recording")
         recording = source
     task_file = load_task(task_path) if task_path is not None else None
     if recording is None and task_file is not None:
