@@ -22,8 +22,14 @@ from rich.console import Console
 from rich.table import Table
 
 from thirdhand import options
+from thirdhand.config import JobsOption, SchedulerOption, check_batch
 from thirdhand.errors import ThirdhandError
 from thirdhand.fileops import check_output
+
+#: ``--noise`` of the plan and corrections tables.
+NoiseOption = Annotated[
+    float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
+]
 
 out = Console(highlight=False, soft_wrap=True)
 
@@ -40,25 +46,6 @@ experiment_app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(experiment_app, name="experiment")
-
-#: ``--jobs`` and ``--scheduler``: each seeded run is a unit of its own.
-JobsOption = Annotated[int, typer.Option(help="Run the units in this many local processes.")]
-SchedulerOption = Annotated[
-    str | None,
-    typer.Option(
-        help="Run the units as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or 'local' "
-        "(a local cluster of --jobs workers; docs/cluster.md; needs the dask extra)."
-    ),
-]
-
-
-def _check_batch(jobs: int, scheduler: str | None) -> None:
-    """Refuse a nonsense ``--jobs`` or a malformed ``--scheduler`` before any work."""
-    options.integer("--jobs", jobs, low=1, high=1024)
-    if scheduler is not None:
-        from thirdhand.batch import check_scheduler
-
-        check_scheduler(scheduler)
 
 
 def _check_scene(scene: str) -> None:
@@ -90,7 +77,7 @@ def experiment_constraints(
     from research.plan_accuracy import constraint_error_table
 
     options.integer("--seeds", seeds, low=1, high=100_000)
-    _check_batch(jobs, scheduler)
+    check_batch(jobs, scheduler)
     rows = constraint_error_table(seeds=range(seeds), jobs=jobs, scheduler=scheduler)
     _table("Constraint pose error", rows)
 
@@ -99,9 +86,7 @@ def experiment_constraints(
 def experiment_plan(
     runs: Annotated[int, typer.Option(help="Seeded runs.")] = 96,
     scene: Annotated[str, typer.Option(help="Synthetic scene.")] = "chair",
-    noise: Annotated[
-        float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
-    ] = 1.0,
+    noise: NoiseOption = 1.0,
     jobs: JobsOption = 1,
     scheduler: SchedulerOption = None,
 ) -> None:
@@ -111,7 +96,7 @@ def experiment_plan(
     options.integer("--runs", runs, low=1, high=100_000)
     options.finite("--noise", noise, low=0.0, high=1000.0)
     _check_scene(scene)
-    _check_batch(jobs, scheduler)
+    check_batch(jobs, scheduler)
     rows = plan_success_table(
         scene=scene,
         runs=runs,
@@ -125,9 +110,7 @@ def experiment_plan(
 @experiment_app.command("corrections")
 def experiment_corrections(
     seeds: Annotated[int, typer.Option(help="Seeds per scene.")] = 4,
-    noise: Annotated[
-        float, typer.Option(help="Sensor noise as a multiple of the default (0: noise-free).")
-    ] = 1.0,
+    noise: NoiseOption = 1.0,
     jobs: JobsOption = 1,
     scheduler: SchedulerOption = None,
 ) -> None:
@@ -136,7 +119,7 @@ def experiment_corrections(
 
     options.integer("--seeds", seeds, low=1, high=100_000)
     options.finite("--noise", noise, low=0.0, high=1000.0)
-    _check_batch(jobs, scheduler)
+    check_batch(jobs, scheduler)
     rows = corrections_table(
         seeds=range(seeds), scale=noise if noise > 0 else None, jobs=jobs, scheduler=scheduler
     )
@@ -177,7 +160,7 @@ def irl(
     path = json_out if json_out is not None else Path(f"irl_{name}.json")
     check_output(path, force=force, inputs=[checkpoint] if checkpoint else [])
     options.integer("--runs", runs, low=2, high=100000)
-    _check_batch(jobs, scheduler)
+    check_batch(jobs, scheduler)
     if tabulate and checkpoint is None:
         raise RelationalError("irl: --tabulate needs --checkpoint")
     start = time.perf_counter()

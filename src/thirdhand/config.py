@@ -52,6 +52,29 @@ ConfigOption = Annotated[
     ),
 ]
 
+#: ``--jobs`` of the commands that run independent units (recordings, seeded runs).
+JobsOption = Annotated[int, typer.Option(help="Run the units in this many local processes.")]
+#: ``--scheduler`` of the same commands: the units as Dask tasks.
+SchedulerOption = Annotated[
+    str | None,
+    typer.Option(
+        help="Run the units as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or 'local' "
+        "(a local cluster of --jobs workers; docs/cluster.md; needs the dask extra)."
+    ),
+]
+
+
+def check_batch(jobs: int, scheduler: str | None) -> None:
+    """Refuse a nonsense ``--jobs`` or a malformed ``--scheduler`` before any work."""
+    from thirdhand import options
+
+    options.integer("--jobs", jobs, low=1, high=1024)
+    if scheduler is not None:
+        from thirdhand.batch import check_scheduler
+
+        check_scheduler(scheduler)
+
+
 #: Command path -> "module:Class" of its settings record (imported only when asked for).
 REGISTRY: dict[str, str] = {
     "merge": "thirdhand.merge.settings:MergeSettings",
