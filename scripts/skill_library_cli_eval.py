@@ -1,4 +1,4 @@
-"""Frame accuracy of ``thirdhand primitives library TRACK.csv … --skills K --json`` on labelled files.
+"""Frame accuracy of ``thirdhand primitives library T.csv … --skills K --json`` on labelled files.
 
 Writes each recording's first-arm poses as a CSV ``t x y z qx qy qz qw`` (pose
 only: no forces), runs the user's command exactly (one library fitted on all the
@@ -29,8 +29,13 @@ from thirdhand.primitives.evaluation import best_label_map, match_boundaries
 
 #: The shared data beside the repository (or beside the folder of its worktree).
 DATA = next(
-    (d for d in (Path(__file__).resolve().parents[i] / "shared" / "data" / "figueroa" for i in (2, 3))
-     if d.is_dir()),
+    (
+        d
+        for d in (
+            Path(__file__).resolve().parents[i] / "shared" / "data" / "figueroa" for i in (2, 3)
+        )
+        if d.is_dir()
+    ),
     Path("../shared/data/figueroa"),
 )
 FILES = ("circular_wiping.mat", "fender_wiping.mat", "peeling_noobj.mat")

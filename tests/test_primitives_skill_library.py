@@ -29,7 +29,7 @@ def wipe_track(seed: int, rate: float = 100.0) -> tuple[PoseTrack, np.ndarray]:
     """
     rng = np.random.default_rng(seed)
     t_reach, t_wipe, t_lift = 2.0 + rng.uniform(0, 0.5), 6.0 + rng.uniform(0, 2), 2.0
-    n = [int(round(d * rate)) for d in (t_reach, t_wipe, t_lift)]
+    n = [round(d * rate) for d in (t_reach, t_wipe, t_lift)]
     s = [np.linspace(0, 1, k, endpoint=False) for k in n]
     ease = [0.5 - 0.5 * np.cos(np.pi * v) for v in s]
     reach = np.column_stack([0.2 * ease[0], 0 * ease[0], 0.3 * (1 - ease[0])])
@@ -72,7 +72,9 @@ def test_channels_and_parse_unchanged_by_a_rigid_motion_of_the_scene() -> None:
     names = default_channels(tracks[0])
     assert names == ("logspeed", "logangular", "height")
     for a, b in zip(tracks, moved, strict=True):
-        np.testing.assert_allclose(pose_channels(a, names)[1], pose_channels(b, names)[1], atol=1e-8)
+        np.testing.assert_allclose(
+            pose_channels(a, names)[1], pose_channels(b, names)[1], atol=1e-8
+        )
     opts = SkillParserOptions(n_skills=3)
     lab_a = [SkillLibrary(opts).fit(tracks).parse(tr).labels for tr in tracks]
     lab_b = [SkillLibrary(opts).fit(moved).parse(tr).labels for tr in moved]
@@ -90,7 +92,7 @@ def test_saved_library_round_trips_and_parses_the_same() -> None:
     a, b = lib.parse(new), back.parse(new)
     np.testing.assert_array_equal(a.labels, b.labels)
     assert a.score == pytest.approx(b.score, rel=1e-12)
-    with pytest.raises(PrimitiveError, match="schema 'thirdhand.skill-library/2'"):
+    with pytest.raises(PrimitiveError, match=r"schema 'thirdhand\.skill-library/2'"):
         SkillLibrary.from_dict({**doc, "schema": "thirdhand.skill-library/2"})
     with pytest.raises(PrimitiveError, match=r"skills.means has shape"):
         SkillLibrary.from_dict({**doc, "skills": {**doc["skills"], "means": [[0.0]]}})
@@ -138,11 +140,19 @@ def _one_line_error(args: list[str], expected: str) -> None:
 def test_cli_bad_input_is_one_line(tmp_path: Path) -> None:
     good = _write(tmp_path / "good.csv", wipe_track(0)[0])
     short = tmp_path / "short.csv"
-    np.savetxt(short, [[0, 0, 0, 0, 0, 0, 0, 1], [0.01, 0, 0, 0.1, 0, 0, 0, 1], [0.02, 0, 0, 0.2, 0, 0, 0, 1]], delimiter=",")
+    np.savetxt(
+        short,
+        [[0, 0, 0, 0, 0, 0, 0, 1], [0.01, 0, 0, 0.1, 0, 0, 0, 1], [0.02, 0, 0, 0.2, 0, 0, 0, 1]],
+        delimiter=",",
+    )
     _one_line_error(["library", str(short)], "3 samples")
     still = tmp_path / "still.csv"
     t = np.arange(200) / 100.0
-    np.savetxt(still, np.column_stack([t, np.ones((200, 3)), np.tile([0, 0, 0, 1.0], (200, 1))]), delimiter=",")
+    np.savetxt(
+        still,
+        np.column_stack([t, np.ones((200, 3)), np.tile([0, 0, 0, 1.0], (200, 1))]),
+        delimiter=",",
+    )
     _one_line_error(["library", str(still)], "never change")
     nan = tmp_path / "nan.csv"
     arr = np.loadtxt(good, delimiter=",")
@@ -155,7 +165,9 @@ def test_cli_bad_input_is_one_line(tmp_path: Path) -> None:
     doc = SkillLibrary(SkillParserOptions(n_skills=3)).fit(tracks).to_dict()
     old = tmp_path / "old.json"
     old.write_text(json.dumps({**doc, "schema": "thirdhand.skill-library/0"}))
-    _one_line_error(["library", good, "--library", str(old)], "this thirdhand reads")
+    _one_line_error(
+        ["library", good, "--library", str(old)], "not a skill library this thirdhand reads"
+    )
     _one_line_error(["library", good, "--parser", "magic"], "--parser")
 
 

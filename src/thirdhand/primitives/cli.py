@@ -151,9 +151,7 @@ def _read_tracks(path: Path, body: str | None) -> list[Any]:
             from thirdhand.datasets.primitive_shapes import lasa_shapes
 
             shapes = lasa_shapes(path.parent, path.stem)
-            return [
-                _table_track(path, np.column_stack([t, y / 1000.0])) for t, y in shapes
-            ]
+            return [_table_track(path, np.column_stack([t, y / 1000.0])) for t, y in shapes]
         return [
             PoseTrack(
                 s.t,
@@ -170,7 +168,9 @@ def _read_tracks(path: Path, body: str | None) -> list[Any]:
         try:
             arr = np.load(path) if suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
         except (OSError, ValueError) as exc:
-            raise FormatError(path, f"expected numeric columns t x y z [qx qy qz qw]: {exc}") from None
+            raise FormatError(
+                path, f"expected numeric columns t x y z [qx qy qz qw]: {exc}"
+            ) from None
         return [_table_track(path, np.asarray(arr, dtype=np.float64))]
     from thirdhand import io
 
@@ -185,7 +185,15 @@ def _read_tracks(path: Path, body: str | None) -> list[Any]:
         for b in demo.body_names
         if b != body
     )
-    return [PoseTrack(demo.t[ok], demo.pos(body)[ok], demo.quat(body)[ok], others=others, name=f"{path}:{body}")]
+    return [
+        PoseTrack(
+            demo.t[ok],
+            demo.pos(body)[ok],
+            demo.quat(body)[ok],
+            others=others,
+            name=f"{path}:{body}",
+        )
+    ]
 
 
 @app.command()
@@ -313,7 +321,10 @@ def library(
     )
     for i, tr in enumerate(result["tracks"]):
         cuts = ", ".join(f"{c:.2f}" for c in tr["cuts_s"])
-        out.print(f"track {i} {tr['name']}: {len(tr['labels'])} runs, skills {tr['labels']} cuts [{cuts}] s")
+        out.print(
+            f"track {i} {tr['name']}: {len(tr['labels'])} runs, skills {tr['labels']} "
+            f"cuts [{cuts}] s"
+        )
     if output is not None and "saved" in result:
         out.print(f"wrote {output}")
     if plot is not None:

@@ -273,7 +273,9 @@ def pose_channels(
             mag = np.linalg.norm(v - v[:n0].mean(axis=0), axis=1)
             col = _log(_smooth(mag, w), UNITS[key])
         else:
-            raise PrimitiveError(f"unknown channel {name!r}; expected some of {', '.join(CHANNELS)}")
+            raise PrimitiveError(
+                f"unknown channel {name!r}; expected some of {', '.join(CHANNELS)}"
+            )
         cols.append(col)
     tg = grid_times(t, rate_hz)
     x = np.stack([np.interp(tg, t, c) for c in cols], axis=1)

@@ -94,7 +94,9 @@ class SkillParserOptions:
         if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
             raise PrimitiveError(f"rate must be a positive number of Hz, got {self.rate_hz}")
         if self.window < 1 or self.n_init < 1:
-            raise PrimitiveError(f"window and restarts must be ≥ 1, got {self.window}, {self.n_init}")
+            raise PrimitiveError(
+                f"window and restarts must be ≥ 1, got {self.window}, {self.n_init}"
+            )
 
 
 @dataclass(frozen=True)
@@ -169,7 +171,9 @@ class SkillLibrary:
 
     def _features(self, tracks: Sequence[PoseTrack]) -> list[tuple[FloatArray, FloatArray]]:
         o = self.options
-        return [pose_channels(tr, self.channels_, rate_hz=o.rate_hz, window=o.window) for tr in tracks]
+        return [
+            pose_channels(tr, self.channels_, rate_hz=o.rate_hz, window=o.window) for tr in tracks
+        ]
 
     def fit(self, tracks: Sequence[PoseTrack]) -> SkillLibrary:
         """Learn ``K`` skills from the tracks together (no labels).
@@ -216,10 +220,12 @@ class SkillLibrary:
         """The most likely runs of skills of a track, at the track's own samples."""
         if not hasattr(self, "model_"):
             raise PrimitiveError("skill library: fit or load a library before parsing")
-        (tg, x), = self._features([track])
+        ((tg, x),) = self._features([track])
         z, score = self.model_.decode(x)
         # each sample takes the skill of the nearest grid time
-        idx = np.clip(np.rint((track.t - tg[0]) * self.options.rate_hz).astype(np.int64), 0, tg.size - 1)
+        idx = np.clip(
+            np.rint((track.t - tg[0]) * self.options.rate_hz).astype(np.int64), 0, tg.size - 1
+        )
         labels = z[idx].astype(np.int64)
         starts, _, skills = runs(labels)
         return TrackParse(labels, starts, skills, track.t[starts[1:]].astype(np.float64), score)
@@ -269,7 +275,8 @@ class SkillLibrary:
             raise PrimitiveError(f"{source}: not a skill library (no 'schema' field)")
         if doc["schema"] != SCHEMA:
             raise PrimitiveError(
-                f"{source}: a library of schema {doc['schema']!r}; this thirdhand reads {SCHEMA!r}"
+                f"{source}: a document of schema {doc['schema']!r}, not a skill library this "
+                f"thirdhand reads ({SCHEMA!r})"
             )
         try:
             channels = tuple(str(c) for c in doc["channels"])
@@ -287,7 +294,9 @@ class SkillLibrary:
             def arr(key: str, shape: tuple[int, ...]) -> FloatArray:
                 a = np.asarray(sk[key], dtype=np.float64)
                 if a.shape != shape:
-                    raise PrimitiveError(f"{source}: skills.{key} has shape {a.shape}, expected {shape}")
+                    raise PrimitiveError(
+                        f"{source}: skills.{key} has shape {a.shape}, expected {shape}"
+                    )
                 return a
 
             def logp(key: str, shape: tuple[int, ...]) -> FloatArray:
@@ -313,7 +322,9 @@ class SkillLibrary:
         except (KeyError, TypeError, ValueError, np.linalg.LinAlgError) as exc:
             if isinstance(exc, PrimitiveError):
                 raise
-            raise PrimitiveError(f"{source}: a damaged skill library ({type(exc).__name__}: {exc})") from None
+            raise PrimitiveError(
+                f"{source}: a damaged skill library ({type(exc).__name__}: {exc})"
+            ) from None
         lib = cls(opts)
         lib.channels_ = channels
         lib.model_ = model
