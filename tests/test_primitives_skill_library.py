@@ -193,3 +193,13 @@ def test_cli_on_csv_poses_of_real_wiping(tmp_path: Path) -> None:
         preds.append(np.asarray(tr["labels"])[run])
     acc = best_label_map(preds, [s.labels for s in streams])[1] / sum(s.n_samples for s in streams)
     assert acc > 0.85  # measured 0.901 (docs/primitives.md)
+
+
+def test_api_verb_learns_the_same_library_as_the_class() -> None:
+    import thirdhand as th
+
+    tracks = [wipe_track(s)[0] for s in range(2)]
+    opts = SkillParserOptions(n_skills=3)
+    a = th.learn_skills(tracks, opts).parse(tracks[0]).labels
+    b = SkillLibrary(opts).fit(tracks).parse(tracks[0]).labels
+    np.testing.assert_array_equal(a, b)

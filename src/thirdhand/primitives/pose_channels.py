@@ -12,6 +12,8 @@ vertical (the frame a task was recorded in says nothing about the task):
 - ``height``: the position along the vertical above the recording's 10th
   percentile of it, in units of 2 cm (the work surface is the recording's own low
   level, wherever it is in the room);
+- ``vertical``: the signed ``log1p(|v_z| / 0.02 m/s)`` of the vertical velocity
+  (up positive): lowering and lifting differ;
 - ``curvature``: ``log1p`` of the path's turning rate ``|v × a| / |v|²`` in units
   of 0.5 rad/s;
 - ``logdist``: ``log1p`` of the distance to the nearest other tracked body in units
@@ -51,7 +53,16 @@ UNITS = {
     "torque": 0.2,
 }
 #: Every channel :func:`pose_channels` can compute.
-CHANNELS = ("logspeed", "logangular", "height", "curvature", "logdist", "logforce", "logtorque")
+CHANNELS = (
+    "logspeed",
+    "logangular",
+    "height",
+    "vertical",
+    "curvature",
+    "logdist",
+    "logforce",
+    "logtorque",
+)
 #: Seconds at the start of a track whose mean force and torque are the sensor's zero.
 ZERO_FT_S = 0.5
 #: Fewest samples of a track (and of its grid): a speed needs neighbours, a skill a run.
@@ -256,6 +267,8 @@ def pose_channels(
         elif name == "height":
             z = pos[:, 2]
             col = (z - np.percentile(z, 10)) / UNITS["height"]
+        elif name == "vertical":
+            col = np.sign(vel[:, 2]) * _log(np.abs(vel[:, 2]), UNITS["speed"])
         elif name == "curvature":
             acc = np.gradient(vel, t, axis=0)
             turn = np.linalg.norm(np.cross(vel, acc), axis=1) / np.maximum(speed, 1e-3) ** 2
