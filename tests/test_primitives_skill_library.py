@@ -70,7 +70,7 @@ def test_channels_and_parse_unchanged_by_a_rigid_motion_of_the_scene() -> None:
     turn = Rotation.from_euler("z", 2.1)
     moved = [tr.moved(turn, [3.0, -1.5, 0.7]) for tr in tracks]
     names = default_channels(tracks[0])
-    assert names == ("logspeed", "logangular", "height")
+    assert names == ("logspeed", "logangular", "height", "vertical")
     for a, b in zip(tracks, moved, strict=True):
         np.testing.assert_allclose(
             pose_channels(a, names)[1], pose_channels(b, names)[1], atol=1e-8

@@ -171,13 +171,14 @@ class PoseTrack:
 def default_channels(track: PoseTrack) -> tuple[str, ...]:
     """The channels the parser uses for a track: pose ones, forces when present.
 
-    Speed, angular rate (with orientations), height, distance to the nearest other
-    body (with other bodies), force and torque magnitudes (with forces).
+    Speed, angular rate (with orientations), height, signed vertical speed,
+    distance to the nearest other body (with other bodies), force and torque
+    magnitudes (with forces).
     """
     names = ["logspeed"]
     if track.quat is not None:
         names.append("logangular")
-    names.append("height")
+    names += ["height", "vertical"]
     if track.others:
         names.append("logdist")
     if track.force is not None:
