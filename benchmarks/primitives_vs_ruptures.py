@@ -1,7 +1,7 @@
 """The primitive-library parser beside ``ruptures`` and plain ZCV cuts on labelled recordings.
 
-On every labelled ``.mat`` file given (default: the shared wiping and peeling
-recordings), in one run and on the same channels and subsampling:
+With ``--details``, on every labelled ``.mat`` file given (default: the shared
+wiping and peeling recordings), in one run and on the same channels and subsampling:
 
 - **parser**: :func:`thirdhand.primitives.label_eval.evaluate_streams`, leave
   one recording out, consecutive segments of one skill merged;
@@ -269,7 +269,7 @@ def product_table(files: list[Path], tol: float) -> None:
                     time.perf_counter() - t0,
                 )
             )
-            feats = [pose_channels(tr, names, rate_hz=20.0, window=5) for tr in tracks]
+            feats = [pose_channels(tr, names, rate_hz=20.0, window=8) for tr in tracks]
             if set_name == "pose":
                 # the seed parser: positions at 20 Hz, speed-minimum cuts, ProMP skills
                 t0 = time.perf_counter()

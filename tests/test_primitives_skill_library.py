@@ -64,6 +64,7 @@ def test_synthetic_wiping_is_parsed_into_reach_wipe_retract() -> None:
     assert np.abs(p.cuts_s - true).max() < 0.25
 
 
+@pytest.mark.slow
 def test_channels_and_parse_unchanged_by_a_rigid_motion_of_the_scene() -> None:
     data = [wipe_track(s) for s in range(3)]
     tracks = [d[0] for d in data]
@@ -98,6 +99,7 @@ def test_saved_library_round_trips_and_parses_the_same() -> None:
         SkillLibrary.from_dict({**doc, "skills": {**doc["skills"], "means": [[0.0]]}})
 
 
+@pytest.mark.slow
 def test_k_chosen_by_bic_when_not_given() -> None:
     tracks = [wipe_track(s)[0] for s in range(3)]
     lib = SkillLibrary(SkillParserOptions(k_range=(2, 3, 4))).fit(tracks)
@@ -111,6 +113,7 @@ def _write(path: Path, tr: PoseTrack) -> str:
     return str(path)
 
 
+@pytest.mark.slow
 def test_cli_fits_saves_and_reuses_a_library(tmp_path: Path) -> None:
     files = [_write(tmp_path / f"T{s}.csv", wipe_track(s)[0]) for s in range(3)]
     lib = tmp_path / "lib.json"

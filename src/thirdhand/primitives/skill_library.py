@@ -75,7 +75,7 @@ class SkillParserOptions:
     ends: bool | None = None
     channels: tuple[str, ...] | None = None
     rate_hz: float = 20.0
-    window: int = 5
+    window: int = 8
     n_init: int = 4
     seed: int = 0
 
