@@ -206,3 +206,44 @@ def test_api_verb_learns_the_same_library_as_the_class() -> None:
     a = th.learn_skills(tracks, opts).parse(tracks[0]).labels
     b = SkillLibrary(opts).fit(tracks).parse(tracks[0]).labels
     np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.skipif(not (DATA / "circular_wiping.mat").is_file(), reason="shared data absent")
+def test_cli_reads_a_labelled_mat_with_forces(tmp_path: Path) -> None:
+    res = runner.invoke(
+        app, ["library", str(DATA / "circular_wiping.mat"), "--skills", "3", "--json"]
+    )
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert doc["channels"] == [
+        "logspeed",
+        "logangular",
+        "height",
+        "vertical",
+        "logforce",
+        "logtorque",
+    ]
+    assert len(doc["tracks"]) == 4 and all(tr["labels"] == [0, 1, 2] for tr in doc["tracks"])
+    # a library with forces cannot parse a pose-only track: one line naming the channel
+    lib = tmp_path / "lib.json"
+    assert (
+        runner.invoke(app, ["library", str(DATA / "circular_wiping.mat"), "-o", str(lib)]).exit_code
+        == 0
+    )
+    pose_only = _write(tmp_path / "T.csv", wipe_track(0)[0])
+    _one_line_error(["library", pose_only, "--library", str(lib)], "'logforce' needs force")
+
+
+@pytest.mark.slow
+def test_cli_reads_a_recording_body_with_other_bodies(tmp_path: Path) -> None:
+    from thirdhand.io import save
+    from thirdhand.synth import make_scene
+
+    demo = make_scene("chair", seed=0, sensor=None)
+    path = tmp_path / "chair.parquet"
+    save(demo, path)
+    res = runner.invoke(app, ["library", str(path), "--body", "leg1", "--skills", "3", "--json"])
+    assert res.exit_code == 0, res.output
+    doc = json.loads(res.output)
+    assert "logdist" in doc["channels"] and len(doc["tracks"]) == 1
+    _one_line_error(["library", str(path), "--body", "nosuch"], "no body 'nosuch'")
