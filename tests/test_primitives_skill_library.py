@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -17,9 +18,12 @@ from thirdhand.primitives.pose_channels import PoseTrack, default_channels, pose
 from thirdhand.primitives.skill_library import SCHEMA, SkillLibrary, SkillParserOptions
 
 runner = CliRunner()
-DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "figueroa"
+DATA = (
+    Path(os.environ.get("THIRDHAND_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
+    / "figueroa"
+)
 if not DATA.is_dir():
-    DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "figueroa"
+    DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "figueroa"
 
 
 def wipe_track(seed: int, rate: float = 100.0) -> tuple[PoseTrack, np.ndarray]:
