@@ -1,7 +1,7 @@
 """The primitive-library parser beside ``ruptures`` and plain ZCV cuts on labelled recordings.
 
-On every labelled ``.mat`` file given (default: the shared wiping and peeling
-recordings), in one run and on the same channels and subsampling:
+With ``--details``, on every labelled ``.mat`` file given (default: the shared
+wiping and peeling recordings), in one run and on the same channels and subsampling:
 
 - **parser**: :func:`thirdhand.primitives.label_eval.evaluate_streams`, leave
   one recording out, consecutive segments of one skill merged;
@@ -29,7 +29,18 @@ then the same Hungarian map. Printed: frame accuracy under a map per recording
 all (``acc1``), boundary P/R/F1 at the tolerance, and each method's time with
 its ratio to the parser's (the parser's time includes fitting, leave one out).
 
-Usage: ``python benchmarks/primitives_vs_ruptures.py [FILE.mat …] [--tolerance 1]``
+First, the **product table** (what ``thirdhand primitives library`` runs): on every
+shared labelled file (circular wiping, fender wiping, peeling), leave one
+recording out, K = the number of human labels, on the pose channels of the first
+arm only (speed, angular rate, height, vertical speed;
+:mod:`thirdhand.primitives.pose_channels`)
+and with the force and torque magnitudes added: the skill library (HSMM,
+:class:`~thirdhand.primitives.skill_library.SkillLibrary`) vs the seed parser
+(positions, candidate cuts + ProMP skills) vs KernelCPD (rbf) and ZCV cuts, both
+labelled by k-means on the same channels. Then, with ``--details``, the earlier
+per-file tables of the evaluation recipes.
+
+Usage: ``python benchmarks/primitives_vs_ruptures.py [FILE.mat …] [--tolerance 1] [--details]``
 """
 
 from __future__ import annotations
@@ -56,9 +67,21 @@ from thirdhand.primitives.label_eval import (
     cluster_segments,
     evaluate_streams,
 )
+from thirdhand.primitives.pose_channels import PoseTrack
 from thirdhand.primitives.segment_features import candidate_cuts, smoothed_speed
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "figueroa"
+DATA = next(
+    (
+        d
+        for d in (
+            Path(__file__).resolve().parents[i] / "shared" / "data" / "figueroa" for i in (2, 3)
+        )
+        if d.is_dir()
+    ),
+    Path(os.environ.get("THIRDHAND_DATA", "../shared/data")) / "figueroa",
+)
+#: The shared labelled files of the product table.
+PRODUCT_FILES = ("circular_wiping.mat", "fender_wiping.mat", "peeling_noobj.mat")
 #: Per file: the parser's channels (chosen in docs/primitives.md).
 CONFIGS = {
     # K selected by the one-SE rule (the default), not given
@@ -181,11 +204,136 @@ def _ruptures(
     return out
 
 
+def _pose_tracks(streams: list[LabelledStream]) -> list[PoseTrack]:
+    return [
+        PoseTrack(
+            s.t, s.arms[0].pos, s.arms[0].quat, s.arms[0].force, s.arms[0].torque, name=s.name
+        )
+        for s in streams
+    ]
+
+
+def _frames(s: LabelledStream, t: np.ndarray, lab: np.ndarray) -> np.ndarray:
+    idx = np.clip(np.rint(np.interp(s.t, t, np.arange(t.size))).astype(np.int64), 0, t.size - 1)
+    return lab[idx]
+
+
+def _loo_scores(
+    streams: list[LabelledStream], preds: list[np.ndarray], tol: float
+) -> tuple[float, BoundaryScore]:
+    n = sum(s.n_samples for s in streams)
+    acc = sum(best_label_map([p], [s.labels])[1] for p, s in zip(preds, streams, strict=True)) / n
+    total: BoundaryScore | None = None
+    for s, p in zip(streams, preds, strict=True):
+        b = match_boundaries(s.boundaries, s.t[np.flatnonzero(np.diff(p)) + 1], tolerance=tol)
+        total = b if total is None else total + b
+    assert total is not None
+    return acc, total
+
+
+def product_table(files: list[Path], tol: float) -> None:
+    """Skill library vs seed parser vs KernelCPD vs ZCV, pose only and with forces."""
+    from thirdhand.primitives.library import PrimitiveLibrary
+    from thirdhand.primitives.pose_channels import pose_channels
+    from thirdhand.primitives.skill_library import SkillLibrary, SkillParserOptions
+
+    print(
+        f"== product table: leave one recording out, K = number of labels, boundary F1 "
+        f"within {tol:g} s; acc under each held-out recording's best skill->label map"
+    )
+    print(f"  {'file':<20} {'channels':<13} {'method':<28} {'acc':>6} {'F1':>5} {'time s':>7}")
+    for path in files:
+        streams = read_labelled_mat(path)
+        tracks = _pose_tracks(streams)
+        k = len(np.unique(np.concatenate([s.labels for s in streams])))
+        sets = [("pose", ("logspeed", "logangular", "height", "vertical"))]
+        if any(np.ptp(s.arms[0].force) > 0 for s in streams):
+            sets.append(
+                (
+                    "pose+forces",
+                    ("logspeed", "logangular", "height", "vertical", "logforce", "logtorque"),
+                )
+            )
+        for set_name, names in sets:
+            rows = []
+            opts = SkillParserOptions(n_skills=k, channels=names)
+            t0 = time.perf_counter()
+            preds = []
+            for i, tr in enumerate(tracks):
+                train = [tracks[j] for j in range(len(tracks)) if j != i]
+                preds.append(SkillLibrary(opts).fit(train).parse(tr).labels)
+            rows.append(
+                (
+                    "skill library (HSMM)",
+                    *_loo_scores(streams, preds, tol),
+                    time.perf_counter() - t0,
+                )
+            )
+            feats = [pose_channels(tr, names, rate_hz=20.0, window=8) for tr in tracks]
+            if set_name == "pose":
+                # the seed parser: positions at 20 Hz, speed-minimum cuts, ProMP skills
+                t0 = time.perf_counter()
+                sub = [(tr.t[::5], tr.pos[::5] / 0.02) for tr in tracks]
+                preds = []
+                for i, (t, y) in enumerate(sub):
+                    train = [sub[j] for j in range(len(sub)) if j != i] or [sub[i]]
+                    peaks = [
+                        smoothed_speed(yy, float(np.median(np.diff(tt))), 5).max()
+                        for tt, yy in train
+                    ]
+                    lib = PrimitiveLibrary(
+                        k, threshold=0.05 * float(np.median(peaks)), n_init=4
+                    ).fit(train)
+                    preds.append(_frames(streams[i], t, lib.parse(t, y).frame_labels()))
+                rows.append(
+                    (
+                        "seed parser (cuts + ProMPs)",
+                        *_loo_scores(streams, preds, tol),
+                        time.perf_counter() - t0,
+                    )
+                )
+            for name, algo in (
+                ("KernelCPD rbf + k-means", "kernel"),
+                ("ZCV cuts + k-means", "zcv"),
+            ):
+                t0 = time.perf_counter()
+                xs = [x for _, x in feats]
+                if algo == "kernel":
+                    cuts = _ruptures(xs, "kernel", streams)
+                else:
+                    pos = [tr.pos[::5] / 0.02 for tr in tracks]
+                    thr = 0.05 * float(np.median([smoothed_speed(p, 0.05, 5).max() for p in pos]))
+                    cuts = []
+                    for p, x in zip(pos, xs, strict=True):
+                        c = candidate_cuts(p, dt=0.05, threshold=thr, window=5, min_gap=4)
+                        cuts.append(c[(c > 0) & (c < x.shape[0] - 1)].astype(np.int64))
+                bounds = [
+                    np.concatenate([[0], c, [x.shape[0] - 1]]).astype(np.int64)
+                    for c, x in zip(cuts, xs, strict=True)
+                ]
+                labs = cluster_segments(xs, bounds, k)
+                preds = [
+                    _frames(s, tg, lab)
+                    for s, (tg, _), lab in zip(streams, feats, labs, strict=True)
+                ]
+                rows.append((name, *_loo_scores(streams, preds, tol), time.perf_counter() - t0))
+            for name, acc, b, dt in rows:
+                print(
+                    f"  {path.name:<20} {set_name:<13} {name:<28} {acc:>6.3f} {b.f1:>5.2f} "
+                    f"{dt:>7.1f}",
+                    flush=True,
+                )
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("files", nargs="*", type=Path)
     ap.add_argument("--tolerance", type=float, default=1.0)
+    ap.add_argument("--details", action="store_true", help="Also the evaluation recipes' tables.")
     args = ap.parse_args()
+    product_table(args.files or [DATA / f for f in PRODUCT_FILES], args.tolerance)
+    if not args.details:
+        return
     files = args.files or [DATA / "circular_wiping.mat", DATA / "peeling_noobj.mat"]
     for path in files:
         streams = read_labelled_mat(path)

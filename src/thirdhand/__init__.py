@@ -15,6 +15,7 @@ from thirdhand.api import (
     execute_task,
     fit_primitives,
     learn_reward,
+    learn_skills,
     plan_assembly,
     segment_phases,
 )
@@ -74,6 +75,7 @@ __all__ = [
     "execute_task",
     "fit_primitives",
     "learn_reward",
+    "learn_skills",
     "learn_task",
     "plan_assembly",
     "segment_phases",

@@ -27,6 +27,8 @@ if TYPE_CHECKING:
     from thirdhand.constraints.detect_types import DetectionResult
     from thirdhand.execute.step_plan import ExecutionResult
     from thirdhand.plan.assembly import AssemblyPlan
+    from thirdhand.primitives.pose_channels import PoseTrack
+    from thirdhand.primitives.skill_library import SkillLibrary, SkillParserOptions
     from thirdhand.primitives.stage import ConstraintPrimitive
     from thirdhand.relational.assembly import AssemblyModel
     from thirdhand.segment.model import SegmentModel
@@ -120,6 +122,26 @@ def fit_primitives(
         for s in constraint_segments(d, events=ev)
     ]
     return {key: fit_constraint_primitive(group) for key, group in group_segments(segs).items()}
+
+
+def learn_skills(
+    tracks: Sequence[PoseTrack], options: SkillParserOptions | None = None
+) -> SkillLibrary:
+    """A library of skills learned from unlabelled tracks (the ``primitives library`` parser).
+
+    ``lib.parse(track)`` then gives any track's runs of skills; ``lib.to_dict()``
+    is the saveable document (``thirdhand.skill-library/1``).
+
+    Parameters
+    ----------
+    tracks : sequence of PoseTrack
+        One body's poses each (forces and other bodies when known).
+    options : SkillParserOptions, optional
+        Defaults: the HSMM, K by BIC, entry and exit skills when K ≥ 3.
+    """
+    from thirdhand.primitives.skill_library import SkillLibrary
+
+    return SkillLibrary(options).fit(tracks)
 
 
 def learn_reward(tasks: Sequence[TaskFile], *, seed: int = 0) -> AssemblyModel:

@@ -111,13 +111,59 @@ def fit(
     out.print(f"wrote {output}")
 
 
-def _read_tracks(path: Path, body: str | None) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Tracks from a LASA ``.mat`` (all demos), a CSV/NPY (time, values…) or a recording."""
+def _table_track(path: Path, arr: np.ndarray) -> Any:
+    """A pose track from a table ``t x y z [qx qy qz qw]`` (fewer values: zeros pad x y z)."""
+    from thirdhand.primitives.pose_channels import PoseTrack
+
+    if arr.ndim != 2 or arr.shape[1] not in (2, 3, 4, 8):
+        raise FormatError(
+            path, f"expected columns t x y z [qx qy qz qw] (4 or 8), got shape {arr.shape}"
+        )
+    bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+    if bad.size:
+        raise FormatError(
+            path,
+            f"row {int(bad[0]) + 1} has NaN or infinite values ({bad.size} such rows); "
+            "remove or interpolate them",
+        )
+    pos = np.zeros((arr.shape[0], 3))
+    pos[:, : min(arr.shape[1] - 1, 3)] = arr[:, 1:4]
+    quat = arr[:, 4:8] if arr.shape[1] == 8 else None
+    if quat is not None:
+        norm = np.linalg.norm(quat, axis=1, keepdims=True)
+        if np.any(norm < 1e-9):
+            raise FormatError(path, f"row {int(np.argmin(norm[:, 0])) + 1}: a zero quaternion")
+        quat = quat / norm
+    return PoseTrack(arr[:, 0], pos, quat, name=str(path))
+
+
+def _read_tracks(path: Path, body: str | None) -> list[Any]:
+    """Pose tracks from a CSV/NPY table, a labelled or LASA ``.mat``, or a recording (--body)."""
+    from thirdhand.primitives.pose_channels import PoseTrack
+
     suffix = path.suffix.lower()
     if suffix == ".mat":
-        from thirdhand.datasets.primitive_shapes import lasa_shapes
+        from thirdhand.io.figueroa import read_labelled_mat
 
-        return lasa_shapes(path.parent, path.stem)
+        try:
+            streams = read_labelled_mat(path)
+        except FormatError:
+            from thirdhand.datasets.primitive_shapes import lasa_shapes
+
+            shapes = lasa_shapes(path.parent, path.stem)
+            return [_table_track(path, np.column_stack([t, y / 1000.0])) for t, y in shapes]
+        return [
+            PoseTrack(
+                s.t,
+                s.arms[0].pos,
+                s.arms[0].quat,
+                s.arms[0].force,
+                s.arms[0].torque,
+                tuple(a.pos for a in s.arms[1:]),
+                name=s.name,
+            )
+            for s in streams
+        ]
     if suffix in (".csv", ".txt", ".npy"):
         from thirdhand.readlimits import check_regular
 
@@ -125,99 +171,165 @@ def _read_tracks(path: Path, body: str | None) -> list[tuple[np.ndarray, np.ndar
         try:
             arr = np.load(path) if suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
         except (OSError, ValueError) as exc:
-            raise FormatError(path, f"expected numeric columns (time, values…): {exc}") from None
-        if arr.ndim != 2 or arr.shape[1] < 2:
-            raise FormatError(path, f"expected at least 2 columns (time, values…), got {arr.shape}")
-        return [(arr[:, 0], arr[:, 1:])]
+            raise FormatError(
+                path, f"expected numeric columns t x y z [qx qy qz qw]: {exc}"
+            ) from None
+        return [_table_track(path, np.asarray(arr, dtype=np.float64))]
     from thirdhand import io
 
     demo = io.load(path)
     if body is None:
         raise FormatError(path, "a recording needs --body to choose the track")
-    p = demo.pos(body)
-    ok = np.isfinite(p).all(axis=1)
-    return [(demo.t[ok], p[ok])]
+    if body not in demo.body_names:
+        raise FormatError(path, f"no body {body!r}; it has {', '.join(demo.body_names)}")
+    ok = demo.valid(body) & np.isfinite(demo.pos(body)).all(axis=1)
+    others = tuple(
+        np.where(demo.valid(b)[:, None], demo.pos(b), np.nan)[ok]
+        for b in demo.body_names
+        if b != body
+    )
+    return [
+        PoseTrack(
+            demo.t[ok],
+            demo.pos(body)[ok],
+            demo.quat(body)[ok],
+            others=others,
+            name=f"{path}:{body}",
+        )
+    ]
 
 
 @app.command()
 def library(
-    tracks: Annotated[list[Path], typer.Argument(help="LASA .mat, CSV/NPY (t, y…) or recordings.")],
-    skills: Annotated[int, typer.Option(help="Number of skills K.")] = 3,
-    threshold: Annotated[
-        float | None,
-        typer.Option(help="Speed threshold of candidate cuts, units/s (default 5% of peak)."),
+    tracks: Annotated[
+        list[Path],
+        typer.Argument(help="CSV/NPY tracks t x y z [qx qy qz qw], labelled .mat, or recordings."),
+    ],
+    skills: Annotated[
+        int | None,
+        typer.Option(help="Number of skills K, entry and exit included (default: by BIC, 2-6)."),
     ] = None,
-    window: Annotated[int, typer.Option(help="Moving-average window, samples.")] = 5,
-    weights: Annotated[int, typer.Option(help="ProMP weights per dimension.")] = 8,
+    parser: Annotated[
+        str, typer.Option(help="hsmm (the skill library) or cuts (the seed's parser, to compare).")
+    ] = "hsmm",
+    lib_in: Annotated[
+        Path | None,
+        typer.Option("--library", help="Parse with this saved library instead of fitting one."),
+    ] = None,
+    output: Annotated[
+        Path | None, typer.Option("-o", "--output", help="Save the fitted library (JSON) here.")
+    ] = None,
     body: Annotated[str | None, typer.Option(help="Body to use from a recording.")] = None,
-    seed: Annotated[int, typer.Option(help="Seed of the EM restarts.")] = 0,
-    plot: Annotated[Path | None, typer.Option(help="Write a figure of the skills here.")] = None,
+    seed: Annotated[int, typer.Option(help="Seed of the restarts.")] = 0,
+    plot: Annotated[Path | None, typer.Option(help="Write a figure of the parses here.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON.")] = False,
     force: Annotated[
-        bool, typer.Option(help="Replace an existing --plot file (kept as a numbered .bak).")
+        bool, typer.Option(help="Replace an existing -o or --plot file (kept as a numbered .bak).")
     ] = False,
 ) -> None:
-    """Learn skills and segmentation together; print the most likely parse of every track."""
-    from thirdhand.primitives.library import PrimitiveLibrary
-    from thirdhand.primitives.segment_features import smoothed_speed
+    """Learn a library of skills from the tracks (or load one); print every track's parse.
+
+    Channels from poses alone (speed, angular rate, height above the work, the
+    distance to other tracked bodies), forces and torques when a file has them;
+    unchanged by where in the room the task was done.
+    """
+    from thirdhand.fileops import write_text
+    from thirdhand.primitives.skill_library import (
+        SkillLibrary,
+        SkillParserOptions,
+        cuts_parses,
+    )
 
     try:
-        options.integer("--skills", skills, low=1, high=100)
-        options.integer("--weights", weights, low=2, high=MAX_WEIGHTS)
-        options.integer("--window", window, low=1, high=10000)
+        if skills is not None:
+            options.integer("--skills", skills, low=1, high=100)
+        if parser not in ("hsmm", "cuts"):
+            raise ThirdhandError(f"--parser must be hsmm or cuts, got {parser!r}")
         options.seed(seed)
-        if threshold is not None:
-            options.finite("--threshold", threshold, low=0.0, low_open=True)
-        if plot is not None:
-            check_output(plot, force=force, inputs=tracks)
-            if plot.suffix.lower() not in (".png", ".pdf", ".svg"):
-                raise ThirdhandError(
-                    f"--plot {plot}: a figure is written as .png, .pdf or .svg; "
-                    f"got the extension {plot.suffix or '(none)'!r}"
-                )
+        if parser == "cuts" and (lib_in is not None or output is not None):
+            raise ThirdhandError("--library and -o save and load the hsmm parser's library only")
+        if lib_in is not None and skills is not None:
+            raise ThirdhandError("--skills is fixed by the --library given; leave it out")
+        for o in (plot, output):
+            if o is not None:
+                check_output(o, force=force, inputs=[*tracks, *([lib_in] if lib_in else [])])
+        if plot is not None and plot.suffix.lower() not in (".png", ".pdf", ".svg"):
+            raise ThirdhandError(
+                f"--plot {plot}: a figure is written as .png, .pdf or .svg; "
+                f"got the extension {plot.suffix or '(none)'!r}"
+            )
         data = [tr for p in tracks for tr in _read_tracks(p, body)]
-        thr = threshold
-        if thr is None:
-            peaks = [smoothed_speed(y, float(np.median(np.diff(t))), window).max() for t, y in data]
-            thr = 0.05 * float(np.median(peaks))
-        lib = PrimitiveLibrary(
-            skills, threshold=thr, window=window, n_weights=weights, seed=seed
-        ).fit(data)
-        parses = [lib.parse(t, y) for t, y in data]
+        opts = SkillParserOptions(parser=parser, n_skills=skills, seed=seed)  # type: ignore[arg-type]
+        result: dict[str, Any] = {"parser": parser}
+        if parser == "cuts":
+            seed_lib, parses = cuts_parses(data, opts)
+            result.update(
+                threshold=seed_lib.threshold,
+                n_skills=seed_lib.n_skills,
+                skill_weights=seed_lib.mixture_.weights_.tolist(),
+                log_likelihood=seed_lib.log_likelihood_,
+            )
+            n_cand = [int(c.size) for c in seed_lib.candidates_]
+        else:
+            if lib_in is not None:
+                try:
+                    doc = json.loads(lib_in.read_text())
+                except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+                    raise FormatError(lib_in, f"not a JSON skill library: {exc}") from None
+                lib = SkillLibrary.from_dict(doc, source=str(lib_in))
+            else:
+                lib = SkillLibrary(opts).fit(data)
+            parses = [lib.parse(tr) for tr in data]
+            result.update(
+                n_skills=lib.n_skills_,
+                ends=bool(lib.model_.ends_),
+                channels=list(lib.channels_),
+                skill_weights=lib.skill_fractions(parses),
+                log_likelihood=float(sum(p.score for p in parses)),
+            )
+            if lib.bic_:
+                result["bic"] = {str(k): v for k, v in lib.bic_.items()}
+            if lib_in is not None:
+                result["library"] = str(lib_in)
+            n_cand = [
+                max(int(np.floor((tr.t[-1] - tr.t[0]) * lib.options.rate_hz)), 0) for tr in data
+            ]
+            if output is not None:
+                write_text(output, json.dumps(lib.to_dict(), indent=1))
+                result["saved"] = str(output)
+        result["tracks"] = [
+            {
+                "name": tr.name,
+                "cuts_s": p.cuts_s.tolist(),
+                "labels": p.skills.tolist(),
+                "n_candidates": nc,
+            }
+            for tr, p, nc in zip(data, parses, n_cand, strict=True)
+        ]
+        if plot is not None:
+            from thirdhand.primitives.plot import plot_skill_parses
+
+            with atomic_output(plot) as tmp:
+                plot_skill_parses(data, parses, tmp)
+            result["plot"] = str(plot)
     except ThirdhandError as exc:
         raise _fail(exc) from None
-    result: dict[str, Any] = {
-        "threshold": thr,
-        "skill_weights": lib.mixture_.weights_.tolist(),
-        "log_likelihood": lib.log_likelihood_,
-        "tracks": [
-            {
-                "cuts_s": [float(t[c]) for c in p.cuts],
-                "labels": p.labels.tolist(),
-                "n_candidates": int(p.candidates.size),
-            }
-            for (t, _), p in zip(data, parses, strict=True)
-        ],
-    }
-    if plot is not None:
-        from thirdhand.primitives.plot import plot_library
-
-        with atomic_output(plot) as tmp:
-            plot_library(lib, tmp, tracks=data[:2])
-        result["plot"] = str(plot)
     if as_json:
         out.print(json.dumps(result, indent=1))
         return
     out.print(
-        f"{len(data)} tracks, threshold {thr:.4g}/s, skills π = "
-        + ", ".join(f"{w:.2f}" for w in lib.mixture_.weights_)
+        f"{len(data)} tracks, parser {parser}, {result['n_skills']} skills, share of samples "
+        + ", ".join(f"{w:.2f}" for w in result["skill_weights"])
+        + (" (entry and exit first and last)" if result.get("ends") else "")
     )
     for i, tr in enumerate(result["tracks"]):
         cuts = ", ".join(f"{c:.2f}" for c in tr["cuts_s"])
         out.print(
-            f"track {i}: {len(tr['labels'])} segments (of {tr['n_candidates']} candidate cuts) "
-            f"skills {tr['labels']} cuts [{cuts}] s"
+            f"track {i} {tr['name']}: {len(tr['labels'])} runs, skills {tr['labels']} "
+            f"cuts [{cuts}] s"
         )
+    if output is not None and "saved" in result:
+        out.print(f"wrote {output}")
     if plot is not None:
         out.print(f"wrote {plot}")
 

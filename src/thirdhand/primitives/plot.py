@@ -133,3 +133,50 @@ def plot_generalisation(
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def plot_skill_parses(
+    tracks: Sequence[object],
+    parses: Sequence[object],
+    path: str | os.PathLike[str],
+    *,
+    max_tracks: int = 6,
+) -> None:
+    """Each track's position over time, coloured by the skill of every sample.
+
+    Parameters
+    ----------
+    tracks : sequence of PoseTrack
+    parses : sequence of TrackParse
+        One per track (:meth:`~thirdhand.primitives.skill_library.SkillLibrary.parse`).
+    path : path-like
+        PNG (or any matplotlib format) to write.
+    max_tracks : int
+        At most this many tracks are drawn.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = max(min(len(tracks), max_tracks), 1)
+    fig, axes = plt.subplots(rows, 1, figsize=(9, 2.2 * rows), squeeze=False)
+    colours = plt.get_cmap("tab10")
+    for ax, tr, p in zip(axes[:, 0], tracks, parses, strict=False):
+        t, pos = tr.t, tr.pos - tr.pos[0]  # type: ignore[attr-defined]
+        labels = p.labels  # type: ignore[attr-defined]
+        for c, style in zip(range(3), ("-", "--", ":"), strict=True):
+            ax.plot(t, pos[:, c], color="0.75", lw=0.8, ls=style)
+        for s, e, k in zip(
+            p.starts,  # type: ignore[attr-defined]
+            [*p.starts[1:], labels.size],  # type: ignore[attr-defined]
+            p.skills,  # type: ignore[attr-defined]
+            strict=True,
+        ):
+            ax.axvspan(t[s], t[min(e, t.size - 1)], color=colours(int(k) % 10), alpha=0.25, lw=0)
+        ax.set_ylabel("x y z − start, m")
+        ax.set_title(str(tr.name)[-60:], fontsize=8)  # type: ignore[attr-defined]
+    axes[-1, 0].set_xlabel("time, s")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
