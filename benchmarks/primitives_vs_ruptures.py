@@ -3,7 +3,7 @@
 With ``--details``, on every labelled ``.mat`` file given (default: the shared
 wiping and peeling recordings), in one run and on the same channels and subsampling:
 
-- **parser**: :func:`thirdhand.primitives.label_eval.evaluate_streams`, leave
+- **parser**: :func:`research.primitive_labels.evaluate_streams`, leave
   one recording out, consecutive segments of one skill merged;
 - **seed parser**: positions only, speed-minimum cuts only, K = number of
   human labels, every kept cut a boundary (the seed, as a new user ran it);
@@ -23,7 +23,7 @@ wiping and peeling recordings), in one run and on the same channels and subsampl
   same model fitted on the other recordings' human labels.
 
 Change-point methods get phase labels by k-means on the segments' mean channels
-(K = number of human labels, :func:`~thirdhand.primitives.label_eval.cluster_segments`),
+(K = number of human labels, :func:`~research.primitive_labels.cluster_segments`),
 then the same Hungarian map. Printed: frame accuracy under a map per recording
 (``acc``; each held-out recording has its own library) and under one map for
 all (``acc1``), boundary P/R/F1 at the tolerance, and each method's time with
@@ -56,17 +56,17 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 import ruptures as rpt
 
-from thirdhand.io.figueroa import LabelledStream, read_labelled_mat
-from thirdhand.primitives.evaluation import (
-    BoundaryScore,
-    best_label_map,
-    match_boundaries,
-)
-from thirdhand.primitives.label_eval import (
+from research.primitive_labels import (
     ParserConfig,
     cluster_segments,
     evaluate_streams,
 )
+from research.primitive_scores import (
+    BoundaryScore,
+    best_label_map,
+    match_boundaries,
+)
+from thirdhand.io.figueroa import LabelledStream, read_labelled_mat
 from thirdhand.primitives.pose_channels import PoseTrack
 from thirdhand.primitives.segment_features import candidate_cuts, smoothed_speed
 
@@ -127,7 +127,7 @@ HSMM_LOG_CONFIGS = {
 
 
 def _features(streams: list[LabelledStream], cfg: ParserConfig) -> list[np.ndarray]:
-    from thirdhand.primitives.channels import stream_channels
+    from research.primitive_channels import stream_channels
 
     out = []
     for s in streams:

@@ -4,6 +4,7 @@ Run from the repository root::
 
     python -m research experiment constraints|plan|corrections [--jobs J] [--scheduler ADDR]
     python -m research irl datasize|noise|transfer|dynamics|chair|large [--runs N] [--jobs J]
+    python -m research primitives evaluate FILE.mat [--model hsmm --ends ...]
 
 Each prints its table beside the report's (or the paper's) numbers. ``--scheduler``
 runs the seeded units as Dask tasks (``tcp://HOST:PORT`` or ``local``; docs/cluster.md).
@@ -46,6 +47,27 @@ experiment_app = typer.Typer(
     pretty_exceptions_enable=False,
 )
 app.add_typer(experiment_app, name="experiment")
+primitives_app = typer.Typer(
+    help="Primitive-library parsers against human phase labels.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+)
+app.add_typer(primitives_app, name="primitives")
+
+
+@primitives_app.callback()
+def _primitives() -> None:
+    """Primitive-library parsers against human phase labels."""
+
+
+def _mount_primitives() -> None:
+    from research.primitives_evaluate import evaluate
+
+    primitives_app.command("evaluate")(evaluate)
+
+
+_mount_primitives()
 
 
 def _check_scene(scene: str) -> None:
@@ -181,17 +203,16 @@ def main(argv: list[str] | None = None) -> int:
     """Run the research CLI; a user's bad input is one ``research: error:`` line, exit 1."""
     command = typer.main.get_command(app)
     try:
-        command.main(args=argv, prog_name="python -m research", standalone_mode=False)
+        code = command.main(args=argv, prog_name="python -m research", standalone_mode=False)
     except ThirdhandError as exc:
         sys.stderr.write(f"research: error: {' '.join(str(exc).split())}\n")
         return 1
     except typer.Exit as exc:
         return int(exc.exit_code)
-    except Exception as exc:  # click's usage errors
-        import click
-
-        if isinstance(exc, click.ClickException):
+    except Exception as exc:  # click's usage errors (typer's own copy of click)
+        status = getattr(exc, "exit_code", None)
+        if hasattr(exc, "format_message") and isinstance(status, int):
             sys.stderr.write(f"research: error: {' '.join(exc.format_message().split())}\n")
-            return exc.exit_code
+            return status
         raise
-    return 0
+    return code if isinstance(code, int) else 0

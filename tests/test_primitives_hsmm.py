@@ -7,6 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
+from research.primitive_labels import one_se_choice, per_observation
 from thirdhand.primitives import PrimitiveError
 from thirdhand.primitives.hsmm import (
     HiddenSemiMarkov,
@@ -15,7 +16,6 @@ from thirdhand.primitives.hsmm import (
     path_score,
     runs,
 )
-from thirdhand.primitives.label_eval import one_se_choice, per_observation
 
 
 def _compositions(n: int, d_max: int) -> list[list[int]]:

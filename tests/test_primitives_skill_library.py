@@ -11,9 +11,9 @@ import pytest
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
+from research.primitive_scores import best_label_map
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.cli import app
-from thirdhand.primitives.evaluation import best_label_map
 from thirdhand.primitives.pose_channels import PoseTrack, default_channels, pose_channels
 from thirdhand.primitives.skill_library import SCHEMA, SkillLibrary, SkillParserOptions
 

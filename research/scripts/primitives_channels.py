@@ -2,8 +2,8 @@
 labelled ``.mat`` file, unsupervised and (optionally) the supervised separability diagnostics.
 
 Unsupervised: the HSMM with entry and exit states, fitted without labels, leave one
-recording out (:func:`~thirdhand.primitives.label_eval.evaluate_streams`, as
-``thirdhand primitives evaluate --model hsmm --ends --zero-ft``), K given or chosen by
+recording out (:func:`~research.primitive_labels.evaluate_streams`, as
+``python -m research primitives evaluate --model hsmm --ends --zero-ft``), K given or chosen by
 the one-SE rule over 1…6. With ``--ceiling``: the label-trained HSMM fitted on every
 recording's labels and tested on the same recordings (in-sample, a diagnostic of how
 separable the phases are on these channels, not a result), and, for a file of two
@@ -28,13 +28,13 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 
-from thirdhand.io.figueroa import read_labelled_mat
-from thirdhand.primitives.label_eval import (
+from research.primitive_labels import (
     ParserConfig,
     _make_hsmm,
     _tracks,
     evaluate_streams,
 )
+from thirdhand.io.figueroa import read_labelled_mat
 
 
 def _label_trained_accuracy(

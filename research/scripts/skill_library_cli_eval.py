@@ -23,9 +23,9 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 from typer.testing import CliRunner
 
+from research.primitive_scores import best_label_map, match_boundaries
 from thirdhand.io.figueroa import read_labelled_mat
 from thirdhand.primitives.cli import app
-from thirdhand.primitives.evaluation import best_label_map, match_boundaries
 
 #: The shared data beside the repository (or beside the folder of its worktree).
 DATA = next(

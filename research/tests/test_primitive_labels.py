@@ -1,5 +1,5 @@
 """Labelled recordings for the primitive-library parser: the .mat reader, the metrics,
-level channels, ``thirdhand primitives evaluate`` and its bad-input errors."""
+level channels, ``python -m research primitives evaluate`` and its bad-input errors."""
 
 from __future__ import annotations
 
@@ -11,20 +11,20 @@ import pytest
 import scipy.io
 from scipy.spatial.transform import Rotation
 
-from cli_helpers import call
-from thirdhand.errors import FormatError
-from thirdhand.io.figueroa import read_labelled_mat
-from thirdhand.primitives import PrimitiveError, PrimitiveLibrary
-from thirdhand.primitives.evaluation import (
+from research.primitive_scores import (
     apply_map,
     best_label_map,
     change_times,
     match_boundaries,
     segments_to_frames,
 )
+from research.tests.helpers import call
+from thirdhand.errors import FormatError
+from thirdhand.io.figueroa import read_labelled_mat
+from thirdhand.primitives import PrimitiveError, PrimitiveLibrary
 from thirdhand.primitives.segment_features import segment_stats
 
-DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data" / "figueroa"
+DATA = Path(__file__).resolve().parents[2] / ".." / "shared" / "data" / "figueroa"
 WIPING = DATA / "circular_wiping.mat"
 PEELING = DATA / "peeling_noobj.mat"
 needs_data = pytest.mark.skipif(
@@ -262,7 +262,7 @@ def test_library_score_of_its_training_tracks_is_its_log_likelihood() -> None:
 
 
 def test_heldout_likelihood_prefers_the_skills_the_data_has() -> None:
-    from thirdhand.primitives.label_eval import ParserConfig, fit_library, heldout_scores
+    from research.primitive_labels import ParserConfig, fit_library, heldout_scores
 
     tracks = [_level_track(s)[:3] for s in range(3)]
     held = heldout_scores(tracks, ParserConfig(n_init=2), [1, 2], 0.3)
@@ -312,7 +312,7 @@ def test_evaluate_command_table_and_json(
 def test_evaluate_selects_k_by_heldout_likelihood_and_reports_bic(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    from thirdhand.primitives.label_eval import one_se_choice, per_observation
+    from research.primitive_labels import one_se_choice, per_observation
 
     _write_proc(tmp_path / "w.mat", [_wiping_like(s) for s in range(3)])
     out = tmp_path / "res.json"
@@ -392,7 +392,7 @@ def test_phase_grouper_splits_one_skill_by_where_it_goes() -> None:
 
 
 def test_evaluate_streams_with_phases_on_wiping_like_data() -> None:
-    from thirdhand.primitives.label_eval import ParserConfig, evaluate_streams
+    from research.primitive_labels import ParserConfig, evaluate_streams
 
     streams = []
     for s in range(3):
@@ -415,7 +415,7 @@ def _stream_from(x: np.ndarray, labels: np.ndarray, name: str):  # type: ignore[
 
 
 def test_stream_channels_units_and_layout() -> None:
-    from thirdhand.primitives.channels import LEVEL_UNITS, SHAPE_UNITS, stream_channels
+    from research.primitive_channels import LEVEL_UNITS, SHAPE_UNITS, stream_channels
 
     n = 50
     ang = np.linspace(0.0, 0.5, n)
@@ -440,8 +440,8 @@ def test_stream_channels_units_and_layout() -> None:
 
 
 def test_stream_channels_zero_ft_and_relpos() -> None:
+    from research.primitive_channels import LEVEL_UNITS, stream_channels
     from thirdhand.io.figueroa import ArmTrack, LabelledStream
-    from thirdhand.primitives.channels import LEVEL_UNITS, stream_channels
 
     n = 200  # 2 s at 100 Hz
     t = np.arange(n) * 0.01
@@ -463,7 +463,7 @@ def test_stream_channels_zero_ft_and_relpos() -> None:
 
 
 def test_label_trained_hsmm_parses_held_out_wiping_by_the_labels_names() -> None:
-    from thirdhand.primitives.label_eval import ParserConfig, evaluate_streams
+    from research.primitive_labels import ParserConfig, evaluate_streams
 
     streams = [_stream_from(*_wiping_like(s), f"demo{s}") for s in range(3)]
     cfg = ParserConfig(model="hsmm", label_trained=True, levels=("force",), n_skills=None)
@@ -505,7 +505,7 @@ def test_evaluate_label_trained_command_says_supervised(
 
 
 def test_unsupervised_hsmm_with_ends_parses_held_out_wiping() -> None:
-    from thirdhand.primitives.label_eval import ParserConfig, evaluate_streams
+    from research.primitive_labels import ParserConfig, evaluate_streams
 
     streams = [_stream_from(*_wiping_like(s), f"demo{s}") for s in range(3)]
     cfg = ParserConfig(model="hsmm", ends=True, levels=("force",), zero_ft=True, n_skills=1)
@@ -519,7 +519,7 @@ def test_unsupervised_hsmm_with_ends_parses_held_out_wiping() -> None:
 
 
 def test_normalise_levels_per_recording() -> None:
-    from thirdhand.primitives.label_eval import normalise_levels
+    from research.primitive_labels import normalise_levels
 
     lev = np.array([[1.0, 5.0], [3.0, 5.0], [5.0, 5.0], [7.0, 5.0]])
     scaled = normalise_levels(lev, "scale")

@@ -6,7 +6,7 @@ recording is parsed, consecutive segments of the same skill are merged into one
 run (:meth:`~thirdhand.primitives.library.Parse.merged`), optionally runs are
 grouped into phases (:class:`~thirdhand.primitives.phases.PhaseGrouper`, learned
 on the training recordings' parses), and the result is compared with the labels
-(:mod:`~thirdhand.primitives.evaluation`): boundary precision / recall / F1
+(:mod:`~research.primitive_scores`): boundary precision / recall / F1
 within a tolerance, and frame accuracy under the best one-to-one map from
 predicted to human labels — one map per held-out recording, since each is
 parsed by its own library whose skill numbers mean nothing to another fold's
@@ -24,16 +24,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from thirdhand.io.figueroa import LabelledStream
-from thirdhand.primitives._checks import PrimitiveError
-from thirdhand.primitives.channels import stream_channels
-from thirdhand.primitives.evaluation import (
+from research.primitive_channels import stream_channels
+from research.primitive_scores import (
     BoundaryScore,
     apply_map,
     best_label_map,
     change_times,
     match_boundaries,
 )
+from thirdhand.io.figueroa import LabelledStream
+from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov
 from thirdhand.primitives.library import PrimitiveLibrary
 from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
@@ -54,7 +54,7 @@ class ParserConfig:
     Attributes
     ----------
     shape, levels : tuple of str
-        Channels (:func:`~thirdhand.primitives.channels.stream_channels`).
+        Channels (:func:`~research.primitive_channels.stream_channels`).
     arms : tuple of int or None
         Arms used (None: all).
     n_skills : int or None
@@ -97,7 +97,7 @@ class ParserConfig:
         rest" mode, reported apart from the unsupervised figures.
     zero_ft : bool
         Subtract each arm's force/torque at the start of the recording
-        (:func:`~thirdhand.primitives.channels.stream_channels`).
+        (:func:`~research.primitive_channels.stream_channels`).
     ends : bool
         Unsupervised HSMM: an entry state only at the start of a recording and an exit
         state only at its end around the ``n_skills`` states

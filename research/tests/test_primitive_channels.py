@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from thirdhand.io.figueroa import ArmTrack, LabelledStream
-from thirdhand.primitives._checks import PrimitiveError
-from thirdhand.primitives.channels import (
+from research.primitive_channels import (
     LEVEL_UNITS,
     LOG_UNIT,
     object_frame_position,
     stream_channels,
 )
+from thirdhand.io.figueroa import ArmTrack, LabelledStream
+from thirdhand.primitives._checks import PrimitiveError
 
 N = 200
 DT = 0.01
