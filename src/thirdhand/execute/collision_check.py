@@ -14,7 +14,9 @@ world frame, metres; configurations are radians.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import coal
 import numpy as np
@@ -52,22 +54,37 @@ def coal_transform(t: FloatArray) -> coal.Transform3s:
 _COVERS: dict[int, tuple[coal.CollisionGeometry, SphereCover]] = {}
 
 
+_MESH_COVERS: dict[tuple[int, int, bytes], SphereCover] = {}
+
+
 def geometry_cover(geometry: coal.CollisionGeometry) -> SphereCover:
-    """The sphere cover of a geometry in its frame, computed once per geometry object."""
+    """The sphere cover of a geometry in its frame, computed once per geometry object (per mesh)."""
     hit = _COVERS.get(id(geometry))
-    if hit is None or hit[0] is not geometry:
-        hit = _COVERS[id(geometry)] = (geometry, cover_geometry(geometry))
-    return hit[1]
+    if hit is not None and hit[0] is geometry:
+        return hit[1]
+    if isinstance(geometry, coal.BVHModelBase):  # the same mesh loaded again (another Robot)
+        verts = np.asarray(geometry.vertices(), dtype=np.float64)
+        key = (geometry.num_vertices, geometry.num_tris, hashlib.sha1(verts.tobytes()).digest())
+        cover = _MESH_COVERS.get(key)
+        if cover is None:
+            cover = _MESH_COVERS[key] = cover_geometry(geometry)
+    else:
+        cover = cover_geometry(geometry)
+    _COVERS[id(geometry)] = (geometry, cover)
+    return cover
 
 
+@lru_cache(maxsize=512)
 def _coarse_to_fine(n: int) -> NDArray[np.intp]:
-    """A permutation of ``range(n)`` by bit-reversed index: 0, n/2, n/4, 3n/4, ..."""
+    """A permutation of ``range(n)`` by bit-reversed index: 0, n/2, n/4, 3n/4, ... (read-only)."""
     bits = max(int(n - 1).bit_length(), 1)
     idx = np.arange(n)
     rev = np.zeros(n, dtype=np.int64)
     for b in range(bits):
         rev |= ((idx >> b) & 1) << (bits - 1 - b)
-    return np.argsort(rev, kind="stable").astype(np.intp)
+    out = np.argsort(rev, kind="stable").astype(np.intp)
+    out.flags.writeable = False
+    return out
 
 
 def world_aabb(
@@ -286,18 +303,26 @@ class SceneChecks:
             return self._spairs
         world = self._sphere_world()
         first, second = self._active_pairs()
-        moving = (world.frame[first] >= 0) | (world.frame[second] >= 0)
+        # two bodies no joint moves, or moved by the same joint (a grasped part and its
+        # hand's links): their distance does not depend on the configuration
+        moving = world.frame[first] != world.frame[second]
         fixed_idx = np.flatnonzero(~moving)
         bodies = self._bodies()
         dists = np.empty(len(fixed_idx))
         req = coal.DistanceRequest()
+        t_home: FloatArray | None = None
         for n, p in enumerate(fixed_idx):
             a, b = int(first[p]), int(second[p])
             d = self._fixed_dist.get((a, b))
             if d is None:
-                res = coal.DistanceResult()
-                ta, tb = self._fixed[a], self._fixed[b]
+                if world.frame[a] < 0:
+                    ta, tb = self._fixed[a], self._fixed[b]
+                else:
+                    if t_home is None:
+                        t_home = self._transforms(self.robot.home[None])[0]
+                    ta, tb = t_home[a], t_home[b]
                 assert ta is not None and tb is not None
+                res = coal.DistanceResult()
                 d = float(coal.distance(bodies[a].geometry, coal_transform(ta),
                                         bodies[b].geometry, coal_transform(tb), req, res))  # fmt: skip
                 self._fixed_dist[(a, b)] = d
@@ -355,7 +380,8 @@ class SceneChecks:
         m = self._pair_margins(max_step_m / 2.0)
         world = self._sphere_world()
         idx, pairs, fixed_idx, dists = self._sphere_pairs()
-        if np.any(dists <= np.maximum(m[fixed_idx], 0.0) + 1e-6):
+        # fixed pairs do not move relative to each other: their contact margin applies
+        if np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6):
             return False
         order = _coarse_to_fine(dense.shape[0])
         first = sc.first_flagged(world, self._chain_arrays(), dense[order], pairs, m[idx])

@@ -312,7 +312,7 @@ class Executor:
             for ch in seg.before:
                 world.apply(ch, seg.path[0])
             dense = world.scene.interpolate(seg.path)
-            ok = world.scene.valid_mask(dense)
+            ok = world.scene.valid_mask(dense, exact=True)  # coal alone: the independent verdict
             rep.n_dense += int(dense.shape[0])
             rep.n_collisions += int(np.count_nonzero(~ok))
             rep.joint_length_rad += float(np.sum(np.linalg.norm(np.diff(seg.path, axis=0), axis=1)))

@@ -142,6 +142,7 @@ def shortcut(
     rng: np.random.Generator,
     *,
     iterations: int = 100,
+    patience: int = 30,
     deadline: float = float("inf"),
     max_step_m: float = 0.01,
     max_step_rad: float = 0.02,
@@ -149,11 +150,12 @@ def shortcut(
 ) -> FloatArray:
     """Shorten a collision-free waypoint path by random shortcuts, each checked densely.
 
-    Each iteration draws two points along the path (uniform in arc length) and
-    replaces what lies between them by the straight segment if it (and the
-    remaining pieces of the two segments it cuts) is collision-free; a final
-    pass drops every vertex whose neighbours connect directly (until the
-    deadline, too).
+    A first pass drops every vertex that the vertex before it connects past
+    (greedily, farthest first). Then each iteration draws two points along the
+    path (uniform in arc length) and replaces what lies between them by the
+    straight segment if it (and the remaining pieces of the two segments it
+    cuts) is collision-free, until ``patience`` attempts in a row fail; a final
+    pass drops vertices again (until the deadline, too).
 
     Parameters
     ----------
@@ -164,7 +166,9 @@ def shortcut(
     rng : numpy.random.Generator
         Source of the shortcut endpoints.
     iterations : int
-        Shortcut attempts.
+        Shortcut attempts at most.
+    patience : int
+        Stop after this many failed attempts in a row.
     deadline : float
         ``time.perf_counter()`` value after which to stop early.
     max_step_m, max_step_rad : float
@@ -186,14 +190,31 @@ def shortcut(
             return True
         return exact and scene.check_path(seg, max_step_m=max_step_m, max_step_rad=max_step_rad)
 
+    def prune(p: FloatArray) -> FloatArray:
+        keep = [0]
+        i = 0
+        while i < len(p) - 1:
+            if time.perf_counter() > deadline:  # out of time: keep the remaining vertices
+                keep.extend(range(i + 1, len(p)))
+                break
+            j = len(p) - 1
+            while j > i + 1 and not free(p[[i, j]]):
+                j -= 1
+            keep.append(j)
+            i = j
+        return np.asarray(p[keep], dtype=np.float64)
+
+    p = prune(p)
+    misses = 0
     for _ in range(iterations):
-        if len(p) < 3 or time.perf_counter() > deadline:
+        if len(p) < 3 or misses >= patience or time.perf_counter() > deadline:
             break
         seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         a, b = np.sort(rng.uniform(0.0, cum[-1], size=2))
         ia = min(int(np.searchsorted(cum, a, side="right")) - 1, len(p) - 2)
         ib = min(int(np.searchsorted(cum, b, side="right")) - 1, len(p) - 2)
+        misses += 1
         if ia == ib:
             continue
         qa = p[ia] + (a - cum[ia]) / max(seg[ia], 1e-12) * (p[ia + 1] - p[ia])
@@ -202,18 +223,8 @@ def shortcut(
         # interpolated configurations differ from the ones checked before.
         if free(np.stack([p[ia], qa, qb, p[ib + 1]])):
             p = np.vstack([p[: ia + 1], qa, qb, p[ib + 1 :]])
-    keep = [0]
-    i = 0
-    while i < len(p) - 1:
-        if time.perf_counter() > deadline:  # out of time: keep the remaining vertices
-            keep.extend(range(i + 1, len(p)))
-            break
-        j = len(p) - 1
-        while j > i + 1 and not free(p[[i, j]]):
-            j -= 1
-        keep.append(j)
-        i = j
-    return np.asarray(p[keep], dtype=np.float64)
+            misses = 0
+    return prune(p)
 
 
 def plan_motion(

@@ -6,7 +6,7 @@ fixed to a frame — the world (tables, placed parts, the robot's base) or one o
 the arm's joints (links, and the grasped part through the tool) — except static
 boxes, kept as exact boxes. For each configuration of a batch the kernels
 compute the joint frames (forward kinematics from the pinocchio model's joint
-placements, :func:`joint_transforms`) and test every active pair of bodies
+placements, :func:`~thirdhand.execute.kinematics.joint_transforms_nb`) and test every active pair of bodies
 through a three-level hierarchy: the two bodies' bounding spheres, their groups,
 their spheres. A pair is *flagged* when some sphere of one comes within the
 pair's margin of some sphere (or the box) of the other. The covers hold every
@@ -28,7 +28,11 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.execute.kinematics import _fk, joint_transforms_nb
 from thirdhand.execute.spheres import SphereCover
+
+__all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "first_flagged", "flags", "free",
+           "joint_transforms_nb", "pack", "pair_blocks"]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -114,53 +118,6 @@ def pack(
         box_inv=box_inv,
         box_half=box_half,
     )
-
-
-@numba.njit(cache=True)
-def _fk(q: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
-        out: FloatArray) -> None:  # fmt: skip
-    """Joint frames ``out`` (dof, 4, 4) of one configuration ``q`` (dof,)."""
-    dof = q.shape[0]
-    local = np.empty((4, 4))
-    rot = np.empty((3, 3))
-    for j in range(dof):
-        x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
-        c, s = np.cos(q[j]), np.sin(q[j])
-        v = 1.0 - c
-        rot[0, 0], rot[0, 1], rot[0, 2] = c + x * x * v, x * y * v - z * s, x * z * v + y * s
-        rot[1, 0], rot[1, 1], rot[1, 2] = y * x * v + z * s, c + y * y * v, y * z * v - x * s
-        rot[2, 0], rot[2, 1], rot[2, 2] = z * x * v - y * s, z * y * v + x * s, c + z * z * v
-        pl = placements[j]
-        for a in range(3):
-            for b in range(3):
-                local[a, b] = pl[a, 0] * rot[0, b] + pl[a, 1] * rot[1, b] + pl[a, 2] * rot[2, b]
-            local[a, 3] = pl[a, 3]
-        local[3, 0] = local[3, 1] = local[3, 2] = 0.0
-        local[3, 3] = 1.0
-        p = parents[j]
-        if p < 0:
-            out[j] = local
-        else:
-            par = out[p]
-            for a in range(3):
-                for b in range(4):
-                    out[j, a, b] = (
-                        par[a, 0] * local[0, b] + par[a, 1] * local[1, b] + par[a, 2] * local[2, b]
-                    )
-                out[j, a, 3] += par[a, 3]
-            out[j, 3, 0] = out[j, 3, 1] = out[j, 3, 2] = 0.0
-            out[j, 3, 3] = 1.0
-
-
-@numba.njit(cache=True)
-def joint_transforms(qs: FloatArray, placements: FloatArray, axes: FloatArray,
-                     parents: IntArray) -> FloatArray:  # fmt: skip
-    """Joint frames ``T_world_joint`` of many configurations ``qs`` (n, dof): (n, dof, 4, 4)."""
-    n, dof = qs.shape
-    out = np.empty((n, dof, 4, 4))
-    for i in range(n):
-        _fk(qs[i], placements, axes, parents, out[i])
-    return out
 
 
 @numba.njit(cache=True, inline="always")

@@ -40,6 +40,9 @@ IntArray = NDArray[np.intp]
 #: Added to every radius: float round-off of the transforms, metres.
 PAD = 1e-6
 
+#: About how many spheres a mesh's cover may have (the cell grows for larger meshes).
+MAX_MESH_SPHERES = 1500
+
 
 @dataclass(frozen=True)
 class SphereCover:
@@ -198,7 +201,12 @@ def cover_geometry(
     elif isinstance(geometry, coal.Box):
         s = box_spheres(np.asarray(geometry.halfSide, dtype=np.float64), cell)
     elif isinstance(geometry, coal.BVHModelBase):
-        s = triangle_spheres(mesh_triangles(geometry), cell)
+        tri = mesh_triangles(geometry)
+        area = 0.5 * np.linalg.norm(
+            np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1
+        ).sum()
+        # at most about MAX_MESH_SPHERES spheres: a large mesh (Baxter's pedestal) gets larger ones
+        s = triangle_spheres(tri, max(cell, float(np.sqrt(area / MAX_MESH_SPHERES))))
     else:
         geometry.computeLocalAABB()
         lo = np.asarray(geometry.aabb_local.min_, dtype=np.float64)
