@@ -26,8 +26,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-
-
 MESHES = Path(os.environ.get("THIRDHAND_DATA", Path(__file__).parents[2] / "shared" / "data"))
 MESHES = MESHES / "3rdhand" / "meshes"
 
@@ -120,7 +118,6 @@ def main() -> None:
     ):
         print(f"  {label:75s} {v / steps:7.3f} s/step  {v / wall:6.1%}")
     print(f"  per-seed wall: {', '.join(f'{r[0]}: {r[3]:.2f} s' for r in rows)}")
-
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""The sphere layer: covers hold their geometry, FK matches pinocchio, the verdict is conservative."""
+"""The sphere layer: covers hold their geometry, FK matches pinocchio, verdicts are conservative."""
 
 from __future__ import annotations
 
@@ -128,8 +128,10 @@ def _world(robot: Robot, table_z: float, x0: float) -> CollisionScene:
     scene = CollisionScene(robot)
     scene.add_table(height=table_z, center=(x0 + 0.6, 0.0), size=(1.2, 1.6))
     scene.add_box("post", ([x0 + 0.45, 0.2, table_z + 0.15], [0, 0, 0, 1]), (0.05, 0.05, 0.3))
-    scene._add("tube", _ring_mesh(), np.array([[0, 0, 1, x0 + 0.4], [0, 1, 0, -0.25],
-                                               [-1, 0, 0, table_z + 0.04], [0, 0, 0, 1.0]]))  # fmt: skip
+    t_tube = np.array(
+        [[0, 0, 1, x0 + 0.4], [0, 1, 0, -0.25], [-1, 0, 0, table_z + 0.04], [0, 0, 0, 1.0]]
+    )
+    scene._add("tube", _ring_mesh(), t_tube)
     scene.add_object("held", ([x0 + 0.5, 0.0, table_z + 0.3], [0, 0, 0, 1]), size=(0.04, 0.04, 0.2))
     q = robot.ik(([x0 + 0.5, 0.0, table_z + 0.3], [1.0, 0, 0, 0]), seed=0)
     assert q is not None

@@ -130,7 +130,7 @@ class SceneChecks:
     # -- pairs ------------------------------------------------------------------------
 
     def _invalidate(self, *, bodies: bool = True) -> None:
-        """Forget the cached pairs and margins (and, if ``bodies`` changed, lever arms and spheres)."""
+        """Forget the cached pairs and margins (and, with ``bodies``, lever arms and spheres)."""
         self._pairs = None
         self._spairs = None
         self._margin_cache = {}
@@ -204,7 +204,7 @@ class SceneChecks:
         return [reqs[k] for k in inverse.reshape(-1)]
 
     def _pair_margins(self, clearance: float = 0.0) -> FloatArray:
-        """Security margin of every active pair, metres, shape (P,) (cached until the world changes).
+        """Security margin of every active pair, metres, shape (P,) (cached till the world changes).
 
         Without clearance, the contact margin. With it, pairs with one moving body
         need ``clearance`` and pairs of two moving bodies twice that.
@@ -246,7 +246,7 @@ class SceneChecks:
         if chain.parents[j] >= 0:
             return None
         axis = chain.axes[j]
-        on_axis = np.linalg.norm(np.cross(axis, link.transform[:3, 3])) < 1e-9
+        on_axis = bool(np.linalg.norm(np.cross(axis, link.transform[:3, 3])) < 1e-9)
         geom = link.geometry
         if isinstance(geom, coal.Sphere):
             symmetric = on_axis
@@ -323,8 +323,8 @@ class SceneChecks:
                     ta, tb = t_home[a], t_home[b]
                 assert ta is not None and tb is not None
                 res = coal.DistanceResult()
-                d = float(coal.distance(bodies[a].geometry, coal_transform(ta),
-                                        bodies[b].geometry, coal_transform(tb), req, res))  # fmt: skip
+                ga, gb = bodies[a].geometry, bodies[b].geometry
+                d = float(coal.distance(ga, coal_transform(ta), gb, coal_transform(tb), req, res))
                 self._fixed_dist[(a, b)] = d
             dists[n] = d
         idx = np.flatnonzero(moving)

@@ -100,7 +100,7 @@ class Chain:
             ``T_world_joint`` after the joint's rotation.
         """
         qa = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, self.dof)
-        return joint_transforms_nb(  # type: ignore[no-any-return]
+        return joint_transforms_nb(
             qa, self.placements, self.axes, self.parents.astype(np.int64)
         )
 
@@ -272,12 +272,15 @@ def _solve_ik_nb(placements: FloatArray, axes: FloatArray, parents: IntArray, to
                     for a in range(6):
                         jac[a, j] = 0.0
                     continue
-                ax = t[j, :3, :3] @ axes[j]
-                d = tool[:3, 3] - t[j, :3, 3]
-                jac[0, j] = ax[1] * d[2] - ax[2] * d[1]
-                jac[1, j] = ax[2] * d[0] - ax[0] * d[2]
-                jac[2, j] = ax[0] * d[1] - ax[1] * d[0]
-                jac[3, j], jac[4, j], jac[5, j] = ax[0], ax[1], ax[2]
+                tj = t[j]
+                a0 = tj[0, 0] * axes[j, 0] + tj[0, 1] * axes[j, 1] + tj[0, 2] * axes[j, 2]
+                a1 = tj[1, 0] * axes[j, 0] + tj[1, 1] * axes[j, 1] + tj[1, 2] * axes[j, 2]
+                a2 = tj[2, 0] * axes[j, 0] + tj[2, 1] * axes[j, 1] + tj[2, 2] * axes[j, 2]
+                d0, d1, d2 = tool[0, 3] - tj[0, 3], tool[1, 3] - tj[1, 3], tool[2, 3] - tj[2, 3]
+                jac[0, j] = a1 * d2 - a2 * d1
+                jac[1, j] = a2 * d0 - a0 * d2
+                jac[2, j] = a0 * d1 - a1 * d0
+                jac[3, j], jac[4, j], jac[5, j] = a0, a1, a2
             jjt = jac @ jac.T + damping**2 * np.eye(6)
             dq = jac.T @ np.linalg.solve(jjt, err)
             big = np.max(np.abs(dq))
@@ -355,9 +358,7 @@ def solve_ik(
     """
     q_start = np.ascontiguousarray(q0, dtype=np.float64)
     n = q_start.shape[0]
-    tgt = np.ascontiguousarray(
-        np.broadcast_to(np.asarray(target, dtype=np.float64), (n, 4, 4))
-    )
+    tgt = np.ascontiguousarray(np.broadcast_to(np.asarray(target, dtype=np.float64), (n, 4, 4)))
     q = np.empty_like(q_start)
     converged = np.zeros(n, dtype=bool)
     _solve_ik_nb(

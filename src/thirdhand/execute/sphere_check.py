@@ -6,7 +6,8 @@ fixed to a frame — the world (tables, placed parts, the robot's base) or one o
 the arm's joints (links, and the grasped part through the tool) — except static
 boxes, kept as exact boxes. For each configuration of a batch the kernels
 compute the joint frames (forward kinematics from the pinocchio model's joint
-placements, :func:`~thirdhand.execute.kinematics.joint_transforms_nb`) and test every active pair of bodies
+placements, :func:`~thirdhand.execute.kinematics.joint_transforms_nb`) and test every active
+pair of bodies
 through a three-level hierarchy: the two bodies' bounding spheres, their groups,
 their spheres. A pair is *flagged* when some sphere of one comes within the
 pair's margin of some sphere (or the box) of the other. The covers hold every
@@ -44,7 +45,7 @@ BOX = 1
 
 @dataclass(frozen=True)
 class ChainArrays:
-    """The arm's kinematic chain as arrays for the kernels (see :class:`~thirdhand.execute.kinematics.Chain`)."""
+    """The arm's kinematic chain as arrays for the kernels (:class:`.kinematics.Chain`)."""
 
     placements: FloatArray  # (dof, 4, 4) T_parent_joint at zero angle
     axes: FloatArray  # (dof, 3) unit axis in the joint frame

@@ -67,7 +67,7 @@ class SphereCover:
 
 
 def enclosing(spheres: FloatArray) -> FloatArray:
-    """A sphere (4,) enclosing every sphere of ``spheres`` (n, 4): centre of their box, max reach."""
+    """A sphere (4,) enclosing all of ``spheres`` (n, 4): centre of their box, largest reach."""
     lo = np.min(spheres[:, :3] - spheres[:, 3:], axis=0)
     hi = np.max(spheres[:, :3] + spheres[:, 3:], axis=0)
     c = (lo + hi) / 2.0
@@ -132,7 +132,7 @@ def triangle_spheres(triangles: FloatArray, cell: float) -> FloatArray:
 
 
 def _enclosing_runs(balls: FloatArray, starts: IntArray) -> FloatArray:
-    """:func:`enclosing` of each run ``balls[starts[i]:starts[i + 1]]``, shape (len(starts) - 1, 4)."""
+    """:func:`enclosing` of each run ``balls[starts[i]:starts[i + 1]]``, shape (runs, 4)."""
     s0 = starts[:-1]
     lo = np.minimum.reduceat(balls[:, :3] - balls[:, 3:], s0, axis=0)
     hi = np.maximum.reduceat(balls[:, :3] + balls[:, 3:], s0, axis=0)
@@ -202,9 +202,10 @@ def cover_geometry(
         s = box_spheres(np.asarray(geometry.halfSide, dtype=np.float64), cell)
     elif isinstance(geometry, coal.BVHModelBase):
         tri = mesh_triangles(geometry)
-        area = 0.5 * np.linalg.norm(
-            np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1
-        ).sum()
+        area = (
+            0.5
+            * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1).sum()
+        )
         # at most about MAX_MESH_SPHERES spheres: a large mesh (Baxter's pedestal) gets larger ones
         s = triangle_spheres(tri, max(cell, float(np.sqrt(area / MAX_MESH_SPHERES))))
     else:
