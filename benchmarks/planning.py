@@ -117,8 +117,11 @@ def bench_planning(robot: Robot, n_queries: int, time_limit: float) -> None:
             if done >= n_queries:
                 break
             for planner in PEERS:
+                # before: OMPL over the checks as they were (bounding boxes, then coal)
+                scene.use_spheres = planner == "rrtconnect"
                 res = plan_motion(robot, scene, qa, qb, seed=seed, time_limit=time_limit,
                                   planner=planner)  # fmt: skip
+                scene.use_spheres = True
                 r = rows[planner]
                 bad = 0
                 if res.success and res.path is not None:

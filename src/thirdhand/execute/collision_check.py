@@ -105,6 +105,7 @@ class SceneChecks:
 
     robot: Robot
     tolerance: float
+    use_spheres: bool
     n_checks: int
     n_narrow: int
     _requests: dict[float, coal.CollisionRequest]
@@ -373,6 +374,8 @@ class SceneChecks:
         compiled call over the densely interpolated path, coarse to fine, stopping
         at the first flagged configuration.
         """
+        if not self.use_spheres:
+            return False
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
         dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
         if not np.all((dense >= self.robot.lower - 1e-9) & (dense <= self.robot.upper + 1e-9)):
@@ -442,7 +445,7 @@ class SceneChecks:
 
     def _candidates(self, qa: FloatArray, margins: FloatArray, exact: bool) -> BoolArray:
         """Pairs coal must decide per configuration (n, P): sphere flags, or overlapping boxes."""
-        if not exact:
+        if not exact and self.use_spheres:
             return self.sphere_flags(qa, margins)
         first, second = self._active_pairs()
         bodies = self._bodies()
@@ -527,7 +530,10 @@ class SceneChecks:
         """Which active pairs collide at ``q`` (dof,) under ``margins`` (P,)."""
         first, second = self._active_pairs()
         bodies = self._bodies()
-        candidates = self.sphere_flags(q[None], margins)[0]
+        if self.use_spheres:
+            candidates = self.sphere_flags(q[None], margins)[0]
+        else:
+            candidates = self._candidates(q[None], margins, True)[0]
         hits = np.zeros(len(first), dtype=bool)
         if not np.any(candidates):
             return hits
@@ -657,7 +663,7 @@ class SceneChecks:
         margins = self._pair_margins()
         if clearance and len(qa) > 1:
             wide = self._pair_margins(max_step_m / 2.0)
-            if np.any(self.sphere_flags(qa[[0, -1]], wide)):
+            if not self.use_spheres or np.any(self.sphere_flags(qa[[0, -1]], wide)):
                 if not np.all(self._check(qa[[0, -1]], margins, False)):
                     return False
                 near = self._pair_hits(qa[0], wide) | self._pair_hits(qa[-1], wide)
@@ -667,7 +673,7 @@ class SceneChecks:
         dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
         # the common case in one compiled call: the spheres clear every configuration
         within = np.all((dense >= self.robot.lower - 1e-9) & (dense <= self.robot.upper + 1e-9))
-        if within and np.all(self.sphere_free_mask(dense, margins)):
+        if within and self.use_spheres and np.all(self.sphere_free_mask(dense, margins)):
             self.n_checks += dense.shape[0]
             return True
         # coarse to fine (bit-reversed order): a colliding stretch is hit after few checks

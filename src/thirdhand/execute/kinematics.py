@@ -100,9 +100,7 @@ class Chain:
             ``T_world_joint`` after the joint's rotation.
         """
         qa = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, self.dof)
-        return joint_transforms_nb(
-            qa, self.placements, self.axes, self.parents.astype(np.int64)
-        )
+        return joint_transforms_nb(qa, self.placements, self.axes, self.parents.astype(np.int64))
 
     def jacobian(self, t_joints: FloatArray, point: FloatArray, ancestors: BoolArray) -> FloatArray:
         """World-frame Jacobian of a point fixed to a joint's frame.

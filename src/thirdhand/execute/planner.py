@@ -142,7 +142,7 @@ def shortcut(
     rng: np.random.Generator,
     *,
     iterations: int = 100,
-    patience: int = 30,
+    patience: int = 10,
     deadline: float = float("inf"),
     max_step_m: float = 0.01,
     max_step_rad: float = 0.02,

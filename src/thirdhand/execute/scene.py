@@ -63,6 +63,10 @@ class CollisionScene(SceneChecks):
         The arm; its links and SRDF filters are taken from ``robot.geometry``.
     tolerance : float
         Penetration depth, metres, below which two bodies only touch.
+    spheres : bool
+        Use the sphere layer (:mod:`~thirdhand.execute.sphere_check`) as the broad
+        phase and for path checks; False checks as before it (bounding boxes, then
+        coal), with the same verdicts, slower. :attr:`use_spheres` may be switched.
 
     Attributes
     ----------
@@ -74,9 +78,10 @@ class CollisionScene(SceneChecks):
         Exact (coal) pair tests so far.
     """
 
-    def __init__(self, robot: Robot, *, tolerance: float = 1e-3) -> None:
+    def __init__(self, robot: Robot, *, tolerance: float = 1e-3, spheres: bool = True) -> None:
         self.robot = robot
         self.tolerance = float(tolerance)
+        self.use_spheres = bool(spheres)
         self.n_checks = 0
         self.n_narrow = 0
         self._requests: dict[float, coal.CollisionRequest] = {}
