@@ -33,7 +33,7 @@ from thirdhand.execute.kinematics import _fk, joint_transforms_nb
 from thirdhand.execute.spheres import SphereCover
 
 __all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "first_flagged", "flags", "free",
-           "joint_transforms_nb", "pack", "pair_blocks"]  # fmt: skip
+           "joint_transforms_nb", "pack", "pair_blocks", "warm_up"]  # fmt: skip
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -345,3 +345,26 @@ def _call(world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBl
                  world.box_inv, world.box_half, blocks.clusters, blocks.cluster_frame,
                  blocks.pairs, m, blocks.blocks, bm, stop, wc, wb, wg, ws, stamp, out)  # fmt: skip
     return out, int(first)
+
+
+def warm_up() -> None:
+    """Compile (or load from the cache) every kernel on a tiny world, before any deadline runs.
+
+    The first call in a process on a fresh checkout compiles for seconds to a minute (2-core
+    machine); later processes load the compiled code from ``__pycache__``.
+    """
+    from thirdhand.execute.kinematics import Chain, solve_ik
+    from thirdhand.execute.spheres import group_cover
+
+    chain = Chain(np.eye(4)[None], np.array([[0.0, 0.0, 1.0]]), np.array([-1], dtype=np.intp))
+    arrays = ChainArrays(chain.placements, chain.axes, chain.parents.astype(np.int64))
+    cover = group_cover(np.array([[0.1, 0.0, 0.0, 0.05]]), 0.06)
+    world = pack([cover, None], [0, -1], {1: (np.eye(4), np.array([0.1, 0.1, 0.1]))})
+    blocks = pair_blocks(world, np.array([[0, 1]]))
+    qs = np.zeros((2, 1))
+    margins = np.zeros(1)
+    flags(world, arrays, qs, blocks, margins)
+    free(world, arrays, qs, blocks, margins)
+    first_flagged(world, arrays, qs, blocks, margins)
+    joint_transforms_nb(qs, arrays.placements, arrays.axes, arrays.parents)
+    solve_ik(chain, 0, np.eye(4), np.eye(4), qs, np.array([-1.0]), np.array([1.0]))
