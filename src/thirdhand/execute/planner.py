@@ -185,10 +185,13 @@ def shortcut(
     p = np.array(path, dtype=np.float64)
 
     def free(seg: FloatArray) -> bool:
-        # a shortcut the spheres cannot clear is dropped unless coal clears it (``exact``)
+        # a shortcut the spheres cannot clear is dropped unless coal clears it (``exact``, or a
+        # scene without the sphere layer)
         if scene.path_free_spheres(seg, max_step_m=max_step_m, max_step_rad=max_step_rad):
             return True
-        return exact and scene.check_path(seg, max_step_m=max_step_m, max_step_rad=max_step_rad)
+        return (exact or not scene.use_spheres) and scene.check_path(
+            seg, max_step_m=max_step_m, max_step_rad=max_step_rad
+        )
 
     def prune(p: FloatArray) -> FloatArray:
         keep = [0]
@@ -416,8 +419,10 @@ def rrt_connect(
         if scene.path_free_spheres(seg, max_step_m=max_step_m, max_step_rad=max_step_rad):
             return True
         # near the start and the goals (a hand at its grasp, a part at its goal) the
-        # spheres are too coarse: coal decides there
-        return root and scene.check_path(seg, max_step_m=max_step_m, max_step_rad=max_step_rad)
+        # spheres are too coarse: coal decides there (and everywhere without them)
+        return (root or not scene.use_spheres) and scene.check_path(
+            seg, max_step_m=max_step_m, max_step_rad=max_step_rad
+        )
 
     def extend(tree: _Tree, q: FloatArray) -> tuple[int, int]:
         """(status, node): 0 trapped, 1 advanced, 2 reached ``q``."""
