@@ -1,16 +1,22 @@
 """Motion planning per query, and collision checks per second against pinocchio's own loop.
 
-Planning: seeded pick/place-like queries for a Panda mounted on the table
+Planning: ours (RRT-Connect over the sphere layer, ``planner="rrtconnect"``) and the
+planner before it (OMPL's RRT-Connect over the exact checks, ``"ompl_rrtconnect"``) on
+the same seeded pick/place-like queries for a Panda mounted on the table
 (top at z = 0.75 m): four chair legs lying on both sides of a 40 cm high
 screen and a seat next to the robot (the real 3rdHand meshes, or boxes of the
 same size when the data folder is absent); each query goes from 12 cm above
 one leg to 12 cm above the next one, across the screen, tool pointing down with
-a random turn of the hand. Prints the median planning time, the success rate
-and the median number of collision checks per query.
+a random turn of the hand. Prints, per planner, the median planning time, the success
+rate, the median number of collision checks per query, checks per second, the median
+path length and the configurations in collision by coal's exact dense check of the
+path; the first "planning time median" line is ours.
 
-Collision checks: the same random configurations of that world checked by
-``CollisionScene.valid_mask`` (batched bounding boxes in numpy, coal's narrow
-phase on the overlapping pairs) and by ``pinocchio.computeCollisions`` over a
+Collision checks: the same random configurations of that world checked by the
+sphere layer alone (``CollisionScene.sphere_free_mask``: conservative, numba), by
+``CollisionScene.valid_mask`` (the spheres as broad phase, coal's narrow phase on
+the pairs they cannot clear), by ``valid_mask(exact=True)`` (bounding boxes and coal,
+the check before this layer) and by ``pinocchio.computeCollisions`` over a
 ``GeometryModel`` holding exactly the same bodies and pairs
 (``CollisionScene.to_pinocchio``), stopping at the first collision, in one run;
 prints both rates, their ratio, and that the verdicts agree.
@@ -19,8 +25,8 @@ Steps: the synthetic chair's ground-truth task executed offline (Panda, start la
 of ``--step-seeds``), the median and mean planning time per step (grasp × goal search,
 IK, planning) and the median executed path length per step.
 
-VAMP (``vamp-planner``), the peer the issue names, is reported first: when it
-cannot be imported the script says why instead of timing it (see
+VAMP (``vamp-planner``) and mplib, the peers the issue names, are reported first: when
+they cannot be imported the script says why instead of timing them (see
 ``docs/execution.md``, "VAMP").
 
 Usage: ``python benchmarks/planning.py [--queries 20] [--configs 2000] [--time-limit 5]
@@ -44,6 +50,10 @@ from thirdhand.execute import CollisionScene, Robot, plan_motion
 MESHES = Path(os.environ.get("THIRDHAND_DATA", Path(__file__).parents[2] / "shared" / "data"))
 MESHES = MESHES / "3rdhand" / "meshes"
 TABLE_Z = 0.75
+PEERS = {
+    "rrtconnect": "thirdhand RRT-Connect over the sphere layer (ours)",
+    "ompl_rrtconnect": "OMPL RRT-Connect over the exact checks (before)",
+}
 DOWN = np.array([1.0, 0.0, 0.0, 0.0])
 
 
@@ -96,7 +106,9 @@ def queries(
 
 
 def bench_planning(robot: Robot, n_queries: int, time_limit: float) -> None:
-    times, checks, ok, statuses = [], [], 0, {}
+    """Ours (RRT-Connect over the sphere layer) and today's (OMPL's) on the same queries."""
+    rows: dict[str, dict[str, list[float]]] = {p: {} for p in PEERS}
+    statuses: dict[str, dict[str, int]] = {p: {} for p in PEERS}
     seed = 0
     done = 0
     while done < n_queries:
@@ -104,36 +116,70 @@ def bench_planning(robot: Robot, n_queries: int, time_limit: float) -> None:
         for qa, qb in queries(robot, scene, spots, np.random.default_rng(seed)):
             if done >= n_queries:
                 break
-            res = plan_motion(robot, scene, qa, qb, seed=seed, time_limit=time_limit)
-            times.append(res.planning_time_s)
-            checks.append(res.n_checks)
-            ok += res.success
-            statuses[res.status.split(":")[0]] = statuses.get(res.status.split(":")[0], 0) + 1
+            for planner in PEERS:
+                # before: OMPL over the checks as they were (bounding boxes, then coal)
+                scene.use_spheres = planner == "rrtconnect"
+                res = plan_motion(robot, scene, qa, qb, seed=seed, time_limit=time_limit,
+                                  planner=planner)  # fmt: skip
+                scene.use_spheres = True
+                r = rows[planner]
+                bad = 0
+                if res.success and res.path is not None:
+                    # the exact dense check: coal alone, twice the planner's density
+                    dense = scene.interpolate(res.path, max_step_m=0.005, max_step_rad=0.01)
+                    bad = int(np.count_nonzero(~scene.valid_mask(dense, exact=True)))
+                    r.setdefault("length", []).append(res.joint_length_rad)
+                r.setdefault("time", []).append(res.planning_time_s)
+                r.setdefault("checks", []).append(res.n_checks)
+                r.setdefault("ok", []).append(float(res.success))
+                r.setdefault("bad", []).append(bad)
+                key = res.status.split(":")[0]
+                statuses[planner][key] = statuses[planner].get(key, 0) + 1
             done += 1
         seed += 1
-    t = np.array(times)
     print(
         f"planning: {done} queries, Panda, table + screen + 4 legs + seat, RRT-Connect, "
         f"{time_limit} s limit"
     )
-    print(f"  success {ok}/{done}   outcomes {statuses}")
-    print(
-        f"  planning time median {np.median(t) * 1e3:.0f} ms   "
-        f"p90 {np.percentile(t, 90) * 1e3:.0f} ms   max {t.max() * 1e3:.0f} ms"
-    )
-    print(f"  collision checks per query median {int(np.median(checks))}")
+    for planner, label in PEERS.items():
+        r = rows[planner]
+        t = np.array(r["time"])
+        rate = np.sum(r["checks"]) / np.sum(t)
+        length = np.median(r["length"]) if r.get("length") else float("nan")
+        head = "" if planner == "rrtconnect" else "OMPL "
+        print(f"  {label}")
+        print(f"    success {int(sum(r['ok']))}/{done}   outcomes {statuses[planner]}")
+        print(
+            f"    {head}planning time median {np.median(t) * 1e3:.0f} ms   "
+            f"p90 {np.percentile(t, 90) * 1e3:.0f} ms   max {t.max() * 1e3:.0f} ms"
+        )
+        print(
+            f"    collision checks per query median {int(np.median(r['checks']))}   "
+            f"{rate:.0f} checks/s   path median {length:.2f} rad   "
+            f"configurations in collision (exact dense check) {int(sum(r['bad']))}"
+        )
+    t_new = np.median(rows["rrtconnect"]["time"])
+    t_old = np.median(rows["ompl_rrtconnect"]["time"])
+    print(f"  ratio OMPL / ours (median query time) {t_old / t_new:.1f}")
 
 
 def bench_checks(robot: Robot, n_configs: int) -> None:
     scene, _ = build_world(robot, 0)
     qs = robot.random_q(np.random.default_rng(1), n_configs)
     gm, gd = scene.to_pinocchio()
-    ours_best = peer_best = np.inf
+    best = {"spheres": np.inf, "ours": np.inf, "exact": np.inf, "peer": np.inf}
     single_best = np.inf
+    scene.sphere_free_mask(qs[:10])  # compile (or load the compiled kernels)
     for _ in range(3):
         t0 = time.perf_counter()
+        free = scene.sphere_free_mask(qs)
+        best["spheres"] = min(best["spheres"], time.perf_counter() - t0)
+        t0 = time.perf_counter()
         ours = scene.valid_mask(qs)
-        ours_best = min(ours_best, time.perf_counter() - t0)
+        best["ours"] = min(best["ours"], time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        exact = scene.valid_mask(qs, exact=True)
+        best["exact"] = min(best["exact"], time.perf_counter() - t0)
         t0 = time.perf_counter()
         for q in qs[: n_configs // 4]:
             scene.is_valid(q)
@@ -142,17 +188,23 @@ def bench_checks(robot: Robot, n_configs: int) -> None:
         peer = np.array(
             [not pin.computeCollisions(robot.model, robot.data, gm, gd, q, True) for q in qs]
         )
-        peer_best = min(peer_best, time.perf_counter() - t0)
+        best["peer"] = min(best["peer"], time.perf_counter() - t0)
     n_pairs = len(gm.collisionPairs)
     print(
         f"collision checks: {n_configs} random configurations, {n_pairs} active pairs, "
         f"{ours.mean():.0%} valid, verdicts agree on {np.mean(ours == peer):.1%}"
     )
-    r_ours, r_peer = n_configs / ours_best, n_configs / peer_best
-    print(f"  thirdhand valid_mask (batched)      {r_ours:10.0f} checks/s")
+    rate = {k: n_configs / v for k, v in best.items()}
+    print(
+        f"  sphere layer alone (batched, numba)  {rate['spheres']:10.0f} checks/s   "
+        f"{free.mean():.0%} proven free, {int(np.sum(free & ~exact))} of them in collision"
+    )
+    print(f"  thirdhand valid_mask (batched)      {rate['ours']:10.0f} checks/s")
+    print(f"  bounding boxes + coal (before)      {rate['exact']:10.0f} checks/s")
     print(f"  thirdhand is_valid (one at a time)  {1.0 / single_best:10.0f} checks/s")
-    print(f"  pinocchio computeCollisions loop    {r_peer:10.0f} checks/s")
-    print(f"  ratio thirdhand batched / pinocchio {r_ours / r_peer:.2f}")
+    print(f"  pinocchio computeCollisions loop    {rate['peer']:10.0f} checks/s")
+    print(f"  ratio thirdhand batched / pinocchio {rate['ours'] / rate['peer']:.2f}")
+    print(f"  ratio sphere layer / pinocchio      {rate['spheres'] / rate['peer']:.1f}")
 
 
 def bench_steps(scene: str, seeds: list[int]) -> None:
@@ -196,6 +248,18 @@ def vamp_status() -> str:
     )
 
 
+def mplib_status() -> str:
+    """One line: whether mplib can be benchmarked here, and if not, why."""
+    import importlib.util
+
+    if importlib.util.find_spec("mplib") is not None:
+        return "mplib: importable, but not benchmarked (its world is not built from ours yet)"
+    return (
+        f"mplib: not installed; mplib 0.2.1 has a cp311 wheel but requires numpy < 2.0 "
+        f"(here numpy {np.__version__}); OMPL 2.0.1 is the 'before' planner below"
+    )
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--queries", type=int, default=20)
@@ -206,6 +270,7 @@ def main() -> None:
     args = parser.parse_args()
     robot = Robot.load("panda", base_pose=([0.0, 0.0, TABLE_Z], [0.0, 0.0, 0.0, 1.0]))
     print(vamp_status())
+    print(mplib_status())
     print(f"meshes: {'real STL' if (MESHES / 'chair_leg.stl').is_file() else 'boxes (no data)'}")
     if args.configs > 0:
         bench_checks(robot, args.configs)

@@ -108,7 +108,7 @@ def test_two_base_parts_are_refused(capsys, tmp_path, bench_doc) -> None:
 
 def test_unknown_placement_is_refused(capsys, tmp_path, bench_doc) -> None:
     rc, _, err = _run(capsys, tmp_path, bench_doc, "--placement", "best")
-    assert rc == 1 and "--placement best: expected one of geometry, reach" in _one_line(err)
+    assert rc == 1 and "--placement best: expected one of auto, geometry, reach" in _one_line(err)
 
 
 def test_negative_start_grasps_is_refused(capsys, tmp_path, bench_doc) -> None:

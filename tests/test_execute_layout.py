@@ -216,3 +216,34 @@ def test_thin_board_is_placed_with_a_generic_grasp() -> None:
     result = ex.run_offline(seed=1)
     assert result.success and result.n_collisions == 0
     assert [s.grasp_source for s in result.steps] == ["shape"]
+
+
+@pytest.mark.slow
+def test_automatic_placement_falls_back_to_reach_only_when_a_part_reaches_no_goal() -> None:
+    # Issue 35: at the default spot every child reaches a goal (nothing changes); with the
+    # chair built out at (0.78, 0.25) two legs reach no goal at the geometric placement, so
+    # the base is stood by reach (here no candidate does better: the geometric one stays) and
+    # the start spots kept within reach, and the events say so.
+    from thirdhand.execute.executor import ExecutionOptions, Executor
+    from thirdhand.execute.placement import choose_placement
+    from thirdhand.execute.robot import Robot
+    from thirdhand.synth import make_scene
+    from thirdhand.synth.task import truth_task
+
+    task = truth_task(make_scene("chair", seed=0))
+    assert ExecutionOptions().placement == "auto"
+    near = Executor.for_task(task, "panda", seed=0)
+    assert near.notes == []
+    np.testing.assert_array_equal(near.cell.base_pose, make_workcell(task, "panda").base_pose)
+    xy = (0.78, 0.25)
+    far = Executor.for_task(task, "panda", seed=0, assembly_xy=xy)
+    assert len(far.notes) == 1 and far.notes[0].startswith("placement: leg2, leg3 reached no goal")
+    cell = make_workcell(task, "panda", assembly_xy=xy)
+    arm = Robot.load("panda", base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0])))
+    chosen, _ = choose_placement(arm, task, cell, xy, seed=0)
+    np.testing.assert_array_equal(far.cell.base_pose, chosen.base_pose)
+    geometric = Executor.for_task(
+        task, "panda", seed=0, assembly_xy=xy, options=ExecutionOptions(placement="geometry")
+    )
+    assert geometric.notes == []
+    np.testing.assert_array_equal(geometric.cell.base_pose, cell.base_pose)

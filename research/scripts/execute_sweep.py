@@ -2,7 +2,7 @@
 
 Usage: ``python research/scripts/execute_sweep.py [--scene chair --scene bench] [--seeds 1-12]
 [--robot panda --robot baxter] [--meshes DIR] [--boxes] [--step-time 30]
-[--placement geometry|reach]``.
+[--placement auto|geometry|reach]``.
 
 Each run learns the task from the synthetic demonstration of ``scene`` with that seed
 (:func:`thirdhand.plan.learn.learn`, one demonstration), lays the parts out with the
@@ -39,7 +39,7 @@ def main() -> None:
     ap.add_argument("--boxes", action="store_true", help="Also run with bounding boxes only.")
     ap.add_argument("--step-time", type=float, default=30.0)
     ap.add_argument("--plan-time", type=float, default=3.0)
-    ap.add_argument("--placement", choices=["geometry", "reach"], default="geometry")
+    ap.add_argument("--placement", choices=["auto", "geometry", "reach"], default="auto")
     ap.add_argument("--start-grasps", type=int, default=0)
     args = ap.parse_args()
     kinds = []
@@ -66,6 +66,7 @@ def main() -> None:
                     times = [r.planning_time_s for r in res.steps]
                     fail = next((r for r in res.steps if not r.success), None)
                     why = "" if fail is None else f"  {fail.child}→{fail.constraint}: {fail.status}"
+                    why += f"  [{'; '.join(ex.notes)}]" if ex.notes else ""
                     print(f"{scene} seed {seed:2d} {robot} {kind}: {done}/{len(res.steps)} steps, "
                           f"{res.n_collisions} collisions, {time.perf_counter() - t0:5.1f} s{why}",
                           flush=True)  # fmt: skip

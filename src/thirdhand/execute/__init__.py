@@ -14,15 +14,17 @@ the world frame, metres and radians)::
     robot.ik_batch(targets (n, 4, 4), q_seeds (n, dof), *, options=None) -> (q (n, dof), ok (n,))
     robot.random_q(rng, n=None);  robot.within_limits(q);  robot.frame_pose(q, frame)
 
-    scene = CollisionScene(robot, *, tolerance=1e-3)
+    scene = CollisionScene(robot, *, tolerance=1e-3, spheres=True)
     scene.add_table(*, height=0.75, size=(2.0, 1.6), center=(0, 0), thickness=0.05, name="table")
     scene.add_box(name, pose, size)
     scene.add_object(name, pose, *, mesh_path=None, size=None, scale=1e-3, box_center=(0, 0, 0))
     scene.set_object_pose(name, pose);  scene.object_pose(name, q=None);  scene.remove_object(name)
     scene.attach(name, q);  scene.detach(name, q);  scene.attached -> str | None
     scene.allow(a, b);  scene.disallow(a, b)      # names, or the groups "gripper" / "robot"
-    scene.is_valid(q) -> bool;  scene.valid_mask(qs) -> (n,) bool;  scene.collisions(q)
+    scene.is_valid(q) -> bool;  scene.valid_mask(qs, *, exact=False) -> (n,) bool
+    scene.collisions(q) -> [(a, b), ...]
     scene.check_path(qs, *, max_step_m=0.01, max_step_rad=0.02, clearance=True) -> bool
+    scene.sphere_free_mask(qs) -> (n,) bool;  scene.path_free_spheres(qs) -> bool  # conservative
     scene.interpolate(qs, ...) -> dense qs;  scene.n_checks;  scene.reset_counter()
 
     plan_motion(robot, scene, q_start, q_goal | goal_set (k, dof), *, planner="rrtconnect",

@@ -69,10 +69,11 @@ def execute_command(
     placement: Annotated[
         str,
         typer.Option(
-            help="How the base stands: geometry (lowest, nearest) or reach (of the first "
-            "geometric candidates, the one whose goals the arm reaches best)."
+            help="How the base stands: geometry (lowest, nearest), reach (of the first "
+            "geometric candidates, the one whose goals the arm reaches best) or auto "
+            "(geometry unless a part reaches no goal there, then reach)."
         ),
-    ] = "geometry",
+    ] = "auto",
     start_grasps: Annotated[
         int,
         typer.Option(

@@ -14,13 +14,17 @@ world frame, metres; configurations are radians.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import coal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from thirdhand.execute import sphere_check as sc
 from thirdhand.execute.robot import Robot
+from thirdhand.execute.spheres import SphereCover, cover_geometry, transform_cover
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -47,14 +51,40 @@ def coal_transform(t: FloatArray) -> coal.Transform3s:
     return coal.Transform3s(np.ascontiguousarray(t[:3, :3]), np.ascontiguousarray(t[:3, 3]))
 
 
+_COVERS: dict[int, tuple[coal.CollisionGeometry, SphereCover]] = {}
+
+
+_MESH_COVERS: dict[tuple[int, int, bytes], SphereCover] = {}
+
+
+def geometry_cover(geometry: coal.CollisionGeometry) -> SphereCover:
+    """The sphere cover of a geometry in its frame, computed once per geometry object (per mesh)."""
+    hit = _COVERS.get(id(geometry))
+    if hit is not None and hit[0] is geometry:
+        return hit[1]
+    if isinstance(geometry, coal.BVHModelBase):  # the same mesh loaded again (another Robot)
+        verts = np.asarray(geometry.vertices(), dtype=np.float64)
+        key = (geometry.num_vertices, geometry.num_tris, hashlib.sha1(verts.tobytes()).digest())
+        cover = _MESH_COVERS.get(key)
+        if cover is None:
+            cover = _MESH_COVERS[key] = cover_geometry(geometry)
+    else:
+        cover = cover_geometry(geometry)
+    _COVERS[id(geometry)] = (geometry, cover)
+    return cover
+
+
+@lru_cache(maxsize=512)
 def _coarse_to_fine(n: int) -> NDArray[np.intp]:
-    """A permutation of ``range(n)`` by bit-reversed index: 0, n/2, n/4, 3n/4, ..."""
+    """A permutation of ``range(n)`` by bit-reversed index: 0, n/2, n/4, 3n/4, ... (read-only)."""
     bits = max(int(n - 1).bit_length(), 1)
     idx = np.arange(n)
     rev = np.zeros(n, dtype=np.int64)
     for b in range(bits):
         rev |= ((idx >> b) & 1) << (bits - 1 - b)
-    return np.argsort(rev, kind="stable").astype(np.intp)
+    out = np.argsort(rev, kind="stable").astype(np.intp)
+    out.flags.writeable = False
+    return out
 
 
 def world_aabb(
@@ -75,6 +105,7 @@ class SceneChecks:
 
     robot: Robot
     tolerance: float
+    use_spheres: bool
     n_checks: int
     n_narrow: int
     _requests: dict[float, coal.CollisionRequest]
@@ -91,13 +122,22 @@ class SceneChecks:
     _pairs: tuple[IntArray, IntArray] | None
     _lever: FloatArray | None
     _moving: IntArray
+    _sworld: sc.SphereWorld | None
+    _spairs: tuple[IntArray, sc.PairBlocks, IntArray, FloatArray] | None
+    _fixed: list[FloatArray | None]
+    _fixed_dist: dict[tuple[int, int], float]
+    _margin_cache: dict[float, FloatArray]
 
     # -- pairs ------------------------------------------------------------------------
 
-    def _invalidate(self) -> None:
-        """Forget the cached pair list and lever arms after the world changed."""
+    def _invalidate(self, *, bodies: bool = True) -> None:
+        """Forget the cached pairs and margins (and, with ``bodies``, lever arms and spheres)."""
         self._pairs = None
-        self._lever = None
+        self._spairs = None
+        self._margin_cache = {}
+        if bodies:
+            self._lever = None
+            self._sworld = None
 
     def _is_allowed(self, a: str, b: str, a_is_link: bool) -> bool:
         al = self._allowed
@@ -158,12 +198,25 @@ class SceneChecks:
             self._requests[margin] = req
         return req
 
+    def _requests_of(self, margins: FloatArray) -> list[coal.CollisionRequest]:
+        """coal requests of per-pair margins (P,), one per distinct margin."""
+        values, inverse = np.unique(margins, return_inverse=True)
+        reqs = [self._request(float(v)) for v in values]
+        return [reqs[k] for k in inverse.reshape(-1)]
+
     def _pair_margins(self, clearance: float = 0.0) -> FloatArray:
-        """Security margin of every active pair, metres, shape (P,).
+        """Security margin of every active pair, metres, shape (P,) (cached till the world changes).
 
         Without clearance, the contact margin. With it, pairs with one moving body
         need ``clearance`` and pairs of two moving bodies twice that.
         """
+        key = float(max(clearance, 0.0))
+        cached = self._margin_cache.get(key)
+        if cached is None:
+            cached = self._margin_cache[key] = self._compute_margins(key)
+        return cached
+
+    def _compute_margins(self, clearance: float) -> FloatArray:
         first, second = self._active_pairs()
         bodies = self._bodies()
         base = np.array(
@@ -178,6 +231,165 @@ class SceneChecks:
             moving[-1] = True
         n_moving = moving[first].astype(int) + moving[second].astype(int)
         return np.where(n_moving > 0, clearance * n_moving, base)
+
+    def _fixed_frame(self, k: int) -> FloatArray | None:
+        """World transform of link ``k`` if no joint moves it as a set, else None.
+
+        A link on the first joint whose geometry is symmetric about that joint's
+        axis (a sphere centred on it, a cylinder or capsule along it) occupies the
+        same space at every angle: Panda's ``panda_link1``.
+        """
+        j = int(self._link_joint[k])
+        link = self._links[k]
+        if j < 0:
+            return link.transform
+        chain = self.robot.chain
+        if chain.parents[j] >= 0:
+            return None
+        axis = chain.axes[j]
+        on_axis = bool(np.linalg.norm(np.cross(axis, link.transform[:3, 3])) < 1e-9)
+        geom = link.geometry
+        if isinstance(geom, coal.Sphere):
+            symmetric = on_axis
+        elif isinstance(geom, (coal.Cylinder, coal.Capsule)):
+            symmetric = on_axis and abs(abs(float(axis @ link.transform[:3, 2])) - 1.0) < 1e-12
+        else:
+            symmetric = False
+        return chain.placements[j] @ link.transform if symmetric else None
+
+    def _sphere_world(self) -> sc.SphereWorld:
+        """Sphere covers of every body, each in the frame that moves it (cached, see the module)."""
+        if self._sworld is not None:
+            return self._sworld
+        bodies = self._bodies()
+        n_links = len(self._links)
+        covers: list[SphereCover | None] = []
+        frames: list[int] = []
+        boxes: dict[int, tuple[FloatArray, FloatArray]] = {}
+        fixed: list[FloatArray | None] = []
+        for k, body in enumerate(bodies):
+            if k < n_links:
+                t_fixed = self._fixed_frame(k)
+                frame, t = (-1, t_fixed) if t_fixed is not None else (
+                    int(self._link_joint[k]), body.transform)  # fmt: skip
+            elif self._attached is body:
+                frame = self.robot._tool_joint
+                t = self.robot._t_joint_tool @ body.transform
+            else:
+                frame, t = -1, body.transform
+            frames.append(frame)
+            fixed.append(t if frame < 0 else None)
+            if frame < 0 and isinstance(body.geometry, coal.Box):
+                boxes[k] = (t, np.asarray(body.geometry.halfSide, dtype=np.float64))
+                covers.append(None)
+            else:
+                covers.append(transform_cover(geometry_cover(body.geometry), t))
+        self._sworld = sc.pack(covers, frames, boxes)
+        self._fixed = fixed
+        self._fixed_dist = {}
+        return self._sworld
+
+    def _chain_arrays(self) -> sc.ChainArrays:
+        chain = self.robot.chain
+        return sc.ChainArrays(chain.placements, chain.axes, chain.parents.astype(np.int64))
+
+    def _sphere_pairs(self) -> tuple[IntArray, sc.PairBlocks, IntArray, FloatArray]:
+        """Active pairs split for the kernels: moving ones, and fixed ones (distance known).
+
+        Returns the indices of the pairs with a moving body and their blocks for the
+        kernels, the indices of the pairs of two fixed bodies and coal's exact distance
+        of each (computed once: it does not depend on the configuration).
+        """
+        if self._spairs is not None:
+            return self._spairs
+        world = self._sphere_world()
+        first, second = self._active_pairs()
+        # two bodies no joint moves, or moved by the same joint (a grasped part and its
+        # hand's links): their distance does not depend on the configuration
+        moving = world.frame[first] != world.frame[second]
+        fixed_idx = np.flatnonzero(~moving)
+        bodies = self._bodies()
+        dists = np.empty(len(fixed_idx))
+        req = coal.DistanceRequest()
+        t_home: FloatArray | None = None
+        for n, p in enumerate(fixed_idx):
+            a, b = int(first[p]), int(second[p])
+            d = self._fixed_dist.get((a, b))
+            if d is None:
+                if world.frame[a] < 0:
+                    ta, tb = self._fixed[a], self._fixed[b]
+                else:
+                    if t_home is None:
+                        t_home = self._transforms(self.robot.home[None])[0]
+                    ta, tb = t_home[a], t_home[b]
+                assert ta is not None and tb is not None
+                res = coal.DistanceResult()
+                ga, gb = bodies[a].geometry, bodies[b].geometry
+                d = float(coal.distance(ga, coal_transform(ta), gb, coal_transform(tb), req, res))
+                self._fixed_dist[(a, b)] = d
+            dists[n] = d
+        idx = np.flatnonzero(moving)
+        blocks = sc.pair_blocks(world, np.column_stack([first[idx], second[idx]]))
+        self._spairs = (idx, blocks, fixed_idx, dists)
+        return self._spairs
+
+    def sphere_flags(self, qs: ArrayLike, margins: FloatArray | None = None) -> BoolArray:
+        """Active pairs the sphere covers cannot clear, per configuration, shape (n, P).
+
+        Unflagged pairs are certainly free in coal's exact check (the covers are
+        conservative, :mod:`~thirdhand.execute.spheres`); ``margins`` (P,) default
+        to the contact margins. Pairs of two bodies no joint moves are flagged from
+        their exact distance, computed once.
+        """
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        m = self._pair_margins() if margins is None else margins
+        world = self._sphere_world()
+        idx, pairs, fixed_idx, dists = self._sphere_pairs()
+        out = np.zeros((qa.shape[0], len(m)), dtype=bool)
+        out[:, idx] = sc.flags(world, self._chain_arrays(), qa, pairs, m[idx])
+        out[:, fixed_idx] = (dists <= np.maximum(m[fixed_idx], 0.0) + 1e-6)[None]
+        return out
+
+    def sphere_free_mask(self, qs: ArrayLike, margins: FloatArray | None = None) -> BoolArray:
+        """True where the sphere covers alone prove a configuration collision-free, shape (n,).
+
+        Conservative: may say "not free" where coal finds no contact, never "free"
+        where it finds one. Joint limits are not checked.
+        """
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        m = self._pair_margins() if margins is None else margins
+        world = self._sphere_world()
+        idx, pairs, fixed_idx, dists = self._sphere_pairs()
+        if np.any(dists <= np.maximum(m[fixed_idx], 0.0) + 1e-6):
+            return np.zeros(qa.shape[0], dtype=bool)
+        return sc.free(world, self._chain_arrays(), qa, pairs, m[idx])
+
+    def path_free_spheres(
+        self, qs: ArrayLike, *, max_step_m: float = 0.01, max_step_rad: float = 0.02
+    ) -> bool:
+        """True if the sphere covers alone prove a path free with :meth:`check_path`'s clearance.
+
+        Conservative: True implies that :meth:`check_path` (with clearance) is True;
+        False may be a path coal would accept (a part close to a surface). One
+        compiled call over the densely interpolated path, coarse to fine, stopping
+        at the first flagged configuration.
+        """
+        if not self.use_spheres:
+            return False
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
+        if not np.all((dense >= self.robot.lower - 1e-9) & (dense <= self.robot.upper + 1e-9)):
+            return False
+        m = self._pair_margins(max_step_m / 2.0)
+        world = self._sphere_world()
+        idx, pairs, fixed_idx, dists = self._sphere_pairs()
+        # fixed pairs do not move relative to each other: their contact margin applies
+        if np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6):
+            return False
+        order = _coarse_to_fine(dense.shape[0])
+        first = sc.first_flagged(world, self._chain_arrays(), dense[order], pairs, m[idx])
+        self.n_checks += dense.shape[0] if first < 0 else first + 1
+        return first < 0
 
     def _bodies(self) -> list[Body]:
         bodies = self._links + list(self._objects.values())
@@ -207,7 +419,9 @@ class SceneChecks:
 
     # -- checking ---------------------------------------------------------------------
 
-    def valid_mask(self, qs: ArrayLike, *, stop_at_first: bool = False) -> BoolArray:
+    def valid_mask(
+        self, qs: ArrayLike, *, stop_at_first: bool = False, exact: bool = False
+    ) -> BoolArray:
         """Collision-free and within-limits flag of many configurations.
 
         Parameters
@@ -217,27 +431,53 @@ class SceneChecks:
         stop_at_first : bool
             Stop at the first invalid configuration (in order); the ones after it
             are reported invalid without being checked.
+        exact : bool
+            Leave the sphere covers out: every pair whose bounding boxes overlap goes
+            to coal (the independent check of executed paths). The verdicts are the
+            same either way; only the time differs.
 
         Returns
         -------
         ndarray of bool, shape (n,)
         """
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
-        return self._check(qa, self._pair_margins(), stop_at_first)
+        return self._check(qa, self._pair_margins(), stop_at_first, exact=exact)
 
-    def _check(self, qa: FloatArray, margins: FloatArray, stop_at_first: bool) -> BoolArray:
-        """:meth:`valid_mask` with a security margin per active pair."""
-        n = qa.shape[0]
-        ok = np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9), axis=1)
+    def _candidates(self, qa: FloatArray, margins: FloatArray, exact: bool) -> BoolArray:
+        """Pairs coal must decide per configuration (n, P): sphere flags, or overlapping boxes."""
+        if not exact and self.use_spheres:
+            return self.sphere_flags(qa, margins)
         first, second = self._active_pairs()
         bodies = self._bodies()
         centers = np.array([b.center for b in bodies])
         halves = np.array([b.half for b in bodies])
-        t = self._transforms(qa)
-        c, h = world_aabb(t, centers[None], halves[None])
+        c, h = world_aabb(self._transforms(qa), centers[None], halves[None])
         reach = h[:, first] + h[:, second] + np.maximum(margins, 0.0)[None, :, None] + 1e-9
-        overlap = np.all(np.abs(c[:, first] - c[:, second]) <= reach, axis=2)
-        requests = [self._request(float(m)) for m in margins]
+        return np.all(np.abs(c[:, first] - c[:, second]) <= reach, axis=2)
+
+    def _check(
+        self, qa: FloatArray, margins: FloatArray, stop_at_first: bool, *, exact: bool = False
+    ) -> BoolArray:
+        """:meth:`valid_mask` with a security margin per active pair."""
+        n = qa.shape[0]
+        ok = np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9), axis=1)
+        overlap = self._candidates(qa, margins, exact)
+        flagged = np.any(overlap, axis=1)
+        if not np.any(flagged & ok):  # no pair for coal: limits decide
+            if stop_at_first and not np.all(ok):
+                bad = int(np.argmin(ok))
+                self.n_checks += bad + 1
+                ok[bad:] = False
+            else:
+                self.n_checks += n
+            return ok
+        first, second = self._active_pairs()
+        bodies = self._bodies()
+        rows = np.flatnonzero(flagged)
+        t_rows = self._transforms(qa[rows])
+        row_of = np.full(n, -1, dtype=np.intp)
+        row_of[rows] = np.arange(len(rows))
+        requests = self._requests_of(margins)
         for i in range(n):
             if not ok[i]:
                 self.n_checks += 1
@@ -246,6 +486,9 @@ class SceneChecks:
                     break
                 continue
             self.n_checks += 1
+            if not flagged[i]:
+                continue
+            t = t_rows[row_of[i]]
             tfs: dict[int, coal.Transform3s] = {}  # one coal transform per body and config
             for p in np.flatnonzero(overlap[i]):
                 a, b = int(first[p]), int(second[p])
@@ -253,10 +496,10 @@ class SceneChecks:
                 self._result.clear()
                 ta = tfs.get(a)
                 if ta is None:
-                    ta = tfs[a] = coal_transform(t[i, a])
+                    ta = tfs[a] = coal_transform(t[a])
                 tb = tfs.get(b)
                 if tb is None:
-                    tb = tfs[b] = coal_transform(t[i, b])
+                    tb = tfs[b] = coal_transform(t[b])
                 if coal.collide(
                     bodies[a].geometry, ta, bodies[b].geometry, tb, requests[p], self._result
                 ):
@@ -287,13 +530,15 @@ class SceneChecks:
         """Which active pairs collide at ``q`` (dof,) under ``margins`` (P,)."""
         first, second = self._active_pairs()
         bodies = self._bodies()
-        t = self._transforms(q[None])[0]
-        c, h = world_aabb(
-            t, np.array([b.center for b in bodies]), np.array([b.half for b in bodies])
-        )
-        reach = h[first] + h[second] + np.maximum(margins, 0.0)[:, None] + 1e-9
+        if self.use_spheres:
+            candidates = self.sphere_flags(q[None], margins)[0]
+        else:
+            candidates = self._candidates(q[None], margins, True)[0]
         hits = np.zeros(len(first), dtype=bool)
-        for p in np.flatnonzero(np.all(np.abs(c[first] - c[second]) <= reach, axis=1)):
+        if not np.any(candidates):
+            return hits
+        t = self._transforms(q[None])[0]
+        for p in np.flatnonzero(candidates):
             a, b = int(first[p]), int(second[p])
             self._result.clear()
             hits[p] = bool(
@@ -418,11 +663,19 @@ class SceneChecks:
         margins = self._pair_margins()
         if clearance and len(qa) > 1:
             wide = self._pair_margins(max_step_m / 2.0)
-            if not np.all(self._check(qa[[0, -1]], margins, False)):
-                return False
-            near = self._pair_hits(qa[0], wide) | self._pair_hits(qa[-1], wide)
-            margins = np.where(near, margins, wide)
+            if not self.use_spheres or np.any(self.sphere_flags(qa[[0, -1]], wide)):
+                if not np.all(self._check(qa[[0, -1]], margins, False)):
+                    return False
+                near = self._pair_hits(qa[0], wide) | self._pair_hits(qa[-1], wide)
+                margins = np.where(near, margins, wide)
+            else:  # the spheres clear both ends with room to spare: no pair is near
+                margins = wide
         dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
+        # the common case in one compiled call: the spheres clear every configuration
+        within = np.all((dense >= self.robot.lower - 1e-9) & (dense <= self.robot.upper + 1e-9))
+        if within and self.use_spheres and np.all(self.sphere_free_mask(dense, margins)):
+            self.n_checks += dense.shape[0]
+            return True
         # coarse to fine (bit-reversed order): a colliding stretch is hit after few checks
         dense = dense[_coarse_to_fine(dense.shape[0])]
         for k in range(0, dense.shape[0], chunk):

@@ -79,7 +79,10 @@ from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile, TaskStep
 
 #: How :meth:`Executor.for_task` stands the base (``ExecutionOptions.placement``).
-PLACEMENTS = ("geometry", "reach")
+PLACEMENTS = ("auto", "geometry", "reach")
+
+#: ``start_grasps`` used when the automatic placement falls back to reach (docs/execution.md).
+AUTO_START_GRASPS = 4
 
 FloatArray = NDArray[np.float64]
 
@@ -153,20 +156,39 @@ class Executor:
             raise SceneError(
                 f"placement {opts.placement!r}: expected one of {', '.join(PLACEMENTS)}"
             )
-        if opts.placement == "reach":
-            from thirdhand.execute.placement import choose_placement
+        notes: list[str] = []
+        start_grasps = opts.start_grasps
+        if opts.placement in ("auto", "reach"):
+            from thirdhand.execute.placement import choose_placement, score_placement
 
-            xy = ASSEMBLY_XY[robot_name] if assembly_xy is None else assembly_xy
-            cell, _ = choose_placement(
-                arm, task, cell, xy, seed=seed, task_path=task_path, search=search
-            )
+            by_reach = opts.placement == "reach"
+            if not by_reach:
+                score = score_placement(
+                    arm, task, cell, seed=seed, task_path=task_path, search=search
+                )
+                short = sorted(c for c, (a, _) in score.reached.items() if a == 0)
+                if short:
+                    by_reach = True
+                    start_grasps = start_grasps or AUTO_START_GRASPS
+                    notes.append(
+                        f"placement: {', '.join(short)} reached no goal at the geometric "
+                        f"placement; stood by reach, start spots within reach "
+                        f"(start_grasps {start_grasps})"
+                    )
+            if by_reach:
+                xy = ASSEMBLY_XY[robot_name] if assembly_xy is None else assembly_xy
+                cell, _ = choose_placement(
+                    arm, task, cell, xy, seed=seed, task_path=task_path, search=search
+                )
         accept = None
-        if opts.start_grasps > 0:
+        if start_grasps > 0:
             from thirdhand.execute.placement import reach_check
 
-            accept = reach_check(arm, task, cell, opts.start_grasps, seed=seed)
+            accept = reach_check(arm, task, cell, start_grasps, seed=seed)
         start = start_layout(task, cell, seed, task_path=task_path, search=search, accept=accept)
-        return cls(arm, task, cell, start, options, task_path=task_path, search=search, demo=demo)
+        ex = cls(arm, task, cell, start, options, task_path=task_path, search=search, demo=demo)
+        ex.notes = notes
+        return ex
 
     def __init__(
         self,
@@ -180,9 +202,14 @@ class Executor:
         search: Sequence[str | os.PathLike[str]] = (),
         demo: Demonstration | None = None,
     ) -> None:
+        from thirdhand.execute.sphere_check import warm_up
+
+        warm_up()  # compile the kernels now, not inside a step's time limit
         self.robot = robot
         self.task = task
         self.cell = cell
+        #: How the work cell was made (said first in the result's events).
+        self.notes: list[str] = []
         self.start = {k: np.array(v, dtype=np.float64) for k, v in start.items()}
         self.options = options or ExecutionOptions()
         self._where = {"task_path": task_path, "search": tuple(search)}
@@ -312,7 +339,7 @@ class Executor:
             for ch in seg.before:
                 world.apply(ch, seg.path[0])
             dense = world.scene.interpolate(seg.path)
-            ok = world.scene.valid_mask(dense)
+            ok = world.scene.valid_mask(dense, exact=True)  # coal alone: the independent verdict
             rep.n_dense += int(dense.shape[0])
             rep.n_collisions += int(np.count_nonzero(~ok))
             rep.joint_length_rad += float(np.sum(np.linalg.norm(np.diff(seg.path, axis=0), axis=1)))
@@ -604,7 +631,7 @@ class Executor:
         holds = detect_done(world, self.bound_task(), pos_tol=self.options.pos_tol,
                             rot_tol=self.options.rot_tol)  # fmt: skip
         ok = all(holds[c.id] for _, _, c in self._steps())
-        return ExecutionResult(reports, ok, trajectory, log, world.poses())
+        return ExecutionResult(reports, ok, trajectory, [*self.notes, *log], world.poses())
 
     def bound_task(self) -> TaskFile:
         """The task with each slot's child the part put into it (:attr:`bind`)."""

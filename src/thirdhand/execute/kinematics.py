@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
@@ -25,18 +26,10 @@ from thirdhand.errors import ThirdhandError
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+IntArray = NDArray[np.int64]
 
 _AXES = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0)}
 _AXES["JointModelRZ"] = (0.0, 0.0, 1.0)
-
-
-def _axis_rotation(axis: FloatArray, angle: FloatArray) -> FloatArray:
-    """Rotation matrices about a unit ``axis`` (3,) by ``angle`` (n,), shape (n, 3, 3)."""
-    x, y, z = axis
-    c = np.cos(angle)[:, None, None]
-    s = np.sin(angle)[:, None, None]
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return np.eye(3) + s * k + (1.0 - c) * (k @ k)
 
 
 @dataclass(frozen=True)
@@ -106,17 +99,8 @@ class Chain:
         ndarray, shape (n, dof, 4, 4)
             ``T_world_joint`` after the joint's rotation.
         """
-        qa = np.asarray(q, dtype=np.float64)
-        n = qa.shape[0]
-        out = np.empty((n, self.dof, 4, 4))
-        local = np.zeros((n, 4, 4))
-        local[:, 3, 3] = 1.0
-        for j in range(self.dof):
-            local[:, :3, :3] = _axis_rotation(self.axes[j], qa[:, j])
-            t_local = self.placements[j] @ local
-            p = self.parents[j]
-            out[:, j] = t_local if p < 0 else out[:, p] @ t_local
-        return out
+        qa = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, self.dof)
+        return joint_transforms_nb(qa, self.placements, self.axes, self.parents.astype(np.int64))
 
     def jacobian(self, t_joints: FloatArray, point: FloatArray, ancestors: BoolArray) -> FloatArray:
         """World-frame Jacobian of a point fixed to a joint's frame.
@@ -164,6 +148,146 @@ def rotation_error(r_target: FloatArray, r: FloatArray) -> FloatArray:
     return np.asarray(q[..., :3] * scale, dtype=np.float64)
 
 
+@numba.njit(cache=True)
+def _fk(q: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
+        out: FloatArray) -> None:  # fmt: skip
+    """Joint frames ``out`` (dof, 4, 4) of one configuration ``q`` (dof,)."""
+    dof = q.shape[0]
+    local = np.empty((4, 4))
+    rot = np.empty((3, 3))
+    for j in range(dof):
+        x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
+        c, s = np.cos(q[j]), np.sin(q[j])
+        v = 1.0 - c
+        rot[0, 0], rot[0, 1], rot[0, 2] = c + x * x * v, x * y * v - z * s, x * z * v + y * s
+        rot[1, 0], rot[1, 1], rot[1, 2] = y * x * v + z * s, c + y * y * v, y * z * v - x * s
+        rot[2, 0], rot[2, 1], rot[2, 2] = z * x * v - y * s, z * y * v + x * s, c + z * z * v
+        pl = placements[j]
+        for a in range(3):
+            for b in range(3):
+                local[a, b] = pl[a, 0] * rot[0, b] + pl[a, 1] * rot[1, b] + pl[a, 2] * rot[2, b]
+            local[a, 3] = pl[a, 3]
+        local[3, 0] = local[3, 1] = local[3, 2] = 0.0
+        local[3, 3] = 1.0
+        p = parents[j]
+        if p < 0:
+            out[j] = local
+        else:
+            par = out[p]
+            for a in range(3):
+                for b in range(4):
+                    out[j, a, b] = (
+                        par[a, 0] * local[0, b] + par[a, 1] * local[1, b] + par[a, 2] * local[2, b]
+                    )
+                out[j, a, 3] += par[a, 3]
+            out[j, 3, 0] = out[j, 3, 1] = out[j, 3, 2] = 0.0
+            out[j, 3, 3] = 1.0
+
+
+@numba.njit(cache=True)
+def joint_transforms_nb(qs: FloatArray, placements: FloatArray, axes: FloatArray,
+                     parents: IntArray) -> FloatArray:  # fmt: skip
+    """Joint frames ``T_world_joint`` of many configurations ``qs`` (n, dof): (n, dof, 4, 4)."""
+    n, dof = qs.shape
+    out = np.empty((n, dof, 4, 4))
+    for i in range(n):
+        _fk(qs[i], placements, axes, parents, out[i])
+    return out
+
+
+@numba.njit(cache=True)
+def _rotation_log(r: FloatArray, out: FloatArray) -> None:
+    """``out[3:6] = log(r)`` (axis times angle in [0, π]) of a rotation matrix r (3, 3).
+
+    Through the quaternion (Shepperd's branch choice, as :func:`rotation_error`).
+    """
+    tr = r[0, 0] + r[1, 1] + r[2, 2]
+    if tr > r[0, 0] and tr > r[1, 1] and tr > r[2, 2]:
+        s = 2.0 * np.sqrt(1.0 + tr)
+        w = 0.25 * s
+        x = (r[2, 1] - r[1, 2]) / s
+        y = (r[0, 2] - r[2, 0]) / s
+        z = (r[1, 0] - r[0, 1]) / s
+    elif r[0, 0] >= r[1, 1] and r[0, 0] >= r[2, 2]:
+        s = 2.0 * np.sqrt(max(1.0 + r[0, 0] - r[1, 1] - r[2, 2], 1e-300))
+        w = (r[2, 1] - r[1, 2]) / s
+        x = 0.25 * s
+        y = (r[0, 1] + r[1, 0]) / s
+        z = (r[0, 2] + r[2, 0]) / s
+    elif r[1, 1] >= r[2, 2]:
+        s = 2.0 * np.sqrt(max(1.0 + r[1, 1] - r[0, 0] - r[2, 2], 1e-300))
+        w = (r[0, 2] - r[2, 0]) / s
+        x = (r[0, 1] + r[1, 0]) / s
+        y = 0.25 * s
+        z = (r[1, 2] + r[2, 1]) / s
+    else:
+        s = 2.0 * np.sqrt(max(1.0 + r[2, 2] - r[0, 0] - r[1, 1], 1e-300))
+        w = (r[1, 0] - r[0, 1]) / s
+        x = (r[0, 2] + r[2, 0]) / s
+        y = (r[1, 2] + r[2, 1]) / s
+        z = 0.25 * s
+    if w < 0.0:
+        w, x, y, z = -w, -x, -y, -z
+    vn = np.sqrt(x * x + y * y + z * z)
+    scale = 2.0 * np.arctan2(vn, w) / vn if vn > 1e-12 else 2.0
+    out[3], out[4], out[5] = x * scale, y * scale, z * scale
+
+
+@numba.njit(cache=True)
+def _solve_ik_nb(placements: FloatArray, axes: FloatArray, parents: IntArray, tool_joint: int,
+                 t_joint_tool: FloatArray, targets: FloatArray, q0: FloatArray,
+                 lower: FloatArray, upper: FloatArray, max_iter: int, tol_pos: float,
+                 tol_rot: float, damping: float, max_step: float, anc: BoolArray,
+                 q_out: FloatArray, ok_out: BoolArray) -> None:  # fmt: skip
+    """:func:`solve_ik` for each start in turn (the same iteration, compiled)."""
+    n, dof = q0.shape
+    t = np.empty((dof, 4, 4))
+    err = np.empty(6)
+    jac = np.zeros((6, dof))
+    rel = np.empty((3, 3))
+    for i in range(n):
+        q = q_out[i]
+        for j in range(dof):
+            q[j] = min(max(q0[i, j], lower[j]), upper[j])
+        tgt = targets[i]
+        ok_out[i] = False
+        for _ in range(max_iter):
+            _fk(q, placements, axes, parents, t)
+            tool = t[tool_joint] @ t_joint_tool
+            for a in range(3):
+                err[a] = tgt[a, 3] - tool[a, 3]
+            for a in range(3):
+                for b in range(3):
+                    rel[a, b] = (tgt[a, 0] * tool[b, 0] + tgt[a, 1] * tool[b, 1]
+                                 + tgt[a, 2] * tool[b, 2])  # fmt: skip
+            _rotation_log(rel, err)
+            if (np.sqrt(err[0] ** 2 + err[1] ** 2 + err[2] ** 2) < tol_pos
+                    and np.sqrt(err[3] ** 2 + err[4] ** 2 + err[5] ** 2) < tol_rot):  # fmt: skip
+                ok_out[i] = True
+                break
+            for j in range(dof):
+                if not anc[j]:
+                    for a in range(6):
+                        jac[a, j] = 0.0
+                    continue
+                tj = t[j]
+                a0 = tj[0, 0] * axes[j, 0] + tj[0, 1] * axes[j, 1] + tj[0, 2] * axes[j, 2]
+                a1 = tj[1, 0] * axes[j, 0] + tj[1, 1] * axes[j, 1] + tj[1, 2] * axes[j, 2]
+                a2 = tj[2, 0] * axes[j, 0] + tj[2, 1] * axes[j, 1] + tj[2, 2] * axes[j, 2]
+                d0, d1, d2 = tool[0, 3] - tj[0, 3], tool[1, 3] - tj[1, 3], tool[2, 3] - tj[2, 3]
+                jac[0, j] = a1 * d2 - a2 * d1
+                jac[1, j] = a2 * d0 - a0 * d2
+                jac[2, j] = a0 * d1 - a1 * d0
+                jac[3, j], jac[4, j], jac[5, j] = a0, a1, a2
+            jjt = jac @ jac.T + damping**2 * np.eye(6)
+            dq = jac.T @ np.linalg.solve(jjt, err)
+            big = np.max(np.abs(dq))
+            if big > max_step:
+                dq *= max_step / big
+            for j in range(dof):
+                q[j] = min(max(q[j] + dq[j], lower[j]), upper[j])
+
+
 @dataclass(frozen=True)
 class IkOptions:
     """Settings of the damped least-squares IK.
@@ -199,7 +323,12 @@ def solve_ik(
     upper: FloatArray,
     options: IkOptions = IkOptions(),
 ) -> tuple[FloatArray, BoolArray]:
-    """Damped least squares on the SE(3) error from many starts at once, within joint limits.
+    """Damped least squares on the SE(3) error from many starts, within joint limits (compiled).
+
+    Each start iterates: the tool's position error and rotation error
+    (:func:`rotation_error`) against ``target``; done when both are within tolerance;
+    otherwise a step ``Jᵀ (J Jᵀ + λ² I)⁻¹ e`` scaled to at most ``max_step`` per joint and
+    clipped into the limits.
 
     Parameters
     ----------
@@ -225,35 +354,16 @@ def solve_ik(
     converged : ndarray of bool, shape (n,)
         Whether the start reached both tolerances.
     """
-    q = np.clip(np.array(q0, dtype=np.float64), lower, upper)
-    n = q.shape[0]
-    tgt = np.broadcast_to(np.asarray(target, dtype=np.float64), (n, 4, 4))
-    anc = chain.ancestors(tool_joint)
-    active = np.ones(n, dtype=bool)
+    q_start = np.ascontiguousarray(q0, dtype=np.float64)
+    n = q_start.shape[0]
+    tgt = np.ascontiguousarray(np.broadcast_to(np.asarray(target, dtype=np.float64), (n, 4, 4)))
+    q = np.empty_like(q_start)
     converged = np.zeros(n, dtype=bool)
-    eye6 = np.eye(6)
-    for _ in range(options.max_iter):
-        idx = np.flatnonzero(active)
-        if idx.size == 0:
-            break
-        tj = chain.joint_transforms(q[idx])
-        tool = tj[:, tool_joint] @ t_joint_tool
-        e_pos = tgt[idx, :3, 3] - tool[:, :3, 3]
-        e_rot = rotation_error(tgt[idx, :3, :3], tool[:, :3, :3])
-        done = (np.linalg.norm(e_pos, axis=1) < options.tol_pos) & (
-            np.linalg.norm(e_rot, axis=1) < options.tol_rot
-        )
-        converged[idx[done]] = True
-        active[idx[done]] = False
-        keep = ~done
-        if not np.any(keep):
-            break
-        idx = idx[keep]
-        jac = chain.jacobian(tj[keep], tool[keep, :3, 3], anc)
-        err = np.concatenate([e_pos[keep], e_rot[keep]], axis=1)
-        jjt = jac @ jac.transpose(0, 2, 1) + options.damping**2 * eye6
-        dq = np.einsum("nij,ni->nj", jac, np.linalg.solve(jjt, err[..., None])[..., 0])
-        big = np.max(np.abs(dq), axis=1, keepdims=True)
-        dq *= np.minimum(1.0, options.max_step / np.maximum(big, 1e-300))
-        q[idx] = np.clip(q[idx] + dq, lower, upper)
+    _solve_ik_nb(
+        chain.placements, chain.axes, chain.parents.astype(np.int64), int(tool_joint),
+        np.ascontiguousarray(t_joint_tool, dtype=np.float64), tgt, q_start,
+        np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64),
+        int(options.max_iter), float(options.tol_pos), float(options.tol_rot),
+        float(options.damping), float(options.max_step), chain.ancestors(tool_joint), q, converged,
+    )  # fmt: skip
     return q, converged

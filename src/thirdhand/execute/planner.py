@@ -1,17 +1,19 @@
-"""Collision-free joint-space motion planning with OMPL, seeded and always time-bounded.
+"""Collision-free joint-space motion planning, seeded and always time-bounded.
 
 :func:`plan_motion` first tries the straight joint-space segment; otherwise it
-runs an OMPL planner (RRT-Connect by default) on a ``RealVectorStateSpace``
-bounded by the joint limits. States are checked by
-:meth:`CollisionScene.is_valid` and motions by a motion validator that checks
-the segment densely with :meth:`CollisionScene.check_path` (no point of the
-robot or the grasped part moves more than 1 cm between two checks, and each
-check keeps half that distance of clearance), so every edge OMPL accepts is
-collision-free along the whole continuous motion, not only at the samples. The path is then
+runs RRT-Connect (:func:`rrt_connect`, the default ``"rrtconnect"``: two trees
+in numpy arrays, every edge checked in one batched call of the sphere layer)
+or an OMPL planner (``"ompl_rrtconnect"``, ``"rrtstar"``, ...) on a
+``RealVectorStateSpace`` bounded by the joint limits. Every edge is checked
+densely with :meth:`CollisionScene.check_path` (no point of the robot or the
+grasped part moves more than 1 cm between two checks, and each check keeps half
+that distance of clearance), so every edge accepted is collision-free along the
+whole continuous motion, not only at the samples; the sphere covers decide
+wherever they clear a pair, coal's exact check wherever they do not. The path is then
 shortcut (random arc-length shortcuts, each checked densely, then redundant
-vertices dropped) with a seeded generator. OMPL's own generator is seeded
-through ``ompl.util.RNG.setSeed``: the same seed gives the same path unless a
-time limit cuts the search.
+vertices dropped) with a seeded generator, and the final path checked densely
+once more. The same seed gives the same path unless a time limit cuts the
+search (OMPL's generator is seeded through ``ompl.util.RNG.setSeed``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from __future__ import annotations
 import itertools
 import time
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -32,14 +35,16 @@ from thirdhand.execute.scene import CollisionScene
 
 FloatArray = NDArray[np.float64]
 
-PLANNERS = {
-    "rrtconnect": og.RRTConnect,
+PLANNERS: dict[str, Any] = {
+    "rrtconnect": None,  # ours: rrt_connect below
+    "ompl_rrtconnect": og.RRTConnect,
     "rrt": og.RRT,
     "rrtstar": og.RRTstar,
     "informedrrtstar": og.InformedRRTstar,
     "aorrtc": og.AORRTC,
 }
-"""Planner names accepted by :func:`plan_motion` (the optimising ones use the whole time limit)."""
+"""Planner names accepted by :func:`plan_motion`: ``"rrtconnect"`` is :func:`rrt_connect`, the
+others OMPL's (the optimising ones use the whole time limit)."""
 
 
 class PlanningError(ThirdhandError):
@@ -137,17 +142,20 @@ def shortcut(
     rng: np.random.Generator,
     *,
     iterations: int = 100,
+    patience: int = 10,
     deadline: float = float("inf"),
     max_step_m: float = 0.01,
     max_step_rad: float = 0.02,
+    exact: bool = False,
 ) -> FloatArray:
     """Shorten a collision-free waypoint path by random shortcuts, each checked densely.
 
-    Each iteration draws two points along the path (uniform in arc length) and
-    replaces what lies between them by the straight segment if it (and the
-    remaining pieces of the two segments it cuts) is collision-free; a final
-    pass drops every vertex whose neighbours connect directly (until the
-    deadline, too).
+    A first pass drops every vertex that the vertex before it connects past
+    (greedily, farthest first). Then each iteration draws two points along the
+    path (uniform in arc length) and replaces what lies between them by the
+    straight segment if it (and the remaining pieces of the two segments it
+    cuts) is collision-free, until ``patience`` attempts in a row fail; a final
+    pass drops vertices again (until the deadline, too).
 
     Parameters
     ----------
@@ -158,11 +166,16 @@ def shortcut(
     rng : numpy.random.Generator
         Source of the shortcut endpoints.
     iterations : int
-        Shortcut attempts.
+        Shortcut attempts at most.
+    patience : int
+        Stop after this many failed attempts in a row.
     deadline : float
         ``time.perf_counter()`` value after which to stop early.
     max_step_m, max_step_rad : float
         Density of the checks (see :meth:`CollisionScene.interpolate`).
+    exact : bool
+        Ask coal about the shortcuts the sphere covers cannot clear (slower; by
+        default such a shortcut is not taken).
 
     Returns
     -------
@@ -172,16 +185,39 @@ def shortcut(
     p = np.array(path, dtype=np.float64)
 
     def free(seg: FloatArray) -> bool:
-        return scene.check_path(seg, max_step_m=max_step_m, max_step_rad=max_step_rad)
+        # a shortcut the spheres cannot clear is dropped unless coal clears it (``exact``, or a
+        # scene without the sphere layer)
+        if scene.path_free_spheres(seg, max_step_m=max_step_m, max_step_rad=max_step_rad):
+            return True
+        return (exact or not scene.use_spheres) and scene.check_path(
+            seg, max_step_m=max_step_m, max_step_rad=max_step_rad
+        )
 
+    def prune(p: FloatArray) -> FloatArray:
+        keep = [0]
+        i = 0
+        while i < len(p) - 1:
+            if time.perf_counter() > deadline:  # out of time: keep the remaining vertices
+                keep.extend(range(i + 1, len(p)))
+                break
+            j = len(p) - 1
+            while j > i + 1 and not free(p[[i, j]]):
+                j -= 1
+            keep.append(j)
+            i = j
+        return np.asarray(p[keep], dtype=np.float64)
+
+    p = prune(p)
+    misses = 0
     for _ in range(iterations):
-        if len(p) < 3 or time.perf_counter() > deadline:
+        if len(p) < 3 or misses >= patience or time.perf_counter() > deadline:
             break
         seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         a, b = np.sort(rng.uniform(0.0, cum[-1], size=2))
         ia = min(int(np.searchsorted(cum, a, side="right")) - 1, len(p) - 2)
         ib = min(int(np.searchsorted(cum, b, side="right")) - 1, len(p) - 2)
+        misses += 1
         if ia == ib:
             continue
         qa = p[ia] + (a - cum[ia]) / max(seg[ia], 1e-12) * (p[ia + 1] - p[ia])
@@ -190,18 +226,8 @@ def shortcut(
         # interpolated configurations differ from the ones checked before.
         if free(np.stack([p[ia], qa, qb, p[ib + 1]])):
             p = np.vstack([p[: ia + 1], qa, qb, p[ib + 1 :]])
-    keep = [0]
-    i = 0
-    while i < len(p) - 1:
-        if time.perf_counter() > deadline:  # out of time: keep the remaining vertices
-            keep.extend(range(i + 1, len(p)))
-            break
-        j = len(p) - 1
-        while j > i + 1 and not free(p[[i, j]]):
-            j -= 1
-        keep.append(j)
-        i = j
-    return np.asarray(p[keep], dtype=np.float64)
+            misses = 0
+    return prune(p)
 
 
 def plan_motion(
@@ -309,7 +335,15 @@ def plan_motion(
         if free(np.stack([start, goals[k]])):
             return done(np.stack([start, goals[k]]), "direct")
 
-    path = _ompl_search(robot, scene, start, goals[goal_idx], planner, t0 + time_limit, seed, step)
+    if PLANNERS[planner] is None:
+        path = rrt_connect(
+            robot, scene, start, goals[goal_idx], deadline=t0 + time_limit,
+            rng=np.random.default_rng(seed), max_step_m=max_step_m, max_step_rad=max_step_rad,
+        )  # fmt: skip
+    else:
+        path = _ompl_search(
+            robot, scene, start, goals[goal_idx], planner, t0 + time_limit, seed, step
+        )
     if path is None:
         return fail("timeout")
     if simplify:
@@ -325,6 +359,131 @@ def plan_motion(
     if not free(path):
         return fail("dense check failed")
     return done(path, "planned")
+
+
+def rrt_connect(
+    robot: Robot,
+    scene: CollisionScene,
+    start: FloatArray,
+    goals: FloatArray,
+    *,
+    deadline: float,
+    rng: np.random.Generator,
+    max_step_m: float = 0.01,
+    max_step_rad: float = 0.02,
+    range_frac: float = 0.2,
+    max_nodes: int = 50_000,
+) -> FloatArray | None:
+    """RRT-Connect (Kuffner and LaValle 2000) between a start and a set of goal configurations.
+
+    Two trees, one rooted at ``start`` and one at every goal, grow in turn: the
+    one extends by at most ``range`` towards a uniform sample of the joint
+    limits, the other then connects to the new node greedily (steps of at most
+    ``range``) until it reaches it or is blocked. ``range`` is ``range_frac``
+    times the diagonal of the joint limits' box (OMPL's default). Nodes live in
+    numpy arrays; the nearest node is found by brute force; every edge is
+    checked densely (:meth:`CollisionScene.check_path`), so the joined path is
+    collision-free along its whole length.
+
+    Parameters
+    ----------
+    robot : Robot
+    scene : CollisionScene
+    start : ndarray, shape (dof,)
+        Valid start configuration, radians.
+    goals : ndarray, shape (k, dof)
+        Valid goal configurations, radians.
+    deadline : float
+        ``time.perf_counter()`` value at which to give up.
+    rng : numpy.random.Generator
+        Source of the samples.
+    max_step_m, max_step_rad : float
+        Density of the edge checks (see :meth:`CollisionScene.interpolate`).
+    range_frac : float
+        Longest edge as a fraction of the joint box's diagonal.
+    max_nodes : int
+        Bound on the nodes of each tree.
+
+    Returns
+    -------
+    ndarray, shape (m, dof), or None
+        Waypoints from ``start`` to one of ``goals``; None at the deadline.
+    """
+    dof = robot.dof
+    lo, hi = robot.lower, robot.upper
+    reach = range_frac * float(np.linalg.norm(hi - lo))
+    trees = [_Tree(start[None], max_nodes, dof), _Tree(goals, max_nodes, dof)]
+
+    def free(a: FloatArray, b: FloatArray, root: bool) -> bool:
+        seg = np.stack([a, b])
+        if scene.path_free_spheres(seg, max_step_m=max_step_m, max_step_rad=max_step_rad):
+            return True
+        # near the start and the goals (a hand at its grasp, a part at its goal) the
+        # spheres are too coarse: coal decides there (and everywhere without them)
+        return (root or not scene.use_spheres) and scene.check_path(
+            seg, max_step_m=max_step_m, max_step_rad=max_step_rad
+        )
+
+    def extend(tree: _Tree, q: FloatArray) -> tuple[int, int]:
+        """(status, node): 0 trapped, 1 advanced, 2 reached ``q``."""
+        i = tree.nearest(q)
+        near = tree.nodes[i]
+        d = float(np.linalg.norm(q - near))
+        reached = d <= reach
+        q_new = q if reached else near + (reach / d) * (q - near)
+        if not free(near, q_new, i < tree.n_roots):
+            return 0, -1
+        k = tree.add(q_new, i)
+        return (2 if reached else 1), k
+
+    a, b = 0, 1
+    while time.perf_counter() < deadline:
+        if trees[0].full() or trees[1].full():
+            return None
+        status, k = extend(trees[a], rng.uniform(lo, hi))
+        if status:
+            q_new = trees[a].nodes[k].copy()
+            while True:
+                s2, j = extend(trees[b], q_new)
+                if s2 == 2:
+                    half_a, half_b = trees[a].branch(k), trees[b].branch(j)
+                    joined = np.vstack([half_a[::-1], half_b[1:]])  # q_new once
+                    return joined if a == 0 else joined[::-1].copy()
+                if s2 == 0 or time.perf_counter() >= deadline or trees[b].full():
+                    break
+        a, b = b, a
+    return None
+
+
+class _Tree:
+    """Nodes (n, dof) and parent indices of one RRT tree (roots have parent -1)."""
+
+    def __init__(self, roots: FloatArray, capacity: int, dof: int) -> None:
+        self.nodes = np.empty((capacity + len(roots), dof))
+        self.parent = np.full(capacity + len(roots), -1, dtype=np.intp)
+        self.n = self.n_roots = len(roots)
+        self.nodes[: self.n] = roots
+
+    def full(self) -> bool:
+        return self.n >= len(self.nodes)
+
+    def nearest(self, q: FloatArray) -> int:
+        d = self.nodes[: self.n] - q
+        return int(np.argmin(np.einsum("ij,ij->i", d, d)))
+
+    def add(self, q: FloatArray, parent: int) -> int:
+        self.nodes[self.n] = q
+        self.parent[self.n] = parent
+        self.n += 1
+        return self.n - 1
+
+    def branch(self, k: int) -> FloatArray:
+        """Nodes from ``k`` back to its root, shape (m, dof)."""
+        idx = []
+        while k >= 0:
+            idx.append(k)
+            k = int(self.parent[k])
+        return self.nodes[idx].copy()
 
 
 def _describe(hits: list[tuple[str, str]]) -> str:

@@ -33,6 +33,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute import meshes
+from thirdhand.execute import sphere_check as sc
 from thirdhand.execute.collision_check import (
     GRIPPER,
     ROBOT,
@@ -62,6 +63,10 @@ class CollisionScene(SceneChecks):
         The arm; its links and SRDF filters are taken from ``robot.geometry``.
     tolerance : float
         Penetration depth, metres, below which two bodies only touch.
+    spheres : bool
+        Use the sphere layer (:mod:`~thirdhand.execute.sphere_check`) as the broad
+        phase and for path checks; False checks as before it (bounding boxes, then
+        coal), with the same verdicts, slower. :attr:`use_spheres` may be switched.
 
     Attributes
     ----------
@@ -73,9 +78,10 @@ class CollisionScene(SceneChecks):
         Exact (coal) pair tests so far.
     """
 
-    def __init__(self, robot: Robot, *, tolerance: float = 1e-3) -> None:
+    def __init__(self, robot: Robot, *, tolerance: float = 1e-3, spheres: bool = True) -> None:
         self.robot = robot
         self.tolerance = float(tolerance)
+        self.use_spheres = bool(spheres)
         self.n_checks = 0
         self.n_narrow = 0
         self._requests: dict[float, coal.CollisionRequest] = {}
@@ -102,6 +108,11 @@ class CollisionScene(SceneChecks):
         self._allowed: set[frozenset[str]] = set()
         self._pairs: tuple[IntArray, IntArray] | None = None
         self._lever: FloatArray | None = None
+        self._sworld: sc.SphereWorld | None = None
+        self._spairs: tuple[IntArray, sc.PairBlocks, IntArray, FloatArray] | None = None
+        self._fixed: list[FloatArray | None] = []
+        self._fixed_dist: dict[tuple[int, int], float] = {}
+        self._margin_cache: dict[float, FloatArray] = {}
         g_idx = self._link_joint >= 0
         self._moving = np.flatnonzero(g_idx)
 
@@ -248,6 +259,8 @@ class CollisionScene(SceneChecks):
             raise SceneError(f"object {name!r} is grasped: detach it before moving it")
         body = self._body(name)
         body.transform = pose_matrix(pose) @ body.offset
+        self._sworld = None
+        self._spairs = None
 
     def object_pose(self, name: str, q: ArrayLike | None = None) -> tuple[FloatArray, FloatArray]:
         """Pose ``(pos, quat)`` of an object in the world; a grasped one needs the arm's ``q``."""
@@ -276,12 +289,12 @@ class CollisionScene(SceneChecks):
     def allow(self, a: str, b: str) -> None:
         """Ignore collisions of ``a`` with ``b``: object/link names, ``"gripper"``, ``"robot"``."""
         self._allowed.add(frozenset((a, b)))
-        self._invalidate()
+        self._invalidate(bodies=False)
 
     def disallow(self, a: str, b: str) -> None:
         """Undo :meth:`allow` for the pair (no effect if it was not allowed)."""
         self._allowed.discard(frozenset((a, b)))
-        self._invalidate()
+        self._invalidate(bodies=False)
 
     def attach(self, name: str, q: ArrayLike) -> None:
         """Grasp object ``name``: from now on it moves rigidly with the tool frame.

@@ -68,11 +68,15 @@ class ExecutionOptions:
     max_parts : int
         Interchangeable parts tried per slot (1: the slot's own part first, then
         only when it is already used).
-    placement : {"geometry", "reach"}
+    placement : {"auto", "geometry", "reach"}
         How :meth:`Executor.for_task` stands the base: the geometric choice
         (:func:`~thirdhand.execute.layout.assembly_base_pose`) or, of the first
         geometric candidates, the one whose goals the arm reaches best
-        (:func:`~thirdhand.execute.placement.choose_placement`).
+        (:func:`~thirdhand.execute.placement.choose_placement`). ``"auto"`` (the
+        default): the geometric choice unless the arm reaches no goal of some child
+        there (:func:`~thirdhand.execute.placement.score_placement`); then by reach,
+        with start spots within reach (``start_grasps`` at least
+        :data:`~thirdhand.execute.executor.AUTO_START_GRASPS`).
     start_grasps : int
         :meth:`Executor.for_task`: a start spot farther than 0.55 m from the arm is taken
         only if at least this many of the part's grasps have an IK solution there (0: any
@@ -105,7 +109,7 @@ class ExecutionOptions:
     order: str = "auto"
     reorder: bool = True
     max_parts: int = 2
-    placement: str = "geometry"
+    placement: str = "auto"
     start_grasps: int = 0
     regrasp: bool = True
 

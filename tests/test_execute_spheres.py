@@ -1,0 +1,197 @@
+"""The sphere layer: covers hold their geometry, FK matches pinocchio, verdicts are conservative."""
+
+from __future__ import annotations
+
+import coal
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from thirdhand.execute import CollisionScene, Robot, plan_motion
+from thirdhand.execute import sphere_check as sc
+from thirdhand.execute.collision_check import geometry_cover
+from thirdhand.execute.meshes import box, mesh_from_triangles
+from thirdhand.execute.spheres import cover_geometry, mesh_triangles, transform_cover
+
+
+@pytest.fixture(scope="module")
+def panda() -> Robot:
+    return Robot.load("panda", base_pose=([0.0, 0.0, 0.75], [0, 0, 0, 1]))
+
+
+@pytest.fixture(scope="module")
+def baxter() -> Robot:
+    return Robot.load("baxter", base_pose=([-0.25, 0.22, 0.93], [0.0, 0.0, 0.0, 1.0]))
+
+
+def _inside(points: np.ndarray, spheres: np.ndarray) -> np.ndarray:
+    """Whether each point (n, 3) lies in some sphere (m, 4)."""
+    out = np.empty(len(points), dtype=bool)
+    for k in range(0, len(points), 500):
+        p = points[k : k + 500]
+        d2 = np.sum((p[:, None, :] - spheres[None, :, :3]) ** 2, axis=2)
+        out[k : k + 500] = np.any(d2 <= spheres[None, :, 3] ** 2, axis=1)
+    return out
+
+
+def _samples(geometry: coal.CollisionGeometry, rng: np.random.Generator, n: int) -> np.ndarray:
+    """Points of what coal counts as the geometry: primitives solid (boundary included), meshes
+    their triangles."""
+    u = rng.uniform(-1.0, 1.0, size=(n, 3))
+    if isinstance(geometry, coal.Sphere):
+        d = rng.normal(size=(n, 3))
+        d /= np.linalg.norm(d, axis=1, keepdims=True)
+        return d * geometry.radius * np.sqrt(rng.uniform(0.0, 1.0, size=(n, 1)))
+    if isinstance(geometry, coal.Cylinder):
+        ang = rng.uniform(0.0, 2 * np.pi, n)
+        rad = geometry.radius * np.sqrt(rng.uniform(0.0, 1.0, n))
+        rad[: n // 2] = geometry.radius  # half on the mantle, the worst place
+        z = u[:, 2] * geometry.halfLength
+        z[: n // 8] = np.sign(z[: n // 8]) * geometry.halfLength  # rims
+        return np.column_stack([rad * np.cos(ang), rad * np.sin(ang), z])
+    if isinstance(geometry, coal.Box):
+        p = u * np.asarray(geometry.halfSide)
+        p[: n // 2] = np.sign(p[: n // 2]) * np.asarray(geometry.halfSide)  # corners
+        return p
+    tri = mesh_triangles(geometry)
+    k = rng.integers(0, len(tri), n)
+    a, b = rng.uniform(size=(2, n, 1))
+    flip = (a + b) > 1
+    a, b = np.where(flip, 1 - a, a), np.where(flip, 1 - b, b)
+    t = tri[k]
+    return t[:, 0] + a * (t[:, 1] - t[:, 0]) + b * (t[:, 2] - t[:, 0])
+
+
+@pytest.mark.parametrize("name", ["panda", "baxter"])
+def test_every_link_cover_holds_its_geometry(name: str, request) -> None:
+    robot = request.getfixturevalue(name)
+    rng = np.random.default_rng(0)
+    for g in robot.geometry.geometryObjects:
+        cover = geometry_cover(g.geometry)
+        pts = _samples(g.geometry, rng, 4000)
+        inside = _inside(pts, cover.spheres)
+        assert inside.all(), (g.name, pts[~inside][:3])
+        # the groups hold their spheres, the bound holds the groups
+        for (a, b), grp in zip(cover.group_range, cover.groups, strict=True):
+            reach = np.linalg.norm(cover.spheres[a:b, :3] - grp[:3], axis=1) + cover.spheres[a:b, 3]
+            assert np.all(reach <= grp[3] + 1e-12)
+        reach = np.linalg.norm(cover.groups[:, :3] - cover.bound[:3], axis=1) + cover.groups[:, 3]
+        assert np.all(reach <= cover.bound[3] + 1e-12)
+
+
+def _ring_mesh() -> coal.BVHModelOBBRSS:
+    """A closed, long and thin triangle mesh (a twisted tube 30 cm long), metres."""
+    k, n = 12, 6
+    ang = np.linspace(0, 2 * np.pi, k, endpoint=False)
+    z = np.linspace(0.0, 0.3, n)
+    ring = lambda zz, tw: np.column_stack(  # noqa: E731
+        [0.03 * np.cos(ang + tw), 0.015 * np.sin(ang + tw), np.full(k, zz)]
+    )
+    tris = []
+    for i in range(n - 1):
+        a, b = ring(z[i], 0.3 * i), ring(z[i + 1], 0.3 * (i + 1))
+        for j in range(k):
+            jj = (j + 1) % k
+            tris += [[a[j], a[jj], b[j]], [a[jj], b[jj], b[j]]]
+    return mesh_from_triangles(np.array(tris))
+
+
+def test_mesh_and_box_covers_hold_their_surface_and_solid() -> None:
+    rng = np.random.default_rng(1)
+    mesh = _ring_mesh()
+    for geom in (mesh, box((0.3, 0.05, 0.02)), box((0.08, 0.08, 0.28))):
+        cover = cover_geometry(geom)
+        pts = _samples(geom, rng, 10000)
+        assert _inside(pts, cover.spheres).all()
+    # the cover of a mesh stays close to it: no sphere much larger than the cell
+    assert cover_geometry(mesh).spheres[:, 3].max() < 0.02
+    # moved covers move with their geometry
+    t = np.eye(4)
+    t[:3, :3] = pin.rpy.rpyToMatrix(0.3, -0.2, 1.1)
+    t[:3, 3] = [0.1, -0.2, 0.3]
+    moved = transform_cover(cover_geometry(mesh), t)
+    pts = _samples(mesh, rng, 5000) @ t[:3, :3].T + t[:3, 3]
+    assert _inside(pts, moved.spheres).all()
+
+
+@pytest.mark.parametrize("name", ["panda", "baxter"])
+def test_numba_forward_kinematics_matches_pinocchio(name: str, request) -> None:
+    robot = request.getfixturevalue(name)
+    qs = robot.random_q(np.random.default_rng(2), 200)
+    chain = robot.chain
+    t = sc.joint_transforms_nb(qs, chain.placements, chain.axes, chain.parents.astype(np.int64))
+    data = robot.model.createData()
+    for q, tq in zip(qs, t, strict=True):
+        pin.forwardKinematics(robot.model, data, q)
+        for j in range(robot.dof):
+            np.testing.assert_allclose(tq[j], data.oMi[j + 1].homogeneous, atol=1e-9, rtol=0)
+
+
+def _world(robot: Robot, table_z: float, x0: float) -> CollisionScene:
+    """Table, a post, a mesh part lying on the table, a box part in the hand."""
+    scene = CollisionScene(robot)
+    scene.add_table(height=table_z, center=(x0 + 0.6, 0.0), size=(1.2, 1.6))
+    scene.add_box("post", ([x0 + 0.45, 0.2, table_z + 0.15], [0, 0, 0, 1]), (0.05, 0.05, 0.3))
+    t_tube = np.array(
+        [[0, 0, 1, x0 + 0.4], [0, 1, 0, -0.25], [-1, 0, 0, table_z + 0.04], [0, 0, 0, 1.0]]
+    )
+    scene._add("tube", _ring_mesh(), t_tube)
+    scene.add_object("held", ([x0 + 0.5, 0.0, table_z + 0.3], [0, 0, 0, 1]), size=(0.04, 0.04, 0.2))
+    q = robot.ik(([x0 + 0.5, 0.0, table_z + 0.3], [1.0, 0, 0, 0]), seed=0)
+    assert q is not None
+    scene.attach("held", q)
+    return scene
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("name", "table_z", "x0"), [("panda", 0.75, 0.0), ("baxter", 0.75, 0.1)])
+def test_spheres_never_say_free_where_coal_says_collision(name, table_z, x0, request) -> None:
+    robot = request.getfixturevalue(name)
+    scene = _world(robot, table_z, x0)
+    qs = robot.random_q(np.random.default_rng(3), 10_000)
+    free = scene.sphere_free_mask(qs)
+    exact = scene.valid_mask(qs, exact=True)
+    assert not np.any(free & ~exact)  # conservative: "free" only where coal finds no contact
+    assert free.sum() > 0.5 * exact.sum()  # and not vacuous
+    # spheres as the broad phase: the same verdicts as the bounding boxes
+    np.testing.assert_array_equal(scene.valid_mask(qs[:3000]), exact[:3000])
+    # with a security margin too (the clearance of path checks)
+    wide = scene._pair_margins(0.005)
+    flags = scene.sphere_flags(qs[:500], wide)
+    exact_wide = scene._check(qs[:500], wide, False, exact=True)
+    assert not np.any(~flags.any(axis=1) & ~exact_wide)
+
+
+def test_path_check_by_spheres_implies_the_exact_one_and_plans_are_clean(panda: Robot) -> None:
+    scene = CollisionScene(panda)
+    scene.add_table(height=0.75)
+    scene.add_box("wall", ([0.5, 0.0, 0.95], [0, 0, 0, 1]), (0.3, 0.04, 0.4))
+    rng = np.random.default_rng(4)
+    n_free = 0
+    for _ in range(60):
+        a, b = panda.random_q(rng, 2)
+        if scene.path_free_spheres(np.stack([a, b])):
+            n_free += 1
+            assert scene.check_path(np.stack([a, b]))
+    assert n_free > 0
+    qa = panda.ik(([0.5, -0.25, 0.9], [1.0, 0, 0, 0]), seed=0, accept=scene.is_valid)
+    qb = panda.ik(([0.5, 0.25, 0.9], [1.0, 0, 0, 0]), seed=0, accept=scene.is_valid)
+    for seed in range(3):
+        res = plan_motion(panda, scene, qa, qb, seed=seed, time_limit=20.0)
+        assert res.success and res.path is not None
+        dense = scene.interpolate(res.path, max_step_m=0.005, max_step_rad=0.01)
+        assert scene.valid_mask(dense, exact=True).all()
+
+
+def test_fixed_links_and_pairs_are_decided_once(panda: Robot) -> None:
+    """panda_link1 turns about its own axis: it is a fixed body for the spheres."""
+    scene = CollisionScene(panda)
+    scene.add_table(height=0.75)
+    # a block 1 cm from link1's bottom sphere: close at every angle of joint 1
+    scene.add_box("block", ([0.105, 0.0, 0.80], [0, 0, 0, 1]), (0.01, 0.05, 0.05))
+    world = scene._sphere_world()
+    names = [b.name for b in scene._bodies()]
+    link1 = [k for k, n in enumerate(names) if n == "panda_link1"]
+    assert all(world.frame[k] == -1 for k in link1)
+    qs = panda.random_q(np.random.default_rng(5), 300)
+    np.testing.assert_array_equal(scene.valid_mask(qs), scene.valid_mask(qs, exact=True))
