@@ -458,6 +458,7 @@ def learn_task(
     symbols, plan = assemble(detections, min_support=min_support)
     kfs = [keyframes(d, det.instances) for d, det in zip(demo_list, detections, strict=True)]
     scene_path = find_task_scene(demo_list) if scene == "auto" else scene
+    scene_path = None if scene_path is None else Path(scene_path).resolve()
     geometry = {}
     if scene_path is not None:
         from thirdhand.task.scene_file import scene_geometry
@@ -471,7 +472,7 @@ def learn_task(
     if scene_path is not None:
         from thirdhand.task.stages import SceneBlock
 
-        task.stages.scene = SceneBlock(file=os.fspath(Path(scene_path).resolve()))
+        task.stages.scene = SceneBlock(file=scene_path.as_posix())
     block = None
     if not primitives:
         skipped.append("primitives: skipped by the user")

@@ -173,13 +173,12 @@ def execute_command(
         if r.success:
             continue
         n = r.tried
-        if n:
+        if n.grasps or n.goals or n.plans:
             console.print(
-                f"step {r.index} ({r.constraint}) tried: {n.get('grasps', 0)} grasps "
-                f"({n.get('grasp_ik_failed', 0)} IK failed, {n.get('grasp_in_collision', 0)} in "
-                f"collision), {n.get('goals', 0)} goals ({n.get('place_ik_failed', 0)} IK failed, "
-                f"{n.get('place_in_collision', 0)} in collision), "
-                f"{n.get('plans_failed', 0)}/{n.get('plans', 0)} plans failed"
+                f"step {r.index} ({r.constraint}) tried: {n.grasps} grasps "
+                f"({n.grasp_ik_failed} IK failed, {n.grasp_in_collision} in collision), "
+                f"{n.goals} goals ({n.place_ik_failed} IK failed, {n.place_in_collision} in "
+                f"collision), {n.plans_failed}/{n.plans} plans failed"
             )
         for a, b, k in r.collision_pairs:
             console.print(f"step {r.index} ({r.constraint}) colliding: {a} – {b} ({k} times)")

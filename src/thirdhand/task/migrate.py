@@ -58,5 +58,7 @@ def migrate(data: dict[str, Any], *, name: str = "<task>") -> dict[str, Any]:
 def _from_v1(data: dict[str, Any], name: str) -> dict[str, Any]:
     stages = data.get("stages", {})
     if not isinstance(stages, dict):
-        raise TaskFileError(f"{name}: stages: expected an object of stage blocks (thirdhand.task/1)")
+        raise TaskFileError(
+            f"{name}: stages: expected an object of stage blocks (thirdhand.task/1)"
+        )
     return {**data, "stages": dict(stages)}

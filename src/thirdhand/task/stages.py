@@ -27,6 +27,8 @@ Blocks
 ``grasps``
     :class:`GraspsBlock`: per constraint, where the person's hands held the
     child when they picked it up.
+``transfer``
+    :class:`TransferBlock`: where a transferred task came from.
 ``execution``
     :class:`ExecutionDefaults`: the robot and the options execution uses when
     told nothing else.
@@ -66,7 +68,7 @@ class DofRanges(TaskModel):
 
 
 class ConstraintInstanceRecord(TaskModel):
-    """One constraint a recording created (:class:`~thirdhand.constraints.detect_types.ConstraintInstance`).
+    """One constraint a recording created (a ``ConstraintInstance``).
 
     Attributes
     ----------
@@ -142,8 +144,8 @@ class PlanBlock(Block):
     steps : list of str
     relational_trajectory : list of list of str
         The ground atoms after each step.
-    interchangeable : list of list of str
-        Groups of identical parts.
+    interchangeable : list of list of int
+        Pairs of step indices with no order between them.
     """
 
     n_demos: int = Field(default=1, ge=0)
@@ -152,7 +154,7 @@ class PlanBlock(Block):
     left_out: dict[str, int] = Field(default_factory=dict)
     steps: list[str] = Field(default_factory=list)
     relational_trajectory: list[list[str]] = Field(default_factory=list)
-    interchangeable: list[list[str]] = Field(default_factory=list)
+    interchangeable: list[list[int]] = Field(default_factory=list)
 
 
 # --- primitives ----------------------------------------------------------------
@@ -210,8 +212,7 @@ class ProMPParameters(TaskModel):
         packed = f * (f + 1) // 2
         if len(self.cov_cholesky_lower) != packed:
             raise ValueError(
-                f"cov_cholesky_lower: expected {packed} numbers, "
-                f"got {len(self.cov_cholesky_lower)}"
+                f"cov_cholesky_lower: expected {packed} numbers, got {len(self.cov_cholesky_lower)}"
             )
         return self
 
@@ -537,6 +538,26 @@ class GraspsBlock(Block):
     constraints: dict[str, list[DemoGraspRecord]] = Field(default_factory=dict)
 
 
+# --- transfer --------------------------------------------------------------------
+
+
+class TransferBlock(Block):
+    """``stages.transfer``: the task this one was transferred from, onto which object set.
+
+    Attributes
+    ----------
+    to : str
+        The target object set.
+    mapping : dict of str to str
+        Source part to target part.
+    notes : list of str
+    """
+
+    to: str
+    mapping: dict[str, str] = Field(default_factory=dict)
+    notes: list[str] = Field(default_factory=list)
+
+
 # --- execution -------------------------------------------------------------------
 
 
@@ -575,6 +596,7 @@ class Stages(TaskModel):
     perception: PerceptionBlock | None = Field(default=None, exclude_if=lambda v: v is None)
     scene: SceneBlock | None = Field(default=None, exclude_if=lambda v: v is None)
     grasps: GraspsBlock | None = Field(default=None, exclude_if=lambda v: v is None)
+    transfer: TransferBlock | None = Field(default=None, exclude_if=lambda v: v is None)
     execution: ExecutionDefaults | None = Field(default=None, exclude_if=lambda v: v is None)
 
     def names(self) -> list[str]:

@@ -36,7 +36,7 @@ def _reject_constant(name: str) -> Any:
 
 
 def parse_task(text: str, *, name: str = "<task>") -> TaskFile:
-    """Validate the JSON text of a task file (an earlier schema's migrated, :mod:`~thirdhand.task.migrate`).
+    """Validate the JSON text of a task file (an earlier schema's migrated first).
 
     Parameters
     ----------
