@@ -53,7 +53,7 @@ class ExecutionOptions:
     pos_tol, rot_tol : float
         Tolerances of constraint detection, metres and radians.
     use_perception : bool
-        Online: leave the part a person points at to them (``stages["perception"]``).
+        Online: leave the part a person points at to them (``stages.perception``).
     pointing_lookback_s : float
         How long a pointing gesture keeps its part the person's after it ends.
     wait_s : float
