@@ -38,7 +38,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import ConfigDict, Field, JsonValue, model_validator
+from pydantic import (
+    ConfigDict,
+    Field,
+    JsonValue,
+    SerializationInfo,
+    SerializerFunctionWrapHandler,
+    model_serializer,
+    model_validator,
+)
 
 from thirdhand.task.geometry import Pose, Quat, TaskModel, Vec3
 
@@ -48,7 +56,26 @@ if TYPE_CHECKING:
 
 
 class Block(TaskModel):
-    """Base of the stage blocks: unknown fields kept, no NaN or infinity."""
+    """Base of the stage blocks: unknown fields kept, no NaN or infinity.
+
+    A field is written when it was given or differs from its default, so a
+    block read from a file is written back as it was read (no defaults added).
+    """
+
+    @model_serializer(mode="wrap")
+    def _given_fields(
+        self, handler: SerializerFunctionWrapHandler, info: SerializationInfo
+    ) -> dict[str, object]:
+        # ``object``, not JsonValue: the handler's output is serialised as it is
+        data: dict[str, object] = handler(self)
+        for name, f in type(self).model_fields.items():
+            key = f.alias if info.by_alias and f.alias else name
+            if key not in data or name in self.model_fields_set:
+                continue
+            default = f.get_default(call_default_factory=True)
+            if getattr(self, name) == default:
+                del data[key]
+        return data
 
 
 # --- constraints -------------------------------------------------------------
