@@ -16,6 +16,7 @@ from thirdhand.execute.step_order import (
     predecessors,
     slot_difficulty,
 )
+from thirdhand.execute.step_plan import SearchCounts
 from thirdhand.execute.step_search import first_valid_ik
 
 
@@ -84,7 +85,7 @@ class _BoxedIn(Executor):
         ok = constraint.id != self.boxed or filled == 0
         rep = StepReport(index, constraint.parent, part or constraint.child, constraint.id, ok,
                          "planned" if ok else "no reachable goal: boxed in")  # fmt: skip
-        rep.tried = {"grasps": 3, "grasps_reachable": 1 if ok else 0, "place_reachable": 0}
+        rep.tried = SearchCounts(grasps=3, grasps_reachable=1 if ok else 0, place_reachable=0)
         return StepPlan(rep)
 
     def _execute(self, world, plan, q, trajectory):
@@ -139,7 +140,7 @@ def test_a_failing_part_is_replaced_by_an_identical_one(chair) -> None:
             ok = not (part == "leg1" and constraint.id == leg_slot.id)  # its own slot fails
             rep = StepReport(index, constraint.parent, part, constraint.id, ok,
                              "planned" if ok else "no reachable grasp")  # fmt: skip
-            rep.tried = {"grasps": 3, "grasps_reachable": 0}
+            rep.tried = SearchCounts(grasps=3, grasps_reachable=0)
             return StepPlan(rep)
 
         ex.plan_step = plan_step  # type: ignore[method-assign]

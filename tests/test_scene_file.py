@@ -46,7 +46,11 @@ def test_scene_geometry_inverts_the_transformation(tmp_path: Path) -> None:
     q = se3.rotvec_to_quat([0.0, 0.0, np.pi / 2])
     spec = {"mesh": "box.stl", "transformation": [[0.03, -0.01, 0.02], [float(v) for v in q]]}
     geo = scene_geometry(_scene(tmp_path / "scene_a.json", {"/a": spec}), ["/a", "/b"])
-    assert set(geo) == {"/a"} and geo["/a"]["scale"] == 1e-3 and geo["/a"]["mesh"] == str(tmp_path / "box.stl")
+    assert (
+        set(geo) == {"/a"}
+        and geo["/a"]["scale"] == 1e-3
+        and geo["/a"]["mesh"] == str(tmp_path / "box.stl")
+    )
     m2b = geo["/a"]["mesh_to_body"]
     # The sensor's own origin, seen from the mesh, maps back onto the body origin.
     back = se3.quat_rotate(m2b.quat, [0.03, -0.01, 0.02]) + np.asarray(m2b.pos)
