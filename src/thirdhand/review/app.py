@@ -78,7 +78,7 @@ class ReviewApp:
     Parameters
     ----------
     task_path : path-like
-        The task file (``thirdhand.task/1``); saved in place, the previous version kept.
+        The task file (``thirdhand.task/2``); saved in place, the previous version kept.
     demos : sequence of Demonstration or path-like
         Recordings to play back on the timeline.
     host : str

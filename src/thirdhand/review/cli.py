@@ -15,7 +15,7 @@ import typer
 
 
 def review_command(
-    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/1) to review.")],
+    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/2) to review.")],
     demo: Annotated[
         list[Path] | None,
         typer.Option("--demo", help="A recording to play back on the timeline (repeatable)."),
