@@ -18,6 +18,7 @@ from thirdhand.execute.step_order import (
 )
 from thirdhand.execute.step_plan import SearchCounts
 from thirdhand.execute.step_search import first_valid_ik
+from thirdhand.task.stages import PlanBlock, Stages
 
 
 @pytest.fixture(scope="module")
@@ -47,8 +48,8 @@ def test_order_binds_only_parents_unless_several_demos(chair) -> None:
     ids = [c.id for _, _, c in ex_steps]
     for k, cid in enumerate(ids):
         assert strict[cid] == set(ids[:k])  # a total order, closed transitively
-    one = chair.model_copy(update={"stages": {"plan": {"n_demos": 1}}})
-    two = chair.model_copy(update={"stages": {"plan": {"n_demos": 3}}})
+    one = chair.model_copy(update={"stages": Stages(plan=PlanBlock(n_demos=1))})
+    two = chair.model_copy(update={"stages": Stages(plan=PlanBlock(n_demos=3))})
     assert not plan_binds_order(one, "auto") and plan_binds_order(two, "auto")
     assert plan_binds_order(one, "plan") and not plan_binds_order(two, "parents")
     with pytest.raises(SceneError, match="order 'random'"):

@@ -171,7 +171,7 @@ def test_bad_primitive_edits_are_refused(task: TaskFile, edit: Any, message: str
 
 def test_a_task_without_primitives_is_told(task: TaskFile) -> None:
     bare = task.model_copy(deep=True)
-    bare.stages.pop("primitives")
+    bare.stages.primitives = None
     with pytest.raises(EditError, match="the task has no learned primitives"):
         apply_edit(bare, SetPrimitivePoint("c1", 0, (0.0, 0.0, 0.0)))
     with pytest.raises(PrimitiveEditError, match="the task has no learned primitives"):
