@@ -30,7 +30,7 @@ def review_command(
     ] = "127.0.0.1",
     meshes: Annotated[
         list[Path] | None,
-        typer.Option("--meshes", help="A folder of part meshes (repeatable)."),
+        typer.Option("--meshes", help="A folder of part meshes the task file does not find."),
     ] = None,
     replay: Annotated[
         list[Path] | None,
