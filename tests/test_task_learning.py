@@ -154,3 +154,23 @@ def test_cli_learn_in_two_processes_writes_the_serial_task(
         docs.append(doc)
     assert docs[0]["constraints"] and docs[0]["plan"]
     assert docs[0] == docs[1]
+
+
+def test_recorded_grasps_are_those_execute_demo_takes(bench, learned_bench) -> None:
+    """``stages.grasps`` holds what ``execute --demo`` finds in the recording's fingers."""
+    from thirdhand.execute.grasps import demo_grasps
+
+    task = learned_bench.task
+    block = task.stages.grasps
+    assert block is not None
+    objects = task.objects_by_name()
+    for c in task.constraints:
+        obj = objects[c.child]
+        assert c.time is not None and obj.bbox_min is not None and obj.bbox_max is not None
+        box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
+        want = demo_grasps(bench, c.child, c.time, bbox=box)
+        got = block.constraints[c.id]
+        assert [g.hand for g in got] == [g.label for g in want] and want
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_allclose(g.pose.matrix(), w.pose, atol=1e-12)
+            assert (g.demo, g.time) == (c.demo, c.time)
