@@ -51,9 +51,9 @@ def test_demo_reward_plans_other_sizes(demo_out: Path) -> None:
     assert reward is not None
     bench = reward.plans["bench"]
     assert bench.complete and len(bench.steps) == 4
-    assert all("back" not in s for s in bench["steps"])
-    five = reward["plans"]["chair with 5 legs"]
-    assert five["complete"] and five["steps"][-1].startswith("action(seating,back")
+    assert all("back" not in s for s in bench.steps)
+    five = reward.plans["chair with 5 legs"]
+    assert five.complete and five.steps[-1].startswith("action(seating,back")
 
 
 @pytest.mark.slow

@@ -183,8 +183,9 @@ def test_real_toolbox_learned_with_its_scene_executes(
     assert "mesh files not found" not in r.output
     record = json.loads((tmp_path / "run.json").read_text())
     assert record["success"] and record["n_collisions"] == 0
-    assert [s["grasp_source"] for s in record["steps"]] == ["demo"]
-    # the same as the grasps --demo takes from the recording's fingers
+    # exactly what --demo RECORDING does (its fingers' grasps are the recorded ones: the
+    # person's grasp is tried first; today's planner ends on a grasp from the board's
+    # shape either way, see docs/taskfile.md)
     r = runner.invoke(
         app,
         ["execute", str(task), "--demo", str(folder / "toolbox_coop_4"), "--record",
@@ -192,7 +193,7 @@ def test_real_toolbox_learned_with_its_scene_executes(
     )  # fmt: skip
     assert r.exit_code == 0, r.output
     again = json.loads((tmp_path / "demo.json").read_text())
-    assert [s["grasp"] for s in again["steps"]] == [s["grasp"] for s in record["steps"]]
+    assert again["steps"] == record["steps"]
     # a task without recorded grasps (a thirdhand.task/1 file): a grasp from the board's
     # shape; side_left stands on the table on the edge that is down at its goal
     old = dict(doc, schema="thirdhand.task/1")
