@@ -193,7 +193,11 @@ def test_real_toolbox_learned_with_its_scene_executes(
     )  # fmt: skip
     assert r.exit_code == 0, r.output
     again = json.loads((tmp_path / "demo.json").read_text())
-    assert again["steps"] == record["steps"]
+
+    def same(steps: list[dict]) -> list[dict]:
+        return [{k: v for k, v in s.items() if k != "planning_time_s"} for s in steps]
+
+    assert same(again["steps"]) == same(record["steps"])
     # a task without recorded grasps (a thirdhand.task/1 file): a grasp from the board's
     # shape; side_left stands on the table on the edge that is down at its goal
     old = dict(doc, schema="thirdhand.task/1")
