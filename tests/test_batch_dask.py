@@ -129,9 +129,11 @@ def test_learn_units_on_the_cluster_equal_serial(cluster: str) -> None:
     serial = [segment_demonstration(d) for d in demos]
     units = [RecordingUnit(d, f"d{k}", True) for k, d in enumerate(demos)]
     remote = list(parallel_map(recording_stages, units, scheduler=cluster))
-    assert [ph.to_dict() for ph, _ in remote] == [ph.to_dict() for ph in serial]  # type: ignore[union-attr]
-    for (ph, det), d, k in zip(remote, demos, range(2), strict=True):
-        local = detect_constraints(d, phases=ph, demo_name=f"d{k}")
+    assert [r.phases.to_dict() for r in remote] == [ph.to_dict() for ph in serial]  # type: ignore[union-attr]
+    for r, d, k in zip(remote, demos, range(2), strict=True):
+        det = r.detection
+        assert det is not None
+        local = detect_constraints(d, phases=r.phases, demo_name=f"d{k}")
         assert [(i.parent, i.child, i.type, i.start) for i in det.instances] == [
             (i.parent, i.child, i.type, i.start) for i in local.instances
         ]
