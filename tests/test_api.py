@@ -49,7 +49,7 @@ def test_execute_rejects_unknown_robot_and_mode() -> None:
     from thirdhand.taskfile import parse_task
 
     task = parse_task(
-        '{"schema": "thirdhand.task/1", "objects": [], "constraints": [], "plan": []}'
+        '{"schema": "thirdhand.task/2", "objects": [], "constraints": [], "plan": []}'
     )
     with pytest.raises(th.ThirdhandError, match="robot 'ur5' unknown"):
         th.execute_task(task, robot="ur5")
@@ -66,12 +66,18 @@ def test_verbs_agree_with_learn_task() -> None:
     events = th.task_learning.learned_events(learned.learned)
     prims = th.fit_primitives([demo], events)
     # learn_task adds each motion's explanation by library skills beside the DMP and ProMP
-    stored = learned.primitives["constraints"]
-    assert all(c["skills"] for c in stored.values())
-    without = {k: {f: x for f, x in c.items() if f != "skills"} for k, c in stored.items()}
-    assert {k: v.to_dict() for k, v in prims.items()} == without
-    model = th.learn_reward([learned.task], seed=0)
-    assert str(model.rcsi.reward) == learned.task.stages["reward"]["reward_tree"]
+    assert learned.primitives is not None
+    stored = learned.primitives.constraints
+    assert all(c.skills for c in stored.values())
+    without = {k: c.model_copy(update={"skills": None}) for k, c in stored.items()}
+    assert prims.constraints == without and prims.skill_library is None
+    # the stage verb is the pipeline's stage: with a library, the very same block
+    names = learned.learned.names
+    assert th.fit_primitives([demo], events, skills=4, names=names) == learned.primitives
+    model = th.learn_reward([plan], seed=0)  # the AssemblyPlan itself, or task files
+    assert learned.task.stages.reward is not None
+    assert str(model.rcsi.reward) == learned.task.stages.reward.reward_tree
+    assert str(th.learn_reward([learned.task], seed=0).rcsi.reward) == str(model.rcsi.reward)
 
 
 @pytest.mark.slow
@@ -81,7 +87,7 @@ def test_readme_example_runs(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, ca
     out = capsys.readouterr().out
     assert out.splitlines()[0].startswith("seating ")
     assert "4 of 4 steps done" in out
-    assert th.taskfile.load_task(tmp_path / "bench_task.json").stages["reward"]
+    assert th.taskfile.load_task(tmp_path / "bench_task.json").stages.reward
 
 
 def test_no_verb_is_shadowed_by_a_stage_package() -> None:

@@ -68,17 +68,19 @@ def test_serial_and_process_maps_keep_order() -> None:
 def test_learn_units_on_the_cluster_equal_serial(cluster: str) -> None:
     """``learn --scheduler``'s unit (segment + detect one recording) gives the serial results."""
     from thirdhand.constraints.detect import detect_constraints
-    from thirdhand.plan.cli import LearnUnit, learn_unit
     from thirdhand.segment import segment_demonstration
     from thirdhand.synth import make_scene
+    from thirdhand.task_learning import RecordingUnit, recording_stages
 
     demos = [make_scene("drawer", seed=s, sensor=None).slice(0.0, 4.0) for s in (1, 2)]
     serial = [segment_demonstration(d) for d in demos]
-    units = [LearnUnit(d, f"d{k}", True) for k, d in enumerate(demos)]
-    remote = list(parallel_map(learn_unit, units, scheduler=cluster))
-    assert [ph.to_dict() for ph, _ in remote] == [ph.to_dict() for ph in serial]  # type: ignore[union-attr]
-    for (ph, det), d, k in zip(remote, demos, range(2), strict=True):
-        local = detect_constraints(d, phases=ph, demo_name=f"d{k}")
+    units = [RecordingUnit(d, f"d{k}", True) for k, d in enumerate(demos)]
+    remote = list(parallel_map(recording_stages, units, scheduler=cluster))
+    assert [r.phases.to_dict() for r in remote] == [ph.to_dict() for ph in serial]  # type: ignore[union-attr]
+    for r, d, k in zip(remote, demos, range(2), strict=True):
+        det = r.detection
+        assert det is not None
+        local = detect_constraints(d, phases=r.phases, demo_name=f"d{k}")
         assert [(i.parent, i.child, i.type, i.start) for i in det.instances] == [
             (i.parent, i.child, i.type, i.start) for i in local.instances
         ]

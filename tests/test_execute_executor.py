@@ -166,10 +166,10 @@ def test_unreachable_constraint_ends_with_a_failure_report(meshes) -> None:
     first, second = result.steps
     assert not first.success and first.constraint == c0
     assert "no reachable goal" in first.status or "time limit" in first.status
-    assert first.tried["grasps"] > 0 and first.tried["place_reachable"] == 0
+    assert first.tried.grasps > 0 and first.tried.place_reachable == 0
     # 2 m out: the place IK never converges (not a collision), and the status says so
-    assert first.tried["place_ik_failed"] > 0 and first.tried["place_in_collision"] == 0
-    assert f"place IK: {first.tried['place_ik_failed']} unreachable" in first.status
+    assert first.tried.place_ik_failed > 0 and first.tried.place_in_collision == 0
+    assert f"place IK: {first.tried.place_ik_failed} unreachable" in first.status
     assert second.success and result.n_collisions == 0
 
 

@@ -12,6 +12,7 @@ from thirdhand.execute.layout import _pose_in_base, make_workcell, rest_rotation
 from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.meshes import object_triangles
+from thirdhand.task.stages import Stages
 
 
 def _learned_chair(seed: int):
@@ -193,7 +194,7 @@ def _two_boards():
     task = truth_task(make_scene("toolbox", seed=0))
     cs = [c for c in task.constraints if (c.parent, c.child) == ("side_front", "side_left")]
     plan = [s for s in task.plan if s.constraint in {c.id for c in cs}]
-    return task.model_copy(update={"constraints": cs, "plan": plan, "stages": {}})
+    return task.model_copy(update={"constraints": cs, "plan": plan, "stages": Stages()})
 
 
 def test_thin_board_is_placed_with_a_generic_grasp() -> None:

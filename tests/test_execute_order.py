@@ -16,7 +16,9 @@ from thirdhand.execute.step_order import (
     predecessors,
     slot_difficulty,
 )
+from thirdhand.execute.step_plan import SearchCounts
 from thirdhand.execute.step_search import first_valid_ik
+from thirdhand.task.stages import PlanBlock, Stages
 
 
 @pytest.fixture(scope="module")
@@ -46,8 +48,8 @@ def test_order_binds_only_parents_unless_several_demos(chair) -> None:
     ids = [c.id for _, _, c in ex_steps]
     for k, cid in enumerate(ids):
         assert strict[cid] == set(ids[:k])  # a total order, closed transitively
-    one = chair.model_copy(update={"stages": {"plan": {"n_demos": 1}}})
-    two = chair.model_copy(update={"stages": {"plan": {"n_demos": 3}}})
+    one = chair.model_copy(update={"stages": Stages(plan=PlanBlock(n_demos=1))})
+    two = chair.model_copy(update={"stages": Stages(plan=PlanBlock(n_demos=3))})
     assert not plan_binds_order(one, "auto") and plan_binds_order(two, "auto")
     assert plan_binds_order(one, "plan") and not plan_binds_order(two, "parents")
     with pytest.raises(SceneError, match="order 'random'"):
@@ -84,7 +86,7 @@ class _BoxedIn(Executor):
         ok = constraint.id != self.boxed or filled == 0
         rep = StepReport(index, constraint.parent, part or constraint.child, constraint.id, ok,
                          "planned" if ok else "no reachable goal: boxed in")  # fmt: skip
-        rep.tried = {"grasps": 3, "grasps_reachable": 1 if ok else 0, "place_reachable": 0}
+        rep.tried = SearchCounts(grasps=3, grasps_reachable=1 if ok else 0, place_reachable=0)
         return StepPlan(rep)
 
     def _execute(self, world, plan, q, trajectory):
@@ -139,7 +141,7 @@ def test_a_failing_part_is_replaced_by_an_identical_one(chair) -> None:
             ok = not (part == "leg1" and constraint.id == leg_slot.id)  # its own slot fails
             rep = StepReport(index, constraint.parent, part, constraint.id, ok,
                              "planned" if ok else "no reachable grasp")  # fmt: skip
-            rep.tried = {"grasps": 3, "grasps_reachable": 0}
+            rep.tried = SearchCounts(grasps=3, grasps_reachable=0)
             return StepPlan(rep)
 
         ex.plan_step = plan_step  # type: ignore[method-assign]

@@ -16,8 +16,13 @@ def _bench_pointing_at_first(t1: float):
 
     task = truth_task(make_scene("bench", seed=0))
     first = task.plan[0].child
-    block = {"pointing": [{"hand": "rh", "object": first, "t0": 0.0, "t1": t1}], "attention": []}
-    return task.model_copy(update={"stages": {**task.stages, "perception": block}}), first
+    from thirdhand.task.stages import PerceptionBlock, PointingRecord
+
+    out = task.model_copy(deep=True)
+    out.stages.perception = PerceptionBlock(
+        pointing=[PointingRecord(hand="rh", object=first, t0=0.0, t1=t1)]
+    )
+    return out, first
 
 
 def _executor(task, search, **options):

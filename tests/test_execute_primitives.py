@@ -17,6 +17,7 @@ from thirdhand.execute.primitive_motion import find_primitive, primitive_place_p
 from thirdhand.execute.record import write_run
 from thirdhand.primitives.quaternion_dmp import PoseDMP
 from thirdhand.primitives.serialize import pose_dmp_to_dict
+from thirdhand.task.stages import PoseDmpParameters
 
 
 @pytest.fixture(scope="module")
@@ -123,7 +124,8 @@ def test_learned_chair_follows_its_primitives_without_collisions(
         if rep.place_motion != "primitive":
             continue
         c = by_id[rep.constraint]
-        dmp = find_primitive(learned_chair.stages["primitives"], c.parent, c.child)
+        dmp = find_primitive(learned_chair.stages.primitives, c.parent, c.child)
+        assert dmp is not None
         parent = result.final_poses[c.parent]
         expect = primitive_place_path(
             dmp, parent_world=parent, child_goal=result.final_poses[c.child],
@@ -155,9 +157,9 @@ def test_a_primitive_through_the_table_falls_back_to_the_straight_insertion(
     height = goal_pose(cell.base_pose, c)[2, 3] - cell.table_z
     down_in_parent = cell.base_pose[:3, :3].T @ np.array([0.0, 0.0, -1.0])
     bad = _line_dmp(c.pose.matrix(), down_in_parent, length=0.5)
-    entry = next(e for e in task.stages["primitives"]["constraints"].values()
-                 if e["child"] == c.child)  # fmt: skip
-    entry["dmp"] = pose_dmp_to_dict(bad)
+    assert task.stages.primitives is not None
+    entry = next(e for e in task.stages.primitives.constraints.values() if e.child == c.child)
+    entry.dmp = PoseDmpParameters.model_validate(pose_dmp_to_dict(bad))
     task = task.model_copy(update={"plan": [step]})
     # its final approach starts inside the table
     reach = height + 0.06
@@ -171,4 +173,4 @@ def test_a_primitive_through_the_table_falls_back_to_the_straight_insertion(
     (rep,) = result.steps
     assert rep.success and result.n_collisions == 0
     assert rep.place_motion == "straight" and rep.motions["insert"] == "straight"
-    assert rep.tried["primitive_rejected"] >= 1
+    assert rep.tried.primitive_rejected >= 1

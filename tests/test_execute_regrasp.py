@@ -56,8 +56,8 @@ def test_far_start_spot_on_the_panda_is_solved_by_a_regrasp() -> None:
     # the cause: one grasp reached where the leg lies, none of its goals reachable with it
     assert not plain.success and not rep.success
     assert rep.status.startswith("no reachable goal")
-    assert rep.tried["grasps_reachable"] == 1 and rep.tried["place_reachable"] == 0
-    assert rep.tried["grasp_ik_failed"] + rep.tried["grasp_in_collision"] == 23
+    assert rep.tried.grasps_reachable == 1 and rep.tried.place_reachable == 0
+    assert rep.tried.grasp_ik_failed + rep.tried.grasp_in_collision == 23
     assert rep.regrasp is None
 
     ex, part = _far_leg_on_panda(regrasp=True)

@@ -249,7 +249,9 @@ def test_every_plan_becomes_a_valid_task_file(study: UserStudy, tmp_path: Path) 
             assert {c.id: c.to_row() for c in task.constraints} == {
                 k: c.to_row() for k, c in table.constraints.items()
             }
-            assert task.stages["iros15"]["waits"] == [i for i, s in enumerate(plan) if s == WAIT]
+            block = task.stages.other("iros15")
+            assert isinstance(block, dict)
+            assert block["waits"] == [i for i, s in enumerate(plan) if s == WAIT]
             assert parse_task(dump_task(task)) == task
     assert n == 141
     task = session_task(study, subject="adele", scene="blue_chair", session="B", attempt=0)
@@ -258,8 +260,10 @@ def test_every_plan_becomes_a_valid_task_file(study: UserStudy, tmp_path: Path) 
     assert back == task
     assert all(c.source == "corrected" for c in back.constraints)
     assert [o.name for o in back.objects] == ["seating", "leg1", "leg2", "leg3", "leg4", "back"]
-    assert back.stages["iros15"]["state"] == "success"
-    assert set(back.stages["iros15"]["unused_symbols"]) == {"c3", "c4"}
+    block = back.stages.other("iros15")
+    assert isinstance(block, dict)
+    assert block["state"] == "success"
+    assert set(block["unused_symbols"]) == {"c3", "c4"}  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize(

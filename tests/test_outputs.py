@@ -367,7 +367,7 @@ path, who, n = sys.argv[1], sys.argv[2], int(sys.argv[3])
 task = load_task(path)
 failures = 0
 for i in range(n):
-    task.stages["writer"] = {"who": who, "i": i}
+    task.stages.set_other("writer", {"who": who, "i": i})
     try:
         save_task(task, path)
     except Exception as exc:
@@ -431,8 +431,8 @@ def test_concurrent_saves_from_two_processes_lose_nothing(tmp_path: Path) -> Non
     assert len(versions) == 2 * n + 1
     seen = set()
     for p in versions:
-        w = load_task(p).stages.get("writer")
-        seen.add(None if w is None else (w["who"], w["i"]))
+        w = load_task(p).stages.other("writer")
+        seen.add(None if not isinstance(w, dict) else (w["who"], w["i"]))
     assert seen == {None} | {(who, i) for who in ("a", "b") for i in range(n)}
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 

@@ -182,13 +182,14 @@ def test_events_in_task_file_round_trip(tmp_path: Path) -> None:
 
     attention = [AttentionInterval("seating", 0.0, 2.5, 4.0)]
     out = add_perception_events(task, pointing=pointing, attention=attention, source="x.parquet")
-    assert "perception" not in task.stages
+    assert task.stages.perception is None
     path = tmp_path / "t.task.json"
     save_task(out, path)
     back = load_task(path)
-    block = back.stages["perception"]
-    assert block["pointing"][0] == {"hand": "rh", "object": "leg2", "t0": 3.0, "t1": 4.0,
-                                    "angle_deg": 1.5, "ray": "head"}  # fmt: skip
+    block = back.stages.perception
+    assert block is not None
+    first = {"hand": "rh", "object": "leg2", "t0": 3.0, "t1": 4.0, "angle_deg": 1.5, "ray": "head"}
+    assert block.pointing[0].model_dump() == first
     assert focus_object(back, 4.5) == "leg2"  # just pointed at
     assert focus_object(back, 1.0) == "seating"  # looked at
     assert focus_object(back, 20.0) is None
@@ -211,7 +212,8 @@ def test_gestures_and_attention_cli(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert done.value.code == 0
     data = json.loads(capsys.readouterr().out)
     assert [e["object"] for e in data["pointing"]] == [g["object"] for g in demo.meta["pointing"]]
-    assert len(load_task(task).stages["perception"]["pointing"]) == 2
+    block = load_task(task).stages.perception
+    assert block is not None and len(block.pointing) == 2
     with pytest.raises(SystemExit) as done:
         app(["attention", str(rec)], prog_name="thirdhand")
     assert done.value.code == 0

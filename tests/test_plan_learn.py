@@ -97,8 +97,9 @@ def test_real_toolbox_with_its_excerpt_keeps_the_plan(shared_data: Path, tmp_pat
         res = learn(demos, names=names, segment=False)
         task = res.task()
         assert [(s.parent, s.child) for s in task.plan] == [(s.parent, s.child) for s in alone.plan]
-        assert task.stages["plan"]["silent_demos"] == ["excerpt"]
-        assert task.stages["plan"]["support"] == [1]
+        assert task.stages.plan is not None
+        assert task.stages.plan.silent_demos == ["excerpt"]
+        assert task.stages.plan.support == [1]
         # The keyframe comes from the recording that has the step, whichever is first.
         assert task.plan[0].keyframe == alone.plan[0].keyframe != {}
     from thirdhand.plan.report import write_report

@@ -56,7 +56,7 @@ def test_keyframes_argument_moves_the_start(chair: list) -> None:
 
 def test_stage_block_is_json_and_rebuilds(chair: list) -> None:
     block = primitives_stage(chair, promp_weights=5)
-    text = json.dumps(block)
+    text = json.dumps(block.model_dump(mode="json", by_alias=True))
     back = json.loads(text)
     assert set(back["constraints"]) == {"c1", "c2", "c3", "c4", "c5"}
     c5 = back["constraints"]["c5"]
@@ -167,10 +167,10 @@ def test_noisy_tracks_with_gaps_and_sign_flips() -> None:
 
     demos = [make_scene("chair", seed=s, sensor=SensorModel()) for s in range(2)]
     block = primitives_stage(demos, promp_weights=5)
-    assert set(block["constraints"]) == {"c1", "c2", "c3", "c4", "c5"}
-    for c in block["constraints"].values():
-        assert c["imitation_error"]["pos_m"] < 5e-3 and c["imitation_error"]["rot_deg"] < 2.0
-        assert c["raw_error"]["pos_m"] < 2e-2 and c["raw_error"]["rot_deg"] < 6.0
+    assert set(block.constraints) == {"c1", "c2", "c3", "c4", "c5"}
+    for c in block.constraints.values():
+        assert c.imitation_error.pos_m < 5e-3 and c.imitation_error.rot_deg < 2.0
+        assert c.raw_error.pos_m < 2e-2 and c.raw_error.rot_deg < 6.0
 
 
 def test_segment_of_two_samples_is_a_clear_error(chair: list) -> None:

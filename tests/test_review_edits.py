@@ -237,7 +237,8 @@ def test_confirm(chair: TaskFile) -> None:
     assert out.constraint_by_id("c1").confidence == 1.0
     assert out.constraint_by_id("c1").source == "learned"
     out = apply_edit(out, Confirm("c1", "rx"))
-    assert out.stages["review"]["confirmed"] == {"c1": ["constraint", "rx"]}
+    assert out.stages.review is not None
+    assert out.stages.review.confirmed == {"c1": ["constraint", "rx"]}
 
 
 def test_apply_correction_is_apply_edit() -> None:

@@ -9,6 +9,7 @@ panel without a browser, and once in headless Debian Chromium.
 from __future__ import annotations
 
 import itertools
+import json
 import time
 from pathlib import Path
 from typing import Any
@@ -25,7 +26,8 @@ from thirdhand.review.edits import Confirm, SetParent, apply_edit
 from thirdhand.review.focus import find_focus, perception_focus
 from thirdhand.synth import make_scene
 from thirdhand.synth.task import truth_task
-from thirdhand.taskfile import TaskFile, save_task
+from thirdhand.task.stages import PointingRecord
+from thirdhand.taskfile import TaskFile, parse_task, save_task
 
 CHROMIUM = Path("/usr/bin/chromium")
 
@@ -120,20 +122,22 @@ def test_focus_from_events_written_by_add_perception_events(doubtful_task: TaskF
     assert perception_focus(looked) == "back"
     assert perception_focus(doubtful_task) is None
     # an object the (edited) task no longer has is passed over
-    stale = dict(task.stages["perception"])
-    stale["pointing"] = [*stale["pointing"], {"object": "leg9", "t0": 30.0, "t1": 31.0}]
-    assert perception_focus(task.model_copy(update={"stages": {"perception": stale}})) == "leg1"
+    stale = task.model_copy(deep=True)
+    assert stale.stages.perception is not None
+    stale.stages.perception.pointing.append(
+        PointingRecord(hand="rh", object="leg9", t0=30.0, t1=31.0)
+    )
+    assert perception_focus(stale) == "leg1"
 
 
 def test_malformed_perception_block_is_a_task_file_error(doubtful_task: TaskFile) -> None:
-    bad = doubtful_task.model_copy(
-        update={"stages": {"perception": {"pointing": [{"object": "leg1", "t0": 1.0}]}}}
-    )
-    with pytest.raises(TaskFileError, match=r"stages\.perception\.pointing\[0\]: expected object"):
-        perception_focus(bad)
-    worse = doubtful_task.model_copy(update={"stages": {"perception": {"attention": "leg1"}}})
-    with pytest.raises(TaskFileError, match=r"stages\.perception\.attention: expected a list"):
-        perception_focus(worse)
+    doc = doubtful_task.to_json_dict()
+    doc["stages"]["perception"] = {"pointing": [{"hand": "rh", "object": "leg1", "t0": 1.0}]}
+    with pytest.raises(TaskFileError, match=r"stages\.perception\.pointing\[0\]\.t1: required"):
+        parse_task(json.dumps(doc))
+    doc["stages"]["perception"] = {"attention": "leg1"}
+    with pytest.raises(TaskFileError, match=r"stages\.perception\.attention: Input should be"):
+        parse_task(json.dumps(doc))
 
 
 def test_focus_from_a_pointing_recording_is_the_last_target(pointing_chair: Demonstration) -> None:

@@ -437,7 +437,8 @@ def test_typed_value_is_saved_in_the_file(review: Review) -> None:
     assert saved.constraint_by_id(cid).pos[0] == pytest.approx(0.12)
     assert saved.constraint_by_id(cid).source == "corrected"
     assert any(c.field.startswith("constraints") for c in saved.provenance.corrections)
-    effort = saved.stages["review"]["effort"]
+    assert saved.stages.review is not None and saved.stages.review.effort is not None
+    effort = saved.stages.review.effort.model_dump(exclude_none=True)
     assert effort["operations"]["leg2"]["movex"] == 1
     assert review.path.with_name(review.path.name + ".bak").exists()
     review.page.locator("#th-clean").wait_for(timeout=TIMEOUT_MS)
@@ -554,7 +555,7 @@ def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
     review.button("Apply values").click()
     review.wait_for(lambda: app.constraint.pos[1] == pytest.approx(0.03), "the edit")
     theirs = load_task(review.path)
-    theirs.stages["other"] = {"by": "someone else"}
+    theirs.stages.set_other("other", {"by": "someone else"})
     save_task(theirs, review.path)
     on_disk = review.path.read_bytes()
     review.button("Save").click()

@@ -49,7 +49,7 @@ def task(chair: Any) -> TaskFile:  # noqa: F811
     from thirdhand.primitives.stage import primitives_stage
 
     t = truth_task(chair)
-    t.stages["primitives"] = primitives_stage([chair])
+    t.stages.primitives = primitives_stage([chair])
     return t
 
 
@@ -66,12 +66,11 @@ def test_displacement_is_the_offsets_at_the_key_times_and_zero_at_the_ends() -> 
 
 
 def test_refit_of_an_unmoved_path_reproduces_it(task: TaskFile) -> None:
-    from thirdhand.primitives.serialize import pose_dmp_from_dict
-
-    block = task.stages["primitives"]
-    for key in block["constraints"]:
+    block = task.stages.primitives
+    assert block is not None
+    for key, record in block.constraints.items():
         path = primitive_path(block, key)
-        dmp = pose_dmp_from_dict(block["constraints"][key]["dmp"])
+        dmp = record.pose_dmp()
         again = refit_position(dmp.position_, path.s, path.pos)
         np.testing.assert_array_equal(again.goal_, dmp.position_.goal_)
         np.testing.assert_array_equal(again.start_, dmp.position_.start_)
@@ -80,7 +79,8 @@ def test_refit_of_an_unmoved_path_reproduces_it(task: TaskFile) -> None:
 
 
 def test_a_moved_key_point_is_followed_and_the_rest_kept(task: TaskFile) -> None:
-    block = task.stages["primitives"]
+    block = task.stages.primitives
+    assert block is not None
     before = copy.deepcopy(block)
     key = key_for(block, "seating", "leg2")
     assert key is not None
@@ -98,20 +98,20 @@ def test_a_moved_key_point_is_followed_and_the_rest_kept(task: TaskFile) -> None
     assert np.linalg.norm(moved.pos[-1] - path.pos[-1]) < TOL_M
     np.testing.assert_array_equal(moved.pos[0], path.pos[0])
     # Orientation, goal and the other motions are unchanged; the edit is recorded.
-    entry, old = new["constraints"][key], block["constraints"][key]
-    assert entry["dmp"]["rotation"] == old["dmp"]["rotation"]
-    assert entry["dmp"]["position"]["goal"] == old["dmp"]["position"]["goal"]
-    assert entry["goal"] == old["goal"]
-    assert {k: v for k, v in new["constraints"].items() if k != key} == {
-        k: v for k, v in block["constraints"].items() if k != key
+    entry, old = new.constraints[key], block.constraints[key]
+    assert entry.dmp.rotation == old.dmp.rotation
+    assert entry.dmp.position.goal == old.dmp.position.goal
+    assert entry.goal == old.goal
+    assert {k: v for k, v in new.constraints.items() if k != key} == {
+        k: v for k, v in block.constraints.items() if k != key
     }
-    assert entry["source"] == "corrected"
-    assert entry["edits"] == [
+    assert entry.source == "corrected"
+    assert [e.model_dump(by_alias=True) for e in entry.edits] == [
         {
             "index": 1,
             "time_s": float(path.key_times[1]),
-            "from": path.key_points[1].tolist(),
-            "to": target.tolist(),
+            "from": tuple(path.key_points[1].tolist()),
+            "to": tuple(target.tolist()),
         }
     ]
     # The drawn path passes the moved key point too.
@@ -129,9 +129,9 @@ def test_edit_is_saved_undoable_and_counted(task: TaskFile, tmp_path: Path) -> N
     path = tmp_path / "chair.task.json"
     save_task(task, path)
     session = ReviewSession.open(path)
-    key = key_for(task.stages["primitives"], "seating", "leg2")
+    key = key_for(task.stages.primitives, "seating", "leg2")
     assert key is not None
-    target = primitive_path(task.stages["primitives"], key).key_points[0] + [0.0, 0.0, 0.05]
+    target = primitive_path(task.stages.primitives, key).key_points[0] + [0.0, 0.0, 0.05]
     edit = SetPrimitivePoint(key, 0, (float(target[0]), float(target[1]), float(target[2])))
     session.apply(edit)
     assert session.effort.counts() == {"leg2": {"primitive": 1}}
@@ -139,17 +139,19 @@ def test_edit_is_saved_undoable_and_counted(task: TaskFile, tmp_path: Path) -> N
     assert corr.field == f"stages.primitives.constraints.{key}.key_points[0]"
     assert corr.new == list(edit.pos)
     saved = session.save()
-    block = load_task(saved).stages["primitives"]
+    block = load_task(saved).stages.primitives
     moved = primitive_path(block, key)
     assert np.linalg.norm(moved.key_points[0] - target) < TOL_M
     assert json.loads(saved.read_text())["stages"]["review"]["effort"]["operations"] == {
         "leg2": {"primitive": 1}
     }
     # Execution follows the edited motion.
-    _, p, _ = find_primitive(block, "seating", "leg2").rollout()
+    dmp = find_primitive(block, "seating", "leg2")
+    assert dmp is not None
+    _, p, _ = dmp.rollout()
     np.testing.assert_array_equal(p, moved.pos)
     session.undo()
-    assert session.task.stages["primitives"] == task.stages["primitives"]
+    assert session.task.stages.primitives == task.stages.primitives
 
 
 @pytest.mark.parametrize(
@@ -169,7 +171,7 @@ def test_bad_primitive_edits_are_refused(task: TaskFile, edit: Any, message: str
 
 def test_a_task_without_primitives_is_told(task: TaskFile) -> None:
     bare = task.model_copy(deep=True)
-    bare.stages.pop("primitives")
+    bare.stages.primitives = None
     with pytest.raises(EditError, match="the task has no learned primitives"):
         apply_edit(bare, SetPrimitivePoint("c1", 0, (0.0, 0.0, 0.0)))
     with pytest.raises(PrimitiveEditError, match="the task has no learned primitives"):
@@ -207,7 +209,7 @@ def test_motion_key_point_moved_in_the_browser(open_review: Any, task: TaskFile)
     review.choose("Key point", "2")
     review.wait_for(lambda: app.key_point == 1, "key point 2 chosen")
     assert app.motion_view.shown == (key, 1)
-    before = primitive_path(task.stages["primitives"], key)
+    before = primitive_path(task.stages.primitives, key)
     z = before.key_points[1][2] + 0.05
     _type(review, "z", f"{100.0 * z:.2f} cm")
     review.button("Move key point").click()
@@ -224,9 +226,10 @@ def test_motion_key_point_moved_in_the_browser(open_review: Any, task: TaskFile)
     review.button("Save").click()
     review.wait_for(lambda: not app.session.dirty, "the save")
     saved = load_task(review.path)
-    moved = primitive_path(saved.stages["primitives"], key)
+    moved = primitive_path(saved.stages.primitives, key)
     np.testing.assert_allclose(moved.key_points, after.key_points)
-    effort = saved.stages["review"]["effort"]["operations"]
+    assert saved.stages.review is not None and saved.stages.review.effort is not None
+    effort = saved.stages.review.effort.operations
     assert effort["leg2"]["primitive"] == 1
 
 
@@ -244,7 +247,7 @@ def test_dragging_the_key_point_handle_moves_it(task: TaskFile, tmp_path: Path) 
         key = app.primitive_key()
         view = app.motion_view
         assert key is not None and view is not None and view.handle is not None
-        before = primitive_path(task.stages["primitives"], key)
+        before = primitive_path(task.stages.primitives, key)
         np.testing.assert_allclose(view.handle.position, before.key_points[0])
         app.choose_key_point(2)
         np.testing.assert_allclose(view.handle.position, before.key_points[2])

@@ -42,7 +42,8 @@ def test_session_edit_save_reload(task_path: Path) -> None:
     back = load_task(task_path)
     assert back.constraint_by_id("c1").pos[0] == 0.2
     assert back.plan[0].child == "back"
-    effort = back.stages["review"]["effort"]
+    assert back.stages.review is not None and back.stages.review.effort is not None
+    effort = back.stages.review.effort.model_dump(exclude_none=True)
     assert effort["operations"] == {
         "leg2": {"movex": 1},
         "leg1": {"parent": 1},

@@ -74,7 +74,7 @@ def test_chair_to_bench(chair: TaskFile) -> None:
         assert c.confidence == pytest.approx(old.confidence / 2)
     seat = task.objects_by_name()["seating"]
     assert seat.mesh == "bench_sitting.stl" and seat.bbox_max == (0.15, 0.02, 0.15)
-    assert task.stages["transfer"]["to"] == "bench"
+    assert task.stages.transfer is not None and task.stages.transfer.to == "bench"
     # A valid task file that round-trips.
     assert "back" not in {n for s in task.plan for n in s.keyframe}
 

@@ -46,7 +46,11 @@ def test_scene_geometry_inverts_the_transformation(tmp_path: Path) -> None:
     q = se3.rotvec_to_quat([0.0, 0.0, np.pi / 2])
     spec = {"mesh": "box.stl", "transformation": [[0.03, -0.01, 0.02], [float(v) for v in q]]}
     geo = scene_geometry(_scene(tmp_path / "scene_a.json", {"/a": spec}), ["/a", "/b"])
-    assert set(geo) == {"/a"} and geo["/a"]["scale"] == 1e-3 and geo["/a"]["mesh"] == "box.stl"
+    assert (
+        set(geo) == {"/a"}
+        and geo["/a"]["scale"] == 1e-3
+        and geo["/a"]["mesh"] == str(tmp_path / "box.stl")
+    )
     m2b = geo["/a"]["mesh_to_body"]
     # The sensor's own origin, seen from the mesh, maps back onto the body origin.
     back = se3.quat_rotate(m2b.quat, [0.03, -0.01, 0.02]) + np.asarray(m2b.pos)
@@ -139,7 +143,9 @@ def test_real_toolbox_boards_touch_once_attached(shared_data: Path) -> None:
 
 
 @pytest.mark.slow
-def test_real_toolbox_learned_with_its_scene_executes(shared_data: Path, tmp_path: Path) -> None:
+def test_real_toolbox_learned_with_its_scene_executes(
+    shared_data: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from thirdhand.cli import app
 
     folder = shared_data / "3rdhand"
@@ -158,37 +164,52 @@ def test_real_toolbox_learned_with_its_scene_executes(shared_data: Path, tmp_pat
         ],
     )
     assert r.exit_code == 0, r.output
-    objects = {o["name"]: o for o in json.loads(task.read_text())["objects"]}
-    assert [objects[n]["mesh"] for n in BOARDS] == ["ToolboxPart2.stl", "ToolboxPart3.stl"]
-    # without --demo, a grasp from the board's shape: side_left stands on the table on
-    # the edge that is down at its goal (before, it lay propped on an edge at a random
-    # spin, and every goal configuration had the wrist or hand in the table)
+    doc = json.loads(task.read_text())
+    objects = {o["name"]: o for o in doc["objects"]}
+    # each mesh recorded by its path from the task file, found from there alone
+    meshes = [Path(objects[n]["mesh"]) for n in BOARDS]
+    assert [m.name for m in meshes] == ["ToolboxPart2.stl", "ToolboxPart3.stl"]
+    assert all(not m.is_absolute() and (tmp_path / m).is_file() for m in meshes)
+    assert (tmp_path / doc["stages"]["scene"]["file"]).resolve() == (
+        folder / "meshes" / "scene_toolbox_coop.json"
+    ).resolve()
+    # the person's hand on the board when they picked it up, recorded for execution
+    (cid,) = doc["stages"]["grasps"]["constraints"]
+    assert [g["hand"] for g in doc["stages"]["grasps"]["constraints"][cid]]
+    # no --meshes, no --demo, no THIRDHAND_MESH_PATH: the person's grasp and the real meshes
+    monkeypatch.delenv(MESH_PATH_ENV, raising=False)
+    r = runner.invoke(app, ["execute", str(task), "--record", str(tmp_path / "run")])
+    assert r.exit_code == 0, r.output
+    assert "mesh files not found" not in r.output
+    record = json.loads((tmp_path / "run.json").read_text())
+    assert record["success"] and record["n_collisions"] == 0
+    # exactly what --demo RECORDING does (its fingers' grasps are the recorded ones: the
+    # person's grasp is tried first; today's planner ends on a grasp from the board's
+    # shape either way, see docs/taskfile.md)
     r = runner.invoke(
         app,
-        ["execute", str(task), "--meshes", str(folder / "meshes"), "--record",
-         str(tmp_path / "shape")],
+        ["execute", str(task), "--demo", str(folder / "toolbox_coop_4"), "--record",
+         str(tmp_path / "demo")],
     )  # fmt: skip
+    assert r.exit_code == 0, r.output
+    again = json.loads((tmp_path / "demo.json").read_text())
+
+    def same(steps: list[dict]) -> list[dict]:
+        return [{k: v for k, v in s.items() if k != "planning_time_s"} for s in steps]
+
+    assert same(again["steps"]) == same(record["steps"])
+    # a task without recorded grasps (a thirdhand.task/1 file): a grasp from the board's
+    # shape; side_left stands on the table on the edge that is down at its goal
+    old = dict(doc, schema="thirdhand.task/1")
+    old["stages"] = {k: v for k, v in doc["stages"].items() if k != "grasps"}
+    (tmp_path / "old.json").write_text(json.dumps(old))
+    r = runner.invoke(
+        app, ["execute", str(tmp_path / "old.json"), "--record", str(tmp_path / "shape")]
+    )
     assert r.exit_code == 0, r.output
     record = json.loads((tmp_path / "shape.json").read_text())
     assert record["success"] and record["n_collisions"] == 0
     assert [s["grasp_source"] for s in record["steps"]] == ["shape"]
-    r = runner.invoke(
-        app,
-        [
-            "execute",
-            str(task),
-            "--meshes",
-            str(folder / "meshes"),
-            "--demo",
-            str(folder / "toolbox_coop_4"),
-            "--record",
-            str(tmp_path / "run"),
-        ],
-    )
-    assert r.exit_code == 0, r.output
-    record = json.loads((tmp_path / "run.json").read_text())
-    assert record["success"] and record["n_collisions"] == 0
-    assert record["steps"] and all(s["status"] == "done" for s in record["steps"])
     r = runner.invoke(
         app,
         [
@@ -208,7 +229,7 @@ def test_real_bench_scene_finds_its_renamed_seat_mesh(shared_data: Path) -> None
     scene = shared_data / "3rdhand" / "meshes" / "scene_bench.json"
     assert not (scene.parent / "bench_seating.stl").exists()
     geo = scene_geometry(scene, ["/bench/seating", "/bench/leg1"])
-    assert geo["/bench/seating"]["mesh"] == "bench_sitting.stl"
+    assert Path(geo["/bench/seating"]["mesh"]).name == "bench_sitting.stl"
     # millimetre translations (157.5) read in the mesh's units: the seat's box is
     # 40 x 300 x 300 mm wherever it sits, and lies within 0.5 m of its sensor
     lo, hi = (

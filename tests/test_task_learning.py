@@ -27,10 +27,12 @@ def learned_bench(bench):
 
 def test_every_stage_block_in_one_task(learned_bench) -> None:
     task = learned_bench.task
-    assert set(task.stages) == {"constraints", "plan", "primitives", "reward"}
+    assert task.stages.names() == ["constraints", "plan", "primitives", "reward", "grasps"]
     ids = {c.id for c in task.constraints}
     assert len(ids) == 4
-    assert set(task.stages["primitives"]["constraints"]) == ids
+    assert task.stages.primitives is not None and set(task.stages.primitives.constraints) == ids
+    # the person's hand on every leg when they picked it up, for execution
+    assert task.stages.grasps is not None and set(task.stages.grasps.constraints) == ids
     assert learned_bench.skipped == ("segment: skipped by the user",)
     # the in-memory task is a valid task file (what `learn -o` writes is this object)
     assert dump_task(parse_task(dump_task(task))) == dump_task(task)
@@ -53,8 +55,9 @@ def test_reward_plans_every_target(learned_bench) -> None:
     assert set(plans) == {"as demonstrated", "3 leg", "5 leg"}
     assert all(p.complete for p in plans.values())
     assert len(plans["3 leg"].steps) == 3 and len(plans["5 leg"].steps) == 5
-    block = learned_bench.task.stages["reward"]
-    assert block["plans"]["5 leg"]["parts"] == ["seating", "leg1", "leg2", "leg3", "leg4", "leg5"]
+    block = learned_bench.task.stages.reward
+    assert block is not None
+    assert block.plans["5 leg"].parts == ["seating", "leg1", "leg2", "leg3", "leg4", "leg5"]
 
 
 def test_reward_targets() -> None:
@@ -70,14 +73,15 @@ def test_reward_targets() -> None:
 
 
 def test_skipped_stages_say_why(bench) -> None:
-    res = learn_task([bench], segment=False, primitives=False, reward=False)
-    assert set(res.task.stages) == {"constraints", "plan"}
-    assert res.primitives is None and res.reward is None
+    res = learn_task([bench], segment=False, primitives=False, reward=False, grasps=False)
+    assert res.task.stages.names() == ["constraints", "plan"]
     assert res.skipped == (
         "segment: skipped by the user",
         "primitives: skipped by the user",
         "reward: skipped by the user",
+        "grasps: skipped by the user",
     )
+    assert res.primitives is None and res.reward is None
 
 
 def test_no_demonstration_is_an_error() -> None:
@@ -101,7 +105,11 @@ def test_cli_learn_on_the_real_toolbox(shared_data: Path, tmp_path: Path, capsys
     )
     assert status == 0, err
     task = load_task(out)
-    assert set(task.stages) == {"constraints", "plan", "primitives", "reward"}
+    # the scene and the person's grasps when THIRDHAND_MESH_PATH finds the scene file (the
+    # boards' boxes place the hand on them; without, their origins are too far from it)
+    blocks = set(task.stages.names())
+    assert blocks - {"scene", "grasps"} == {"constraints", "plan", "primitives", "reward"}
+    assert ("scene" in blocks) == ("grasps" in blocks)
     assert [c.type for c in task.constraints] == ["fixed"]
     assert "reward plan for as demonstrated: 1 steps, complete" in text
     # the recording itself is never written
@@ -117,7 +125,7 @@ def test_cli_learn_chair_writes_every_block(tmp_path: Path, capsys) -> None:
     status, _, err = call(capsys, "learn", str(path), "-o", str(out), "--no-segment")
     assert status == 0, err
     task = load_task(out)
-    assert set(task.stages) == {"constraints", "plan", "primitives", "reward"}
+    assert set(task.stages.names()) >= {"constraints", "plan", "primitives", "reward"}
     assert len(task.plan) == 5
     legs = [c for c in task.constraints if c.child.startswith("leg")]
     assert all(np.isclose(c.free_dofs.rx[1] - c.free_dofs.rx[0], 2 * np.pi) for c in legs)
@@ -150,3 +158,23 @@ def test_cli_learn_in_two_processes_writes_the_serial_task(
         docs.append(doc)
     assert docs[0]["constraints"] and docs[0]["plan"]
     assert docs[0] == docs[1]
+
+
+def test_recorded_grasps_are_those_execute_demo_takes(bench, learned_bench) -> None:
+    """``stages.grasps`` holds what ``execute --demo`` finds in the recording's fingers."""
+    from thirdhand.execute.grasps import demo_grasps
+
+    task = learned_bench.task
+    block = task.stages.grasps
+    assert block is not None
+    objects = task.objects_by_name()
+    for c in task.constraints:
+        obj = objects[c.child]
+        assert c.time is not None and obj.bbox_min is not None and obj.bbox_max is not None
+        box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
+        want = demo_grasps(bench, c.child, c.time, bbox=box)
+        got = block.constraints[c.id]
+        assert [g.hand for g in got] == [g.label for g in want] and want
+        for g, w in zip(got, want, strict=True):
+            np.testing.assert_allclose(g.pose.matrix(), w.pose, atol=1e-12)
+            assert (g.demo, g.time) == (c.demo, c.time)

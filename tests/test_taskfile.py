@@ -128,8 +128,12 @@ def full_task() -> dict[str, Any]:
             },
         ],
         "stages": {
-            "segmentation": {"model": "crf", "nll": 0.123},
+            # known blocks first, in schema order; a field the model does not know
+            # ("library") and a block it does not know ("segmentation") are kept
+            "plan": {"n_demos": 2, "steps": ["action(seating, leg1, c1)"]},
             "primitives": {"library": ["dmp-0", "dmp-1"]},
+            "review": {"confirmed": {"c1": ["constraint", "rz"]}},
+            "segmentation": {"model": "crf", "nll": 0.123},
         },
         "provenance": {
             "inputs": [{"path": "chair_01.parquet", "sha256": "ab" * 32}],
@@ -240,10 +244,15 @@ INVALID = [
     (_set("plan.1.constraint", "c9"), "plan[1].constraint: unknown constraint 'c9'"),
     (_set("plan.1.after", [1]), "plan[1].after[0]: step 1 is not an earlier step"),
     (
-        _set("schema", "thirdhand.task/2"),
-        'schema: expected "thirdhand.task/1", got "thirdhand.task/2"',
+        _set("schema", "thirdhand.task/3"),
+        'schema: expected "thirdhand.task/2", got "thirdhand.task/3"',
     ),
-    (_set("schema", 1), 'schema: expected "thirdhand.task/1", got 1'),
+    (_set("schema", 1), 'schema: expected "thirdhand.task/2", got 1'),
+    (_set("stages.plan.n_demos", "two"), "stages.plan.n_demos: Input should be a valid integer"),
+    (
+        _set("stages.review.confirmed", {"c1": "rz"}),
+        "stages.review.confirmed.c1: Input should be a valid array",
+    ),
     (_del("schema"), "schema: required field is missing"),
     (_set("constraints.0.quat", [0.0, 0.0, 0.0, 0.0]), "constraints[0].quat: quaternion has zero"),
     (_set("constraints.0.quat", [0.0, 0.0, 0.5, 0.5]), "constraints[0].quat: quaternion norm is"),
@@ -555,3 +564,71 @@ def test_free_dofs_by_name() -> None:
     assert fd.ranges()[3] == fd["rx"]
     with pytest.raises(KeyError, match="unknown DOF 'Tx'"):
         fd["Tx"]
+
+
+# --- thirdhand.task/2: typed stage blocks, the /1 migration ---------------------------------
+
+
+def _v1(doc: dict[str, Any]) -> dict[str, Any]:
+    """The document as thirdhand.task/1 wrote it (schema string, free-form blocks)."""
+    old = copy.deepcopy(doc)
+    old["schema"] = "thirdhand.task/1"
+    return old
+
+
+def test_a_v1_file_loads_migrated_and_is_written_as_v2(tmp_path: Path) -> None:
+    doc = full_task()
+    src = write_json(tmp_path / "old.json", _v1(doc))
+    task = load_task(src)
+    assert task.schema_ == SCHEMA == "thirdhand.task/2"
+    assert task.stages.plan is not None and task.stages.plan.n_demos == 2
+    assert task.stages.review is not None and task.stages.review.confirmed == {
+        "c1": ["constraint", "rz"]
+    }
+    out = tmp_path / "new.json"
+    save_task(task, out)
+    # everything else exactly as read: the migration is the schema string
+    assert json.loads(out.read_text()) == doc
+    assert json.loads(src.read_text())["schema"] == "thirdhand.task/1"  # the input untouched
+
+
+def test_a_v1_file_with_a_block_that_does_not_fit_names_where(tmp_path: Path) -> None:
+    old = _v1(full_task())
+    old["stages"]["perception"] = {"pointing": [{"object": "leg1", "t0": 1.0}]}
+    path = write_json(tmp_path / "old.json", old)
+    with pytest.raises(TaskFileError, match=r"stages\.perception\.pointing\[0\]\.hand: required"):
+        load_task(path)
+
+
+def test_a_v1_dict_is_refused_by_the_model_with_a_hint() -> None:
+    with pytest.raises(ValueError, match="load_task and parse_task migrate it"):
+        TaskFile.model_validate(_v1(full_task()))
+
+
+def test_unknown_fields_of_a_known_block_and_unknown_blocks_round_trip(tmp_path: Path) -> None:
+    doc = full_task()
+    doc["stages"]["plan"]["voted_by"] = {"people": ["ana", "ben"], "weights": [0.5, 0.5]}
+    doc["stages"]["future_stage"] = {"a": [1, 2, {"b": None}]}
+    task = load_task(write_json(tmp_path / "in.json", doc))
+    assert task.stages.plan is not None
+    assert task.stages.plan.model_extra == {
+        "voted_by": {"people": ["ana", "ben"], "weights": [0.5, 0.5]}
+    }
+    assert task.stages.other("future_stage") == {"a": [1, 2, {"b": None}]}
+    assert task.stages.names() == ["plan", "primitives", "review", "segmentation", "future_stage"]
+    out = tmp_path / "out.json"
+    save_task(task, out)
+    assert json.loads(out.read_text()) == doc
+
+
+def test_a_block_built_in_code_writes_what_was_set_and_what_differs_from_defaults() -> None:
+    from thirdhand.task.stages import PlanBlock, ReviewBlock, Stages
+
+    review = ReviewBlock()
+    review.confirmed.setdefault("c1", []).append("rz")  # mutated in place, never assigned
+    stages = Stages(plan=PlanBlock(n_demos=1), review=review)
+    task = TaskFile.new(stages=stages)
+    doc = task.to_json_dict()["stages"]
+    assert doc == {"plan": {"n_demos": 1}, "review": {"confirmed": {"c1": ["rz"]}}}
+    with pytest.raises(ValueError, match="typed block"):
+        stages.set_other("plan", {})

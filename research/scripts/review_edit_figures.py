@@ -21,7 +21,6 @@ import time
 import numpy as np
 
 from thirdhand import io
-from thirdhand.primitives.serialize import pose_dmp_from_dict
 from thirdhand.review.phase_labels import PhaseLabelling
 from thirdhand.review.primitive_edit import move_key_point, primitive_path, refit_position
 from thirdhand.segment import segment_demonstration
@@ -29,17 +28,17 @@ from thirdhand.taskfile import load_task
 
 
 def primitive_figures(task_path: str) -> None:
-    block = load_task(task_path).stages.get("primitives")
-    if not block:
+    block = load_task(task_path).stages.primitives
+    if block is None:
         print(f"{task_path}: no primitives block")
         return
-    for key, entry in block["constraints"].items():
+    for key, entry in block.constraints.items():
         path = primitive_path(block, key)
-        dmp = pose_dmp_from_dict(entry["dmp"])
+        dmp = entry.pose_dmp()
         again = refit_position(dmp.position_, path.s, path.pos)
         err0 = float(np.abs(again.rollout()[1] - path.pos).max())
         print(
-            f"{key}: {entry['child']} on {entry['parent']}, {path.s[-1]:.2f} s, "
+            f"{key}: {entry.child} on {entry.parent}, {path.s[-1]:.2f} s, "
             f"{dmp.position_.n_weights} weights; refit of the unmoved path {1e3 * err0:.3f} mm"
         )
         for k in range(len(path.key_times)):

@@ -78,7 +78,7 @@ def test_feasible_spins_agree_with_the_executor(shared_data) -> None:
             if x.id != target:
                 world.scene.allow(x.child, x.parent)
         plan = ex.plan_step(world, 0, new, robot.home, 3)
-        assert (plan.report.tried["place_reachable"] > 0) == bool(feasible[k]), (k, plan.report)
+        assert (plan.report.tried.place_reachable > 0) == bool(feasible[k]), (k, plan.report)
 
 
 @pytest.mark.slow

@@ -62,8 +62,8 @@ def test_cli_fit_writes_a_stage_block(tmp_path: Path) -> None:
         app, ["fit", *paths, "-o", str(out), "--promp-weights", "5", "--task", str(task)]
     )
     assert res.exit_code == 0, res.output
-    stored = load_task(task).stages["primitives"]
-    assert set(stored["constraints"]) == {"c1", "c2", "c3", "c4", "c5"}
+    stored = load_task(task).stages.primitives
+    assert stored is not None and set(stored.constraints) == {"c1", "c2", "c3", "c4", "c5"}
     assert (tmp_path / "chair.task.json.bak").exists()
     block = json.loads(out.read_text())
     assert block["schema"] == "thirdhand.primitives/1"

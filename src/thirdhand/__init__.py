@@ -28,7 +28,7 @@ from thirdhand.demonstration import (
     PlanStep,
 )
 from thirdhand.errors import DemonstrationError, FormatError, TaskFileError, ThirdhandError
-from thirdhand.task_learning import LearnedTask, learn_task
+from thirdhand.task_learning import LearnedTask, RecordingStages, learn_task
 
 __version__ = "0.1.0"
 
@@ -68,6 +68,7 @@ __all__ = [
     "Labels",
     "LearnedTask",
     "PlanStep",
+    "RecordingStages",
     "TaskFileError",
     "ThirdhandError",
     "__version__",

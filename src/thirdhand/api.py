@@ -8,7 +8,7 @@ dicts between stages) and imports its stage only when called, so
     phases = th.segment_phases(demo)
     detection = th.detect_constraints(demo, phases=phases)
     plan = th.plan_assembly([detection])
-    learned = th.learn_task([demo])          # every stage above, plus primitives and reward
+    learned = th.learn_task([demo])          # every stage above, plus primitives, reward, grasps
     result = th.execute_task(learned.task, robot="panda")
 
 (The verbs of segmentation and execution are ``segment_phases`` and ``execute_task``:
@@ -29,11 +29,11 @@ if TYPE_CHECKING:
     from thirdhand.plan.assembly import AssemblyPlan
     from thirdhand.primitives.pose_channels import PoseTrack
     from thirdhand.primitives.skill_library import SkillLibrary, SkillParserOptions
-    from thirdhand.primitives.stage import ConstraintPrimitive
     from thirdhand.relational.assembly import AssemblyModel
     from thirdhand.segment.model import SegmentModel
     from thirdhand.segment.pipeline import SegmentationResult
     from thirdhand.task.model import TaskFile
+    from thirdhand.task.stages import PrimitivesBlock
 
 #: Robots :func:`execute` can drive.
 ROBOTS = ("panda", "baxter")
@@ -54,7 +54,7 @@ def segment_phases(demo: Demonstration, model: SegmentModel | None = None) -> Se
 
 
 def detect_constraints(
-    demo: Demonstration, *, phases: SegmentationResult | None = None
+    demo: Demonstration, *, phases: SegmentationResult | None = None, name: str | None = None
 ) -> DetectionResult:
     """The kinematic constraints created between the parts of a recording, over time.
 
@@ -64,10 +64,12 @@ def detect_constraints(
     phases : SegmentationResult, optional
         From :func:`segment_phases` of the same recording (its hand-holding supports
         the approach of each constraint).
+    name : str, optional
+        The recording's name, kept on each constraint found.
     """
     from thirdhand.constraints.detect import detect_constraints as detect
 
-    return detect(demo, phases=phases)
+    return detect(demo, phases=phases, demo_name=name)
 
 
 def plan_assembly(
@@ -83,18 +85,21 @@ def plan_assembly(
         A slot becomes a step when more than this fraction of the recordings that
         show any constraint have it, in [0, 1) (0.5: a strict majority).
     """
-    from thirdhand.plan.assembly import plan_from_demos
-    from thirdhand.plan.symbols import assign_symbols
+    from thirdhand.plan.assembly import assemble
 
     if not detections:
         raise ThirdhandError("plan_assembly: no detection given")
-    symbols = assign_symbols([i for d in detections for i in d.instances])
-    return plan_from_demos([d.instances for d in detections], symbols, min_support=min_support)
+    return assemble(detections, min_support=min_support)[1]
 
 
 def fit_primitives(
-    demos: Sequence[Demonstration], constraints: Sequence[Sequence[ConstraintEvent]]
-) -> dict[str, ConstraintPrimitive]:
+    demos: Sequence[Demonstration],
+    constraints: Sequence[Sequence[ConstraintEvent]],
+    *,
+    skills: int | None = None,
+    names: Sequence[str] | None = None,
+    seed: int = 0,
+) -> PrimitivesBlock:
     """A quaternion DMP and a ProMP per constraint, from the motions that created it.
 
     Parameters
@@ -103,25 +108,27 @@ def fit_primitives(
     constraints : sequence of sequences of ConstraintEvent
         Per recording, its constraints (e.g.
         :func:`thirdhand.task_learning.learned_events` of a learned task).
+    skills : int, optional
+        Also learn a library of this many skills and explain each motion by them.
+    names : sequence of str, optional
+        A name per recording (the source of its explained motions).
+    seed : int
+        Seeds the skill library's restarts.
 
     Returns
     -------
-    dict of str to ConstraintPrimitive
-        Keyed by constraint symbol.
+    PrimitivesBlock
+        The task file's ``stages.primitives``: a
+        :class:`~thirdhand.task.stages.PrimitiveRecord` per constraint symbol
+        (``record.pose_dmp()`` rebuilds the fitted DMP).
     """
-    from thirdhand.primitives.segments import constraint_segments, group_segments
-    from thirdhand.primitives.stage import fit_constraint_primitive
+    from thirdhand.primitives.stage import primitives_stage
 
     if len(constraints) != len(demos):
         raise ThirdhandError(
             f"fit_primitives: {len(constraints)} constraint lists for {len(demos)} recordings"
         )
-    segs = [
-        s
-        for d, ev in zip(demos, constraints, strict=True)
-        for s in constraint_segments(d, events=ev)
-    ]
-    return {key: fit_constraint_primitive(group) for key, group in group_segments(segs).items()}
+    return primitives_stage(demos, events=constraints, skills=skills, names=names, seed=seed)
 
 
 def learn_skills(
@@ -144,24 +151,28 @@ def learn_skills(
     return SkillLibrary(options).fit(tracks)
 
 
-def learn_reward(tasks: Sequence[TaskFile], *, seed: int = 0) -> AssemblyModel:
-    """The relational reward (RCSI) of the tasks' demonstrated plans.
+def learn_reward(plans: Sequence[AssemblyPlan | TaskFile], *, seed: int = 0) -> AssemblyModel:
+    """The relational reward (RCSI) of demonstrated plans.
+
+    Parameters
+    ----------
+    plans : sequence of AssemblyPlan or TaskFile
+        Plans from :func:`plan_assembly`, or the plans of task files.
 
     Plan other part sets with it by
     :func:`thirdhand.relational.assembly.plan_with_reward`.
     """
     from thirdhand.relational.assembly import learn_assembly
-    from thirdhand.relational.domains.plans import trajectory_from_steps
+    from thirdhand.relational.domains.plans import trajectory_from_plan
+    from thirdhand.task.model import TaskFile
 
-    if not tasks:
+    if not plans:
         raise ThirdhandError("learn_reward: no task given (expected at least one plan)")
-    empty = [i for i, t in enumerate(tasks) if not t.plan]
+    steps = [p.plan if isinstance(p, TaskFile) else p.steps for p in plans]
+    empty = [i for i, s in enumerate(steps) if not s]
     if empty:
         raise ThirdhandError(f"learn_reward: task {empty[0]} has no plan")
-    trajectories = [
-        trajectory_from_steps([s.model_dump() for s in t.plan], source=f"task {i}")
-        for i, t in enumerate(tasks)
-    ]
+    trajectories = [trajectory_from_plan(s, source=f"task {i}") for i, s in enumerate(steps)]
     return learn_assembly(trajectories, seed=seed)
 
 

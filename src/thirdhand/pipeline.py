@@ -1,7 +1,7 @@
 """The main job: a synthetic chair assembly through every stage.
 
 Make the scene, learn the task in memory (:func:`thirdhand.task_learning.learn_task`:
-phases, constraints, plan, primitives, relational reward), execute it on a
+phases, constraints, plan, primitives, relational reward, grasps), execute it on a
 simulated Panda, and write each output once into the output folder; the
 returned summary lists what was written and the key figures.
 """
@@ -60,11 +60,10 @@ def run_demo(output: str | os.PathLike[str], *, seed: int = 0) -> dict[str, Any]
         f"{len(demo.labels.interactions)} labelled interactions, "
         f"{len(demo.labels.constraints)} constraints → {demo_path}"
     )
-    from thirdhand.segment import segment_demonstration
-
-    phases = segment_demonstration(demo)
+    learned = learn_task([demo], reward_plans=REWARD_TARGETS, seed=0, inputs=[demo_path])
+    phases = learned.learned.phases[0]
+    assert phases is not None  # segmented: learn_task was not told to skip it
     _write_segmentation(phases, out, summary)
-    learned = learn_task([demo], phases=[phases], reward_plans=REWARD_TARGETS, seed=0)
     path = _write_task(learned, out, summary)
     _run_execution(learned, path, out, summary, seed=seed)
     return summary
@@ -123,10 +122,15 @@ def _write_task(learned: LearnedTask, out: Path, summary: dict[str, Any]) -> Pat
     """``task.json`` (every stage block), the HTML report, and each stage's figures."""
     from thirdhand.plan.learn import plan_figures
     from thirdhand.plan.report import write_report
+    from thirdhand.task.meshes import anchor_meshes, missing_mesh_note
     from thirdhand.taskfile import save_task
 
     path = out / "task.json"
-    save_task(learned.task, path)
+    task = anchor_meshes(learned.task, path)
+    save_task(task, path)
+    note = missing_mesh_note(task, path)
+    if note is not None:
+        summary["lines"].append(note)
     summary["files"].append(str(path))
     block, line = plan_figures(learned.learned)
     summary["plan"] = block
@@ -135,22 +139,22 @@ def _write_task(learned: LearnedTask, out: Path, summary: dict[str, Any]) -> Pat
     summary["files"].append(str(index))
     summary["lines"].append(f"plan report → {index}")
     if learned.primitives is not None:
-        keys = sorted(learned.primitives.get("constraints", {}))
+        keys = sorted(learned.primitives.constraints)
         summary["primitives"] = {"constraints": keys}
         summary["lines"].append(
             f"primitives: {len(keys)} constraint motions (quaternion DMP + ProMP) "
             f"→ {path} stages.primitives"
         )
-        lib = learned.primitives.get("skill_library")
+        lib = learned.primitives.skill_library
         if lib is not None:
             seqs = {
-                k: " ".join(str(s["skill"]) for s in c["skills"][0]["steps"])
-                for k, c in learned.primitives["constraints"].items()
-                if c.get("skills")
+                k: " ".join(str(s.skill) for s in c.skills[0].steps)
+                for k, c in learned.primitives.constraints.items()
+                if c.skills
             }
             summary["primitives"]["skills"] = seqs
             summary["lines"].append(
-                f"skills: {lib['n_skills']} library skills explain the constraint motions ("
+                f"skills: {lib.n_skills} library skills explain the constraint motions ("
                 + "; ".join(f"{k}: {v}" for k, v in sorted(seqs.items()))
                 + ") → stages.primitives.skill_library"
             )
@@ -172,13 +176,15 @@ def _run_execution(
 ) -> None:
     """The learned plan executed offline on a simulated Panda; replay and trajectory files.
 
-    Part meshes are looked up along ``THIRDHAND_MESH_PATH``; without them the
-    parts are their bounding boxes.
+    The task is read back from ``path``: its meshes are those it recorded (found
+    along ``THIRDHAND_MESH_PATH`` when learned); without them the parts are their
+    bounding boxes.
     """
     from thirdhand.execute.executor import Executor
     from thirdhand.execute.record import write_run
+    from thirdhand.taskfile import load_task
 
-    executor = Executor.for_task(learned.task, "panda", seed=seed, task_path=path)
+    executor = Executor.for_task(load_task(path), "panda", seed=seed, task_path=path)
     result = executor.run_offline(seed=seed)
     arm = executor.robot
     replay, trajectory = write_run(arm, result, out / "execution.parquet", task_name="chair")

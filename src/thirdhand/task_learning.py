@@ -1,12 +1,26 @@
-"""Every stage that needs no robot, from recordings to one task file.
+"""The pipeline: every stage that needs no robot, from recordings to one task file.
 
-:func:`learn_task` runs, in memory and in order, the interaction phases (CRF),
-the constraints, keyframes, symbols and assembly plan
-(:func:`thirdhand.plan.learn.learn`), the motor primitives of every learned
-constraint, and the relational reward of the plan with the plans it makes for
-other part sets. Each stage consumes the previous stage's objects: nothing is
-written or read back between stages, and the primitives are fed the *learned*
-constraints (never the recording's ground-truth labels).
+:func:`learn_task` is a plain sequence of the stage verbs (:mod:`thirdhand.api`),
+each consuming the previous one's typed objects in memory:
+
+1. per recording (:func:`recording_stages`, the unit ``learn --jobs/--scheduler``
+   runs in a process or on a cluster): interaction phases
+   (:func:`~thirdhand.api.segment_phases`) and constraints
+   (:func:`~thirdhand.api.detect_constraints`);
+2. symbols and the assembly plan (:func:`~thirdhand.plan.assembly.assemble`, the
+   stage of :func:`~thirdhand.api.plan_assembly`) and the keyframes;
+3. the task file, with the parts' meshes from a 3rdHand scene file;
+4. the motor primitives of every *learned* constraint (never the recording's
+   ground-truth labels, :func:`~thirdhand.api.fit_primitives`);
+5. the relational reward of the :class:`~thirdhand.plan.assembly.AssemblyPlan`
+   (:func:`~thirdhand.api.learn_reward`) and the plans it makes for other part sets;
+6. the person's grasps: per constraint, where their hand held the child when
+   they picked it up (so ``execute`` needs no ``--demo``).
+
+This is the only place the stages are chained: ``thirdhand learn``, ``thirdhand
+demo`` and :func:`thirdhand.plan.learn.learn` call :func:`learn_task`.
+Precomputed results of a recording (its phases, its detection, or both) come in
+one way, as a :class:`RecordingStages` per recording.
 """
 
 from __future__ import annotations
@@ -15,21 +29,85 @@ import os
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 from thirdhand.demonstration import ConstraintEvent, Demonstration, FreeDofs
 from thirdhand.errors import ThirdhandError
 
 if TYPE_CHECKING:
     from thirdhand.constraints.detect import DetectionResult
+    from thirdhand.plan.assembly import AssemblyPlan
     from thirdhand.plan.learn import Learned
     from thirdhand.relational.assembly import AssemblyModel, RewardPlan
     from thirdhand.segment.model import SegmentModel
     from thirdhand.segment.pipeline import SegmentationResult
     from thirdhand.task.model import TaskFile
+    from thirdhand.task.stages import GraspsBlock, PrimitivesBlock, RewardBlock
 
 #: The stages :func:`learn_task` can skip, in the order they run.
-OPTIONAL_STAGES = ("segment", "primitives", "reward")
+OPTIONAL_STAGES = ("segment", "primitives", "reward", "grasps")
+
+#: Skills of the library that explains the constraint motions (transport,
+#: approach, screwing turn, rest in the synthetic chair), unless told otherwise.
+DEFAULT_SKILLS = 4
+
+
+@dataclass(frozen=True)
+class RecordingStages:
+    """What the per-recording stages found (or were given) for one recording.
+
+    Attributes
+    ----------
+    phases : SegmentationResult or None
+        Its interaction phases (None: not segmented, or to be computed).
+    detection : DetectionResult or None
+        Its constraints over time (None: to be computed, with ``phases``).
+    """
+
+    phases: SegmentationResult | None = None
+    detection: DetectionResult | None = None
+
+
+@dataclass(frozen=True)
+class RecordingUnit:
+    """One independent unit of ``learn --jobs/--scheduler``: one recording's own stages.
+
+    Attributes
+    ----------
+    demo : Demonstration
+    name : str
+        The recording's name (its file name).
+    segment : bool
+        Run the interaction segmentation when ``known.phases`` is None.
+    model : SegmentModel or None
+        The segmentation model (None: the shipped one).
+    known : RecordingStages
+        What is already computed.
+    """
+
+    demo: Demonstration
+    name: str
+    segment: bool = True
+    model: SegmentModel | None = None
+    known: RecordingStages = RecordingStages()
+
+
+def recording_stages(unit: RecordingUnit) -> RecordingStages:
+    """Segment one recording (unless told not to, or given) and detect its constraints.
+
+    Deterministic, so the task file is the same serially, in processes and on a
+    cluster (:func:`thirdhand.batch.parallel_map`).
+    """
+    from thirdhand.api import detect_constraints, segment_phases
+
+    phases = unit.known.phases
+    if phases is None and unit.segment:
+        phases = segment_phases(unit.demo, unit.model)
+    detection = unit.known.detection
+    if detection is None:
+        detection = detect_constraints(unit.demo, phases=phases, name=unit.name)
+    return RecordingStages(phases, detection)
 
 
 @dataclass(frozen=True)
@@ -47,21 +125,20 @@ class RewardResult:
     model: AssemblyModel
     plans: dict[str, RewardPlan]
 
-    def block(self) -> dict[str, Any]:
-        """The task file's ``stages.reward`` block (JSON-able)."""
-        return {
-            "method": "RCSI (relational cascaded supervised IRL) on the learned plan",
-            "reward_tree": str(self.model.rcsi.reward),
-            "plans": {
-                label: {
-                    "parts": list(p.parts),
-                    "complete": p.complete,
-                    "perf": p.perf,
-                    "steps": list(p.steps),
-                }
+    def block(self) -> RewardBlock:
+        """The task file's ``stages.reward`` block."""
+        from thirdhand.task.stages import RewardBlock, RewardPlanRecord
+
+        return RewardBlock(
+            method="RCSI (relational cascaded supervised IRL) on the learned plan",
+            reward_tree=str(self.model.rcsi.reward),
+            plans={
+                label: RewardPlanRecord(
+                    parts=list(p.parts), complete=p.complete, perf=p.perf, steps=list(p.steps)
+                )
                 for label, p in self.plans.items()
             },
-        }
+        )
 
 
 @dataclass(frozen=True)
@@ -74,8 +151,8 @@ class LearnedTask:
         Phases, constraint detections, symbols, plan and keyframes.
     task : TaskFile
         The task file, with a block per stage that ran in ``task.stages``.
-    primitives : dict or None
-        The ``stages.primitives`` block (None when skipped or no constraint was learned).
+    primitives : PrimitivesBlock or None
+        ``task.stages.primitives`` (None when skipped or no constraint was learned).
     reward : RewardResult or None
         None when skipped or the plan is empty.
     skipped : tuple of str
@@ -84,7 +161,7 @@ class LearnedTask:
 
     learned: Learned
     task: TaskFile
-    primitives: dict[str, Any] | None
+    primitives: PrimitivesBlock | None
     reward: RewardResult | None
     skipped: tuple[str, ...]
 
@@ -120,14 +197,9 @@ def learned_events(learned: Learned) -> list[tuple[ConstraintEvent, ...]]:
     return [tuple(sorted(per_demo[n], key=lambda e: e.time)) for n in learned.names]
 
 
-#: Skills of the library that explains the constraint motions (transport,
-#: approach, screwing turn, rest in the synthetic chair), unless told otherwise.
-DEFAULT_SKILLS = 4
-
-
 def fit_task_primitives(
     learned: Learned, *, skills: int | None = DEFAULT_SKILLS, seed: int = 0
-) -> dict[str, Any] | None:
+) -> PrimitivesBlock | None:
     """Motor primitives (quaternion DMP + ProMP) of every learned constraint.
 
     Parameters
@@ -135,25 +207,24 @@ def fit_task_primitives(
     learned : Learned
     skills : int, optional
         Skills of the library learned over all constraint motions, each motion
-        explained as a sequence of them (None: no library; see
-        :func:`~thirdhand.primitives.stage.primitives_stage`).
+        explained as a sequence of them (None: no library).
     seed : int
         Seeds the library's restarts.
 
     Returns
     -------
-    dict or None
+    PrimitivesBlock or None
         The ``stages.primitives`` block; None when no constraint was learned.
     """
-    from thirdhand.primitives.stage import primitives_stage
+    from thirdhand.api import fit_primitives
 
     events = learned_events(learned)
     used = [(d, e, n) for d, e, n in zip(learned.demos, events, learned.names, strict=True) if e]
     if not used:
         return None
-    return primitives_stage(
+    return fit_primitives(
         [d for d, _, _ in used],
-        events=[e for _, e, _ in used],
+        [e for _, e, _ in used],
         skills=skills,
         names=[n for _, _, n in used],
         seed=seed,
@@ -197,17 +268,17 @@ def reward_targets(parts: Sequence[str]) -> dict[str, list[str]]:
 
 
 def learn_task_reward(
-    task: TaskFile,
+    plan: AssemblyPlan,
     *,
     targets: Mapping[str, Sequence[str]] | None = None,
     seed: int = 0,
 ) -> RewardResult:
-    """Relational IRL (RCSI) on a task's plan, and plans for other part sets.
+    """Relational IRL (RCSI) on an assembly plan, and plans for other part sets.
 
     Parameters
     ----------
-    task : TaskFile
-        With a non-empty plan.
+    plan : AssemblyPlan
+        With at least one step.
     targets : mapping of str to sequence of str, optional
         Label to part names; default :func:`reward_targets` of the plan's parts.
     seed : int
@@ -217,38 +288,91 @@ def learn_task_reward(
     RelationalError
         If the plan is empty.
     """
-    from thirdhand.relational.assembly import learn_assembly, plan_with_reward
-    from thirdhand.relational.domains.plans import parts_of
+    from thirdhand.api import learn_reward
+    from thirdhand.relational.assembly import plan_with_reward
+    from thirdhand.relational.domains.plans import parts_of, trajectory_from_plan
     from thirdhand.relational.logic import RelationalError
 
-    if not task.plan:
+    if not plan.steps:
         raise RelationalError("reward: the task has no plan (expected at least one step)")
-    from thirdhand.relational.domains.plans import trajectory_from_steps
-
-    trajectory = trajectory_from_steps([s.model_dump() for s in task.plan], source="task plan")
-    model = learn_assembly([trajectory], seed=seed)
-    goal = reward_targets(parts_of(trajectory)) if targets is None else targets
-    plans = {label: plan_with_reward(model, list(parts)) for label, parts in goal.items()}
+    model = learn_reward([plan], seed=seed)
+    parts = parts_of(trajectory_from_plan(plan.steps, source="task plan"))
+    goal = reward_targets(parts) if targets is None else targets
+    plans = {label: plan_with_reward(model, list(p)) for label, p in goal.items()}
     return RewardResult(model, plans)
+
+
+def demonstrated_grasps(
+    task: TaskFile, demos: Sequence[Demonstration], names: Sequence[str]
+) -> GraspsBlock | None:
+    """Per constraint, where the person's hands held its child just before it was made.
+
+    The recording of each constraint is the one it was learned from
+    (``Constraint.demo``); :func:`thirdhand.execute.grasps.demo_grasps` finds the
+    hands (the same grasps ``execute --demo RECORDING`` takes).
+
+    Returns
+    -------
+    GraspsBlock or None
+        None when no recording shows a hand holding a part.
+    """
+    if not any(b.kind == "finger" for d in demos for b in d.bodies):
+        return None
+    import numpy as np
+
+    from thirdhand.execute.grasps import demo_grasps
+    from thirdhand.se3 import matrix_to_pose
+    from thirdhand.task.geometry import Pose
+    from thirdhand.task.stages import DemoGraspRecord, GraspsBlock
+
+    by_name = dict(zip(names, demos, strict=True))
+    objects = task.objects_by_name()
+    found: dict[str, list[DemoGraspRecord]] = {}
+    for c in task.constraints:
+        demo = by_name.get(c.demo) if c.demo is not None else demos[0]
+        if c.time is None or demo is None or c.child not in objects:
+            continue
+        obj = objects[c.child]
+        box = None
+        if obj.bbox_min is not None and obj.bbox_max is not None:
+            box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
+        records = []
+        for g in demo_grasps(demo, c.child, c.time, bbox=box):
+            pos, quat = matrix_to_pose(g.pose)
+            pose = Pose.model_validate({"pos": pos.tolist(), "quat": quat.tolist()})
+            records.append(DemoGraspRecord(hand=g.label, pose=pose, demo=c.demo, time=c.time))
+        if records:
+            found[c.id] = records
+    return GraspsBlock(constraints=found) if found else None
+
+
+def find_task_scene(demos: Sequence[Demonstration]) -> Path | None:
+    """The scene file along ``THIRDHAND_MESH_PATH`` that lists every part of the recordings."""
+    from thirdhand.task.scene_file import find_scene
+
+    parts = sorted({b.name for d in demos for b in d.bodies if b.kind == "part"})
+    return find_scene(parts)
 
 
 def learn_task(
     demos: Sequence[Demonstration],
     *,
     names: Sequence[str] | None = None,
-    phases: Sequence[SegmentationResult] | None = None,
+    recordings: Sequence[RecordingStages] | None = None,
     segment: bool = True,
     segment_model: SegmentModel | None = None,
     primitives: bool = True,
     skills: int | None = DEFAULT_SKILLS,
     reward: bool = True,
     reward_plans: Mapping[str, Sequence[str]] | None = None,
+    grasps: bool = True,
     seed: int = 0,
     inputs: Sequence[str | os.PathLike[str]] = (),
     progress: Callable[[str], None] | None = None,
-    detections: Sequence[DetectionResult] | None = None,
     min_support: float = 0.5,
-    scene: str | os.PathLike[str] | None = None,
+    scene: str | os.PathLike[str] | Literal["auto"] | None = None,
+    jobs: int = 1,
+    scheduler: str | None = None,
 ) -> LearnedTask:
     """Learn a task from demonstrations: every stage that needs no robot.
 
@@ -258,14 +382,15 @@ def learn_task(
         Demonstrations of one task (same part names).
     names : sequence of str, optional
         A name per demonstration (file names); default ``demo1``, ``demo2``…
-    phases : sequence of SegmentationResult, optional
-        Segmentations already computed, one per demonstration.
+    recordings : sequence of RecordingStages, optional
+        Per demonstration, what is already computed (its phases, its detection);
+        the rest is computed.
     segment : bool
-        Run the interaction segmentation (when ``phases`` is not given).
+        Run the interaction segmentation where no phases are given.
     segment_model : SegmentModel, optional
         The segmentation model (default: the shipped one).
-    primitives, reward : bool
-        Run the motor-primitive and the relational-reward stages.
+    primitives, reward, grasps : bool
+        Run the motor-primitive, the relational-reward and the demonstrated-grasp stages.
     skills : int, optional
         Skills of the library that explains the constraint motions in the
         primitives block (None: no library).
@@ -277,16 +402,16 @@ def learn_task(
         Source files, hashed into the task's provenance.
     progress : callable, optional
         Called with the name of each stage as it starts.
-    detections : sequence of DetectionResult, optional
-        Constraint detections already computed per demonstration (with its
-        ``phases``; ``learn --jobs/--scheduler`` runs segmentation and detection
-        of each recording as one unit).
     min_support : float
         A slot becomes a plan step when more than this fraction of the recordings
         that show any constraint have it, in [0, 1) (0.5: a strict majority; 0: every
         slot seen once).
-    scene : path-like, optional
-        A 3rdHand scene file (``scene_*.json``) giving the parts' meshes.
+    scene : path-like or "auto", optional
+        A 3rdHand scene file (``scene_*.json``) giving the parts' meshes; ``"auto"``:
+        the one along ``THIRDHAND_MESH_PATH`` that lists every part, if any.
+    jobs, scheduler
+        Run the per-recording stages in ``jobs`` local processes or as Dask tasks
+        (:func:`thirdhand.batch.parallel_map`); the task is the same either way.
 
     Returns
     -------
@@ -297,33 +422,57 @@ def learn_task(
     ThirdhandError
         On an empty demonstration list or a stage's bad input (one line).
     """
-    from thirdhand.plan.learn import learn
+    from thirdhand.plan.assembly import assemble
+    from thirdhand.plan.keyframes import keyframes
+    from thirdhand.plan.learn import Learned
 
     demo_list = list(demos)
     if not demo_list:
         raise ThirdhandError("learn: no demonstration given")
+    nm = list(names) if names is not None else [f"demo{i + 1}" for i in range(len(demo_list))]
+    known = list(recordings) if recordings is not None else [RecordingStages()] * len(demo_list)
+    if len(nm) != len(demo_list) or len(known) != len(demo_list):
+        raise ThirdhandError(
+            f"learn: {len(demo_list)} demonstrations, {len(nm)} names and "
+            f"{len(known)} precomputed recordings (expected one each)"
+        )
     say = progress or (lambda _stage: None)
     skipped: list[str] = []
-    ph: list[SegmentationResult | None] | None = list(phases) if phases is not None else None
-    if ph is None and segment:
-        from thirdhand.segment import segment_demonstration
+    units = [
+        RecordingUnit(d, n, segment, segment_model, k)
+        for d, n, k in zip(demo_list, nm, known, strict=True)
+    ]
+    if any(k.phases is None for k in known):
+        if segment:
+            say("segment")
+        else:
+            skipped.append("segment: skipped by the user")
+    if jobs > 1 or scheduler is not None:
+        from thirdhand.batch import parallel_map
 
-        say("segment")
-        ph = [segment_demonstration(d, segment_model) for d in demo_list]
-    elif ph is None:
-        skipped.append("segment: skipped by the user")
+        done = list(parallel_map(recording_stages, units, jobs=jobs, scheduler=scheduler))
+    else:
+        done = [recording_stages(u) for u in units]
     say("constraints and plan")
-    learned = learn(
-        demo_list,
-        names=names,
-        phases=ph,
-        segment=False,
-        inputs=inputs,
-        detections=detections,
-        min_support=min_support,
-        scene=scene,
-    )
+    detections = [r.detection for r in done if r.detection is not None]
+    symbols, plan = assemble(detections, min_support=min_support)
+    kfs = [keyframes(d, det.instances) for d, det in zip(demo_list, detections, strict=True)]
+    scene_path = find_task_scene(demo_list) if scene == "auto" else scene
+    scene_path = None if scene_path is None else Path(scene_path).resolve()
+    geometry = {}
+    if scene_path is not None:
+        from thirdhand.task.scene_file import scene_geometry
+
+        geometry = scene_geometry(scene_path, sorted({b for d in demo_list for b in d.body_names}))
+    learned = Learned(
+        demo_list, nm, [r.phases for r in done], detections, symbols, plan, kfs, list(inputs),
+        geometry,
+    )  # fmt: skip
     task = learned.task()
+    if scene_path is not None:
+        from thirdhand.task.stages import SceneBlock
+
+        task.stages.scene = SceneBlock(file=scene_path.as_posix())
     block = None
     if not primitives:
         skipped.append("primitives: skipped by the user")
@@ -332,15 +481,18 @@ def learn_task(
         block = fit_task_primitives(learned, skills=skills, seed=seed)
         if block is None:
             skipped.append("primitives: no constraint was learned")
-        else:
-            task.stages["primitives"] = block
+        task.stages.primitives = block
     result = None
     if not reward:
         skipped.append("reward: skipped by the user")
-    elif not task.plan:
+    elif not plan.steps:
         skipped.append("reward: the plan is empty")
     else:
         say("reward")
-        result = learn_task_reward(task, targets=reward_plans, seed=seed)
-        task.stages["reward"] = result.block()
+        result = learn_task_reward(plan, targets=reward_plans, seed=seed)
+        task.stages.reward = result.block()
+    if not grasps:
+        skipped.append("grasps: skipped by the user")
+    else:
+        task.stages.grasps = demonstrated_grasps(task, demo_list, nm)
     return LearnedTask(learned, task, block, result, tuple(skipped))

@@ -1,4 +1,4 @@
-"""The task file ``thirdhand.task/1``: everything learned about one task, in one JSON document.
+"""The task file ``thirdhand.task/2``: everything learned about one task, in one JSON document.
 
 ::
 
@@ -27,6 +27,7 @@ from thirdhand.task.model import (
     TaskObject,
     TaskStep,
 )
+from thirdhand.task.stages import Stages
 from thirdhand.task.store import dump_task, load_task, parse_task, save_task
 
 __all__ = [
@@ -40,6 +41,7 @@ __all__ = [
     "InputFile",
     "Pose",
     "Provenance",
+    "Stages",
     "TaskFile",
     "TaskObject",
     "TaskStep",

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 
 
 def execute_command(
-    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/1 JSON).")],
+    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/2 JSON).")],
     robot: Annotated[str, typer.Option(help="Simulated robot: panda or baxter.")] = "panda",
     online: Annotated[
         bool, typer.Option("--online", help="Re-plan from the observed scene before each step.")
@@ -36,10 +36,12 @@ def execute_command(
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the start layout and the planner.")] = 0,
     meshes: Annotated[
-        list[Path] | None, typer.Option(help="Folder searched for part meshes (repeatable).")
+        list[Path] | None,
+        typer.Option(help="Folder searched for part meshes the task file does not find."),
     ] = None,
     demo: Annotated[
-        Path | None, typer.Option(help="A demonstration of the task: grasps from its fingers.")
+        Path | None,
+        typer.Option(help="A demonstration whose fingers give the grasps (default: the task's)."),
     ] = None,
     person: Annotated[
         list[str] | None,
@@ -141,6 +143,11 @@ def execute_command(
         t, robot, seed=seed, options=opts, task_path=task, search=search, demo=d,
         assembly_xy=assembly_at,
     )  # fmt: skip
+    from thirdhand.task.meshes import missing_mesh_note
+
+    note = missing_mesh_note(t, task, search)
+    if note is not None:
+        console.print(f"note: {note}")
     arm = ex.robot
     ids = {c.id for c in t.constraints}
     for cid in person or []:
@@ -185,13 +192,12 @@ def execute_command(
         if r.success:
             continue
         n = r.tried
-        if n:
+        if n.grasps or n.goals or n.plans:
             console.print(
-                f"step {r.index} ({r.constraint}) tried: {n.get('grasps', 0)} grasps "
-                f"({n.get('grasp_ik_failed', 0)} IK failed, {n.get('grasp_in_collision', 0)} in "
-                f"collision), {n.get('goals', 0)} goals ({n.get('place_ik_failed', 0)} IK failed, "
-                f"{n.get('place_in_collision', 0)} in collision), "
-                f"{n.get('plans_failed', 0)}/{n.get('plans', 0)} plans failed"
+                f"step {r.index} ({r.constraint}) tried: {n.grasps} grasps "
+                f"({n.grasp_ik_failed} IK failed, {n.grasp_in_collision} in collision), "
+                f"{n.goals} goals ({n.place_ik_failed} IK failed, {n.place_in_collision} in "
+                f"collision), {n.plans_failed}/{n.plans} plans failed"
             )
         for a, b, k in r.collision_pairs:
             console.print(f"step {r.index} ({r.constraint}) colliding: {a} – {b} ({k} times)")
@@ -201,7 +207,8 @@ def execute_command(
     verdict = "every step succeeded" if result.success else "some steps failed"
     console.print(f"{verdict}; {result.n_collisions} configurations in collision (dense check)")
     if not result.success:
-        if demo is None and (source := learned_from(t, task)) is not None:
+        recorded = t.stages.grasps is not None
+        if demo is None and not recorded and (source := learned_from(t, task)) is not None:
             console.print(
                 f"hint: no grasp came from a demonstration; the task was learned from {source}: "
                 f"--demo {source} takes the grasps from its fingers"

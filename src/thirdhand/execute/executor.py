@@ -116,7 +116,8 @@ class Executor:
     task_path, search
         Where to find meshes.
     demo : Demonstration, optional
-        A demonstration of the task: grasps are taken from its fingers.
+        A demonstration of the task: grasps are taken from its fingers. Without
+        it, the grasps the task recorded (``stages.grasps``) are used.
     """
 
     @classmethod
@@ -215,19 +216,30 @@ class Executor:
         self._where = {"task_path": task_path, "search": tuple(search)}
         self.constraints = {c.id: c for c in task.constraints}
         self.hints: dict[str, list[grasp_mod.Grasp]] = {}
-        if demo is not None:
-            for c in task.constraints:
+        recorded = task.stages.grasps
+        for c in task.constraints:
+            if demo is None and recorded is None:
+                break
+            obj = next(o for o in task.objects if o.name == c.child)
+            box = None
+            if obj.bbox_min is not None and obj.bbox_max is not None:
+                box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
+            if demo is not None:  # a recording given: its fingers, as now
                 if c.time is None:
                     continue
-                obj = next(o for o in task.objects if o.name == c.child)
-                box = None
-                if obj.bbox_min is not None and obj.bbox_max is not None:
-                    box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
                 found = grasp_mod.demo_grasps(demo, c.child, c.time, bbox=box)
-                if box is not None:
-                    found = grasp_mod.rod_turns(found, *box)
-                self.hints[c.child] = found
-        self.primitives = task.stages.get("primitives") if self.options.use_primitives else None
+            else:  # the grasps the task recorded when it was learned
+                assert recorded is not None
+                found = [
+                    grasp_mod.Grasp(g.pose.matrix(), "demo", g.hand)
+                    for g in recorded.constraints.get(c.id, [])
+                ]
+                if not found:
+                    continue
+            if box is not None:
+                found = grasp_mod.rod_turns(found, *box)
+            self.hints[c.child] = found
+        self.primitives = task.stages.primitives if self.options.use_primitives else None
         #: Constraint id → the part put into its slot (offline; identical parts swap).
         self.bind: dict[str, str] = {}
         self._verts: dict[str, FloatArray] | None = None
@@ -477,7 +489,7 @@ class Executor:
                     q = self._execute(model, plan, q, [])  # advance the model as if it ran
                     break
                 t = plan.report.tried
-                if t.get("grasps_reachable", 0) > 0 and t.get("place_reachable", 0) == 0:
+                if t.grasps_reachable > 0 and t.place_reachable == 0:
                     break  # the goal is out of reach with every grasp: so for any twin part
             assert plan is not None
             plans.append(plan)
@@ -508,7 +520,7 @@ class Executor:
     ) -> ExecutionResult:
         """Observe, detect what holds, plan and execute the next step; repeat.
 
-        With a perception block in the task (``stages["perception"]``, see
+        With a perception block in the task (``stages.perception``, see
         :mod:`thirdhand.perception.events`) and ``options.use_perception``, the part
         a person points at (:func:`~thirdhand.perception.events.focus_object` on the
         run's clock: seconds of executed motion and waiting since the start) is
@@ -591,7 +603,7 @@ class Executor:
 
     def _pointed_at(self, clock: float) -> str | None:
         """The part the person singles out at ``clock`` (run's seconds), or None."""
-        block = self.task.stages.get("perception") if self.options.use_perception else None
+        block = self.task.stages.perception if self.options.use_perception else None
         if not block:
             return None
         from thirdhand.perception.events import focus_object

@@ -2,9 +2,10 @@
 
 The short moves of a pick and place (approach the grasp, lift, insert, retreat)
 follow a straight line of the tool; the final approach onto an assembly pose
-may follow the primitive learned from the demonstrations (the task file's
-``stages["primitives"]["constraints"]`` block, a pose DMP of the child in the
-parent's frame, see :mod:`thirdhand.primitives.stage`): the DMP is rolled out
+may follow the primitive learned from the demonstrations (a
+:class:`~thirdhand.task.stages.PrimitiveRecord` of the task file's
+``stages.primitives``, a pose DMP of the child in the parent's frame, see
+:mod:`thirdhand.primitives.stage`): the DMP is rolled out
 from its demonstrated start to the chosen goal and its last few centimetres
 (:func:`primitive_place_path`) are followed — the way the person pushed the
 part home, e.g. the chair's back slid into its groove. Both become joint paths
@@ -16,8 +17,7 @@ The caller checks the joint path for collisions.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -25,8 +25,11 @@ from numpy.typing import ArrayLike, NDArray
 from thirdhand import se3
 from thirdhand.execute.goals import dof_displacement, invert, vary
 from thirdhand.execute.robot import Robot
-from thirdhand.primitives.serialize import pose_dmp_from_dict
 from thirdhand.task.constraint import Constraint
+from thirdhand.task.stages import PrimitivesBlock
+
+if TYPE_CHECKING:
+    from thirdhand.primitives.quaternion_dmp import PoseDMP
 
 FloatArray = NDArray[np.float64]
 
@@ -109,18 +112,14 @@ def linear_motion(
     return np.vstack([qa[None], path])
 
 
-def find_primitive(block: Mapping[str, Any] | None, parent: str, child: str) -> Any | None:
+def find_primitive(block: PrimitivesBlock | None, parent: str, child: str) -> PoseDMP | None:
     """The learned pose DMP of ``child`` in ``parent``'s frame from a primitives block, or None."""
-    if not block:
-        return None
-    for entry in (block.get("constraints") or {}).values():
-        if entry.get("parent") == parent and entry.get("child") == child and "dmp" in entry:
-            return pose_dmp_from_dict(entry["dmp"])
-    return None
+    found = None if block is None else block.find(parent, child)
+    return None if found is None else found[1].pose_dmp()
 
 
 def primitive_place_path(
-    dmp: Any,
+    dmp: PoseDMP,
     *,
     parent_world: ArrayLike,
     child_goal: ArrayLike,

@@ -36,7 +36,7 @@ def plan_binds_order(task: TaskFile, order: str) -> bool:
     """Whether the learned sequence constrains the order (beyond parents first).
 
     ``"plan"``: yes; ``"parents"``: no; ``"auto"``: when the plan was learned from
-    two or more demonstrations (``stages["plan"]["n_demos"]``).
+    two or more demonstrations (``stages.plan.n_demos``).
     """
     if order not in ORDERS:
         from thirdhand.execute.scene import SceneError
@@ -44,7 +44,7 @@ def plan_binds_order(task: TaskFile, order: str) -> bool:
         raise SceneError(f"order {order!r}: expected one of {', '.join(ORDERS)}")
     if order != "auto":
         return order == "plan"
-    n = task.stages.get("plan", {}).get("n_demos", 1)
+    n = task.stages.plan.n_demos if task.stages.plan is not None else 1
     return isinstance(n, int) and n >= 2
 
 

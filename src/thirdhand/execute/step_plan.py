@@ -53,7 +53,7 @@ class ExecutionOptions:
     pos_tol, rot_tol : float
         Tolerances of constraint detection, metres and radians.
     use_perception : bool
-        Online: leave the part a person points at to them (``stages["perception"]``).
+        Online: leave the part a person points at to them (``stages.perception``).
     pointing_lookback_s : float
         How long a pointing gesture keeps its part the person's after it ends.
     wait_s : float
@@ -166,6 +166,50 @@ class RegraspReport:
 
 
 @dataclass
+class SearchCounts:
+    """What the search of one step tried, and how it went.
+
+    Attributes
+    ----------
+    grasps, grasps_reachable : int
+        Grasp candidates tried, and those reached where the part lies.
+    grasps_reach_both : int
+        Grasps that reach both where the part lies and a goal (when counted).
+    goals, place_reachable : int
+        Goal poses tried, and those reached with some grasp.
+    plans, plans_failed : int
+        Planning queries, and those that failed.
+    primitive_rejected : int
+        Learned-primitive motions rejected (blocked or not followable).
+    grasp_ik_failed, place_ik_failed : int
+        No IK start converged.
+    grasp_in_collision, place_in_collision : int
+        IK converged, every solution collides.
+    straight_failed : int
+        Straight moves blocked or not solvable.
+    """
+
+    grasps: int = 0
+    grasps_reachable: int = 0
+    grasps_reach_both: int = 0
+    goals: int = 0
+    place_reachable: int = 0
+    plans: int = 0
+    plans_failed: int = 0
+    primitive_rejected: int = 0
+    grasp_ik_failed: int = 0
+    grasp_in_collision: int = 0
+    place_ik_failed: int = 0
+    place_in_collision: int = 0
+    straight_failed: int = 0
+
+    @classmethod
+    def from_counts(cls, counts: dict[str, int]) -> SearchCounts:
+        """The record of the search's counters (names as the fields')."""
+        return cls(**{k: int(v) for k, v in counts.items()})
+
+
+@dataclass
 class StepReport:
     """What happened to one plan step.
 
@@ -200,12 +244,8 @@ class StepReport:
         line of the tool) or ``"primitive"`` (the learned primitive).
     goal_dofs : list of float or None
         The goal's displacement inside the free DOFs (tx ty tz rx ry rz).
-    tried : dict
-        Counts of what the search tried (grasps, goals, IK and planning outcomes):
-        ``grasp_ik_failed`` / ``place_ik_failed`` (no IK start converged),
-        ``grasp_in_collision`` / ``place_in_collision`` (IK converged, every
-        solution collides), ``straight_failed`` (a straight move blocked or not
-        solvable), ``plans_failed`` of ``plans``.
+    tried : SearchCounts
+        What the search tried (grasps, goals, IK and planning outcomes).
     collision_pairs : list of (str, str, int)
         The pairs most often colliding where IK converged (at most three, most
         frequent first, with their counts): what to move when a step fails.
@@ -232,7 +272,7 @@ class StepReport:
     place_motion: str = ""
     motions: dict[str, str] = field(default_factory=dict)
     goal_dofs: list[float] | None = None
-    tried: dict[str, int] = field(default_factory=dict)
+    tried: SearchCounts = field(default_factory=SearchCounts)
     collision_pairs: list[tuple[str, str, int]] = field(default_factory=list)
     regrasp: RegraspReport | None = None
 

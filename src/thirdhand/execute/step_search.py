@@ -29,7 +29,13 @@ from thirdhand.execute.primitive_motion import (
 )
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.scene import GRIPPER, CollisionScene
-from thirdhand.execute.step_plan import ExecutionOptions, Segment, StepPlan, StepReport
+from thirdhand.execute.step_plan import (
+    ExecutionOptions,
+    SearchCounts,
+    Segment,
+    StepPlan,
+    StepReport,
+)
 from thirdhand.execute.world import SimWorld, insertion_axis
 from thirdhand.execute.world import trans as _trans
 from thirdhand.task.constraint import Constraint
@@ -440,7 +446,7 @@ class StepSearch:
             }
             report.goal_dofs = [float(v) for v in dofs[j]]
             self._count_why()
-            report.tried = dict(self.tried)
+            report.tried = SearchCounts.from_counts(self.tried)
             report.collision_pairs = self.top_pairs()
             segs = [
                 Segment("approach", approach),
@@ -455,7 +461,7 @@ class StepSearch:
             ]  # fmt: skip
             return StepPlan(report, segs, goals[j])
         self._count_why()
-        report.tried = dict(self.tried)
+        report.tried = SearchCounts.from_counts(self.tried)
         report.collision_pairs = self.top_pairs()
         if not report.status:
             t = self.tried

@@ -235,7 +235,8 @@ class LiveLoop:
         self._rate = rate
         self.assist: RobotAssist | None = None
         if opt.assist is not None:
-            root = str(task.stages.get("constraints", {}).get("root") or task.plan[0].parent)
+            block = task.stages.constraints
+            root = str((block.root if block is not None else None) or task.plan[0].parent)
             self.assist = RobotAssist(
                 names,
                 [b.kind for b in bodies],

@@ -176,12 +176,11 @@ def interchangeable(task: TaskFile, stream_meta: Mapping[str, Any]) -> dict[str,
 def task_tolerances(task: TaskFile, options: StateOptions) -> tuple[float, float]:
     """Position (m) and rotation (rad) tolerances from the task's learned constraint noise."""
     sp, sr = 0.0, 0.0
-    block = task.stages.get("constraints", {})
-    for demo in block.get("demos", []) if isinstance(block, Mapping) else []:
-        hmm = demo.get("hmm") if isinstance(demo, Mapping) else None
-        if isinstance(hmm, Mapping):
-            sp = max(sp, float(hmm.get("sigma_pos_m", 0.0) or 0.0))
-            sr = max(sr, math.radians(float(hmm.get("sigma_rot_deg", 0.0) or 0.0)))
+    block = task.stages.constraints
+    for demo in block.demos if block is not None else []:
+        if demo.hmm is not None:
+            sp = max(sp, float(demo.hmm.sigma_pos_m))
+            sr = max(sr, math.radians(float(demo.hmm.sigma_rot_deg)))
     return (
         max(options.pos_tol_min, options.tol_sigma * sp),
         max(options.rot_tol_min, options.tol_sigma * sr),

@@ -13,7 +13,7 @@ also instructs through where they look and what they point at.
 - :mod:`~thirdhand.perception.pointing`: pointing gestures from tracked thumb,
   index and middle fingertips, as ``pointed(hand, object, t0, t1)`` events.
 - :mod:`~thirdhand.perception.events`: those events in a task file's
-  ``stages["perception"]`` block, and the object in focus at a given time.
+  ``stages.perception`` block, and the object in focus at a given time.
 
 Only the video half imports OpenCV and MediaPipe, lazily; the rest is numpy.
 """

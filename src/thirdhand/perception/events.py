@@ -1,7 +1,7 @@
 """Perception events in the task file, and the object in focus at a given time.
 
-The events go in the task file's free-form stage blocks, as
-``stages["perception"]``::
+The events go in the task file's typed stage block ``stages.perception``
+(:class:`~thirdhand.task.stages.PerceptionBlock`), in JSON::
 
     {
       "pointing":  [{"hand": "rh", "object": "leg2", "t0": 3.1, "t1": 4.0,
@@ -21,25 +21,25 @@ execution, for the part the person is about to handle.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from typing import Any
 
 from thirdhand.errors import TaskFileError
 from thirdhand.perception.attention import AttentionInterval
 from thirdhand.perception.pointing import PointingEvent
+from thirdhand.task.stages import AttentionRecord, PerceptionBlock, PointingRecord
 from thirdhand.taskfile import TaskFile
 
 #: Key of the block in ``TaskFile.stages``.
 STAGE = "perception"
 
 
-def _attention_dict(a: AttentionInterval) -> dict[str, Any]:
-    return {
-        "object": a.object,
-        "t0": round(a.t0, 4),
-        "t1": round(a.t1, 4),
-        "angle_deg": round(a.angle_deg, 2),
-        "source": a.source,
-    }
+def _attention_record(a: AttentionInterval) -> AttentionRecord:
+    return AttentionRecord(
+        object=a.object,
+        t0=round(a.t0, 4),
+        t1=round(a.t1, 4),
+        angle_deg=round(a.angle_deg, 2),
+        source=a.source,
+    )
 
 
 def perception_events(
@@ -47,15 +47,17 @@ def perception_events(
     pointing: Sequence[PointingEvent] = (),
     attention: Sequence[AttentionInterval] = (),
     source: str | None = None,
-    parameters: Mapping[str, Any] | None = None,
-) -> dict[str, Any]:
-    """The ``stages["perception"]`` block (module docstring) for these events."""
-    return {
-        "pointing": [e.to_dict() for e in sorted(pointing, key=lambda e: e.t0)],
-        "attention": [_attention_dict(a) for a in sorted(attention, key=lambda a: a.t0)],
-        "source": source,
-        "parameters": dict(parameters or {}),
-    }
+    parameters: Mapping[str, float | int | str | bool | None] | None = None,
+) -> PerceptionBlock:
+    """The ``stages.perception`` block (module docstring) for these events."""
+    return PerceptionBlock(
+        pointing=[
+            PointingRecord.model_validate(e.to_dict()) for e in sorted(pointing, key=lambda e: e.t0)
+        ],
+        attention=[_attention_record(a) for a in sorted(attention, key=lambda a: a.t0)],
+        source=source,
+        parameters=dict(parameters or {}),
+    )
 
 
 def add_perception_events(
@@ -64,9 +66,9 @@ def add_perception_events(
     pointing: Sequence[PointingEvent] = (),
     attention: Sequence[AttentionInterval] = (),
     source: str | None = None,
-    parameters: Mapping[str, Any] | None = None,
+    parameters: Mapping[str, float | int | str | bool | None] | None = None,
 ) -> TaskFile:
-    """A copy of ``task`` whose ``stages["perception"]`` holds these events.
+    """A copy of ``task`` whose ``stages.perception`` holds these events.
 
     An existing perception block is replaced; everything else is kept. Objects
     the events name must be objects of the task (pointing at nothing, ``None``,
@@ -87,12 +89,13 @@ def add_perception_events(
     block = perception_events(
         pointing=pointing, attention=attention, source=source, parameters=parameters
     )
-    stages = {**task.stages, STAGE: block}
-    return task.model_copy(update={"stages": stages})
+    out = task.model_copy(deep=True)
+    out.stages.perception = block
+    return out
 
 
 def focus_object(
-    task_or_block: TaskFile | Mapping[str, Any],
+    task_or_block: TaskFile | PerceptionBlock | None,
     t: float,
     *,
     lookback: float = 5.0,
@@ -105,24 +108,25 @@ def focus_object(
 
     Parameters
     ----------
-    task_or_block : TaskFile or dict
+    task_or_block : TaskFile or PerceptionBlock or None
         A task with a perception block, or the block itself.
     t : float, seconds
     lookback : float, seconds
     """
-    if isinstance(task_or_block, TaskFile):
-        block: Mapping[str, Any] = task_or_block.stages.get(STAGE, {})
-    else:
-        block = task_or_block
+    block = task_or_block
+    if isinstance(block, TaskFile):
+        block = block.stages.perception
+    if block is None:
+        return None
     best: tuple[float, str] | None = None
-    for e in block.get("pointing", []):
-        if e.get("object") is None or e["t0"] > t or e["t1"] < t - lookback:
+    for e in block.pointing:
+        if e.object is None or e.t0 > t or e.t1 < t - lookback:
             continue
-        if best is None or e["t1"] > best[0]:
-            best = (e["t1"], e["object"])
+        if best is None or e.t1 > best[0]:
+            best = (e.t1, e.object)
     if best is not None:
         return best[1]
-    for a in block.get("attention", []):
-        if a["t0"] <= t <= a["t1"]:
-            return str(a["object"])
+    for a in block.attention:
+        if a.t0 <= t <= a.t1:
+            return a.object
     return None

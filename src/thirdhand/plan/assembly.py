@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from thirdhand import se3
-from thirdhand.constraints.detect import ConstraintInstance
+from thirdhand.constraints.detect import ConstraintInstance, DetectionResult
 from thirdhand.demonstration import ConstraintEvent
 from thirdhand.errors import OptionError
 from thirdhand.plan.symbols import Symbol
@@ -282,3 +282,25 @@ def plan_success(
         used.add(slot)
         placed.append(step.child)
     return sorted(placed) == sorted(true_parent)
+
+
+def assemble(
+    detections: Sequence[DetectionResult], *, min_support: float = 0.5
+) -> tuple[list[Symbol], AssemblyPlan]:
+    """Symbols over every recording's constraints, and the plan they vote for.
+
+    The stage behind :func:`thirdhand.plan_assembly` and
+    :func:`thirdhand.learn_task`.
+
+    Parameters
+    ----------
+    detections : sequence of DetectionResult
+        One per recording of the same task.
+    min_support : float
+        See :func:`plan_from_demos`.
+    """
+    from thirdhand.plan.symbols import assign_symbols
+
+    symbols = assign_symbols([i for d in detections for i in d.instances])
+    plan = plan_from_demos([d.instances for d in detections], symbols, min_support=min_support)
+    return symbols, plan

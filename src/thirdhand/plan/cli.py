@@ -8,9 +8,8 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -20,11 +19,6 @@ from thirdhand.demonstration import Demonstration
 from thirdhand.errors import OptionError, TaskFileError, ThirdhandError
 from thirdhand.fileops import check_distinct_inputs, check_output
 from thirdhand.progress import stage_status
-
-if TYPE_CHECKING:
-    from thirdhand.constraints.detect import DetectionResult
-    from thirdhand.segment.model import SegmentModel
-    from thirdhand.segment.pipeline import SegmentationResult
 
 out = Console(highlight=False, soft_wrap=True)
 
@@ -129,29 +123,6 @@ def _load(path: Path) -> Demonstration:
     return io.load(path)
 
 
-@dataclass(frozen=True)
-class LearnUnit:
-    """One independent unit of ``learn --jobs/--scheduler``: one recording's own stages."""
-
-    demo: Demonstration
-    name: str
-    segment: bool
-    model: SegmentModel | None = None
-
-
-def learn_unit(unit: LearnUnit) -> tuple[SegmentationResult | None, DetectionResult]:
-    """Segment one recording (unless told not to) and detect its constraints.
-
-    What :func:`~thirdhand.task_learning.learn_task` would do to this recording
-    alone, so the task file is the same serially, in processes and on a cluster.
-    """
-    from thirdhand.constraints.detect import detect_constraints
-    from thirdhand.segment import segment_demonstration
-
-    phases = segment_demonstration(unit.demo, unit.model) if unit.segment else None
-    return phases, detect_constraints(unit.demo, phases=phases, demo_name=unit.name)
-
-
 @app.command("learn")
 def learn_command(
     demos: Annotated[
@@ -219,6 +190,7 @@ def learn_command(
     :class:`~thirdhand.errors.ThirdhandError`; ``thirdhand.cli.main`` prints them as
     one ``thirdhand: error:`` line.
     """
+    from thirdhand.task.meshes import anchor_meshes
     from thirdhand.task_learning import learn_task
     from thirdhand.taskfile import save_task
 
@@ -244,36 +216,12 @@ def learn_command(
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
     check_one_task(loaded, demos)
-    if scene is None:
-        from thirdhand.task.scene_file import find_scene
-
-        parts = sorted({b.name for d in loaded for b in d.bodies if b.kind == "part"})
-        scene = find_scene(parts)
-        if scene is not None:
-            out.print(f"meshes: {scene}")
-    elif not scene.is_file():
+    if scene is not None and not scene.is_file():
         raise ThirdhandError(f"--scene {scene}: no such file")
-    phases = detections = None
-    if jobs > 1 or scheduler is not None:
-        from thirdhand.batch import parallel_map
-
-        # One unit per recording (segmentation and constraint detection); both are
-        # deterministic, so the task file is the same serially, in processes and on
-        # a cluster. Symbols, plan, primitives and reward join them here.
-        units = [
-            LearnUnit(d, p.name, not no_segment, seg_model)
-            for d, p in zip(loaded, demos, strict=True)
-        ]
-        done = list(parallel_map(learn_unit, units, jobs=jobs, scheduler=scheduler))
-        detections = [det for _, det in done]
-        if not no_segment:
-            phases = [ph for ph, _ in done if ph is not None]
     with stage_status() as say, _kinds_hint(loaded, demos):
         result = learn_task(
             loaded,
             names=[p.name for p in demos],
-            phases=phases,
-            detections=detections,
             segment=not no_segment,
             segment_model=seg_model,
             primitives=not no_primitives,
@@ -283,10 +231,14 @@ def learn_command(
             inputs=demos,
             progress=say,
             min_support=min_support,
-            scene=scene,
+            scene="auto" if scene is None else scene,
+            jobs=jobs,
+            scheduler=scheduler,
         )
-    task = result.task
+    if result.task.stages.scene is not None:
+        out.print(f"meshes: {result.task.stages.scene.file}")
     check_output(output, force=force, inputs=demos)
+    task = anchor_meshes(result.task, output)
     save_task(task, output)
     plan = result.learned.plan
     out.print(f"root: {plan.root}")
@@ -299,7 +251,7 @@ def learn_command(
             f"  slot {symbol} seen in {seen} of {plan.voters} recordings: not a step "
             f"(needs more than {min_support:g}; --min-support to keep it)"
         )
-    blocks = ", ".join(task.stages)
+    blocks = ", ".join(task.stages.names())
     out.print(f"{len(task.constraints)} constraints, {len(task.plan)} steps → {output} ({blocks})")
     if result.reward is not None:
         for label, p in result.reward.plans.items():

@@ -1,8 +1,9 @@
 """Recordings to a task file: segmentation, constraint detection, symbols, plan.
 
-``learn(demos)`` runs the whole pipeline on one or several demonstrations of the
-same task and returns a :class:`Learned` bundle whose :meth:`Learned.task` is the
-``thirdhand.task/1`` document (written by the caller: ``thirdhand learn``, the demo).
+:class:`Learned` bundles what the first stages of
+:func:`thirdhand.task_learning.learn_task` found; :meth:`Learned.task` is the
+``thirdhand.task/2`` document (written by the caller: ``thirdhand learn``, the
+demo). :func:`learn` is a shortcut for those stages.
 """
 
 from __future__ import annotations
@@ -13,17 +14,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from thirdhand.constraints.detect import (
-    ConstraintInstance,
-    DetectionResult,
-    DetectOptions,
-    detect_constraints,
-)
+from thirdhand.constraints.detect import ConstraintInstance, DetectionResult
 from thirdhand.demonstration import DOF_NAMES, Demonstration
-from thirdhand.plan.assembly import AssemblyPlan, plan_from_demos
-from thirdhand.plan.keyframes import Keyframe, keyframes
-from thirdhand.plan.symbols import Symbol, assign_symbols
+from thirdhand.plan.assembly import AssemblyPlan
+from thirdhand.plan.keyframes import Keyframe
+from thirdhand.plan.symbols import Symbol
 from thirdhand.task.meshes import object_geometry
+from thirdhand.task.stages import ConstraintsBlock, PlanBlock, Stages
 from thirdhand.taskfile import TaskFile
 
 if TYPE_CHECKING:
@@ -139,8 +136,8 @@ class Learned:
                     "after": list(step.after),
                 }
             )
-        stages: dict[str, dict[str, Any]] = {
-            "constraints": {
+        constraints_block = ConstraintsBlock.model_validate(
+            {
                 "method": "two-state HMM per part pair, fixed-constraint observations, EM",
                 "root": self.plan.root,
                 "demos": [
@@ -156,17 +153,18 @@ class Learned:
                     }
                     for n, det in zip(self.names, self.detections, strict=True)
                 ],
-            },
-            "plan": {
-                "n_demos": self.plan.n_demos,
-                "silent_demos": [self.names[k] for k in self.plan.silent],
-                "support": [len(st.times) for st in self.plan.steps],
-                "left_out": dict(self.plan.left_out),
-                "steps": [str(s) for s in self.plan.steps],
-                "relational_trajectory": [sorted(s) for s in self.plan.relational_trajectory()],
-                "interchangeable": [list(p) for p in self.plan.interchangeable()],
-            },
-        }
+            }
+        )
+        plan_block = PlanBlock(
+            n_demos=self.plan.n_demos,
+            silent_demos=[self.names[k] for k in self.plan.silent],
+            support=[len(st.times) for st in self.plan.steps],
+            left_out=dict(self.plan.left_out),
+            steps=[str(s) for s in self.plan.steps],
+            relational_trajectory=[sorted(s) for s in self.plan.relational_trajectory()],
+            interchangeable=[list(p) for p in self.plan.interchangeable()],
+        )
+        stages = Stages(constraints=constraints_block, plan=plan_block)
         return TaskFile.new(
             objects=objects,
             constraints=constraints,
@@ -191,71 +189,21 @@ def learn(
     demos: Sequence[Demonstration],
     *,
     names: Sequence[str] | None = None,
-    phases: Sequence[SegmentationResult | None] | None = None,
     segment: bool = True,
-    options: DetectOptions | None = None,
-    inputs: Sequence[str | os.PathLike[str]] = (),
-    detections: Sequence[DetectionResult] | None = None,
     min_support: float = 0.5,
     scene: str | os.PathLike[str] | None = None,
 ) -> Learned:
-    """Run constraint detection, symbols and planning on one or several demonstrations.
+    """Constraints, symbols, plan and keyframes of one or several demonstrations.
 
-    Parameters
-    ----------
-    demos : sequence of Demonstration
-        Demonstrations of one task (same part names).
-    names : sequence of str, optional
-        A name per demonstration.
-    phases : sequence of SegmentationResult, optional
-        Segmentations already computed (one per demonstration); otherwise the CRF
-        runs when ``segment`` is true.
-    segment : bool
-        Run the interaction segmentation when ``phases`` is not given.
-    options : DetectOptions, optional
-    inputs : sequence of path-like
-        Source files, recorded in the provenance.
-    detections : sequence of DetectionResult, optional
-        Constraint detections already computed, one per demonstration (by
-        :func:`~thirdhand.constraints.detect.detect_constraints` with ``phases``,
-        ``options`` and the name, as here: ``learn --jobs`` runs them as units).
-    min_support : float
-        A slot becomes a plan step when more than this fraction of the demonstrations
-        that show any constraint have it (:func:`~thirdhand.plan.assembly.plan_from_demos`).
-    scene : path-like, optional
-        A 3rdHand scene file (``scene_*.json``): the meshes of the bodies it lists,
-        and where they sit on the sensors (:mod:`thirdhand.task.scene_file`).
+    A shortcut for the first stages of :func:`thirdhand.task_learning.learn_task`
+    (no primitives, reward or grasps); see it for the parameters.
     """
-    demo_list = list(demos)
-    nm = list(names) if names is not None else [f"demo{i + 1}" for i in range(len(demo_list))]
-    if phases is not None:
-        ph = list(phases)
-    elif segment:
-        from thirdhand.segment import segment_demonstration
+    from thirdhand.task_learning import learn_task
 
-        ph = [segment_demonstration(d) for d in demo_list]
-    else:
-        ph = [None] * len(demo_list)
-    if detections is not None:
-        dets = list(detections)
-        if len(dets) != len(demo_list):
-            raise ValueError(f"{len(dets)} detections for {len(demo_list)} demonstrations")
-    else:
-        dets = [
-            detect_constraints(d, phases=p, options=options, demo_name=n)
-            for d, p, n in zip(demo_list, ph, nm, strict=True)
-        ]
-    all_inst = [i for det in dets for i in det.instances]
-    symbols = assign_symbols(all_inst)
-    plan = plan_from_demos([det.instances for det in dets], symbols, min_support=min_support)
-    kfs = [keyframes(d, det.instances) for d, det in zip(demo_list, dets, strict=True)]
-    geometry = {}
-    if scene is not None:
-        from thirdhand.task.scene_file import scene_geometry
-
-        bodies = sorted({b for d in demo_list for b in d.body_names})
-        geometry = scene_geometry(scene, bodies)
-    return Learned(demo_list, nm, ph, dets, symbols, plan, kfs, list(inputs), geometry)
+    return learn_task(
+        demos, names=names, segment=segment, primitives=False, reward=False, grasps=False,
+        min_support=min_support, scene=scene,
+    ).learned  # fmt: skip
 
 
 def plan_figures(result: Learned) -> tuple[dict[str, Any], str]:

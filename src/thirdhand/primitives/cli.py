@@ -88,25 +88,26 @@ def fit(
         )
     except ThirdhandError as exc:
         raise _fail(exc) from None
-    block["inputs"] = [str(p) for p in demos]
+    doc = block.model_dump(mode="json", by_alias=True)
+    doc["inputs"] = [str(p) for p in demos]
     try:
-        write_bytes(output, json.dumps(block, indent=1).encode())
+        write_bytes(output, json.dumps(doc, indent=1).encode())
         if task is not None:
             from thirdhand.taskfile import load_task, save_task
 
             tf = load_task(task)
-            tf.stages["primitives"] = block
+            tf.stages.primitives = block
             save_task(tf, task)
     except ThirdhandError as exc:
         raise _fail(exc) from None
     if task is not None:
         out.print(f"stored as stages.primitives in {task}")
-    for key, c in block["constraints"].items():
-        e = c["imitation_error"]
+    for key, c in block.constraints.items():
+        e = c.imitation_error
         out.print(
-            f"{key:>8}  {c['parent']}->{c['child']} ({c['type']}), {c['n_examples']} examples, "
-            f"{c['dmp']['position']['n_weights']} weights, imitation "
-            f"{1000 * e['pos_m']:.2f} mm / {e['rot_deg']:.2f} deg"
+            f"{key:>8}  {c.parent}->{c.child} ({c.type}), {c.n_examples} examples, "
+            f"{c.dmp.position.n_weights} weights, imitation "
+            f"{1000 * e.pos_m:.2f} mm / {e.rot_deg:.2f} deg"
         )
     out.print(f"wrote {output}")
 

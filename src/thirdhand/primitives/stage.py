@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -22,6 +22,9 @@ from thirdhand.primitives.promp import ProMP
 from thirdhand.primitives.quaternion_dmp import PoseDMP
 from thirdhand.primitives.segments import ConstraintSegment, constraint_segments, group_segments
 from thirdhand.primitives.serialize import pose_dmp_to_dict, promp_to_dict
+
+if TYPE_CHECKING:
+    from thirdhand.task.stages import PrimitiveRecord, PrimitivesBlock
 
 FloatArray = NDArray[np.float64]
 
@@ -80,6 +83,12 @@ class ConstraintPrimitive:
             "dmp": pose_dmp_to_dict(self.dmp),
             "promp": promp_to_dict(self.promp),
         }
+
+    def record(self) -> PrimitiveRecord:
+        """The typed task-file record (:class:`~thirdhand.task.stages.PrimitiveRecord`)."""
+        from thirdhand.task.stages import PrimitiveRecord
+
+        return PrimitiveRecord.model_validate(self.to_dict())
 
 
 def _goal(segments: Sequence[ConstraintSegment]) -> tuple[FloatArray, FloatArray]:
@@ -191,8 +200,8 @@ def primitives_stage(
     skills: int | None = None,
     names: Sequence[str] | None = None,
     seed: int = 0,
-) -> dict[str, Any]:
-    """Learn per-constraint primitives from demonstrations; a JSON-able task-file block.
+) -> PrimitivesBlock:
+    """Learn per-constraint primitives from demonstrations: the task file's primitives block.
 
     Parameters
     ----------
@@ -217,10 +226,12 @@ def primitives_stage(
 
     Returns
     -------
-    dict
-        ``{"schema", "time_convention", "constraints": {key: {...}}}``; see
-        :meth:`ConstraintPrimitive.to_dict`.
+    PrimitivesBlock
+        A :class:`~thirdhand.task.stages.PrimitiveRecord` per constraint key
+        (:meth:`ConstraintPrimitive.record`), and the skill library when asked for.
     """
+    from thirdhand.task.stages import PrimitivesBlock
+
     if not demos:
         raise PrimitiveError("primitives stage: no demonstration given")
     if names is not None and len(names) != len(demos):
@@ -256,7 +267,7 @@ def primitives_stage(
         out["skill_library"] = explained.library_block()
         for key, examples in explained.steps_by_key().items():
             out["constraints"][key]["skills"] = examples
-    return out
+    return PrimitivesBlock.model_validate(out)
 
 
 def rollout_in_world(

@@ -23,6 +23,7 @@ from thirdhand.relational.domains.plans import (
     assembled_reward,
     expert_pairs_of,
     parts_of,
+    trajectory_from_plan,
     trajectory_from_steps,
 )
 from thirdhand.relational.evaluate import perf_of_reward
@@ -48,7 +49,7 @@ MAX_PLAN_STEPS = 18
 
 
 def load_trajectory(path: str | os.PathLike[str]) -> Trajectory:
-    """The plan of a task file (``thirdhand.task/1``) as a relational trajectory.
+    """The plan of a task file (``thirdhand.task/2``) as a relational trajectory.
 
     Raises
     ------
@@ -70,7 +71,7 @@ def load_trajectory(path: str | os.PathLike[str]) -> Trajectory:
             f"holds every set of steps done (up to 2^{len(task.plan)} states, limit "
             f"{MAX_STATES}), so irl learn takes plans of at most {MAX_PLAN_STEPS} steps"
         )
-    return trajectory_from_steps([s.model_dump() for s in task.plan], source=os.fspath(path))
+    return trajectory_from_plan(task.plan, source=os.fspath(path))
 
 
 def synth_trajectories(scene: str, seeds: Sequence[int]) -> list[Trajectory]:

@@ -78,7 +78,7 @@ class ReviewApp:
     Parameters
     ----------
     task_path : path-like
-        The task file (``thirdhand.task/1``); saved in place, the previous version kept.
+        The task file (``thirdhand.task/2``); saved in place, the previous version kept.
     demos : sequence of Demonstration or path-like
         Recordings to play back on the timeline.
     host : str
@@ -251,7 +251,11 @@ class ReviewApp:
             said = [r.summary() for r in self.replays]
             if self.parts.missing_meshes:
                 listed = ", ".join(f"{m} ({n})" for n, m in self.parts.missing_meshes.items())
-                said.append(f"meshes not found, drawn as boxes: {listed} (see --meshes)")
+                said.append(
+                    f"mesh files the task records not found, drawn as boxes: {listed} "
+                    f"(looked beside {self.task_path.name}, in --meshes folders and along "
+                    "THIRDHAND_MESH_PATH)"
+                )
             if said:
                 self.say("; ".join(said))
         return self.url
@@ -476,12 +480,12 @@ class ReviewApp:
         c = self.constraint
         if c is None:
             return None
-        return key_for(self.task.stages.get("primitives"), c.parent, c.child)
+        return key_for(self.task.stages.primitives, c.parent, c.child)
 
     def motion_path(self) -> PrimitivePath | None:
         """The selected constraint's learned motion as a path with key points (parent frame)."""
         key = self.primitive_key()
-        return None if key is None else primitive_path(self.task.stages["primitives"], key)
+        return None if key is None else primitive_path(self.task.stages.primitives, key)
 
     def choose_key_point(self, index: int) -> None:
         """Choose the key point (0-based) the Motion panel moves."""
@@ -632,7 +636,7 @@ class ReviewApp:
                 side = self.task_path.with_name(self.task_path.stem + ".unsaved.json")
                 task = self.task.model_copy(deep=True)
                 effort = self.session.effort.to_stage(self.session.changed_parameters())
-                task.stages.setdefault("review", {})["effort"] = effort
+                task.stages.ensure_review().effort = effort
                 save_task(task, side)
                 self.conflict = side
                 self.notify(

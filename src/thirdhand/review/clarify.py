@@ -100,7 +100,7 @@ def clarification_queue(task: TaskFile, *, focus: str | None = None) -> list[Que
 
     One question per constraint (its confidence) and one per DOF of it (its
     range's ambiguity, see :func:`dof_ambiguity`); what the person confirmed
-    already (``stages["review"]["confirmed"]``) is left out. Ties keep the task's
+    already (``stages.review.confirmed``) is left out. Ties keep the task's
     order (constraints, then DOFs in :data:`~thirdhand.taskfile.DOF_NAMES` order).
 
     Parameters
@@ -117,14 +117,13 @@ def clarification_queue(task: TaskFile, *, focus: str | None = None) -> list[Que
     list of Question
         Sorted by focus group, then decreasing score.
     """
-    review = task.stages.get("review", {})
-    confirmed = review.get("confirmed", {}) if isinstance(review, dict) else {}
+    confirmed = task.stages.review.confirmed if task.stages.review is not None else {}
     out: list[Question] = []
     group: dict[str, int] = {}
     for c in task.constraints:
         group[c.id] = 0 if c.child == focus else 1 if c.parent == focus else 2
         focused = group[c.id] < 2
-        done = set(confirmed.get(c.id, [])) if isinstance(confirmed, dict) else set()
+        done = set(confirmed.get(c.id, []))
         if "constraint" not in done:
             out.append(
                 Question(

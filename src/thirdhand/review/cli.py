@@ -15,7 +15,7 @@ import typer
 
 
 def review_command(
-    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/1) to review.")],
+    task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/2) to review.")],
     demo: Annotated[
         list[Path] | None,
         typer.Option("--demo", help="A recording to play back on the timeline (repeatable)."),
@@ -30,7 +30,7 @@ def review_command(
     ] = "127.0.0.1",
     meshes: Annotated[
         list[Path] | None,
-        typer.Option("--meshes", help="A folder of part meshes (repeatable)."),
+        typer.Option("--meshes", help="A folder of part meshes the task file does not find."),
     ] = None,
     replay: Annotated[
         list[Path] | None,

@@ -115,7 +115,7 @@ class Confirm:
     """The person says the constraint (or one of its DOFs) is right.
 
     The constraint's confidence becomes 1 (whole-constraint confirmation); the
-    confirmation is listed in ``stages["review"]["confirmed"]`` so the
+    confirmation is listed in ``stages.review.confirmed`` so the
     clarification round does not ask again. Nothing else changes.
     """
 
@@ -128,7 +128,7 @@ class SetPrimitivePoint:
     """Move key point ``index`` of the learned motion ``key`` to ``pos`` (m, parent frame).
 
     The primitive is refitted (:func:`~thirdhand.review.primitive_edit.move_key_point`)
-    and saved in the task's ``stages["primitives"]`` block; its start, goal and
+    and saved in the task's ``stages.primitives`` block; its start, goal and
     orientation stay.
     """
 
@@ -528,9 +528,7 @@ def _confirm(task: TaskFile, e: Confirm, rec: _Recorder) -> None:
     if e.dof is None and c.confidence != 1.0:
         rec(f"constraints[{i}].confidence", c.confidence, 1.0, parameter="confirm")
         c.confidence = 1.0
-    review = task.stages.setdefault("review", {})
-    confirmed = review.setdefault("confirmed", {})
-    entry = confirmed.setdefault(c.id, [])
+    entry = task.stages.ensure_review().confirmed.setdefault(c.id, [])
     what = e.dof if e.dof is not None else "constraint"
     if what not in entry:
         entry.append(what)
@@ -547,13 +545,13 @@ def _set_primitive_point(task: TaskFile, e: SetPrimitivePoint, rec: _Recorder) -
             f"{what}: {far:g} m from the parent is not plausible "
             f"(a part within {PLAUSIBLE_OFFSET_M:g} m of its parent expected)"
         )
-    block = task.stages.get("primitives")
+    block = task.stages.primitives
     try:
         old = primitive_path(block, e.key).key_points
         new = move_key_point(block, e.key, e.index, pos)
     except PrimitiveEditError as exc:
         raise EditError(str(exc)) from None
-    task.stages["primitives"] = new
+    task.stages.primitives = new
     rec(
         f"stages.primitives.constraints.{e.key}.key_points[{e.index}]",
         [float(v) for v in old[e.index]],

@@ -28,6 +28,7 @@ from thirdhand.review.edits import (
 )
 from thirdhand.task.geometry import DOF_NAMES
 from thirdhand.task.model import TaskFile
+from thirdhand.task.stages import EffortRecord
 
 #: GUI operations counted per object (the IROS'15 study's, then ``range``, ``confirm``,
 #: ``primitive``).
@@ -86,7 +87,7 @@ class EffortLog:
     ----------
     counts : mapping, optional
         Counts to start from (``{object: {operation: n}}``, e.g. read back from a
-        task file's ``stages["review"]["effort"]``).
+        task file's ``stages.review.effort.operations``).
     """
 
     def __init__(self, counts: Mapping[str, Mapping[str, int]] | None = None) -> None:
@@ -119,18 +120,18 @@ class EffortLog:
         """All operations counted."""
         return sum(sum(ops.values()) for ops in self._counts.values())
 
-    def to_stage(self, changed: list[str] | None = None) -> dict[str, Any]:
-        """The block stored as ``task.stages["review"]["effort"]``.
+    def to_stage(self, changed: list[str] | None = None) -> EffortRecord:
+        """The record stored as ``task.stages.review.effort``.
 
         Parameters
         ----------
         changed : list of str, optional
             Changed parameters (:func:`changed_parameters`) to store with the counts.
         """
-        out: dict[str, Any] = {"operations": self.counts(), "total_operations": self.total()}
+        out = EffortRecord(operations=self.counts(), total_operations=self.total())
         if changed is not None:
-            out["changed_parameters"] = list(changed)
-            out["n_changed_parameters"] = len(changed)
+            out.changed_parameters = list(changed)
+            out.n_changed_parameters = len(changed)
         return out
 
 

@@ -7,7 +7,7 @@ why ("you pointed at leg3").
 
 Two sources, in this order:
 
-1. The task file's ``stages["perception"]`` block
+1. The task file's ``stages.perception`` block
    (:func:`thirdhand.perception.events.add_perception_events`, ``thirdhand
    gestures REC --task TASK``).
 2. A loaded recording with tracked thumb, index and middle fingertips: its
@@ -24,14 +24,12 @@ an object the task does not have, are passed over.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
 
 from thirdhand.demonstration import Demonstration
-from thirdhand.errors import TaskFileError
-from thirdhand.perception.events import STAGE, perception_events
+from thirdhand.perception.events import perception_events
 from thirdhand.perception.pointing import detect_pointing, finger_roles
+from thirdhand.task.stages import PerceptionBlock
 from thirdhand.taskfile import TaskFile
 
 #: Seconds a pointing gesture stays in focus after it ended (as ``focus_object``).
@@ -67,32 +65,18 @@ class Focus:
         return f"you {verb} {self.object}"
 
 
-def _events(block: Mapping[str, Any], kind: str, known: set[str]) -> list[tuple[str, float, float]]:
-    """``(object, t0, t1)`` of a block's usable events of one kind, in the block's order.
-
-    Raises
-    ------
-    TaskFileError
-        If an event is not an object with an ``object`` and numeric ``t0``, ``t1``.
-    """
-    items = block.get(kind, [])
-    if not isinstance(items, list):
-        raise TaskFileError(f"stages.{STAGE}.{kind}: expected a list, got {type(items).__name__}")
-    out = []
-    for i, e in enumerate(items):
-        try:
-            obj, t0, t1 = e["object"], float(e["t0"]), float(e["t1"])
-        except (KeyError, TypeError, ValueError) as exc:
-            raise TaskFileError(
-                f"stages.{STAGE}.{kind}[{i}]: expected object, t0 and t1 in seconds ({exc!r})"
-            ) from None
-        if obj is not None and (not known or obj in known):
-            out.append((str(obj), t0, t1))
-    return out
+def _events(block: PerceptionBlock, kind: str, known: set[str]) -> list[tuple[str, float, float]]:
+    """``(object, t0, t1)`` of a block's usable events of one kind, in the block's order."""
+    items = block.pointing if kind == "pointing" else block.attention
+    return [
+        (e.object, e.t0, e.t1)
+        for e in items
+        if e.object is not None and (not known or e.object in known)
+    ]
 
 
 def _pick(
-    block: Mapping[str, Any],
+    block: PerceptionBlock,
     known: set[str],
     t: float | None,
     source: str,
@@ -128,7 +112,7 @@ def find_focus(
     Parameters
     ----------
     task : TaskFile
-        Its ``stages["perception"]`` events come first.
+        Its ``stages.perception`` events come first.
     demo : Demonstration, optional
         A recording searched for pointing gestures when the task's events name
         no object (skipped without tracked thumb, index and middle fingertips).
@@ -141,14 +125,10 @@ def find_focus(
     -------
     Focus or None
 
-    Raises
-    ------
-    TaskFileError
-        If the task's perception block has a malformed event.
     """
     known = {o.name for o in task.objects}
-    block = task.stages.get(STAGE)
-    if isinstance(block, Mapping):
+    block = task.stages.perception
+    if block is not None:
         found = _pick(block, known, t, "task", lookback)
         if found is not None:
             return found

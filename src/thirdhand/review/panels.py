@@ -691,13 +691,14 @@ def _motion_html(app: ReviewApp, path: Any) -> str:
         return f'<div id="th-motion" {pad}>select a part to see its learned motion</div>'
     if path is None:
         return f'<div id="th-motion" {pad}>{html.escape(c.child)}: no learned motion</div>'
-    entry = app.task.stages["primitives"]["constraints"][path.key]
+    assert app.task.stages.primitives is not None  # the path came from it
+    entry = app.task.stages.primitives.constraints[path.key]
     rows = []
     for i, (t, p) in enumerate(zip(path.key_times, path.key_points, strict=True)):
         where = ", ".join(f"{100.0 * v:.1f}" for v in p)
         mark = " ◀" if i == app.key_point else ""
         rows.append(f"<tr><td>{i + 1}</td><td>{t:.1f} s</td><td>({where}) cm{mark}</td></tr>")
-    edits = len(entry.get("edits") or [])
+    edits = len(entry.edits)
     said = f", {edits} key point move(s)" if edits else ""
     return (
         f'<div id="th-motion" {pad}><b>{html.escape(path.key)}</b>: {html.escape(c.child)} '

@@ -1,10 +1,11 @@
 """A constraint's learned motion as a path with a few key points a person can move.
 
 The primitives stage stores, per constraint, a pose DMP of the child in the
-parent's frame (``task.stages["primitives"]["constraints"][key]["dmp"]``, see
-:mod:`thirdhand.primitives.stage`). :func:`primitive_path` rolls it out as it
-was demonstrated and marks :data:`KEY_FRACTIONS` of its duration as key
-points. Moving one (:func:`move_key_point`) deforms the rolled-out positions by
+parent's frame (``task.stages.primitives.constraints[key].dmp``, a
+:class:`~thirdhand.task.stages.PrimitiveRecord`, see :mod:`thirdhand.primitives.stage`).
+:func:`primitive_path` rolls it out as it was demonstrated and marks
+:data:`KEY_FRACTIONS` of its duration as key points. Moving one (:func:`move_key_point`)
+deforms the rolled-out positions by
 a smooth displacement that is the move at that key point and zero at the other
 key points, at the start and at the goal (a clamped cubic spline through the
 key times, :func:`displacement`), then refits the position DMP's forcing
@@ -19,9 +20,8 @@ millimetre for the chair's motions), not exactly.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -29,7 +29,8 @@ from numpy.typing import ArrayLike, NDArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.primitives.dmp import DMP, phase
 from thirdhand.primitives.quaternion_dmp import PoseDMP
-from thirdhand.primitives.serialize import dmp_to_dict, pose_dmp_from_dict
+from thirdhand.primitives.serialize import dmp_to_dict
+from thirdhand.task.stages import DmpParameters, PrimitiveEdit, PrimitiveRecord, PrimitivesBlock
 
 FloatArray = NDArray[np.float64]
 
@@ -81,46 +82,37 @@ def sample(s: FloatArray, pos: FloatArray, t: ArrayLike) -> FloatArray:
     return np.stack([np.interp(tt, s, pos[:, k]) for k in range(pos.shape[1])], axis=1)
 
 
-def primitive_entry(block: Mapping[str, Any] | None, key: str) -> Mapping[str, Any]:
-    """The entry ``key`` of a primitives block (``stages["primitives"]``).
+def primitive_entry(block: PrimitivesBlock | None, key: str) -> PrimitiveRecord:
+    """The record ``key`` of a primitives block (``task.stages.primitives``).
 
     Raises
     ------
     PrimitiveEditError
-        No block, or no entry ``key`` (the message lists the keys there are).
+        No block, or no record ``key`` (the message lists the keys there are).
     """
-    entries = (block or {}).get("constraints") if isinstance(block, Mapping) else None
-    if not isinstance(entries, Mapping) or not entries:
+    if block is None or not block.constraints:
         raise PrimitiveEditError("the task has no learned primitives (thirdhand learn)")
-    entry = entries.get(key)
-    if not isinstance(entry, Mapping):
-        raise PrimitiveEditError(f"no primitive {key!r}; there are {', '.join(map(str, entries))}")
+    entry = block.constraints.get(key)
+    if entry is None:
+        raise PrimitiveEditError(f"no primitive {key!r}; there are {', '.join(block.constraints)}")
     return entry
 
 
-def key_for(block: Mapping[str, Any] | None, parent: str, child: str) -> str | None:
+def key_for(block: PrimitivesBlock | None, parent: str, child: str) -> str | None:
     """The key of the primitive of ``child`` on ``parent`` in a primitives block, or None."""
-    entries = (block or {}).get("constraints") if isinstance(block, Mapping) else None
-    for key, entry in (entries or {}).items():
-        if isinstance(entry, Mapping) and (entry.get("parent"), entry.get("child")) == (
-            parent,
-            child,
-        ):
-            return str(key)
-    return None
+    found = None if block is None else block.find(parent, child)
+    return None if found is None else found[0]
 
 
-def _pose_dmp(entry: Mapping[str, Any], key: str) -> PoseDMP:
+def _pose_dmp(entry: PrimitiveRecord, key: str) -> PoseDMP:
     try:
-        return pose_dmp_from_dict(dict(entry["dmp"]))
-    except KeyError:
-        raise PrimitiveEditError(f"primitive {key!r} has no 'dmp'") from None
+        return entry.pose_dmp()
     except ThirdhandError as exc:
         raise PrimitiveEditError(f"primitive {key!r}: {exc}") from None
 
 
 def primitive_path(
-    block: Mapping[str, Any] | None, key: str, *, fractions: Sequence[float] = KEY_FRACTIONS
+    block: PrimitivesBlock | None, key: str, *, fractions: Sequence[float] = KEY_FRACTIONS
 ) -> PrimitivePath:
     """Roll out the primitive ``key`` as demonstrated; its key points at ``fractions`` of it.
 
@@ -135,8 +127,8 @@ def primitive_path(
     times = np.asarray(fractions, dtype=np.float64) * float(s[-1])
     return PrimitivePath(
         key=key,
-        parent=str(entry.get("parent", "")),
-        child=str(entry.get("child", "")),
+        parent=entry.parent,
+        child=entry.child,
         s=s,
         pos=pos,
         key_times=times,
@@ -195,19 +187,19 @@ def refit_position(dmp: DMP, s: FloatArray, pos: FloatArray) -> DMP:
 
 
 def move_key_point(
-    block: Mapping[str, Any] | None,
+    block: PrimitivesBlock | None,
     key: str,
     index: int,
     point: ArrayLike,
     *,
     fractions: Sequence[float] = KEY_FRACTIONS,
-) -> dict[str, Any]:
+) -> PrimitivesBlock:
     """The primitives block with key point ``index`` of primitive ``key`` moved to ``point``.
 
     Parameters
     ----------
-    block : mapping
-        ``task.stages["primitives"]``; left untouched.
+    block : PrimitivesBlock
+        ``task.stages.primitives``; left untouched.
     key : str
     index : int
         0-based key point.
@@ -215,10 +207,9 @@ def move_key_point(
 
     Returns
     -------
-    dict
-        A new block: the entry's ``dmp.position`` refitted, ``source: "corrected"``
-        and the move appended to its ``edits`` list (``index``, ``time_s``,
-        ``from``, ``to``).
+    PrimitivesBlock
+        A new block: the record's ``dmp.position`` refitted, ``source: "corrected"``
+        and the move appended to its ``edits`` (:class:`~thirdhand.task.stages.PrimitiveEdit`).
 
     Raises
     ------
@@ -238,26 +229,25 @@ def move_key_point(
     offsets = np.zeros((n, 3))
     offsets[index] = p - path.key_points[index]
     deformed = path.pos + displacement(path.s, path.key_times, offsets)
-    entry = dict(primitive_entry(block, key))
+    entry = primitive_entry(block, key)
     dmp = _pose_dmp(entry, key)
     position = refit_position(dmp.position_, path.s, deformed)
-    new_dmp = dict(entry["dmp"])
-    new_dmp["position"] = dmp_to_dict(position)
-    entry["dmp"] = new_dmp
-    entry["source"] = "corrected"
-    entry["edits"] = [
-        *list(entry.get("edits") or []),
+    edit = PrimitiveEdit.model_validate(
         {
             "index": index,
             "time_s": float(path.key_times[index]),
             "from": path.key_points[index].tolist(),
             "to": p.tolist(),
-        },
-    ]
+        }
+    )
+    new_dmp = entry.dmp.model_copy(
+        update={"position": DmpParameters.model_validate(dmp_to_dict(position))}
+    )
+    new_entry = entry.model_copy(
+        update={"dmp": new_dmp, "source": "corrected", "edits": [*entry.edits, edit]}
+    )
     assert block is not None  # primitive_path found the entry
-    out = dict(block)
-    out["constraints"] = {**dict(block["constraints"]), key: entry}
-    return out
+    return block.model_copy(update={"constraints": {**block.constraints, key: new_entry}})
 
 
 __all__ = [

@@ -42,11 +42,9 @@ def _object_of(task: TaskFile, edit: Edit) -> str:
     if isinstance(edit, MoveStep):
         return ACTIONS
     if isinstance(edit, SetPrimitivePoint):
-        block = task.stages.get("primitives")
-        entries = block.get("constraints") if isinstance(block, dict) else None
-        entry = entries.get(edit.key) if isinstance(entries, dict) else None
-        child = entry.get("child") if isinstance(entry, dict) else None
-        return str(child) if child else ACTIONS
+        block = task.stages.primitives
+        entry = None if block is None else block.constraints.get(edit.key)
+        return entry.child if entry is not None else ACTIONS
     cid = getattr(edit, "constraint", None)
     for c in task.constraints:
         if c.id == cid:
@@ -65,7 +63,7 @@ class ReviewSession:
         Edits, undo and redo.
     effort : EffortLog
         GUI operations per object, continued from the file's
-        ``stages["review"]["effort"]`` when present.
+        ``stages.review.effort`` when present.
     original : TaskFile
         The task as loaded, the reference of the changed-parameter count.
     """
@@ -74,10 +72,9 @@ class ReviewSession:
         self.path = Path(path)
         self.history = History(task)
         self.original = task
-        review = task.stages.get("review", {})
-        effort = review.get("effort", {}) if isinstance(review, dict) else {}
-        ops = effort.get("operations", {}) if isinstance(effort, dict) else {}
-        self.effort = EffortLog(ops if isinstance(ops, dict) else None)
+        review = task.stages.review
+        effort = None if review is None else review.effort
+        self.effort = EffortLog(None if effort is None else effort.operations)
         self._sha256 = sha256
 
     @classmethod
@@ -155,7 +152,7 @@ class ReviewSession:
         return on_disk is not None and on_disk != self._sha256
 
     def save(self, path: str | os.PathLike[str] | None = None, *, force: bool = False) -> Path:
-        """Write the current task (with the effort block in ``stages["review"]``).
+        """Write the current task (with the effort block in ``stages.review``).
 
         Parameters
         ----------
@@ -187,8 +184,7 @@ class ReviewSession:
                 "kept in the session: save them under another name, or overwrite with force"
             )
         task = self.task.model_copy(deep=True)
-        review = task.stages.setdefault("review", {})
-        review["effort"] = self.effort.to_stage(self.changed_parameters())
+        task.stages.ensure_review().effort = self.effort.to_stage(self.changed_parameters())
         save_task(task, target)
         self.history.replace_current(task)
         self.history.mark_saved()

@@ -38,13 +38,13 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
 from thirdhand.errors import ThirdhandError
 from thirdhand.task.meshes import ROLE_SYNONYMS, align_bounds, mesh_scale, same_role_mesh
 from thirdhand.task.model import TaskFile, TaskObject
+from thirdhand.task.stages import TransferBlock
 
 
 class TransferError(ThirdhandError):
@@ -362,11 +362,11 @@ def transfer_task(task: TaskFile, target: TargetSet) -> TransferResult:
                 }
             )
         )
-    stage: dict[str, Any] = {
-        "to": target.name,
-        "mapping": {k: v for k, v in mapping.items() if src_by_name[k].kind == "part"},
-        "notes": notes,
-    }
+    stage = TransferBlock(
+        to=target.name,
+        mapping={k: v for k, v in mapping.items() if src_by_name[k].kind == "part"},
+        notes=list(notes),
+    )
     new = TaskFile.new(
         objects=list(new_objects.values()),
         constraints=constraints,

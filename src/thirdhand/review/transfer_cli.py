@@ -46,7 +46,9 @@ def transfer_command(
     except ThirdhandError as exc:
         sys.stderr.write(f"thirdhand: error: {exc}\n")
         raise typer.Exit(1) from None
-    pairs = ", ".join(f"{a}->{b}" for a, b in result.task.stages["transfer"]["mapping"].items())
+    block = result.task.stages.transfer
+    assert block is not None  # transfer_task writes it
+    pairs = ", ".join(f"{a}->{b}" for a, b in block.mapping.items())
     typer.echo(f"{task} -> {output} ({to}): {pairs}")
     for note in result.notes:
         typer.echo(f"  {note}")

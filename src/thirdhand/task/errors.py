@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 from pydantic import ValidationError
@@ -19,6 +20,11 @@ def json_location(loc: Sequence[int | str]) -> str:
         else:
             out += f".{part}" if out else str(part)
     return out
+
+
+#: A check's message that starts with the location inside the checked model
+#: (``"steps[2].start: ..."``), joined to the model's own location.
+_INNER_LOCATION = re.compile(r"^([A-Za-z_][\w]*(?:\[\d+\])*(?:\.[A-Za-z_\w]+(?:\[\d+\])*)*): ")
 
 
 def flatten_errors(exc: ValidationError) -> list[str]:
@@ -39,6 +45,8 @@ def flatten_errors(exc: ValidationError) -> list[str]:
         if err["type"] == "json_invalid":
             msg = f"invalid JSON: {ctx.get('error', msg)}"
         loc = json_location(err["loc"])
+        if loc and err["type"] == "value_error" and _INNER_LOCATION.match(msg):
+            loc, msg = f"{loc}.{msg.split(': ', 1)[0]}", msg.split(": ", 1)[1]
         lines.append(f"{loc}: {msg}" if loc else msg)
     return lines
 

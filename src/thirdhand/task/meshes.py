@@ -6,9 +6,11 @@ A task object names its mesh file (``TaskObject.mesh``), the mesh units
 for collisions; an object whose mesh is not found falls back to its bounding
 box (``bbox_min``/``bbox_max``).
 
-Mesh files are looked up, in order: as given when absolute, next to the task
-file, then in every folder of the search path (the ``search`` argument, then
-the ``THIRDHAND_MESH_PATH`` environment variable, ``os.pathsep``-separated).
+Mesh files are looked up, in order: as given when absolute, relative to the
+task file's folder, then in every folder of the search path (the ``search``
+argument, then the ``THIRDHAND_MESH_PATH`` environment variable,
+``os.pathsep``-separated). A learned task records the files it found relative
+to the task file (:func:`anchor_meshes`), so it needs no search path later.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from numpy.typing import NDArray
 from thirdhand.io.stl import read_stl
 from thirdhand.se3 import matrix_from_quat, quat_from_matrix
 from thirdhand.task.geometry import Pose
-from thirdhand.task.model import TaskObject
+from thirdhand.task.model import TaskFile, TaskObject
 
 if TYPE_CHECKING:
     from thirdhand.demonstration import Demonstration
@@ -253,3 +255,69 @@ def object_geometry(demo: Demonstration) -> dict[str, dict[str, Any]]:
             fields["mesh_to_body"] = align_bounds(mlo, mhi, np.asarray(lo), np.asarray(hi))
         out[str(name)] = fields
     return out
+
+
+def _relative(path: Path, folder: Path) -> str:
+    """``path`` relative to ``folder`` (POSIX separators), or absolute when it cannot be."""
+    try:
+        return Path(os.path.relpath(path.resolve(), folder.resolve())).as_posix()
+    except ValueError:  # another drive (Windows)
+        return path.resolve().as_posix()
+
+
+def anchor_meshes(
+    task: TaskFile,
+    task_path: str | os.PathLike[str],
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> TaskFile:
+    """A copy of ``task`` whose meshes name the files found, relative to ``task_path``.
+
+    Called when a learned task is written: the mesh files found now (beside the
+    task file, along ``search`` and ``THIRDHAND_MESH_PATH``) are recorded by their
+    path from the task file's folder, so ``review`` and ``execute`` find them with
+    no flag and no environment variable. A mesh not found is left as named; the
+    scene file of ``stages.scene`` is made relative the same way.
+    """
+    out = task.model_copy(deep=True)
+    folder = Path(task_path).parent
+    for obj in out.objects:
+        found = resolve_mesh(obj, task_path, search)
+        if found is not None:
+            obj.mesh = _relative(found, folder)
+    scene = out.stages.scene
+    if scene is not None and scene.file is not None and Path(scene.file).is_file():
+        scene.file = _relative(Path(scene.file), folder)
+    return out
+
+
+def missing_meshes(
+    task: TaskFile,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> dict[str, str]:
+    """Objects whose recorded mesh file is not found: object name to the mesh as recorded."""
+    return {
+        o.name: o.mesh
+        for o in task.objects
+        if o.mesh and resolve_mesh(o, task_path, search) is None
+    }
+
+
+def missing_mesh_note(
+    task: TaskFile,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> str | None:
+    """One line saying which recorded mesh files are missing and where they were looked for.
+
+    None when every mesh the task names is found.
+    """
+    missing = missing_meshes(task, task_path, search)
+    if not missing:
+        return None
+    listed = ", ".join(f"{n} ({m})" for n, m in missing.items())
+    where = f"beside {task_path}" if task_path is not None else "in the current folder"
+    return (
+        f"mesh files not found, drawn and checked as boxes: {listed}; looked {where}, "
+        f"in --meshes folders and along {MESH_PATH_ENV}"
+    )

@@ -1,9 +1,11 @@
-"""The task file ``thirdhand.task/1``: objects, constraints, plan, stage blocks, provenance.
+"""The task file ``thirdhand.task/2``: objects, constraints, plan, stage blocks, provenance.
 
 Everything learned about one task in one versioned JSON document. The review GUI
 reads and writes it; execution reads it. Validation runs on construction; the
 cross-field checks (unknown object or constraint, duplicate id...) name the JSON
 location of the problem, e.g. ``constraints[2].child: unknown object 'leg7'``.
+The stage blocks are typed (:mod:`thirdhand.task.stages`); a ``thirdhand.task/1``
+document is migrated on load (:mod:`thirdhand.task.migrate`).
 """
 
 from __future__ import annotations
@@ -27,10 +29,12 @@ from pydantic import (
 from thirdhand.errors import TaskFileError
 from thirdhand.task.constraint import Constraint, Name
 from thirdhand.task.geometry import Pose, Positive, TaskModel, Vec3
-from thirdhand.task.skill_block import skill_block_problem
+from thirdhand.task.stages import Stages
 
 #: The schema string of this version of the task file.
-SCHEMA = "thirdhand.task/1"
+SCHEMA = "thirdhand.task/2"
+#: Earlier schema strings :func:`thirdhand.task.migrate.migrate` reads.
+OLD_SCHEMAS: tuple[str, ...] = ("thirdhand.task/1",)
 
 ObjectKind = Literal["part", "tool", "finger", "hand", "head", "other"]
 OBJECT_KINDS: tuple[str, ...] = get_args(ObjectKind)
@@ -199,19 +203,20 @@ def _tree_problem(constraints: Sequence[Any]) -> str | None:
 
 
 class TaskFile(TaskModel):
-    """Everything learned about one task (schema ``thirdhand.task/1``).
+    """Everything learned about one task (schema ``thirdhand.task/2``).
 
     Attributes
     ----------
     schema_ : str
-        Always ``"thirdhand.task/1"`` (JSON key ``schema``).
+        Always ``"thirdhand.task/2"`` (JSON key ``schema``).
     objects : list of TaskObject
     constraints : list of Constraint
     plan : list of TaskStep
         Ordered steps.
-    stages : dict of str to dict
-        A free-form block per pipeline stage (``segmentation``, ``primitives``,
-        ``reward``...), so later stages add blocks without a schema change.
+    stages : Stages
+        A typed block per pipeline stage (``constraints``, ``plan``,
+        ``primitives``, ``reward``, ``review``, ``perception``, ``scene``,
+        ``grasps``, ``execution``); blocks this version does not know are kept.
     provenance : Provenance
     """
 
@@ -219,7 +224,7 @@ class TaskFile(TaskModel):
     objects: list[TaskObject] = Field(default_factory=list)
     constraints: list[Constraint] = Field(default_factory=list)
     plan: list[TaskStep] = Field(default_factory=list)
-    stages: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    stages: Stages = Field(default_factory=Stages)
     provenance: Provenance = Field(default_factory=Provenance)
 
     @field_validator("schema_", mode="before")
@@ -227,7 +232,8 @@ class TaskFile(TaskModel):
     def _check_schema(cls, value: Any) -> Any:
         if value != SCHEMA:
             got = f'"{value}"' if isinstance(value, str) else repr(value)
-            raise ValueError(f'expected "{SCHEMA}", got {got}')
+            hint = " (load_task and parse_task migrate it)" if value in OLD_SCHEMAS else ""
+            raise ValueError(f'expected "{SCHEMA}", got {got}{hint}')
         return value
 
     @model_validator(mode="after")
@@ -273,7 +279,7 @@ class TaskFile(TaskModel):
                         f"plan[{i}].after[{k}]: step {j} is not an earlier step "
                         f"(expected an index in 0..{i - 1})"
                     )
-        return skill_block_problem(self.stages.get("primitives"))
+        return None
 
     @classmethod
     def new(
@@ -282,7 +288,7 @@ class TaskFile(TaskModel):
         objects: Sequence[TaskObject | Mapping[str, Any]] = (),
         constraints: Sequence[Constraint | Mapping[str, Any]] = (),
         plan: Sequence[TaskStep | Mapping[str, Any]] = (),
-        stages: Mapping[str, Mapping[str, Any]] | None = None,
+        stages: Stages | Mapping[str, Any] | None = None,
         inputs: Sequence[InputFile | str | os.PathLike[str]] = (),
         parameters: Mapping[str, Any] | None = None,
     ) -> TaskFile:
@@ -306,7 +312,7 @@ class TaskFile(TaskModel):
                     "objects": [_plain(o) for o in objects],
                     "constraints": [_plain(c) for c in constraints],
                     "plan": [_plain(p) for p in plan],
-                    "stages": {k: dict(v) for k, v in (stages or {}).items()},
+                    "stages": _plain(stages) if isinstance(stages, Stages) else dict(stages or {}),
                     "provenance": Provenance(
                         inputs=files,
                         thirdhand_version=__version__,

@@ -156,8 +156,8 @@ def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[s
     Returns
     -------
     dict of str to dict
-        Per listed body: ``mesh`` (the file name, looked up along the mesh search
-        path like every task mesh; a missing ``bench_seating.stl`` is the
+        Per listed body: ``mesh`` (the file's path, the scene file's folder joined
+        to a relative name; a missing ``bench_seating.stl`` is the
         ``bench_sitting.stl`` beside it, :func:`~thirdhand.task.meshes.same_role_mesh`),
         ``scale`` (0.001 for millimetres),
         ``mesh_to_body`` (the inverse of the file's transformation) and
@@ -187,7 +187,7 @@ def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[s
         pos, quat = se3.pose_invert(offset, turn)
         in_body = (vertices * scale) @ se3.matrix_from_quat(quat).T + pos
         out[name] = {
-            "mesh": mesh.name,
+            "mesh": os.fspath(mesh),
             "scale": scale,
             "mesh_to_body": Pose.model_validate(
                 {"pos": [float(v) for v in pos], "quat": [float(v) for v in quat]}

@@ -19,6 +19,7 @@ from thirdhand.errors import OutputError, TaskFileError
 from thirdhand.fileops import write_text
 from thirdhand.readlimits import check_json_depth, read_text_input
 from thirdhand.task.errors import first_error
+from thirdhand.task.migrate import migrate
 from thirdhand.task.model import TaskFile
 
 
@@ -36,7 +37,7 @@ def _reject_constant(name: str) -> Any:
 
 
 def parse_task(text: str, *, name: str = "<task>") -> TaskFile:
-    """Validate the JSON text of a task file.
+    """Validate the JSON text of a task file (an earlier schema's migrated first).
 
     Parameters
     ----------
@@ -65,6 +66,9 @@ def parse_task(text: str, *, name: str = "<task>") -> TaskFile:
         raise TaskFileError(f"{name}: invalid JSON: {exc}") from None
     if not isinstance(data, dict):
         raise TaskFileError(f"{name}: expected a JSON object, got {type(data).__name__}")
+    migrated = migrate(data, name=name)
+    if migrated is not data:
+        text = json.dumps(migrated, allow_nan=False)
     try:
         # Strict JSON validation: no "1.5" strings for numbers, no numbers for names.
         return TaskFile.model_validate_json(text, strict=True)
@@ -79,7 +83,8 @@ def load_task(path: str | os.PathLike[str]) -> TaskFile:
     ------
     TaskFileError
         If the file cannot be read, is not JSON (the message gives line and
-        column) or is not a valid ``thirdhand.task/1`` document (the message gives
+        column) or is not a valid ``thirdhand.task/2`` document (nor one of an
+        earlier schema, migrated) (the message gives
         the JSON location of the first error).
     """
     p = Path(path)

@@ -16,6 +16,7 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
@@ -171,4 +172,36 @@ def trajectory_from_steps(steps: Sequence[Mapping[str, object]], *, source: str)
             )
         sym = st.get("symbol")
         out.append(Step(parent, child, sym if isinstance(sym, str) and sym else "constraint"))
+    return Trajectory(tuple(out), source)
+
+
+class PlanStepLike(Protocol):
+    """A plan step as the stages type it: a ``PlanAction`` or a task file's ``TaskStep``."""
+
+    @property
+    def parent(self) -> str: ...
+
+    @property
+    def child(self) -> str: ...
+
+    @property
+    def symbol(self) -> str | None: ...
+
+
+def trajectory_from_plan(steps: Sequence[PlanStepLike], *, source: str) -> Trajectory:
+    """A trajectory from typed plan steps (``AssemblyPlan.steps`` or ``TaskFile.plan``).
+
+    Raises
+    ------
+    RelationalError
+        When a step lacks a parent or a child.
+    """
+    out = []
+    for i, st in enumerate(steps):
+        if not st.parent or not st.child:
+            raise RelationalError(
+                f"{source} plan[{i}]: expected parent and child names, "
+                f"got {st.parent!r} and {st.child!r}"
+            )
+        out.append(Step(st.parent, st.child, st.symbol or "constraint"))
     return Trajectory(tuple(out), source)
