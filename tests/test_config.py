@@ -117,7 +117,7 @@ CLI_CASES: list[tuple[str, str, str]] = [
      "[attention] min_duration"),
     ("headpose {demo} --config {cfg}", "[headpose]\nstart = 5\nstop = 2\n",
      "expected a frame after start = 5"),
-    ("merge {demo} {demo} -o {dir}/m.parquet --config {cfg}", "[merge]\nsmoth = true\n",
+    ("merge {demo} {dir}/b.parquet -o {dir}/m.parquet --config {cfg}", "[merge]\nsmoth = true\n",
      "unknown setting 'smoth'"),
     ("config nosuch", "", "'nosuch' has no settings"),
 ]  # fmt: skip

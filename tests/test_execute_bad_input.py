@@ -14,7 +14,7 @@ from typing import Any
 
 import pytest
 
-from tests.cli_helpers import call
+from tests.cli_helpers import call, settings_file
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,8 @@ def _run(capsys, tmp_path: Path, doc: dict[str, Any], *extra: str) -> tuple[int,
     path = tmp_path / "task.json"
     path.write_text(json.dumps(doc))
     before = path.read_bytes()
-    rc, out, err = call(capsys, "execute", str(path), "--step-time", "5", *extra)
+    cfg = settings_file(tmp_path, "execute", step_time=5.0)
+    rc, out, err = call(capsys, "execute", str(path), "--config", str(cfg), *extra)
     assert path.read_bytes() == before
     return rc, out, err
 
@@ -107,10 +108,18 @@ def test_two_base_parts_are_refused(capsys, tmp_path, bench_doc) -> None:
 
 
 def test_unknown_placement_is_refused(capsys, tmp_path, bench_doc) -> None:
-    rc, _, err = _run(capsys, tmp_path, bench_doc, "--placement", "best")
-    assert rc == 1 and "--placement best: expected one of auto, geometry, reach" in _one_line(err)
+    path = tmp_path / "task.json"
+    path.write_text(json.dumps(bench_doc))
+    cfg = settings_file(tmp_path, "execute", placement="best")
+    rc, _, err = call(capsys, "execute", str(path), "--config", str(cfg))
+    assert rc == 1 and "[execute] placement: Input should be 'auto', 'geometry' or 'reach'" in (
+        _one_line(err)
+    )
 
 
 def test_negative_start_grasps_is_refused(capsys, tmp_path, bench_doc) -> None:
-    rc, _, err = _run(capsys, tmp_path, bench_doc, "--start-grasps", "-1")
-    assert rc == 1 and "--start-grasps" in _one_line(err)
+    path = tmp_path / "task.json"
+    path.write_text(json.dumps(bench_doc))
+    cfg = settings_file(tmp_path, "execute", start_grasps=-1)
+    rc, _, err = call(capsys, "execute", str(path), "--config", str(cfg))
+    assert rc == 1 and "[execute] start_grasps" in _one_line(err)

@@ -55,10 +55,12 @@ def test_execute_with_demo_holds_each_leg_where_the_fingers_did(tmp_path, shared
     app.command()(execute_command)
     out = tmp_path / "run.parquet"
     meshes = str(shared_data / "3rdhand" / "meshes")
+    cfg = tmp_path / "settings.toml"
+    cfg.write_text(f"[execute]\nmeshes = [{meshes!r}]\n")
     res = CliRunner().invoke(
         app,
-        [str(task_path), "--demo", str(demo_path), "--record", str(out), "--meshes", meshes,
-         "--seed", "1"],
+        [str(task_path), "--demo", str(demo_path), "--record", str(out), "--config",
+         str(cfg), "--seed", "1"],
         env={"COLUMNS": "220"},
     )  # fmt: skip
     assert res.exit_code == 0, res.output

@@ -146,8 +146,6 @@ CASES: list[tuple[str, str]] = [
     ("irl learn --synth 100000", "--synth"),
     ("irl learn {cycle}", "cycle"),
     ("irl learn {task} --json {task}", "also an input"),
-    ("execute {task} --step-time nan", "--step-time"),
-    ("execute {task} --plan-time -1", "--plan-time"),
     ("execute {task} --seed -1", "--seed"),
     ("execute {huge_pos}", "beyond 1000 m"),
     ("execute {two_parents}", "one parent"),

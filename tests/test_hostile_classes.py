@@ -97,6 +97,8 @@ def files(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     os.mkfifo(out["fifo"])
     out["dwell_config"] = d / "dwell.toml"  # gestures --dwell 1e9, now a setting
     out["dwell_config"].write_text("[gestures]\ndwell = 1e9\n")
+    out["meshes_config"] = d / "meshes.toml"  # execute --meshes /etc/passwd, now a setting
+    out["meshes_config"].write_text("[execute]\nmeshes = ['/etc/passwd']\n")
     out["userdir"] = d / "mine"
     out["userdir"].mkdir()
     (out["userdir"] / "notes.txt").write_text("mine")
@@ -127,7 +129,7 @@ CLI_CASES: list[tuple[str, str, str]] = [
     ("14", "learn {chair} {bench} {toolbox} -o {dir}/t.json", "different tasks"),
     ("14", "learn {chair} {dir}/../{dir.name}/chair.parquet -o {dir}/t.json", "same file"),
     ("14", "merge {chair} {dir}/./chair.parquet -o {dir}/m.parquet", "same file"),
-    ("14", "execute {task} --meshes /etc/passwd", "not a folder"),
+    ("14", "execute {task} --config {meshes_config}", "not a folder"),
     ("14", "execute {task} --demo {toolbox}", "none of the task's objects"),
     ("14", "convert {chair} -", "standard output"),
     ("14", "gestures {chair} --config {dwell_config}", "dwell"),
@@ -393,11 +395,12 @@ def test_case14_execute_with_failed_steps_is_an_error_line(
     capsys: pytest.CaptureFixture[str], files: dict[str, Path], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     from thirdhand.execute import executor
+    from thirdhand.execute.step_plan import SearchCounts
 
     step = SimpleNamespace(
         index=1, child="p0", parent="base", constraint="c0", grasp="top", grasp_source="",
         place_motion="direct", regrasp=None, planning_time_s=0.1, joint_length_rad=0.0,
-        tool_length_m=0.0, n_collisions=0, success=False, status="no grasp", tried={},
+        tool_length_m=0.0, n_collisions=0, success=False, status="no grasp", tried=SearchCounts(),
         collision_pairs=[],
     )  # fmt: skip
     result = SimpleNamespace(steps=[step], events=[], success=False, n_collisions=0)

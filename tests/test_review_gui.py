@@ -1002,7 +1002,9 @@ def test_a_real_execution_record_replays(
     save_task(task, path)
     out = tmp_path / "run"
     meshes = shared_data / "3rdhand" / "meshes"
-    assert main(["execute", str(path), "--record", str(out), "--meshes", str(meshes)]) == 0
+    cfg = tmp_path / "settings.toml"
+    cfg.write_text(f"[execute]\nmeshes = [{str(meshes)!r}]\n")
+    assert main(["execute", str(path), "--record", str(out), "--config", str(cfg)]) == 0
     run = out.with_suffix(".parquet")
     record = io.load(run)
     child = task.plan[0].child

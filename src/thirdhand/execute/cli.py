@@ -18,7 +18,9 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
+from thirdhand.execute.settings import ExecuteSettings
 
 if TYPE_CHECKING:
     from thirdhand.task.model import TaskFile
@@ -35,10 +37,6 @@ def execute_command(
         typer.Option(help="Write the replay (OUT.parquet) and the trajectory (OUT.json)."),
     ] = None,
     seed: Annotated[int, typer.Option(help="Seed of the start layout and the planner.")] = 0,
-    meshes: Annotated[
-        list[Path] | None,
-        typer.Option(help="Folder searched for part meshes the task file does not find."),
-    ] = None,
     demo: Annotated[
         Path | None,
         typer.Option(help="A demonstration whose fingers give the grasps (default: the task's)."),
@@ -47,51 +45,17 @@ def execute_command(
         list[str] | None,
         typer.Option(help="Online: a simulated person does this constraint's step (repeatable)."),
     ] = None,
-    free_dofs: Annotated[
-        bool, typer.Option(help="Sample goals inside the free DOFs when a goal fails.")
-    ] = True,
-    step_time: Annotated[float, typer.Option(help="Time limit per step, seconds.")] = 60.0,
-    plan_time: Annotated[float, typer.Option(help="Time limit per planning query, seconds.")] = 5.0,
     force: Annotated[
         bool, typer.Option(help="Replace existing --record files (kept as numbered .bak).")
     ] = False,
-    order: Annotated[
-        str,
-        typer.Option(
-            help="What binds the step order: auto (the plan's order when learned from "
-            "several demonstrations), plan, or parents (only parents first)."
-        ),
-    ] = "auto",
-    max_grasps: Annotated[int, typer.Option(help="Grasp candidates tried per step.")] = 24,
-    goals: Annotated[int, typer.Option(help="Goal poses tried per step (free DOFs).")] = 16,
-    assembly_at: Annotated[
-        tuple[float, float] | None,
-        typer.Option(help="World x y (m) where the assembly is built (default: the robot's)."),
-    ] = None,
-    placement: Annotated[
-        str,
-        typer.Option(
-            help="How the base stands: geometry (lowest, nearest), reach (of the first "
-            "geometric candidates, the one whose goals the arm reaches best) or auto "
-            "(geometry unless a part reaches no goal there, then reach)."
-        ),
-    ] = "auto",
-    start_grasps: Annotated[
-        int,
-        typer.Option(
-            help="Lay a part farther than 0.55 m from the arm only where at least this many "
-            "of its grasps are reachable (0: anywhere in the robot's band)."
-        ),
-    ] = 0,
-    regrasp: Annotated[
-        bool,
-        typer.Option(
-            help="When no grasp reached where a part lies can place it, put it down near "
-            "the arm and pick it again."
-        ),
-    ] = True,
+    config: ConfigOption = None,
 ) -> None:
-    """Execute a task's plan on a simulated robot arm with a motion planner."""
+    """Execute a task's plan on a simulated robot arm with a motion planner.
+
+    Settings (``[execute]`` of ``--config``; ``thirdhand config execute``): time limits,
+    grasps and goals tried, step order, base placement, start layout, regrasp, extra
+    mesh folders.
+    """
     from thirdhand import io, options
     from thirdhand.execute.executor import ExecutionOptions, Executor, person_does
     from thirdhand.execute.record import record_paths, write_run
@@ -99,36 +63,23 @@ def execute_command(
     from thirdhand.task.store import load_task
 
     options.seed(seed)
-    options.finite("--step-time", step_time, low=0.0, low_open=True, high=86400.0)
-    options.finite("--plan-time", plan_time, low=0.0, low_open=True, high=86400.0)
-    for folder in meshes or []:
+    cfg = load_settings(config, "execute", ExecuteSettings)
+    meshes = [Path(m) for m in cfg.meshes]
+    for folder in meshes:
         if not folder.is_dir():
-            raise ThirdhandError(f"--meshes {folder}: not a folder (a folder of part meshes)")
+            raise ThirdhandError(f"[execute] meshes {folder}: not a folder of part meshes")
     if record is not None:
-        inputs = [task, *([demo] if demo else []), *(meshes or [])]
+        inputs = [task, *([demo] if demo else []), *([config] if config else [])]
         for target in record_paths(record):
             check_output(target, force=force, inputs=inputs)
     console = Console()
     t = load_task(task)
-    search = [str(m) for m in meshes or []]
-    from thirdhand.execute.step_order import ORDERS
-
-    if order not in ORDERS:
-        raise ThirdhandError(f"--order {order}: expected one of {', '.join(ORDERS)}")
-    options.integer("--max-grasps", max_grasps, low=1, high=10_000)
-    options.integer("--goals", goals, low=1, high=10_000)
-    options.integer("--start-grasps", start_grasps, low=0, high=1000)
-    from thirdhand.execute.executor import PLACEMENTS
-
-    if placement not in PLACEMENTS:
-        raise ThirdhandError(f"--placement {placement}: expected one of {', '.join(PLACEMENTS)}")
-    if assembly_at is not None:
-        for v in assembly_at:
-            options.finite("--assembly-at", v, low=-10.0, high=10.0)
+    search = [str(m) for m in meshes]
     opts = ExecutionOptions(
-        sample_free_dofs=free_dofs, step_time_limit=step_time, plan_time_limit=plan_time,
-        order=order, max_grasps=max_grasps, n_goal_samples=goals, placement=placement,
-        start_grasps=start_grasps, regrasp=regrasp,
+        sample_free_dofs=cfg.free_dofs, step_time_limit=cfg.step_time,
+        plan_time_limit=cfg.plan_time, order=cfg.order, max_grasps=cfg.max_grasps,
+        n_goal_samples=cfg.goals, placement=cfg.placement, start_grasps=cfg.start_grasps,
+        regrasp=cfg.regrasp,
     )  # fmt: skip
     d = io.load(demo) if demo is not None else None
     if d is not None:
@@ -141,7 +92,7 @@ def execute_command(
             )
     ex = Executor.for_task(
         t, robot, seed=seed, options=opts, task_path=task, search=search, demo=d,
-        assembly_xy=assembly_at,
+        assembly_xy=cfg.assembly_at,
     )  # fmt: skip
     from thirdhand.task.meshes import missing_mesh_note
 
