@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cli_helpers import call
+from cli_helpers import call, settings_file
 from thirdhand import io
 from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.export.behavior_tree import ACTIONS, layers
@@ -525,7 +525,8 @@ def _export_all(capsys, task: Path, run: Path, folder: Path) -> dict[str, Any]:
 def test_learned_chair_executed_and_exported(tmp_path, capsys) -> None:
     rec, task, run = tmp_path / "chair.parquet", tmp_path / "chair.task.json", tmp_path / "run"
     assert call(capsys, "synth", "chair", "-o", str(rec), "--noise-free")[0] == 0
-    fast = ("--no-segment", "--no-primitives", "--no-reward")
+    cfg = settings_file(tmp_path, "learn", segment=False, primitives=False, reward=False)
+    fast = ("--config", str(cfg))
     assert call(capsys, "learn", str(rec), "-o", str(task), *fast)[0] == 0
     rc, _, err = call(capsys, "execute", str(task), "--record", str(run))
     assert rc == 0, err
@@ -538,7 +539,8 @@ def test_learned_chair_executed_and_exported(tmp_path, capsys) -> None:
 def test_real_toolbox_learned_with_its_scene_exports(tmp_path, capsys, shared_data) -> None:
     folder = shared_data / "3rdhand"
     task, run = tmp_path / "toolbox.task.json", tmp_path / "run"
-    fast = ("--no-segment", "--no-primitives", "--no-reward")
+    cfg = settings_file(tmp_path, "learn", segment=False, primitives=False, reward=False)
+    fast = ("--config", str(cfg))
     scene = str(folder / "meshes" / "scene_toolbox_coop.json")
     rc, _, err = call(
         capsys, "learn", str(folder / "toolbox_coop_4"), "-o", str(task), "--scene", scene, *fast

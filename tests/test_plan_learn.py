@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from cli_helpers import settings_file
 from thirdhand import io
 from thirdhand.errors import OptionError
 from thirdhand.plan.assembly import plan_from_demos, plan_success, truth_slot
@@ -113,11 +114,11 @@ def test_real_toolbox_with_its_excerpt_keeps_the_plan(shared_data: Path, tmp_pat
             str(folder / "toolbox_coop_4_excerpt"),
             "-o",
             str(tmp_path / "t.json"),
-            "--min-support",
-            "1",
+            "--config",
+            str(settings_file(tmp_path, "learn", min_support=1.0)),
         ],
     )
-    assert r.exit_code != 0 and "--min-support" in str(r.exception)
+    assert r.exit_code != 0 and "[learn] min_support" in str(r.exception)
     assert not (tmp_path / "t.json").exists()
 
 

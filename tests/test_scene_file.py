@@ -10,6 +10,7 @@ import pytest
 from scipy.spatial import cKDTree
 from typer.testing import CliRunner
 
+from cli_helpers import settings_file
 from thirdhand import io, se3
 from thirdhand.errors import FormatError
 from thirdhand.io.stl import read_stl
@@ -158,7 +159,8 @@ def test_real_toolbox_learned_with_its_scene_executes(
             str(folder / "toolbox_coop_4"),
             "-o",
             str(task),
-            "--no-reward",
+            "--config",
+            str(settings_file(tmp_path, "learn", reward=False)),
             "--scene",
             str(folder / "meshes" / "scene_toolbox_coop.json"),
         ],

@@ -117,19 +117,20 @@ def test_cli_learn_on_the_real_toolbox(shared_data: Path, tmp_path: Path, capsys
 
 
 def test_cli_learn_chair_writes_every_block(tmp_path: Path, capsys) -> None:
-    from cli_helpers import call
+    from cli_helpers import call, settings_file
 
     path = tmp_path / "chair.parquet"
     io.save(make_scene("chair", seed=1, sensor=None), path)
     out = tmp_path / "task.json"
-    status, _, err = call(capsys, "learn", str(path), "-o", str(out), "--no-segment")
+    cfg = ("--config", str(settings_file(tmp_path, "learn", segment=False)))
+    status, _, err = call(capsys, "learn", str(path), "-o", str(out), *cfg)
     assert status == 0, err
     task = load_task(out)
     assert set(task.stages.names()) >= {"constraints", "plan", "primitives", "reward"}
     assert len(task.plan) == 5
     legs = [c for c in task.constraints if c.child.startswith("leg")]
     assert all(np.isclose(c.free_dofs.rx[1] - c.free_dofs.rx[0], 2 * np.pi) for c in legs)
-    status, _, err = call(capsys, "learn", str(path), "-o", str(out), "--no-segment")
+    status, _, err = call(capsys, "learn", str(path), "-o", str(out), *cfg)
     assert status == 1 and "exists" in err and err.count("\n") == 1
 
 
@@ -140,7 +141,7 @@ def test_cli_learn_in_two_processes_writes_the_serial_task(
     """``learn --jobs 2``: each recording segmented and detected in a unit; same task file."""
     import json
 
-    from cli_helpers import call
+    from cli_helpers import call, settings_file
     from thirdhand import io
     from thirdhand.synth import make_scene
 
@@ -151,7 +152,8 @@ def test_cli_learn_in_two_processes_writes_the_serial_task(
     docs = []
     for extra in ([], ["--jobs", "2"]):
         out = tmp_path / f"task{len(docs)}.json"
-        rc, _, err = call(capsys, "learn", *recs, "-o", str(out), "--no-reward", *extra)
+        cfg = settings_file(tmp_path, "learn", reward=False)
+        rc, _, err = call(capsys, "learn", *recs, "-o", str(out), "--config", str(cfg), *extra)
         assert rc == 0, err
         doc = json.loads(out.read_text())
         doc.pop("provenance")

@@ -4,7 +4,8 @@ Tasks are learned (``thirdhand learn``, no primitives, no reward) from seeds 1 a
 the recordings replayed are seeds never used in training. Usage::
 
     thirdhand synth chair -o chair1.parquet --seed 1   # ... seeds 1, 2 and the test seeds
-    thirdhand learn chair1.parquet chair2.parquet -o chair_task.json --no-primitives --no-reward
+    # fast.toml: [learn] primitives = false, reward = false
+    thirdhand learn chair1.parquet chair2.parquet -o chair_task.json --config fast.toml
     python scripts/live_recognition.py DIR   # {chair,bench}_task.json, {chair,bench}N.parquet
 
 Prints, per recording, each constraint's delay (recognised − formed, seconds), whether

@@ -78,6 +78,7 @@ def check_batch(jobs: int, scheduler: str | None) -> None:
 #: Command path -> "module:Class" of its settings record (imported only when asked for).
 REGISTRY: dict[str, str] = {
     "execute": "thirdhand.execute.settings:ExecuteSettings",
+    "learn": "thirdhand.task_settings:LearnSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",
     "segment.train": "thirdhand.segment.settings:TrainSettings",
     "segment.evaluate": "thirdhand.segment.settings:EvaluateSettings",

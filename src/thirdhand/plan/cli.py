@@ -15,8 +15,9 @@ import typer
 from rich.console import Console
 
 from thirdhand import options
+from thirdhand.config import ConfigOption, JobsOption, SchedulerOption, check_batch, load_settings
 from thirdhand.demonstration import Demonstration
-from thirdhand.errors import OptionError, TaskFileError, ThirdhandError
+from thirdhand.errors import TaskFileError, ThirdhandError
 from thirdhand.fileops import check_distinct_inputs, check_output
 from thirdhand.progress import stage_status
 
@@ -28,26 +29,6 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
-
-
-#: ``--jobs`` and ``--scheduler`` of ``learn``: each recording's own stages are a unit.
-JobsOption = Annotated[int, typer.Option(help="Run the units in this many local processes.")]
-SchedulerOption = Annotated[
-    str | None,
-    typer.Option(
-        help="Run the units as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or 'local' "
-        "(a local cluster of --jobs workers; docs/cluster.md; needs the dask extra)."
-    ),
-]
-
-
-def _check_batch(jobs: int, scheduler: str | None) -> None:
-    """Refuse a nonsense ``--jobs`` or a malformed ``--scheduler`` before any work."""
-    options.integer("--jobs", jobs, low=1, high=1024)
-    if scheduler is not None:
-        from thirdhand.batch import check_scheduler
-
-        check_scheduler(scheduler)
 
 
 def check_one_task(demos: Sequence[Demonstration], paths: Sequence[Path]) -> None:
@@ -136,30 +117,7 @@ def learn_command(
     report: Annotated[
         Path | None, typer.Option("--report", help="Folder for the HTML report.")
     ] = None,
-    no_segment: Annotated[
-        bool, typer.Option("--no-segment", help="Skip the interaction segmentation.")
-    ] = False,
-    no_primitives: Annotated[
-        bool, typer.Option("--no-primitives", help="Skip the motor primitives (DMP + ProMP).")
-    ] = False,
-    no_reward: Annotated[
-        bool, typer.Option("--no-reward", help="Skip the relational reward (RCSI).")
-    ] = False,
-    skills: Annotated[
-        int,
-        typer.Option(
-            help="Skills of the library that explains the constraint motions "
-            "(stages.primitives.skill_library; 0: no library)."
-        ),
-    ] = 4,
     seed: Annotated[int, typer.Option(help="Seed of the reward stage and the skill library.")] = 0,
-    segment_model: Annotated[
-        Path | None,
-        typer.Option(
-            "--segment-model",
-            help="Segmentation model JSON (e.g. from `segment calibrate`) or built-in name.",
-        ),
-    ] = None,
     force: Annotated[
         bool,
         typer.Option(help="Replace an existing task file / report (kept as numbered .bak)."),
@@ -172,15 +130,9 @@ def learn_command(
             "sensor. Default: the one on THIRDHAND_MESH_PATH that lists every part, if any.",
         ),
     ] = None,
-    min_support: Annotated[
-        float,
-        typer.Option(
-            help="A slot becomes a plan step when more than this fraction of the recordings "
-            "that show any constraint have it (0.5: a majority; 0: every slot seen once)."
-        ),
-    ] = 0.5,
     jobs: JobsOption = 1,
     scheduler: SchedulerOption = None,
+    config: ConfigOption = None,
 ) -> None:
     """Learn a task from recordings: every stage that needs no robot, into one task file.
 
@@ -188,30 +140,30 @@ def learn_command(
     the motor primitives of every learned constraint and the relational reward
     (with the plans it makes for other part sets). Errors are
     :class:`~thirdhand.errors.ThirdhandError`; ``thirdhand.cli.main`` prints them as
-    one ``thirdhand: error:`` line.
+    one ``thirdhand: error:`` line. Settings (``[learn]`` of ``--config``): which stages
+    run, the skill library's size, the plan's vote, the segmentation model.
     """
     from thirdhand.task.meshes import anchor_meshes
     from thirdhand.task_learning import learn_task
+    from thirdhand.task_settings import LearnSettings
     from thirdhand.taskfile import save_task
 
     options.seed(seed)
-    options.integer("--skills", skills, low=0, high=20)
-    if not 0.0 <= min_support < 1.0:  # also NaN
-        raise OptionError(
-            f"--min-support: expected a finite number >= 0 and < 1, got {min_support:g}"
-        )
-    _check_batch(jobs, scheduler)
+    cfg = load_settings(config, "learn", LearnSettings)
+    no_segment, min_support = not cfg.segment, cfg.min_support
+    check_batch(jobs, scheduler)
     check_distinct_inputs(demos, what="recording")
-    check_output(output, force=force, inputs=demos)
+    inputs = [*demos, *([config] if config else [])]
+    check_output(output, force=force, inputs=inputs)
     if report is not None:
         if report.exists() and not report.is_dir():
             raise ThirdhandError(f"--report {report}: expected a folder, it is a file")
         check_output(report / "index.html", force=force, inputs=[*demos, output])
     seg_model = None
-    if segment_model is not None and not no_segment:
+    if cfg.segment_model is not None and not no_segment:
         from thirdhand.segment.model import resolve_model
 
-        seg_model = resolve_model(segment_model)
+        seg_model = resolve_model(cfg.segment_model)
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
@@ -224,9 +176,9 @@ def learn_command(
             names=[p.name for p in demos],
             segment=not no_segment,
             segment_model=seg_model,
-            primitives=not no_primitives,
-            skills=skills or None,
-            reward=not no_reward,
+            primitives=cfg.primitives,
+            skills=cfg.skills or None,
+            reward=cfg.reward,
             seed=seed,
             inputs=demos,
             progress=say,
@@ -249,7 +201,7 @@ def learn_command(
     for symbol, seen in plan.left_out.items():
         out.print(
             f"  slot {symbol} seen in {seen} of {plan.voters} recordings: not a step "
-            f"(needs more than {min_support:g}; --min-support to keep it)"
+            f"(needs more than {min_support:g}; the setting min_support keeps it)"
         )
     blocks = ", ".join(task.stages.names())
     out.print(f"{len(task.constraints)} constraints, {len(task.plan)} steps → {output} ({blocks})")
