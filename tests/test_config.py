@@ -119,6 +119,14 @@ CLI_CASES: list[tuple[str, str, str]] = [
      "expected a frame after start = 5"),
     ("merge {demo} {dir}/b.parquet -o {dir}/m.parquet --config {cfg}", "[merge]\nsmoth = true\n",
      "unknown setting 'smoth'"),
+    ("primitives fit {demo} -o {dir}/p.json --config {cfg}",
+     "[primitives.fit]\npromp_weights = -3\n",
+     "[primitives.fit] promp_weights"),
+    ("primitives fit {demo} -o {dir}/p.json --config {cfg}", "[primitives.fit]\nweights = 0\n",
+     "[primitives.fit] weights"),
+    ("primitives fit {demo} -o {dir}/p.json --config {cfg}",
+     "[primitives.fit]\nalign = 'sideways'\n",
+     "[primitives.fit] align"),
     ("config nosuch", "", "'nosuch' has no settings"),
 ]  # fmt: skip
 

@@ -184,7 +184,7 @@ def test_mocap_floor_over_reads_camera_error(shared_data: Path) -> None:
     assert np.ptp(c.ranges[0]) < 0.025
 
 
-def test_cli_fit_prints_json_and_table(shared_data: Path) -> None:
+def test_cli_fit_prints_json_and_table(shared_data: Path, tmp_path: Path) -> None:
     import json
 
     from typer.testing import CliRunner
@@ -203,7 +203,9 @@ def test_cli_fit_prints_json_and_table(shared_data: Path) -> None:
     # The estimated noise is reported: millimetres, not the 1 mm / 1 cm presets.
     assert d["noise"]["source"] == "estimated"
     assert 1e-3 < d["noise"]["sigma_pos"] < 2e-2
-    result = runner.invoke(app, ["fit", str(door), "--json", "--noise", "camera"])
+    camera = tmp_path / "camera.toml"
+    camera.write_text("[constraints.fit]\nnoise = 'camera'\n")
+    result = runner.invoke(app, ["fit", str(door), "--json", "--config", str(camera)])
     assert json.loads(result.output)["noise"]["source"] == "given"
     log = shared_data / "articulation" / "drawer_one" / "001.log"
     result = runner.invoke(app, ["fit", str(log)])
@@ -222,9 +224,12 @@ def test_cli_errors_are_thirdhand_errors(shared_data: Path, tmp_path: Path) -> N
 
     runner = CliRunner()
     door = str(shared_data / "articulation" / "door.txt")
+    loud, hinge = tmp_path / "loud.toml", tmp_path / "hinge.toml"
+    loud.write_text("[constraints.fit]\nnoise = 'loud'\n")
+    hinge.write_text("[constraints.fit]\nmodels = ['fixed', 'hinge']\n")
     for args, match in (
-        (["fit", door, "--noise", "loud"], "unknown noise preset 'loud'"),
-        (["fit", door, "--models", "fixed,hinge"], "unknown model"),
+        (["fit", door, "--config", str(loud)], "noise: Input should be"),
+        (["fit", door, "--config", str(hinge)], "unknown model"),
         (["fit", door, "--parent", "table", "--child", "door"], "no body 'table'"),
         (["fit", str(tmp_path / "none.txt")], "no such file"),
     ):

@@ -664,7 +664,19 @@ def test_cli_serves_the_page_and_refuses_a_bad_file(tmp_path: Path, chair: Any) 
     path = tmp_path / "chair.task.json"
     save_task(truth_task(chair), path)
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
-    cmd = [sys.executable, "-m", "thirdhand", "review", str(path), "--port", "0", "--light"]
+    light = tmp_path / "light.toml"
+    light.write_text("[review]\nlight = true\n")
+    cmd = [
+        sys.executable,
+        "-m",
+        "thirdhand",
+        "review",
+        str(path),
+        "--port",
+        "0",
+        "--config",
+        str(light),
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)
     try:
         assert proc.stdout is not None

@@ -65,10 +65,16 @@ def _view_dark_share(png: bytes) -> float:
 
 def measure(task: Path, meshes: list[Path], light: bool, browser: object) -> dict[str, float]:
     """One run: seconds to server, panel and parts, and the idle frame rate (Hz)."""
+    import json
+    import tempfile
+
+    cfg = Path(tempfile.mkdtemp()) / "review.toml"
+    cfg.write_text(
+        f"[review]\nmeshes = {json.dumps([str(m) for m in meshes])}\n"
+        f"light = {'true' if light else 'false'}\n"
+    )
     cmd = [sys.executable, "-m", "thirdhand", "review", str(task), "--port", "0"]
-    cmd += [a for m in meshes for a in ("--meshes", str(m))]
-    if light:
-        cmd.append("--light")
+    cmd += ["--config", str(cfg)]
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     t0 = time.perf_counter()
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, text=True, env=env)

@@ -77,9 +77,12 @@ def check_batch(jobs: int, scheduler: str | None) -> None:
 
 #: Command path -> "module:Class" of its settings record (imported only when asked for).
 REGISTRY: dict[str, str] = {
+    "constraints.fit": "thirdhand.constraints.settings:FitSettings",
     "execute": "thirdhand.execute.settings:ExecuteSettings",
     "learn": "thirdhand.task_settings:LearnSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",
+    "primitives.fit": "thirdhand.primitives.settings:FitSettings",
+    "review": "thirdhand.review.settings:ReviewSettings",
     "segment.train": "thirdhand.segment.settings:TrainSettings",
     "segment.evaluate": "thirdhand.segment.settings:EvaluateSettings",
     "segment.calibrate": "thirdhand.segment.settings:CalibrateSettings",

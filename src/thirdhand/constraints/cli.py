@@ -20,14 +20,14 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from thirdhand.config import ConfigOption, load_settings
 from thirdhand.constraints.select import (
-    DEFAULT_MODELS,
     demo_track,
     fit_constraint,
     passed_over_types,
     type_probabilities,
 )
-from thirdhand.constraints.types import MODEL_TYPES, ConstraintFitError, JointFit, NoiseModel
+from thirdhand.constraints.types import ConstraintFitError, JointFit, NoiseModel
 from thirdhand.demonstration import DOF_NAMES
 
 app = typer.Typer(
@@ -117,30 +117,18 @@ def fit(
     ] = None,
     child: Annotated[str | None, typer.Option(help="Child body.")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False,
-    noise: Annotated[
-        str,
-        typer.Option(
-            help="Noise: auto (estimated from the track), mocap (1 mm floor), camera (1 cm floor)."
-        ),
-    ] = "auto",
-    models: Annotated[str, typer.Option(help="Comma-separated candidate models.")] = ",".join(
-        DEFAULT_MODELS
-    ),
+    config: ConfigOption = None,
 ) -> None:
-    """Fit every constraint model to a track and print the best one (by BIC)."""
-    from thirdhand import io
+    """Fit every constraint model to a track and print the best one (by BIC).
 
-    if noise not in NOISE_PRESETS:
-        raise ConstraintFitError(
-            f"unknown noise preset {noise!r}; choose among {', '.join(NOISE_PRESETS)}"
-        )
-    names = [m.strip() for m in models.split(",") if m.strip()]
-    bad = [m for m in names if m not in MODEL_TYPES]
-    if bad or not names:
-        raise ConstraintFitError(
-            f"--models: unknown model(s) {', '.join(map(repr, bad)) or '(none)'}; "
-            f"choose among {', '.join(MODEL_TYPES)}"
-        )
+    Settings (``[constraints.fit]`` of ``--config``): ``noise`` (auto, mocap or
+    camera) and the candidate ``models``.
+    """
+    from thirdhand import io
+    from thirdhand.constraints.settings import FitSettings
+
+    cfg = load_settings(config, "constraints.fit", FitSettings)
+    noise, names = cfg.noise, cfg.models
     if parent is not None and parent == child:
         raise ConstraintFitError(
             f"--parent and --child are both {parent!r}; a constraint needs two bodies"

@@ -18,6 +18,7 @@ import typer
 from rich.console import Console
 
 from thirdhand import options
+from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output, check_output, write_bytes
 
@@ -41,19 +42,10 @@ def _fail(exc: Exception) -> typer.Exit:
     return typer.Exit(1)
 
 
-#: Most basis weights per dimension a DMP or ProMP may have.
-MAX_WEIGHTS = 1000
-
-
 @app.command()
 def fit(
     demos: Annotated[list[Path], typer.Argument(help="Recordings with constraint labels.")],
     output: Annotated[Path, typer.Option("-o", "--output", help="JSON file to write.")],
-    weights: Annotated[
-        int | None, typer.Option(help="DMP weights per dimension (default: 15 per second).")
-    ] = None,
-    promp_weights: Annotated[int, typer.Option(help="ProMP weights per dimension.")] = 10,
-    align: Annotated[str, typer.Option(help="Alignment before averaging: phase or dtw.")] = "phase",
     task: Annotated[
         Path | None,
         typer.Option(help="Also store the block as stages.primitives of this task file."),
@@ -61,30 +53,30 @@ def fit(
     force: Annotated[
         bool, typer.Option(help="Replace an existing OUTPUT (kept as a numbered .bak).")
     ] = False,
+    config: ConfigOption = None,
 ) -> None:
     """Learn one pose DMP and one ProMP per constraint symbol from the demonstrations.
 
     ``--task`` updates that task file in place (its previous version is kept as
-    a numbered backup).
+    a numbered backup). Settings (``[primitives.fit]`` of ``--config``): ``weights``,
+    ``promp_weights``, ``align``.
     """
     from thirdhand import io
+    from thirdhand.primitives.settings import FitSettings
     from thirdhand.primitives.stage import primitives_stage
 
-    if align not in ("phase", "dtw"):
-        raise _fail(ValueError(f"--align must be phase or dtw, got {align!r}"))
     try:
-        check_output(output, force=force, inputs=[*demos, *([task] if task else [])])
-        if weights is not None:
-            options.integer("--weights", weights, low=2, high=MAX_WEIGHTS)
-        options.integer("--promp-weights", promp_weights, low=2, high=MAX_WEIGHTS)
+        cfg = load_settings(config, "primitives.fit", FitSettings)
+        inputs = [*demos, *([task] if task else []), *([config] if config else [])]
+        check_output(output, force=force, inputs=inputs)
         if task is not None:
             check_output(task, force=True, inputs=demos, option="--task")
         loaded = [io.load(p) for p in demos]
         block = primitives_stage(
             loaded,
-            n_weights=weights,
-            promp_weights=promp_weights,
-            align=align,  # type: ignore[arg-type]
+            n_weights=cfg.weights,
+            promp_weights=cfg.promp_weights,
+            align=cfg.align,
         )
     except ThirdhandError as exc:
         raise _fail(exc) from None

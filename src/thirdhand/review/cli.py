@@ -1,4 +1,4 @@
-"""``thirdhand review TASK.json [--demo REC...] [--replay RUN...] [--port N] [--meshes DIR]``.
+"""``thirdhand review TASK.json [--demo REC...] [--replay RUN...] [--port N] [--config FILE]``.
 
 The review GUI.
 
@@ -12,6 +12,8 @@ from pathlib import Path
 from typing import Annotated
 
 import typer
+
+from thirdhand.config import ConfigOption
 
 
 def review_command(
@@ -28,10 +30,6 @@ def review_command(
             "access token is asked, carried by the URL printed at start."
         ),
     ] = "127.0.0.1",
-    meshes: Annotated[
-        list[Path] | None,
-        typer.Option("--meshes", help="A folder of part meshes the task file does not find."),
-    ] = None,
     replay: Annotated[
         list[Path] | None,
         typer.Option(
@@ -40,18 +38,19 @@ def review_command(
             "on the same scene (repeatable).",
         ),
     ] = None,
-    light: Annotated[
-        bool,
-        typer.Option("--light", help="No environment map or shadows (software WebGL)."),
-    ] = False,
+    config: ConfigOption = None,
 ) -> None:
     """Open a task in the review GUI (a local web app): see, animate and correct it.
 
     Serves until Ctrl-C (or SIGTERM, whatever signal disposition the process
     inherited) or the GUI's Quit button (which asks first when there are unsaved
-    changes).
+    changes). Settings (``[review]`` of ``--config``): extra mesh folders, light rendering.
     """
     from thirdhand import options
+    from thirdhand.config import load_settings
+    from thirdhand.review.settings import ReviewSettings
+
+    cfg = load_settings(config, "review", ReviewSettings)
 
     options.port(port)
     options.host(host)
@@ -62,8 +61,8 @@ def review_command(
         demos=list(demo or []),
         host=host,
         port=port,
-        meshes=list(meshes or []),
-        light_rendering=light,
+        meshes=[Path(m) for m in cfg.meshes],
+        light_rendering=cfg.light,
         replays=list(replay or []),
     )
     # Ctrl-C (SIGINT) anywhere from here is the normal way to stop: exit 0. SIGTERM
