@@ -127,6 +127,9 @@ CLI_CASES: list[tuple[str, str, str]] = [
     ("primitives fit {demo} -o {dir}/p.json --config {cfg}",
      "[primitives.fit]\nalign = 'sideways'\n",
      "[primitives.fit] align"),
+    ("synth chair -o {dir}/x.csv --config {cfg}", "[synth]\npointing = 100000\n",
+     "[synth] pointing"),
+    ("synth chair -o {dir}/x.csv --config {cfg}", "[synth]\npointing = -1\n", "[synth] pointing"),
     ("config nosuch", "", "'nosuch' has no settings"),
 ]  # fmt: skip
 
@@ -162,3 +165,38 @@ def test_config_command_prints_every_table(capsys: pytest.CaptureFixture[str]) -
         assert set(table) <= set(settings_class(command).model_fields)
     rc, out, _ = call(capsys, "config", "segment evaluate")
     assert rc == 0 and out.startswith("[segment.evaluate]")
+
+
+def _leaf_commands() -> list[tuple[str, object]]:
+    """Every leaf command of ``thirdhand``, through typer's click API, lazy groups loaded."""
+    import typer
+
+    from thirdhand.cli import LAZY, app, load_command
+
+    def leaves(cmd: object, path: tuple[str, ...]) -> list[tuple[str, object]]:
+        if hasattr(cmd, "list_commands"):
+            ctx = typer.main.get_command(app).make_context("thirdhand", [], resilient_parsing=True)
+            out: list[tuple[str, object]] = []
+            for name in cmd.list_commands(ctx):  # type: ignore[attr-defined]
+                top = not path and name in LAZY
+                sub = load_command(name) if top else cmd.get_command(ctx, name)  # type: ignore[attr-defined]
+                out += leaves(sub, (*path, name))
+            return out
+        return [(" ".join(path), cmd)]
+
+    return leaves(typer.main.get_command(app), ())
+
+
+def test_the_command_line_is_small() -> None:
+    """At most 10 options per command and 110 in all (help excluded): knobs are settings."""
+    counts = {
+        name: sum(
+            1
+            for p in cmd.params  # type: ignore[attr-defined]
+            if getattr(p, "param_type_name", "") == "option" and p.name != "help"
+        )
+        for name, cmd in _leaf_commands()
+    }
+    assert len(counts) >= 20 and "execute" in counts and "segment evaluate" in counts
+    assert max(counts.values()) <= 10, counts
+    assert sum(counts.values()) <= 110, counts

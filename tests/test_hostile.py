@@ -110,8 +110,6 @@ CASES: list[tuple[str, str]] = [
     ("synth chair -o {dir}/x.csv --rate nan", "--rate"),
     ("synth chair -o {dir}/x.csv --rate 0", "--rate"),
     ("synth chair -o {dir}/x.csv --seed -1", "--seed"),
-    ("synth chair -o {dir}/x.csv --pointing 100000", "--pointing"),
-    ("synth chair -o {dir}/x.csv --pointing -1", "--pointing"),
     ("synth nosuch -o {dir}/x.csv", "unknown scene"),
     ("demo -o {dir}/d --seed -3", "--seed"),
     ("synth chair -o {dir}/x.csv --seed abc", "--seed"),

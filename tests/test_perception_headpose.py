@@ -152,9 +152,9 @@ def test_headpose_cli(faces: Path, tmp_path: Path, capsys: pytest.CaptureFixture
     strip = tmp_path / "strip.png"
     first = {n: tmp_path / f"first{n}.toml" for n in (5, 10, 24)}
     for n, path in first.items():
-        path.write_text(f"[headpose]\nstop = {n}\n")
+        path.write_text(f"[headpose]\nstop = {n}\n" + ("calibrate = 2\n" if n == 24 else ""))
     args = ["headpose", str(faces / "single_face.mp4"), "--config", str(first[24]), "--json",
-            str(out_json), "--overlay", str(strip), "--calibrate", "2"]  # fmt: skip
+            str(out_json), "--overlay", str(strip)]  # fmt: skip
     with pytest.raises(SystemExit) as done:
         app(args, prog_name="thirdhand")
     assert done.value.code == 0

@@ -37,6 +37,7 @@ from rich.table import Table  # noqa: E402
 from typer.core import TyperCommand, TyperGroup  # noqa: E402
 
 from thirdhand import __version__, options  # noqa: E402
+from thirdhand.config import ConfigOption, load_settings  # noqa: E402
 from thirdhand.errors import ThirdhandError  # noqa: E402
 from thirdhand.fileops import check_output  # noqa: E402
 
@@ -225,10 +226,6 @@ def _root(
     """Teach a robot an assembly task from human demonstrations."""
 
 
-#: Most pointing gestures ``synth --pointing`` opens with (each adds seconds of motion).
-MAX_POINTING = 50
-
-
 @app.command()
 def synth(
     scene: Annotated[str, typer.Argument(help="Scene: chair, bench, toolbox, drawer or lid.")],
@@ -238,15 +235,16 @@ def synth(
         bool, typer.Option("--noise-free", help="No sensor noise, gaps or sign flips.")
     ] = False,
     rate: Annotated[float | None, typer.Option(help="Capture rate, Hz.")] = None,
-    head: Annotated[bool, typer.Option(help="Track the person's head too.")] = False,
-    pointing: Annotated[
-        int, typer.Option(help="Open with N pointing gestures (targets in the metadata).")
-    ] = 0,
     force: Annotated[
         bool, typer.Option(help="Replace an existing output (kept as a numbered .bak).")
     ] = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Generate a synthetic assembly demonstration with ground-truth labels."""
+    """Generate a synthetic assembly demonstration with ground-truth labels.
+
+    Settings (``[synth]`` of ``--config``): ``head`` (track the person's head),
+    ``pointing`` (open with N pointing gestures).
+    """
     from thirdhand import io
     from thirdhand.synth import SCENES, SensorModel, make_scene
 
@@ -255,8 +253,11 @@ def synth(
     options.seed(seed)
     if rate is not None:
         options.finite("--rate", rate, low=1.0, high=10000.0)
-    options.integer("--pointing", pointing, low=0, high=MAX_POINTING)
-    check_output(output, force=force)
+    from thirdhand.synth.settings import SynthSettings
+
+    cfg = load_settings(config, "synth", SynthSettings)
+    head, pointing = cfg.head, cfg.pointing
+    check_output(output, force=force, inputs=[config] if config else [])
     sensor = None
     if not noise_free:
         sensor = SensorModel() if rate is None else SensorModel(rate=rate)

@@ -81,6 +81,7 @@ REGISTRY: dict[str, str] = {
     "execute": "thirdhand.execute.settings:ExecuteSettings",
     "learn": "thirdhand.task_settings:LearnSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",
+    "synth": "thirdhand.synth.settings:SynthSettings",
     "primitives.fit": "thirdhand.primitives.settings:FitSettings",
     "review": "thirdhand.review.settings:ReviewSettings",
     "segment.train": "thirdhand.segment.settings:TrainSettings",

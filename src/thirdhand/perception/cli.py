@@ -77,10 +77,6 @@ TaskOpt = Annotated[
 def headpose_command(
     video: Annotated[Path, typer.Argument(help="Video (or image) with a face.")],
     json_out: JsonOpt = None,
-    calibrate: Annotated[
-        int | None,
-        typer.Option("--calibrate", help="Frame whose pose is zero (default: first with a face)."),
-    ] = None,
     overlay: Annotated[
         Path | None,
         typer.Option("--overlay", help="Annotated video (.mp4, .avi) or image strip (.png)."),
@@ -90,7 +86,8 @@ def headpose_command(
 ) -> None:
     """Per-frame head yaw, pitch and roll (degrees from a calibration frame) of a video.
 
-    Settings (``[headpose]`` of ``--config``): ``start``, ``stop``, ``step``, ``focal``, ``static``.
+    Settings (``[headpose]`` of ``--config``): ``calibrate``, ``start``, ``stop``, ``step``,
+    ``focal``, ``static``.
     """
     from thirdhand.perception.track import track_head
 
@@ -99,7 +96,7 @@ def headpose_command(
         _check_output(json_out, force, [video, config])
         _check_output(overlay, force, [video, json_out, config])
         track = track_head(
-            video, calibrate=calibrate, start=cfg.start, stop=cfg.stop, step=cfg.step,
+            video, calibrate=cfg.calibrate, start=cfg.start, stop=cfg.stop, step=cfg.step,
             static=cfg.static, focal_px=cfg.focal,
         )  # fmt: skip
         _write_json(track.to_dict(), json_out, force)

@@ -13,6 +13,9 @@ from thirdhand.config import Settings
 class HeadposeSettings(Settings):
     """Which frames of a video are tracked, and the camera."""
 
+    calibrate: int | None = Field(
+        None, ge=0, description="Frame whose pose is zero (default: the first with a face)."
+    )
     start: int = Field(0, ge=0, description="First frame.")
     stop: int | None = Field(None, ge=1, description="Stop before this frame (default: the end).")
     step: int = Field(1, ge=1, description="Process every step-th frame.")
