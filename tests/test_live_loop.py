@@ -52,12 +52,12 @@ def task_from_labels(demo: Demonstration) -> TaskFile:
     for step in plan[:-1]:
         step["after"] = []
     plan[-1]["after"] = list(range(len(plan) - 1))
-    hmm = {"sigma_pos_m": SIGMA_POS, "sigma_rot_deg": SIGMA_ROT_DEG}
+    hmm = {"sigma_pos_m": SIGMA_POS, "sigma_rot_deg": SIGMA_ROT_DEG, "transition": [[1.0]]}
     return TaskFile.new(
         objects=objects,
         constraints=constraints,
         plan=plan,
-        stages={"constraints": {"demos": [{"hmm": hmm}]}},
+        stages={"constraints": {"demos": [{"name": "synthetic", "hmm": hmm}]}},
     )
 
 

@@ -197,8 +197,8 @@ def test_object_frame_position_function_and_pair_channel_errors() -> None:
 def test_cli_levels_help_names_every_level_channel() -> None:
     import inspect
 
-    from thirdhand.primitives import channels
-    from thirdhand.primitives.cli import evaluate
+    from research import primitive_channels as channels
+    from research.primitives_evaluate import evaluate
 
     help_text = inspect.signature(evaluate).parameters["levels"].annotation
     words = set(str(help_text).replace(",", " ").replace(";", " ").split())

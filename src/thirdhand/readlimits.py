@@ -217,6 +217,8 @@ def check_xml_depth(data: bytes, *, error: ErrorFactory, limit: int = MAX_DEPTH)
         raise error(
             f"line {exc.lineno}: not well-formed XML: {expat.ErrorString(exc.code)}"
         ) from None
+    except (LookupError, ValueError) as exc:  # an unknown encoding declared in the prolog
+        raise error(f"not readable XML: {exc}") from None
 
 
 __all__ = [

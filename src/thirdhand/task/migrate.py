@@ -44,10 +44,10 @@ def migrate(data: dict[str, Any], *, name: str = "<task>") -> dict[str, Any]:
         If a ``/1`` document's ``stages`` is not an object of objects.
     """
     schema = data.get("schema")
-    if schema not in NEXT_SCHEMA:
-        return data
+    if not isinstance(schema, str) or schema not in NEXT_SCHEMA:
+        return data  # not a schema string, or the current one: validation says which
     out = dict(data)
-    while out.get("schema") in NEXT_SCHEMA:
+    while isinstance(out.get("schema"), str) and out["schema"] in NEXT_SCHEMA:
         old = out["schema"]
         if old == "thirdhand.task/1":
             out = _from_v1(out, name)

@@ -155,8 +155,9 @@ def _time_axis(
     capture rate) are tried when the Time column contradicts it, as frames of a
     down-sampled export may keep their capture numbers. The Time column of a Motive
     export is rounded to microseconds, so the axis is ``frame / rate``; when the
-    Time column agrees with it to within 1 ns it was written at full precision (by
-    :func:`write`) and is taken as is.
+    Time column agrees with it to within 10 ns it was written at full precision (by
+    :func:`write`; a clock of whole nanoseconds, as MCAP's, stays within that) and is
+    taken as is.
     """
     line0 = header.data_line
     bad = np.flatnonzero(np.diff(frame) <= 0)
@@ -194,7 +195,13 @@ def _time_axis(
         dev = np.abs(time - t_frame)
         far = np.flatnonzero(dev > tol)
         if not far.size:
-            return time if float(dev.max()) <= 1e-9 else t_frame
+            # Full precision (written by :func:`write`) on the grid, or on the grid
+            # started at the first time stamp (a recording whose clock is not a
+            # whole number of frames from zero).
+            shifted = (frame - frame[0]) / rate + time[0]
+            if float(dev.max()) <= 1e-8 or float(np.abs(time - shifted).max()) <= 1e-8:
+                return time
+            return t_frame
         if first_error is None:
             i = int(far[0])
             first_error = FormatError(
