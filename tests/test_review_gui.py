@@ -580,7 +580,7 @@ def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
     # Discarding on purpose loads their version from disk.
     review.button("Reload").click()
     review.button("Discard and reload").click()
-    review.wait_for(lambda: "other" in app.task.stages, "the reload")
+    review.wait_for(lambda: "other" in app.task.stages.names(), "the reload")
     assert not app.session.dirty and app.task.constraint_by_id(cid).pos[1] != pytest.approx(0.03)
 
 
