@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
+from thirdhand import se3
 from thirdhand.task.constraint import Constraint
 
 FloatArray = NDArray[np.float64]
@@ -34,15 +35,8 @@ POS_TOL_M = 0.005
 ROT_TOL_RAD = np.deg2rad(3.0)
 
 
-def invert(t: ArrayLike) -> FloatArray:
-    """Inverse of rigid transforms ``t`` (..., 4, 4)."""
-    ta = np.asarray(t, dtype=np.float64)
-    out = np.zeros_like(ta)
-    rt = np.swapaxes(ta[..., :3, :3], -1, -2)
-    out[..., :3, :3] = rt
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", rt, ta[..., :3, 3])
-    out[..., 3, 3] = 1.0
-    return out
+#: Inverse of rigid transforms (..., 4, 4): :func:`thirdhand.se3.transform_invert`.
+invert = se3.transform_invert
 
 
 def displacement_matrix(dofs: ArrayLike) -> FloatArray:
