@@ -46,8 +46,9 @@ def test_every_real_file_loads(shared_data: Path) -> None:
             )
             assert "width" not in demo.meta
     position_only = [f for f in files if not articulation.read(f).info(f.stem).oriented]
-    assert {f.parent.name for f in position_only} == {"cabinet_one", "drawer_one"}
-    assert len(position_only) == 20
+    # Every .log is position-only (cabinet_one, drawer_one, cabinet_two, second_set/*).
+    assert {f.suffix for f in position_only} == {".log"}
+    assert len(position_only) == 51
 
 
 def test_rate_option_sets_time_axis(shared_data: Path) -> None:

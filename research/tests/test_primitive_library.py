@@ -58,8 +58,10 @@ def test_cli_fit_writes_a_stage_block(tmp_path: Path) -> None:
     task = tmp_path / "chair.task.json"
     save_task(TaskFile.new(), task)
     out = tmp_path / "prims.json"
+    cfg = tmp_path / "settings.toml"
+    cfg.write_text("[primitives.fit]\npromp_weights = 5\n")
     res = runner.invoke(
-        app, ["fit", *paths, "-o", str(out), "--promp-weights", "5", "--task", str(task)]
+        app, ["fit", *paths, "-o", str(out), "--config", str(cfg), "--task", str(task)]
     )
     assert res.exit_code == 0, res.output
     stored = load_task(task).stages.primitives
