@@ -388,6 +388,31 @@ def _box_gaps(  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True, nogil=True)
+def _window_moments(  # pragma: no cover - compiled
+    cp: FloatArray,
+    mp: FloatArray,
+    sp: FloatArray,
+    cq: FloatArray,
+    mq: FloatArray,
+    sq: FloatArray,
+    lo: int,
+    hi: int,
+    mu3: FloatArray,
+    mu4: FloatArray,
+    out: FloatArray,
+) -> float:
+    """Merged moments of latent steps ``[lo, hi)``: ``out`` = (position variance,
+    rotation variance, samples); the means are left in ``mu3`` and ``mu4``."""
+    c, m = _merge_buckets(cp, mp, sp, lo, hi, mu3)
+    _, mr = _merge_buckets(cq, mq, sq, lo, hi, mu4)
+    if c > 0.0:
+        out[0] = max(m / c, 0.0)
+        out[1] = max(mr / c, 0.0)
+    out[2] = c
+    return float(c)
+
+
+@numba.njit(cache=True, nogil=True)
 def _window_rows(  # pragma: no cover - compiled
     pos: FloatArray,
     quat: FloatArray,
@@ -437,12 +462,7 @@ def _window_rows(  # pragma: no cover - compiled
             ww = windows[w]
             lo = max(r - ww // 2, 0)
             hi = min(r - ww // 2 + ww, n_steps)
-            c, m = _merge_buckets(cp, mp, sp, lo, hi, mu3)
-            _, mr = _merge_buckets(cq, mq, sq, lo, hi, mu4)
-            if c > 0.0:
-                body[w, b, 0] = max(m / c, 0.0)
-                body[w, b, 1] = max(mr / c, 0.0)
-            body[w, b, 2] = c
+            _window_moments(cp, mp, sp, cq, mq, sq, lo, hi, mu3, mu4, body[w, b])
     for i in range(pa.size):
         a = pa[i]
         b = pb[i]
@@ -463,12 +483,7 @@ def _window_rows(  # pragma: no cover - compiled
             ww = windows[w]
             lo = max(r - ww // 2, 0)
             hi = min(r - ww // 2 + ww, n_steps)
-            c, m = _merge_buckets(cp, mp, sp, lo, hi, mu3)
-            _, mr = _merge_buckets(cq, mq, sq, lo, hi, mu4)
-            if c > 0.0:
-                pair[w, i, 0] = max(m / c, 0.0)
-                pair[w, i, 1] = max(mr / c, 0.0)
-            pair[w, i, 2] = c
+            c = _window_moments(cp, mp, sp, cq, mq, sq, lo, hi, mu3, mu4, pair[w, i])
             if w == 0 and c > 0.0:
                 _merge_buckets(cd, md, sd, lo, hi, mu1)
                 for k in range(3):
