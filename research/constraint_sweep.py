@@ -19,8 +19,8 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.robust import fit_model
 from thirdhand.constraints.select import (
     CONFIDENCE_FLOOR,
@@ -32,8 +32,6 @@ from thirdhand.constraints.select import (
 )
 from thirdhand.constraints.types import NoiseModel
 from thirdhand.datasets.joint_tracks import JointTrack, random_joint_track
-
-FloatArray = NDArray[np.float64]
 
 #: Joint types and whether the track carries orientations. Cylindrical needs them.
 CASES: tuple[tuple[str, bool], ...] = (

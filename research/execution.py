@@ -37,14 +37,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.execute.executor import ExecutionOptions, Executor
 from thirdhand.execute.goals import goal_pose, sample_goals, vary
 from thirdhand.execute.layout import Workcell, make_workcell, part_vertices, start_layout
 from thirdhand.execute.robot import Robot
 from thirdhand.task.model import TaskFile
-
-FloatArray = NDArray[np.float64]
-
 
 #: Experiment conditions: keyword arguments of :func:`hard_setup`.
 CONDITIONS: dict[str, dict[str, Any]] = {

@@ -10,12 +10,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, Demonstration
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

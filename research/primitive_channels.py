@@ -59,14 +59,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.ndimage import uniform_filter1d
 from scipy.spatial.transform import Rotation
 
+from thirdhand.arrays import FloatArray
 from thirdhand.io.figueroa import ArmTrack, LabelledStream
 from thirdhand.primitives._checks import PrimitiveError
-
-FloatArray = NDArray[np.float64]
 
 #: Unit of each shape channel (its values are divided by it).
 SHAPE_UNITS = {"pos": 0.02, "rot": 0.1, "force": 2.0, "torque": 0.2}

@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from research.primitive_channels import stream_channels
 from research.primitive_scores import (
@@ -32,14 +31,13 @@ from research.primitive_scores import (
     change_times,
     match_boundaries,
 )
+from thirdhand.arrays import IntArray
 from thirdhand.io.figueroa import LabelledStream
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov
 from thirdhand.primitives.library import PrimitiveLibrary
 from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
 from thirdhand.primitives.segment_features import smoothed_speed
-
-IntArray = NDArray[np.int64]
 
 #: How K is selected without ``--skills`` (see :class:`ParserConfig`).
 SELECTIONS = ("onese", "heldout", "bic")

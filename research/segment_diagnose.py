@@ -26,16 +26,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, IntArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.segment.features import LatentAxis
 from thirdhand.segment.intervals import runs
 from thirdhand.segment.pipeline import SegmentationResult
-
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 #: Error classes, in report order.
 ERROR_CLASSES: tuple[str, ...] = ("boundary", "missed", "extra", "other")

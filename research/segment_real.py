@@ -16,15 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand.demonstration import Demonstration
 from thirdhand.segment.evaluate import frame_f1
 from thirdhand.segment.intervals import intervals_from_labels, runs
 from thirdhand.segment.model import SegmentModel
 from thirdhand.segment.pipeline import SegmentationResult, segment_demonstration
-
-IntArray = NDArray[np.int64]
 
 #: Folder of the recording under the shared data (``../shared/data``).
 TOOLBOX_COOP_4 = Path("3rdhand") / "toolbox_coop_4"

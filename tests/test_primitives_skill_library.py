@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
 from research.primitive_scores import best_label_map
+from thirdhand import se3
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.cli import app
 from thirdhand.primitives.pose_channels import PoseTrack, default_channels, pose_channels
@@ -44,7 +44,7 @@ def wipe_track(seed: int, rate: float = 100.0) -> tuple[PoseTrack, np.ndarray]:
     t = np.arange(pos.shape[0]) / rate
     # the tool tilts while it reaches and lifts, holds still while it wipes
     tilt = np.concatenate([0.6 * (1 - ease[0]), np.zeros(n[1]), 0.6 * ease[2]])
-    quat = Rotation.from_rotvec(np.column_stack([tilt, 0 * tilt, 0 * tilt])).as_quat()
+    quat = se3.rotvec_to_quat(np.column_stack([tilt, 0 * tilt, 0 * tilt]))
     labels = np.repeat([0, 1, 2], n)
     return PoseTrack(t, pos, quat, name=f"wipe{seed}"), labels
 
@@ -72,7 +72,7 @@ def test_synthetic_wiping_is_parsed_into_reach_wipe_retract() -> None:
 def test_channels_and_parse_unchanged_by_a_rigid_motion_of_the_scene() -> None:
     data = [wipe_track(s) for s in range(3)]
     tracks = [d[0] for d in data]
-    turn = Rotation.from_euler("z", 2.1)
+    turn = se3.quat_from_euler([0.0, 0.0, 2.1])
     moved = [tr.moved(turn, [3.0, -1.5, 0.7]) for tr in tracks]
     names = default_channels(tracks[0])
     assert names == ("logspeed", "logangular", "height", "vertical")

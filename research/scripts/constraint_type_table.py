@@ -29,13 +29,10 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import io, se3
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints import NoiseModel, demo_track, fit_constraint
-
-FloatArray = NDArray[np.float64]
-
 
 #: The shared real articulation tracks: folder (or file) under ``articulation/``, the
 #: mechanism it records, and the joint type of that mechanism.

@@ -14,13 +14,11 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.errors import DemonstrationError
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 BodyKind = Literal["part", "tool", "finger", "hand", "head", "other"]
 BODY_KINDS: tuple[str, ...] = ("part", "tool", "finger", "hand", "head", "other")

@@ -15,11 +15,10 @@ is the reference these functions are tested against.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
-
-FloatArray = NDArray[np.float64]
 
 _UNIT_TOL = 1e-6
 

@@ -10,10 +10,8 @@ import math
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
+from thirdhand.arrays import BoolArray, FloatArray
 
 
 @numba.njit(cache=True, nogil=True)

@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from thirdhand import se3
-from thirdhand.constraints.detect_types import DetectOptions, FloatArray
+from thirdhand.arrays import FloatArray
+from thirdhand.constraints.detect_types import DetectOptions
 from thirdhand.constraints.hmm import HMMParams
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import prepare_track

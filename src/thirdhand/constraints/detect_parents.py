@@ -5,14 +5,10 @@ from __future__ import annotations
 import numpy as np
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.detect_dofs import _free_spin, _joint_dofs
 from thirdhand.constraints.detect_runs import _Run, _run_pose
-from thirdhand.constraints.detect_types import (
-    ConstraintInstance,
-    DetectOptions,
-    FloatArray,
-    PairTracks,
-)
+from thirdhand.constraints.detect_types import ConstraintInstance, DetectOptions, PairTracks
 
 
 def _assign_parents(

@@ -10,9 +10,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.constraints.detect_dofs import _on_joint
 from thirdhand.constraints.detect_steps import _motion, _runs
-from thirdhand.constraints.detect_types import BoolArray, DetectOptions, FloatArray, PairTracks
+from thirdhand.constraints.detect_types import DetectOptions, PairTracks
 from thirdhand.constraints.hmm import HMMParams, fit_hmm
 
 if TYPE_CHECKING:

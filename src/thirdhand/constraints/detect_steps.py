@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from thirdhand import se3
-from thirdhand.constraints.detect_types import BoolArray, FloatArray
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.demonstration import Demonstration
 
 

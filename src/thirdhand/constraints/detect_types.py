@@ -7,15 +7,11 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.hmm import HMMParams
 from thirdhand.constraints.types import DOF_NAMES, ConstraintFitError
 from thirdhand.demonstration import FreeDofs
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-
 
 if TYPE_CHECKING:
     from thirdhand.segment.pipeline import SegmentationResult

@@ -19,9 +19,9 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.se3_compiled import qmul
 
-FloatArray = NDArray[np.float64]
 _TWO_PI = 2.0 * math.pi
 
 

@@ -23,12 +23,9 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
+from thirdhand.arrays import FloatArray
 
 _LOG_8PI = math.log(8.0 * math.pi)
 

@@ -19,9 +19,8 @@ from numba import njit
 from numpy.typing import NDArray
 
 from thirdhand import se3_compiled as sc
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints import geometry as g
-
-FloatArray = NDArray[np.float64]
 
 
 class Projection:

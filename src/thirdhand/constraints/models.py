@@ -13,16 +13,15 @@ import dataclasses
 import math
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
 from thirdhand import se3_compiled as sc
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints import geometry as g
 from thirdhand.constraints.noise import estimate_noise
 from thirdhand.constraints.robust import MIN_SAMPLES, ModelFit, fit_model, prepare_track
 from thirdhand.constraints.types import ConstraintFitError, JointFit, NoiseModel
-
-FloatArray = NDArray[np.float64]
 
 __all__ = [
     "MIN_SAMPLES",

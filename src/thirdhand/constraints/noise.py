@@ -28,9 +28,8 @@ from numba import njit
 from numpy.typing import NDArray
 
 from thirdhand import se3_compiled as sc
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.types import ConstraintFitError, NoiseModel
-
-FloatArray = NDArray[np.float64]
 
 #: Median of a chi-square with one degree of freedom.
 _CHI2_1_MEDIAN = 0.454936

@@ -33,11 +33,10 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.geometry import col_ptp, masked_median
 from thirdhand.constraints.kernels import KERNELS, Geometry, Kernel, Projection
 from thirdhand.constraints.types import ConstraintFitError, NoiseModel
-
-FloatArray = NDArray[np.float64]
 
 #: Fewest valid samples a track must have.
 MIN_SAMPLES = 5

@@ -19,6 +19,7 @@ from collections.abc import Collection, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.models import (
     MIN_SAMPLES,
     ModelFit,
@@ -34,8 +35,6 @@ from thirdhand.constraints.types import (
     NoiseModel,
 )
 from thirdhand.demonstration import Demonstration
-
-FloatArray = NDArray[np.float64]
 
 #: Models compared by default. Cylindrical (and screw) need orientations and are
 #: skipped silently for position-only tracks. Screw is opt-in: its pitch also

@@ -7,14 +7,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import DOF_NAMES as DOF_NAMES  # defined once, re-exported
 from thirdhand.demonstration import FreeDofs
 from thirdhand.errors import ThirdhandError
-
-FloatArray = NDArray[np.float64]
 
 #: Every model :func:`thirdhand.constraints.fit_constraint` can choose from
 #: (``screw`` only when asked for).

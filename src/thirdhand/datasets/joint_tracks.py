@@ -9,9 +9,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints import geometry as g
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

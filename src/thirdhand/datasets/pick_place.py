@@ -14,9 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, Demonstration, InteractionInterval, Labels
-
-FloatArray = NDArray[np.float64]
 
 
 def _smooth_track(

@@ -12,12 +12,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.errors import FormatError
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 #: Skill names of :func:`sine_tracks`, in label order.
 SINE_SKILLS = ("down", "bump", "up")

@@ -22,13 +22,11 @@ import coal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray
+from thirdhand.arrays import IndexArray as IntArray
 from thirdhand.execute import sphere_check as sc
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.spheres import SphereCover, cover_geometry, transform_cover
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-IntArray = NDArray[np.intp]
 
 GRIPPER = "gripper"
 ROBOT = "robot"

@@ -36,8 +36,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import invert
@@ -84,7 +84,6 @@ PLACEMENTS = ("auto", "geometry", "reach")
 #: ``start_grasps`` used when the automatic placement falls back to reach (docs/execution.md).
 AUTO_START_GRASPS = 4
 
-FloatArray = NDArray[np.float64]
 
 __all__ = [
     "ExecutionOptions",

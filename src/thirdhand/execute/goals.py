@@ -22,13 +22,11 @@ mapping the second frame's coordinates into the first's (``T_a_b``).
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.task.constraint import Constraint
-
-FloatArray = NDArray[np.float64]
 
 #: Default tolerances of :func:`constraint_holds`: metres and radians.
 POS_TOL_M = 0.005
@@ -47,7 +45,7 @@ def displacement_matrix(dofs: ArrayLike) -> FloatArray:
     d = np.asarray(dofs, dtype=np.float64)
     flat = d.reshape(-1, 6)
     out = np.tile(np.eye(4), (flat.shape[0], 1, 1))
-    out[:, :3, :3] = Rotation.from_euler("XYZ", flat[:, 3:]).as_matrix()
+    out[:, :3, :3] = se3.matrix_from_euler(flat[:, 3:], "XYZ")
     out[:, :3, 3] = flat[:, :3]
     return out.reshape(*d.shape[:-1], 4, 4)
 
@@ -250,7 +248,7 @@ def dof_displacement(child_in_parent: ArrayLike, constraint: Constraint) -> Floa
     f = constraint.frame.matrix()
     d = invert(f) @ invert(constraint_matrix(constraint)) @ obs @ f
     flat = d.reshape(-1, 4, 4)
-    angles = Rotation.from_matrix(flat[:, :3, :3]).as_euler("XYZ")
+    angles = se3.euler_from_matrix(flat[:, :3, :3], "XYZ")
     out = np.concatenate([flat[:, :3, 3], angles], axis=1)
     return out.reshape(*obs.shape[:-2], 6)
 

@@ -29,12 +29,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.execute.goals import invert
-
-FloatArray = NDArray[np.float64]
 
 #: How far inside a face the tool frame sits for a face or end grasp, metres.
 GRASP_DEPTH_M = 0.015

@@ -22,11 +22,8 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.errors import ThirdhandError
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-IntArray = NDArray[np.int64]
 
 _AXES = {"JointModelRX": (1.0, 0.0, 0.0), "JointModelRY": (0.0, 1.0, 0.0)}
 _AXES["JointModelRZ"] = (0.0, 0.0, 1.0)

@@ -42,8 +42,9 @@ from dataclasses import dataclass, field
 
 import coal
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.collision_check import coal_transform
 from thirdhand.execute.goals import goal_pose, sweep_dofs, vary
@@ -52,8 +53,6 @@ from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.meshes import object_triangles
 from thirdhand.task.model import TaskFile, TaskObject
-
-FloatArray = NDArray[np.float64]
 
 TABLE_Z = 0.75
 #: Robot base poses per robot name: translation (m), world frame, facing +x.
@@ -632,9 +631,7 @@ def rest_rotation(v: FloatArray, goal_rotation: FloatArray, rng: np.random.Gener
             spin = _flat_bar_spin(long_axis, goal_rotation)
         axis = np.zeros(3)
         axis[long_axis] = 1.0
-        from scipy.spatial.transform import Rotation
-
-        r_spin = Rotation.from_rotvec(spin * axis).as_matrix()
+        r_spin = se3.matrix_from_rotvec(spin * axis)
         # the long axis onto world x, then spin about it, then yaw
         b = np.zeros((3, 3))
         b[0, long_axis] = 1.0

@@ -13,12 +13,11 @@ from pathlib import Path
 
 import coal
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.io.stl import read_stl
-
-FloatArray = NDArray[np.float64]
 
 
 def mesh_from_triangles(triangles: ArrayLike) -> coal.BVHModelOBBRSS:

@@ -20,8 +20,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import sweep_dofs, vary
 from thirdhand.execute.layout import (
@@ -35,8 +35,6 @@ from thirdhand.execute.scene import CollisionScene
 from thirdhand.execute.step_search import drop_twins, first_valid_ik
 from thirdhand.execute.world import SimWorld
 from thirdhand.task.model import TaskFile
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

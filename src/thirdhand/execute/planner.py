@@ -24,16 +24,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from ompl import base as ob
 from ompl import geometric as og
 from ompl import util as ou
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.scene import CollisionScene
-
-FloatArray = NDArray[np.float64]
 
 PLANNERS: dict[str, Any] = {
     "rrtconnect": None,  # ours: rrt_connect below

@@ -20,9 +20,10 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.execute.goals import dof_displacement, invert, vary
 from thirdhand.execute.robot import Robot
 from thirdhand.task.constraint import Constraint
@@ -31,7 +32,6 @@ from thirdhand.task.stages import PrimitivesBlock
 if TYPE_CHECKING:
     from thirdhand.primitives.quaternion_dmp import PoseDMP
 
-FloatArray = NDArray[np.float64]
 
 #: Largest joint change between consecutive path poses before the path counts as broken, rad.
 MAX_JUMP_RAD = 0.35

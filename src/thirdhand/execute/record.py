@@ -19,16 +19,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.execute.executor import ExecutionResult
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.timing import time_parametrize
 from thirdhand.fileops import atomic_write_bytes, check_path_shape
-
-FloatArray = NDArray[np.float64]
 
 #: Body name of the robot's tool frame in a replay.
 TOOL_BODY = "robot_tool"

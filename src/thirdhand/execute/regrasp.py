@@ -31,8 +31,8 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import sample_goals
 from thirdhand.execute.layout import (
@@ -50,8 +50,6 @@ from thirdhand.execute.step_search import candidate_grasps, first_valid_ik
 from thirdhand.execute.world import SimWorld
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile
-
-FloatArray = NDArray[np.float64]
 
 #: Intermediate spots lie nearer than this to the arm's first joint (horizontally), metres.
 NEAR_M = 0.55

@@ -24,10 +24,9 @@ import pinocchio as pin
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.kinematics import Chain, IkOptions, solve_ik
-
-FloatArray = NDArray[np.float64]
 
 
 class _HasPose(Protocol):

@@ -29,8 +29,10 @@ import os
 import coal
 import numpy as np
 import pinocchio as pin
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
+from thirdhand.arrays import IndexArray as IntArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute import meshes
 from thirdhand.execute import sphere_check as sc
@@ -43,9 +45,6 @@ from thirdhand.execute.collision_check import (
     world_aabb,
 )
 from thirdhand.execute.robot import PoseLike, Robot, pose_matrix
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
 
 __all__ = ["GRIPPER", "ROBOT", "CollisionScene", "SceneError"]
 

@@ -27,17 +27,14 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.execute.kinematics import _fk, joint_transforms_nb
 from thirdhand.execute.spheres import SphereCover
 
 __all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "first_flagged", "flags", "free",
            "joint_transforms_nb", "pack", "pair_blocks", "warm_up"]  # fmt: skip
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 SPHERES = 0
 BOX = 1

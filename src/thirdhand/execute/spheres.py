@@ -32,10 +32,9 @@ from dataclasses import dataclass
 
 import coal
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
+from thirdhand.arrays import FloatArray
+from thirdhand.arrays import IndexArray as IntArray
 
 #: Added to every radius: float round-off of the transforms, metres.
 PAD = 1e-6

@@ -21,12 +21,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile, TaskStep
-
-FloatArray = NDArray[np.float64]
 
 #: Values of ``ExecutionOptions.order``.
 ORDERS = ("auto", "plan", "parents")

@@ -11,12 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
-
+from thirdhand.arrays import FloatArray
 from thirdhand.execute.goals import POS_TOL_M, ROT_TOL_RAD
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass

@@ -17,8 +17,8 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import invert, sample_goals
 from thirdhand.execute.planner import plan_motion
@@ -40,9 +40,6 @@ from thirdhand.execute.world import SimWorld, insertion_axis
 from thirdhand.execute.world import trans as _trans
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile
-
-FloatArray = NDArray[np.float64]
-
 
 #: IK targets solved together (grasps, goals): 4 × 25 starts cost about one target's time.
 IK_BLOCK = 4

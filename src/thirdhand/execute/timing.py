@@ -18,9 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

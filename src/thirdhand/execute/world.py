@@ -14,9 +14,9 @@ import os
 from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.execute.goals import POS_TOL_M, ROT_TOL_RAD, constraint_holds, invert, sample_goals
 from thirdhand.execute.layout import NO_GEOMETRY_HINT, LayoutError, Workcell
 from thirdhand.execute.robot import Robot
@@ -24,8 +24,6 @@ from thirdhand.execute.scene import CollisionScene
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.meshes import resolve_mesh
 from thirdhand.task.model import TaskFile
-
-FloatArray = NDArray[np.float64]
 
 
 def trans(v: Sequence[float] | FloatArray) -> FloatArray:

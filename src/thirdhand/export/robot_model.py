@@ -19,10 +19,11 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
+
 if TYPE_CHECKING:
     from thirdhand.execute.robot import Robot
 
-FloatArray = NDArray[np.float64]
 
 ShapeKind = Literal["cylinder", "sphere", "box", "mesh"]
 

@@ -54,6 +54,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
 from thirdhand.fileops import atomic_output
 
@@ -62,7 +63,6 @@ if TYPE_CHECKING:
 
     from thirdhand.demonstration import Demonstration
 
-FloatArray = NDArray[np.float64]
 PathLike = str | os.PathLike[str]
 
 #: The schema of an ``execute --record`` trajectory file.

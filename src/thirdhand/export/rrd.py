@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import FormatError, OutputError
 from thirdhand.readlimits import loads_json, read_text_input
@@ -55,7 +56,6 @@ if TYPE_CHECKING:
     from thirdhand.execute.robot import Robot
     from thirdhand.taskfile import TaskFile
 
-FloatArray = NDArray[np.float64]
 
 #: Length of the axes drawn at every body, metres.
 AXIS_LENGTH = 0.05

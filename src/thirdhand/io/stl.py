@@ -10,11 +10,9 @@ import os
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
-
-FloatArray = NDArray[np.float64]
 
 _STL_DTYPE = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
 

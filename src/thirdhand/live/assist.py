@@ -33,14 +33,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.live.tracker import PlanTracker
 from thirdhand.segment.contact import body_box
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)

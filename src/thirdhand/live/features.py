@@ -30,17 +30,13 @@ from typing import Any
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.se3_compiled import relative_pose_rows
 from thirdhand.segment.contact import Box, body_box
 from thirdhand.segment.design import FeatureConfig
 from thirdhand.segment.features import _block_stats, _merge_buckets
 from thirdhand.segment.noise import CHI2_3_MEDIAN, FLOOR_MIN, REST_FACTOR, NoiseFloor
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-IntArray = NDArray[np.int64]
 
 
 def feature_lag(config: FeatureConfig) -> int:

@@ -27,16 +27,14 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.demonstration import BodyInfo, Demonstration
 
 if TYPE_CHECKING:
     from thirdhand.live.features import FeatureRows
     from thirdhand.segment.model import SegmentModel
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 #: Default smoother lag, latent steps (0.20 s at the shipped model's 20 Hz).
 SMOOTHER_LAG = 4

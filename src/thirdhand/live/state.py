@@ -40,14 +40,11 @@ from typing import Any
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.taskfile import TaskFile
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 
 class LiveTaskError(ThirdhandError, ValueError):

@@ -34,10 +34,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration, _interpolate_track
 from thirdhand.errors import ThirdhandError
-
-FloatArray = NDArray[np.float64]
 
 #: Grid step of the motion signals cross-correlated for the coarse offset, seconds.
 GRID_S = 0.005

@@ -18,13 +18,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
-
-FloatArray = NDArray[np.float64]
 
 #: Objects a person attends to or points at: the bodies of these kinds.
 TARGET_KINDS = ("part", "tool")

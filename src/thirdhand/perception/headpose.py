@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.perception._canonical_face import CANONICAL_FACE
 from thirdhand.perception._deps import cv2
@@ -38,8 +39,6 @@ from thirdhand.perception.landmarks import (
     RIGHT_EYE_CORNERS,
     RIGHT_IRIS,
 )
-
-FloatArray = NDArray[np.float64]
 
 #: Indices of the face-mesh points above the nose tip (model ``y < 0``): eyes, brows,
 #: forehead, nose bridge, upper cheeks. They move little when a person talks or

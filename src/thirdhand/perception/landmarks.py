@@ -22,9 +22,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.perception._deps import cv2, mediapipe, quiet_native_stderr
 
-FloatArray = NDArray[np.float64]
 UInt8Array = NDArray[np.uint8]
 
 N_MESH = 468

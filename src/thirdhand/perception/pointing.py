@@ -22,14 +22,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.perception.attention import object_centres, ray_angles
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 ROLES = ("thumb", "index", "middle")
 

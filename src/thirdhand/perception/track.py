@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.perception.headpose import (
     HeadPose,
@@ -31,7 +32,6 @@ from thirdhand.perception.headpose import (
 from thirdhand.perception.landmarks import N_REFINED, FaceMeshTracker
 from thirdhand.perception.video import read_frames, video_info
 
-FloatArray = NDArray[np.float64]
 UInt8Array = NDArray[np.uint8]
 
 

@@ -6,12 +6,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.detect import ConstraintInstance
 from thirdhand.demonstration import Demonstration
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass

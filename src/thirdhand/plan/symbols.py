@@ -19,12 +19,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.constraints.detect import ConstraintInstance
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
-
-FloatArray = NDArray[np.float64]
 
 
 class PrimitiveError(ThirdhandError, ValueError):

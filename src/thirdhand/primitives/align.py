@@ -20,14 +20,12 @@ from typing import Literal
 
 import numba
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory, check_unit_quaternions
 from thirdhand.primitives.quaternion_dmp import quat_exp, quat_log
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 def phase_resample(t: ArrayLike, y: ArrayLike, n: int) -> FloatArray:

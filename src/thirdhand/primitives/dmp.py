@@ -26,13 +26,12 @@ per-step Python loop and no integration drift.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 from scipy.linalg import expm
 from scipy.signal import fftconvolve
 
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory
-
-FloatArray = NDArray[np.float64]
 
 #: Phase at the end of the demonstrated duration (sets ``alpha_x``).
 FINAL_PHASE = 0.01

@@ -26,16 +26,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.ndimage import uniform_filter1d
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.library import PrimitiveLibrary
 from thirdhand.primitives.segments import ConstraintSegment
 from thirdhand.primitives.serialize import promp_to_dict
-
-FloatArray = NDArray[np.float64]
 
 #: Unit of each shape channel (values are divided by it): metres, radians.
 SHAPE_UNITS = {"pos": 0.02, "rot": 0.1}

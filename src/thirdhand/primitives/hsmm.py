@@ -31,12 +31,10 @@ import itertools
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.primitives._checks import PrimitiveError
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 

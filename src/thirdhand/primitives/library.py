@@ -24,6 +24,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.special import logsumexp
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory
 from thirdhand.primitives.mixture import ProMPMixture
 from thirdhand.primitives.promp import ProMP
@@ -38,9 +39,6 @@ from thirdhand.primitives.segmentation_dp import (
     best_segmentation,
     segment_marginals,
 )
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 @dataclass(frozen=True)

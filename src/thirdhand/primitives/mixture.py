@@ -17,12 +17,10 @@ segment's posterior covariance is diagonal: no per-segment matrix inverse.
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.special import logsumexp
 
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives.segment_features import SegmentStats
-
-FloatArray = NDArray[np.float64]
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 

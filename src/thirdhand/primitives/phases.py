@@ -21,13 +21,10 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.library import Parse
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 #: Weight of the skill identity in a run's descriptor, in standard deviations.
 SKILL_WEIGHT = 3.0

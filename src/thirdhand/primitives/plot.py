@@ -6,12 +6,10 @@ import os
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives.library import Parse, PrimitiveLibrary
 from thirdhand.primitives.quaternion_dmp import PoseDMP
-
-FloatArray = NDArray[np.float64]
 
 
 def plot_library(

@@ -32,13 +32,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.ndimage import uniform_filter1d
-from scipy.spatial.transform import Rotation
 
+from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError
-
-FloatArray = NDArray[np.float64]
 
 #: Unit of the log-magnitude channels (dimensionless): a third of an e-fold.
 LOG_UNIT = 1.0 / 3.0
@@ -153,17 +151,22 @@ class PoseTrack:
         """Number of samples ``n``."""
         return int(self.t.size)
 
-    def moved(self, rotation: Rotation, translation: Sequence[float]) -> PoseTrack:
-        """The same track after a rigid motion ``x ↦ R x + p`` of the whole scene."""
+    def moved(self, rotation: Sequence[float], translation: Sequence[float]) -> PoseTrack:
+        """The same track after a rigid motion ``x ↦ R x + p`` of the whole scene.
+
+        ``rotation`` is ``R`` as a unit quaternion (4,) x y z w; ``translation`` is
+        ``p`` (3,), metres.
+        """
+        r = se3.check_quat(rotation)
         p = np.asarray(translation, dtype=np.float64)
-        quat = None if self.quat is None else (rotation * Rotation.from_quat(self.quat)).as_quat()
+        quat = None if self.quat is None else se3.quat_multiply(r, se3.check_quat(self.quat))
         return PoseTrack(
             self.t,
-            rotation.apply(self.pos) + p,
+            se3.quat_rotate(r, self.pos) + p,
             quat,
             self.force,
             self.torque,
-            tuple(rotation.apply(o) + p for o in self.others),
+            tuple(se3.quat_rotate(r, o) + p for o in self.others),
             self.name,
         )
 
@@ -199,8 +202,8 @@ def _log(x: FloatArray, unit: float) -> FloatArray:
 
 def _angular_rate(t: FloatArray, quat: FloatArray) -> FloatArray:
     """``|log(R_tᵀ R_{t+1})| / dt``, rad/s, shape (n,): the same in any world frame."""
-    r = Rotation.from_quat(quat)
-    step = (r[:-1].inv() * r[1:]).magnitude() / np.diff(t)
+    q = se3.check_quat(quat)
+    step = se3.quat_angle(q[:-1], q[1:]) / np.diff(t)
     return np.asarray(np.concatenate([step[:1], step]), dtype=np.float64)
 
 

@@ -12,11 +12,10 @@ from collections.abc import Sequence
 from typing import Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory
-
-FloatArray = NDArray[np.float64]
 
 
 def rbf_features(z: ArrayLike, n_weights: int, *, width: float | None = None) -> FloatArray:

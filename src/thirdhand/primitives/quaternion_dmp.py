@@ -23,9 +23,10 @@ from typing import Literal
 
 import numba
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory, check_unit_quaternions
 from thirdhand.primitives.dmp import (
     DMP,
@@ -34,9 +35,6 @@ from thirdhand.primitives.dmp import (
     phase,
     tail_gate,
 )
-
-FloatArray = NDArray[np.float64]
-
 
 # The quaternion logarithm and exponential (half rotation vectors) of thirdhand.se3.
 quat_log = se3.quat_log

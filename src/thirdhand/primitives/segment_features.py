@@ -11,11 +11,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.ndimage import uniform_filter1d
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.promp import rbf_features
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 def smoothed_speed(y: FloatArray, dt: float, window: int) -> FloatArray:

@@ -14,12 +14,10 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.special import logsumexp
 
+from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError
-
-FloatArray = NDArray[np.float64]
 
 
 def _check_scores(scores: FloatArray) -> int:

@@ -12,13 +12,11 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.ndimage import uniform_filter1d
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import ConstraintEvent, Demonstration
 from thirdhand.primitives._checks import PrimitiveError
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

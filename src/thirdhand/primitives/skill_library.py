@@ -27,14 +27,11 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov, runs
 from thirdhand.primitives.pose_channels import CHANNELS, PoseTrack, default_channels, pose_channels
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 #: Schema of a saved library.
 SCHEMA = "thirdhand.skill-library/1"

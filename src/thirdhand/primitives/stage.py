@@ -12,9 +12,10 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import ConstraintEvent, Demonstration
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.align import average
@@ -26,7 +27,6 @@ from thirdhand.primitives.serialize import pose_dmp_to_dict, promp_to_dict
 if TYPE_CHECKING:
     from thirdhand.task.stages import PrimitiveRecord, PrimitivesBlock
 
-FloatArray = NDArray[np.float64]
 
 SCHEMA = "thirdhand.primitives/1"
 

@@ -26,8 +26,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import viser
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
@@ -68,8 +68,6 @@ from thirdhand.taskfile import TaskFile, save_task
 
 if TYPE_CHECKING:
     from thirdhand.review.replay import Replay
-
-FloatArray = NDArray[np.float64]
 
 
 class ReviewApp:

@@ -14,15 +14,13 @@ from typing import Any
 
 import numpy as np
 import viser
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.review.scene3d import xyzw
 from thirdhand.se3 import pose_compose, pose_invert
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.geometry import Pose
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

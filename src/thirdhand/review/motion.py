@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import viser
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
@@ -28,7 +28,6 @@ from thirdhand.task.constraint import Constraint
 if TYPE_CHECKING:
     from thirdhand.review.app import ReviewApp
 
-FloatArray = NDArray[np.float64]
 
 #: Seconds per DOF of an animation, and its frame rate (Hz).
 ANIMATION_SECONDS = 1.2

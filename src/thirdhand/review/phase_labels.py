@@ -26,12 +26,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration, InteractionInterval, Labels
 from thirdhand.errors import ThirdhandError
 
-FloatArray = NDArray[np.float64]
 Span = tuple[float, float]
 Pair = tuple[str, str]
 

@@ -21,10 +21,8 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.demonstration import Demonstration
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 Side = Literal["left", "right", "both", "robot"]
 

@@ -24,15 +24,14 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.primitives.dmp import DMP, phase
 from thirdhand.primitives.quaternion_dmp import PoseDMP
 from thirdhand.primitives.serialize import dmp_to_dict
 from thirdhand.task.stages import DmpParameters, PrimitiveEdit, PrimitiveRecord, PrimitivesBlock
-
-FloatArray = NDArray[np.float64]
 
 #: Where the editable key points sit, as fractions of the motion's duration.
 KEY_FRACTIONS: tuple[float, ...] = (0.25, 0.5, 0.75)

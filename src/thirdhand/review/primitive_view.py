@@ -13,12 +13,10 @@ from typing import Any
 
 import numpy as np
 import viser
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.review.primitive_edit import PrimitivePath
 from thirdhand.review.scene3d import SELECTED_RGB, wxyz
-
-FloatArray = NDArray[np.float64]
 
 #: Colour of the path and of the key points not chosen (a violet apart from the
 #: selection orange, the parent blue and the hands' colours).

@@ -22,12 +22,12 @@ import numpy as np
 import viser
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.se3 import matrix_from_quat
 from thirdhand.task.geometry import DOF_NAMES
 from thirdhand.task.meshes import box_triangles, object_triangles, resolve_mesh
 from thirdhand.task.model import TaskFile
 
-FloatArray = NDArray[np.float64]
 Rgb = tuple[int, int, int]
 #: A 3- or 4-vector given as a sequence or an array.
 Vector = Sequence[float] | FloatArray

@@ -35,15 +35,11 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components
 
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.segment.features import SegmentationError
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 #: Pair kinds (:func:`thirdhand.segment.pipeline.pair_kind`) the closure labels.
 CLOSED_KINDS = ("part-part",)

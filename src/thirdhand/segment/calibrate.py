@@ -29,9 +29,9 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import minimize
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.segment.crf import N_TRANS, PairCRF, _Data
 from thirdhand.segment.design import DemoFeatures
@@ -39,9 +39,6 @@ from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.intervals import labels_from_intervals, pair_intervals
 from thirdhand.segment.model import SegmentModel
 from thirdhand.segment.pipeline import pair_kind
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 def labelled_pairs(demo: Demonstration) -> list[tuple[str, str]]:

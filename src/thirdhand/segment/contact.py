@@ -29,12 +29,10 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.segment.features import SegmentationError
-
-FloatArray = NDArray[np.float64]
 
 Box = tuple[FloatArray, FloatArray]
 

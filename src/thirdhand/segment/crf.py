@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.segment.chain import (
     binary_expectations,
     binary_marginals,
@@ -28,9 +29,6 @@ from thirdhand.segment.chain import (
 )
 from thirdhand.segment.features import SegmentationError
 from thirdhand.segment.logistic import fit_logistic_newton
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 N_TRANS = 4
 

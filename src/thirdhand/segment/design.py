@@ -48,8 +48,8 @@ from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.se3_compiled import continuous_quat_rows
 from thirdhand.segment.contact import body_box, box_gap
@@ -65,9 +65,6 @@ from thirdhand.segment.features import (
 )
 from thirdhand.segment.noise import NoiseFloor, at_rest, noise_floor
 from thirdhand.segment.static_fill import fill_static_gaps
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)

@@ -49,12 +49,9 @@ import numba
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.se3_compiled import continuous_quat_rows, relative_pose_rows
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-IntArray = NDArray[np.int64]
 
 #: Names of the four core features, in column order.
 RAW_FEATURE_NAMES: tuple[str, ...] = ("nu_pos", "nu_rot", "zeta_pos", "zeta_rot")

@@ -5,11 +5,9 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import IntArray
 from thirdhand.demonstration import Demonstration
-
-IntArray = NDArray[np.int64]
 
 
 def finger_groups(demo: Demonstration) -> dict[str, list[str]]:

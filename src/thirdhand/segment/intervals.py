@@ -11,12 +11,9 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.demonstration import InteractionInterval, Labels
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 def runs(labels: IntArray) -> list[tuple[int, int]]:

@@ -10,12 +10,9 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.segment.features import SegmentationError
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 def _softplus(s: FloatArray) -> FloatArray:

@@ -28,16 +28,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.readlimits import check_json_depth, read_input
 from thirdhand.segment.assembly import ClosureConfig
 from thirdhand.segment.crf import PairCRF
 from thirdhand.segment.design import FeatureConfig
 from thirdhand.segment.features import SegmentationError
-
-FloatArray = NDArray[np.float64]
 
 FORMAT = "thirdhand.segment/1"
 DEFAULT_MODEL_RESOURCE = "segment_default.json"

@@ -27,10 +27,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
+from thirdhand.arrays import BoolArray, FloatArray
 
 #: Median of a χ² variable with 3 degrees of freedom.
 CHI2_3_MEDIAN = 2.365973884375338

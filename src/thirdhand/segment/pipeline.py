@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.segment.assembly import CLOSED_KINDS, ClosureConfig, close_pairs, touching
 from thirdhand.segment.design import DemoFeatures
@@ -48,11 +48,8 @@ from thirdhand.segment.intervals import (
 )
 from thirdhand.segment.model import SegmentModel, default_model
 
-FloatArray = NDArray[np.float64]
 #: Pair kinds whose label is a hand moving an object (the rest gate applies).
 HAND_KINDS = ("finger-object", "hand-object")
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 
 
 @dataclass

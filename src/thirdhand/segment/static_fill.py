@@ -21,13 +21,9 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.segment.noise import REST_FACTOR, NoiseFloor
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
-IntArray = NDArray[np.int64]
 
 
 @numba.njit(cache=True, nogil=True)

@@ -16,9 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numpy as np
-from numpy.typing import NDArray
-
+from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.segment.assembly import CLOSED_KINDS, ClosureConfig, touching
 from thirdhand.segment.crf import PairCRF
@@ -35,9 +33,6 @@ from thirdhand.segment.pipeline import (
     pair_has_truth,
     pair_kind,
 )
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
 
 
 @dataclass

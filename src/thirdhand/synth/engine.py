@@ -15,12 +15,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 
-FloatArray = NDArray[np.float64]
 Motion = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
 
 

@@ -19,13 +19,13 @@ from typing import Any
 import numpy as np
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, FreeDofs
 from thirdhand.synth import geometry as geo
 from thirdhand.synth.human import Hand, grasp_from_axes
 from thirdhand.synth.motion import ScrewPath, axis_angle_quat
 from thirdhand.synth.scenes import (
     TABLE_Z,
-    FloatArray,
     Layout,
     X,
     Y,

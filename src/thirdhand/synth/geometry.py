@@ -25,7 +25,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+
+from thirdhand.arrays import FloatArray
 
 # Re-exported: the synthetic scenes read part sizes from the meshes with them.
 from thirdhand.io.stl import read_stl as read_stl
@@ -33,8 +34,6 @@ from thirdhand.io.stl import stl_bounds as stl_bounds
 
 # Re-exported: the 3rdHand meshes' bounds, known to the task package.
 from thirdhand.task.meshes import MESH_BOUNDS_MM as MESH_BOUNDS_MM
-
-FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)

@@ -16,14 +16,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo
 from thirdhand.errors import ThirdhandError
 from thirdhand.synth.motion import PosePath, Tremor, hold_motion, min_jerk, phase, quat_exp
-
-FloatArray = NDArray[np.float64]
 
 FINGERS: tuple[str, ...] = ("thumb", "index", "middle")
 #: Nail sensor above the finger pad, metres.

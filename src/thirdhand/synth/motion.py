@@ -13,11 +13,10 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
-
-FloatArray = NDArray[np.float64]
+from thirdhand.arrays import FloatArray
 
 
 def min_jerk(tau: ArrayLike) -> FloatArray:

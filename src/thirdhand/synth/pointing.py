@@ -29,16 +29,14 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.synth.engine import Segment
 from thirdhand.synth.human import RELAXED_APERTURE, Hand, finger_offsets
 from thirdhand.synth.motion import PosePath, Tremor, min_jerk, phase, quat_exp
 from thirdhand.synth.scenes import TABLE_Z, Layout
 from thirdhand.synth.script import Pose, Sim, movement_time
-
-FloatArray = NDArray[np.float64]
 
 #: Fingertip sensor positions in the pointing posture, shape (3 fingers, 3), metres, hand frame.
 POINT_POS = np.array([[0.006, -0.004, -0.01], [0.0, 0.0, 0.065], [-0.006, 0.004, -0.01]])

@@ -14,16 +14,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, FreeDofs
 from thirdhand.synth import geometry as geo
 from thirdhand.synth.human import Grasp, Hand, grasp_from_axes, make_hand
 from thirdhand.synth.motion import Hold, ScrewPath, Sway, Tremor, axis_angle_quat
 from thirdhand.synth.script import Pose, Sim, compose, offset
-
-FloatArray = NDArray[np.float64]
 
 TABLE_Z = 0.75
 X = np.array([1.0, 0.0, 0.0])

@@ -31,9 +31,10 @@ import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import (
     BodyInfo,
     ConstraintEvent,
@@ -61,7 +62,6 @@ from thirdhand.synth.motion import (
     Wobble,
 )
 
-FloatArray = NDArray[np.float64]
 Pose = tuple[FloatArray, FloatArray]
 
 UP = np.array([0.0, 0.0, 1.0])

@@ -14,12 +14,12 @@ from typing import Annotated, Any, Literal, get_args
 import numpy as np
 from pydantic import Field, StringConstraints, ValidationError
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import TaskFileError
 from thirdhand.task.geometry import (
     DOF_NAMES,
     IDENTITY_QUAT,
     ORIGIN,
-    FloatArray,
     FreeDofs,
     Pose,
     Quat,

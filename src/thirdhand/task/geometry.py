@@ -10,17 +10,14 @@ from __future__ import annotations
 import math
 from typing import Annotated
 
-import numpy as np
-from numpy.typing import NDArray
 from pydantic import AfterValidator, BaseModel, ConfigDict
+
+from thirdhand.arrays import FloatArray
 
 # Defined once, in the core types, and re-exported here for the task-file models.
 from thirdhand.demonstration import DOF_NAMES as DOF_NAMES
 from thirdhand.demonstration import FreeDofs as FreeDofs
 from thirdhand.se3 import pose_to_matrix
-
-FloatArray = NDArray[np.float64]
-
 
 #: A quaternion whose norm is within this of 1 is stored exactly as given (so
 #: float32-exported data round-trip bit for bit).

@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.io.stl import read_stl
 from thirdhand.se3 import matrix_from_quat, quat_from_matrix
 from thirdhand.task.geometry import Pose
@@ -31,7 +31,6 @@ from thirdhand.task.model import TaskFile, TaskObject
 if TYPE_CHECKING:
     from thirdhand.demonstration import Demonstration
 
-FloatArray = NDArray[np.float64]
 
 #: Environment variable: extra folders (``os.pathsep``-separated) searched for meshes.
 MESH_PATH_ENV = "THIRDHAND_MESH_PATH"

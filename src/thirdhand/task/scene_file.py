@@ -42,16 +42,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
 from thirdhand.io.stl import read_stl
 from thirdhand.readlimits import loads_json, read_text_input
 from thirdhand.task.geometry import Pose
 from thirdhand.task.meshes import mesh_scale, mesh_search_path, same_role_mesh
-
-FloatArray = NDArray[np.float64]
 
 #: The largest translation component (absolute) read as metres; beyond, mesh units.
 MAX_METRES = 2.0

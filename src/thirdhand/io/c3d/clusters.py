@@ -11,9 +11,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
-from thirdhand.io.c3d.constants import MIN_CLUSTER, FloatArray
+from thirdhand.io.c3d.constants import MIN_CLUSTER
 
 _MAX_MEDIAN_FRAMES = 4000
 _MIN_WELL_SEEN = 10  # complete frames needed to take the median geometry from them alone

@@ -2,11 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-from numpy.typing import NDArray
-
-FloatArray = NDArray[np.float64]
-BoolArray = NDArray[np.bool_]
 FORMAT_VERSION = "thirdhand.c3d/1"
 #: Parameter group holding the JSON description written by :func:`write`.
 GROUP = "THIRDHAND"

@@ -11,8 +11,9 @@ from typing import Any
 
 import numpy as np
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
-from thirdhand.io.c3d.constants import FORMAT_VERSION, GROUP, MIN_CLUSTER, UNIT_SCALES, FloatArray
+from thirdhand.io.c3d.constants import FORMAT_VERSION, GROUP, MIN_CLUSTER, UNIT_SCALES
 from thirdhand.io.c3d.structure import _check_structure
 from thirdhand.readlimits import check_json_depth
 

@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from thirdhand import se3
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import (
     BodyInfo,
     Demonstration,
@@ -19,7 +20,7 @@ from thirdhand.demonstration import (
 )
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.io.c3d.clusters import fit_cluster, group_by_prefix, reference_cluster
-from thirdhand.io.c3d.constants import GROUP, MIN_CLUSTER, FloatArray
+from thirdhand.io.c3d.constants import GROUP, MIN_CLUSTER
 from thirdhand.io.c3d.markers import _load_markers, _oriented
 
 

@@ -13,11 +13,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output
 from thirdhand.io.c3d.clusters import _layout, markers_from_demonstration
-from thirdhand.io.c3d.constants import FORMAT_VERSION, GROUP, MAX_FRAMES, FloatArray
+from thirdhand.io.c3d.constants import FORMAT_VERSION, GROUP, MAX_FRAMES
 
 _CHUNK = 200  # characters per string of the JSON document (C3D strings hold <= 255)
 _CHUNKS_PER_PARAM = 120  # keeps every parameter record well under 32 kB

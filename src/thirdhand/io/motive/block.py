@@ -8,8 +8,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
-from thirdhand.io.motive.constants import FloatArray
 from thirdhand.io.motive.header import _cells, _decode, _Header
 
 

@@ -2,9 +2,6 @@
 
 from __future__ import annotations
 
-import numpy as np
-from numpy.typing import NDArray
-
 #: Length unit (lower case, as written in the header or abbreviated) -> units per metre.
 LENGTH_UNITS: dict[str, float] = {
     "meters": 1.0,
@@ -34,7 +31,6 @@ ASSET_TYPES = frozenset(
 
 _MAGIC = "Format Version"
 
-FloatArray = NDArray[np.float64]
 
 #: First-line key holding what a Motive export cannot state (body kinds, labels),
 #: as JSON; written by thirdhand, read back by :func:`~thirdhand.io.motive.read`.

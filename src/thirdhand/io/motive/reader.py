@@ -10,6 +10,7 @@ from typing import Any, cast
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import (
     BODY_KINDS,
     MAX_PLAUSIBLE_POSITION_M,
@@ -24,7 +25,7 @@ from thirdhand.demonstration import (
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.io.motive.block import _as_float, _first_null, _read_block, _time_axis
 from thirdhand.io.motive.columns import _BodySpec, _find_bodies
-from thirdhand.io.motive.constants import _MAGIC, EXTRA_FORMAT, EXTRA_KEY, FloatArray
+from thirdhand.io.motive.constants import _MAGIC, EXTRA_FORMAT, EXTRA_KEY
 from thirdhand.io.motive.header import _Header, _rate, _read_header, _units_per_metre
 from thirdhand.readlimits import loads_json, read_text_input
 

@@ -11,10 +11,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError
 from thirdhand.fileops import atomic_output
-from thirdhand.io.motive.constants import EXTRA_FORMAT, EXTRA_KEY, FloatArray
+from thirdhand.io.motive.constants import EXTRA_FORMAT, EXTRA_KEY
 
 _WRITE_VERSION = "1.23"
 

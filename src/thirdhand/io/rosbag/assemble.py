@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.demonstration import (
     BodyInfo,
     Demonstration,
@@ -19,7 +20,7 @@ from thirdhand.demonstration import (
 )
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.io.rosbag.collect import _Raw
-from thirdhand.io.rosbag.constants import _NS, META_TOPIC, BoolArray, FloatArray, IntArray
+from thirdhand.io.rosbag.constants import _NS, META_TOPIC
 from thirdhand.io.rosbag.timeline import _frame_axis, _Series, _series
 from thirdhand.io.rosbag.tree import _build_tree, _choose_root, _in_root, _tf_arrays, _Tree
 

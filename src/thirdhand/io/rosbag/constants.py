@@ -4,12 +4,6 @@ from __future__ import annotations
 
 import os
 
-import numpy as np
-from numpy.typing import NDArray
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.int64]
-BoolArray = NDArray[np.bool_]
 PathLike = str | os.PathLike[str]
 
 FORMAT_VERSION = "thirdhand.rosbag/1"

@@ -11,9 +11,10 @@ import numba
 import numpy as np
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.errors import FormatError
 from thirdhand.io.rosbag.collect import _Track
-from thirdhand.io.rosbag.constants import _NS, BoolArray, FloatArray, IntArray
+from thirdhand.io.rosbag.constants import _NS
 
 
 @dataclass

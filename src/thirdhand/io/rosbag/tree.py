@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 
 from thirdhand import se3
+from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.errors import FormatError
 from thirdhand.io.rosbag.collect import _frame_id, _Raw
-from thirdhand.io.rosbag.constants import BoolArray, FloatArray, IntArray
 from thirdhand.io.rosbag.timeline import _interpolate, _Series, _series
 
 

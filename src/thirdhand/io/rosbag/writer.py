@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from thirdhand.arrays import IntArray
 from thirdhand.demonstration import Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError
 from thirdhand.fileops import atomic_output
@@ -23,7 +24,6 @@ from thirdhand.io.rosbag.constants import (
     _TFMESSAGE,
     FORMAT_VERSION,
     META_TOPIC,
-    IntArray,
     PathLike,
 )
 from thirdhand.io.rosbag.timeline import _fmt_stamp
