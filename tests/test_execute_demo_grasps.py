@@ -9,7 +9,14 @@ import pytest
 
 from thirdhand import se3
 from thirdhand.execute.goals import invert
-from thirdhand.execute.grasps import Grasp, demo_grasps, rod_turns, tool_frame
+from thirdhand.execute.grasps import (
+    Grasp,
+    _finger_approach,
+    demo_grasps,
+    rod_turns,
+    square_to_box,
+    tool_frame,
+)
 from thirdhand.execute.record import TOOL_BODY
 
 
@@ -77,7 +84,8 @@ def test_execute_with_demo_holds_each_leg_where_the_fingers_did(tmp_path, shared
         c = by_child[s["child"]]
         obj = next(o for o in task.objects if o.name == c.child)
         box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
-        hints = {g.label: g for g in rod_turns(demo_grasps(demo, c.child, c.time, bbox=box), *box)}
+        found = square_to_box(demo_grasps(demo, c.child, c.time, bbox=box), *box)
+        hints = {g.label: g for g in rod_turns(found, *box)}
         lift = next(
             g for g in doc["segments"] if g["step"] == s["index"] and g["segment"] == "lift"
         )
@@ -85,3 +93,47 @@ def test_execute_with_demo_holds_each_leg_where_the_fingers_did(tmp_path, shared
         t_part = se3.pose_to_matrix(replay.pos(c.child)[k], replay.quat(c.child)[k])
         t_tool = se3.pose_to_matrix(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
         np.testing.assert_allclose(invert(t_part) @ t_tool, hints[s["grasp"]].pose, atol=1e-3)
+
+
+BOARD = (np.array([-0.2125, -0.06, 0.008]), np.array([0.2125, 0.06, 0.025]))  # the real side_left
+
+
+def test_a_pinch_of_a_board_approaches_across_the_fingers_from_the_nearer_edge() -> None:
+    """Thumb under, index and middle on top of a 1.7-cm board, 2 cm in from its +y edge:
+    the hand reached over that edge (approach -y), whatever the fingers' slant."""
+    z0 = 0.0165  # mid-plane
+    tips = np.array(
+        [
+            [0.00, 0.04, z0 - 0.0085],  # thumb, under
+            [-0.01, 0.04, z0 + 0.0085],  # index, on top
+            [0.01, 0.04, z0 + 0.0085],  # middle, beside it along the edge
+        ]
+    )
+    closing = tips[1:].mean(axis=0) - tips[0]
+    a = _finger_approach(tips, [0], [1, 2], closing, BOARD)
+    np.testing.assert_allclose(a / np.linalg.norm(a), [0.0, -1.0, 0.0], atol=1e-12)
+    # mirrored to the -y edge: the approach flips
+    tips[:, 1] *= -1
+    a = _finger_approach(tips, [0], [1, 2], closing, BOARD)
+    np.testing.assert_allclose(a / np.linalg.norm(a), [0.0, 1.0, 0.0], atol=1e-12)
+    # one finger besides the thumb: the nearest face across the closing direction (+y)
+    a = _finger_approach(tips[:2], [0], [1], tips[1] - tips[0], BOARD)
+    np.testing.assert_allclose(a / np.linalg.norm(a), [0.0, 1.0, 0.0], atol=1e-12)
+
+
+def test_square_to_box_closes_along_the_faces_normal_and_keeps_the_place() -> None:
+    slant = tool_frame([0.05, 0.0, 0.0165], [0.3, -1.0, 0.4], [0.35, 0.3, 1.0])
+    g = Grasp(slant, "demo", "demo:rh")
+    out = square_to_box([g], *BOARD)
+    assert [o.label for o in out] == ["demo:rh", "demo:rh/square"] and out[0] is g
+    sq = out[1].pose
+    np.testing.assert_allclose(sq[:3, 3], slant[:3, 3])  # the same place on the board
+    np.testing.assert_allclose(sq[:3, 1], [0.0, 0.0, 1.0], atol=1e-12)  # across its thickness
+    np.testing.assert_allclose(sq[:3, 2], [0.0, -1.0, 0.0], atol=1e-12)  # over its +y edge
+    np.testing.assert_allclose(sq[:3, :3].T @ sq[:3, :3], np.eye(3), atol=1e-12)
+    assert np.linalg.det(sq[:3, :3]) == pytest.approx(1.0)
+    # already square, past 45°, or from the shape: no copy
+    square = Grasp(sq, "demo", "x")
+    steep = Grasp(tool_frame([0, 0, 0], [0, 0, -1], [1.0, 1.0, 0.0]), "demo", "y")
+    shape = Grasp(slant, "shape", "side")
+    assert square_to_box([square, steep, shape], *BOARD) == [square, steep, shape]

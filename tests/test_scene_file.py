@@ -185,9 +185,11 @@ def test_real_toolbox_learned_with_its_scene_executes(
     assert "mesh files not found" not in r.output
     record = json.loads((tmp_path / "run.json").read_text())
     assert record["success"] and record["n_collisions"] == 0
-    # exactly what --demo RECORDING does (its fingers' grasps are the recorded ones: the
-    # person's grasp is tried first; today's planner ends on a grasp from the board's
-    # shape either way, see docs/taskfile.md)
+    # held where the person held it: their grasp, squared to the board's faces for a
+    # parallel gripper (and turned about the board's axis to the way it lies now)
+    assert [s["grasp_source"] for s in record["steps"]] == ["demo"]
+    assert "/square" in record["steps"][0]["grasp"]
+    # exactly what --demo RECORDING does (its fingers' grasps are the recorded ones)
     r = runner.invoke(
         app,
         ["execute", str(task), "--demo", str(folder / "toolbox_coop_4"), "--record",

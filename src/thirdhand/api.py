@@ -179,7 +179,7 @@ def learn_reward(plans: Sequence[AssemblyPlan | TaskFile], *, seed: int = 0) -> 
 def execute_task(
     task: TaskFile,
     *,
-    robot: str = "panda",
+    robot: str | None = None,
     mode: Literal["offline", "online"] = "offline",
     seed: int = 0,
 ) -> ExecutionResult:
@@ -189,17 +189,19 @@ def execute_task(
     ----------
     task : TaskFile
         E.g. ``learn_task(...).task`` or ``thirdhand.taskfile.load_task(path)``.
-    robot : {"panda", "baxter"}
+    robot : {"panda", "baxter"}, optional
+        The task's ``stages.execution.robot`` when not given, else Panda.
     mode : {"offline", "online"}
         Plan every step first, or observe–plan–act step by step.
     seed : int
         Seed of the start layout and the planner.
     """
-    from thirdhand.execute.executor import Executor
+    from thirdhand.execute.executor import Executor, task_defaults
 
-    if robot not in ROBOTS:
+    if robot is not None and robot not in ROBOTS:
         raise ThirdhandError(f"execute: robot {robot!r} unknown (expected one of {ROBOTS})")
     if mode not in ("offline", "online"):
         raise ThirdhandError(f"execute: mode {mode!r} unknown (expected 'offline' or 'online')")
-    executor = Executor.for_task(task, robot, seed=seed)
+    robot, assembly_xy = task_defaults(task, robot)
+    executor = Executor.for_task(task, robot, seed=seed, assembly_xy=assembly_xy)
     return executor.run_offline(seed=seed) if mode == "offline" else executor.run_online(seed=seed)

@@ -20,6 +20,7 @@ from rich.table import Table
 
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
+from thirdhand.execute.robot import ROBOTS
 from thirdhand.execute.settings import ExecuteSettings
 
 if TYPE_CHECKING:
@@ -28,7 +29,13 @@ if TYPE_CHECKING:
 
 def execute_command(
     task: Annotated[Path, typer.Argument(help="Task file (thirdhand.task/2 JSON).")],
-    robot: Annotated[str, typer.Option(help="Simulated robot: panda or baxter.")] = "panda",
+    robot: Annotated[
+        str | None,
+        typer.Option(
+            help="Simulated robot: panda or baxter [default: the task's stages.execution, "
+            "else panda]."
+        ),
+    ] = None,
     online: Annotated[
         bool, typer.Option("--online", help="Re-plan from the observed scene before each step.")
     ] = False,
@@ -57,7 +64,12 @@ def execute_command(
     mesh folders.
     """
     from thirdhand import io, options
-    from thirdhand.execute.executor import ExecutionOptions, Executor, person_does
+    from thirdhand.execute.executor import (
+        ExecutionOptions,
+        Executor,
+        person_does,
+        task_defaults,
+    )
     from thirdhand.execute.record import record_paths, write_run
     from thirdhand.fileops import check_output
     from thirdhand.task.store import load_task
@@ -90,9 +102,12 @@ def execute_command(
                 f"({', '.join(sorted(o.name for o in t.objects))}); give a demonstration of "
                 "this task"
             )
+    if robot is not None and robot not in ROBOTS:
+        raise ThirdhandError(f"--robot {robot}: unknown (expected one of {', '.join(ROBOTS)})")
+    robot, assembly_xy = task_defaults(t, robot, cfg.assembly_at)
     ex = Executor.for_task(
         t, robot, seed=seed, options=opts, task_path=task, search=search, demo=d,
-        assembly_xy=cfg.assembly_at,
+        assembly_xy=assembly_xy,
     )  # fmt: skip
     from thirdhand.task.meshes import missing_mesh_note
 

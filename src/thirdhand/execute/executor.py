@@ -101,6 +101,26 @@ __all__ = [
 ]
 
 
+def task_defaults(
+    task: TaskFile,
+    robot: str | None = None,
+    assembly_xy: tuple[float, float] | None = None,
+) -> tuple[str, tuple[float, float] | None]:
+    """The robot and assembly spot to use: what was asked, else the task's, else the default.
+
+    ``stages.execution`` of the task file (:class:`~thirdhand.task.stages.ExecutionDefaults`)
+    says what a task is executed with when the command line and ``--config`` say nothing:
+    an explicit ``robot`` or ``assembly_xy`` wins, then the task's, then Panda and the
+    robot's own assembly spot (``None``).
+    """
+    block = task.stages.execution
+    if robot is None:
+        robot = (block.robot if block is not None else None) or "panda"
+    if assembly_xy is None and block is not None:
+        assembly_xy = block.assembly_xy
+    return robot, assembly_xy
+
+
 class Executor:
     """Runs a task's plan on the simulated arm, offline or online.
 
@@ -236,7 +256,7 @@ class Executor:
                 if not found:
                     continue
             if box is not None:
-                found = grasp_mod.rod_turns(found, *box)
+                found = grasp_mod.rod_turns(grasp_mod.square_to_box(found, *box), *box)
             self.hints[c.child] = found
         self.primitives = task.stages.primitives if self.options.use_primitives else None
         #: Constraint id → the part put into its slot (offline; identical parts swap).

@@ -37,6 +37,11 @@ from thirdhand.execute.goals import invert
 
 #: How far inside a face the tool frame sits for a face or end grasp, metres.
 GRASP_DEPTH_M = 0.015
+#: A fingertip centroid this close to a part's core (the box shrunk by its smallest half
+#: extent) pinches the core: the approach comes from the fingers' layout, metres.
+CORE_TOL_M = 0.005
+#: Least spread of the non-thumb fingertips that gives their line, metres.
+FINGER_SPREAD_M = 0.01
 #: A part is a rod when its longest extent is at least this many times the next.
 ROD_RATIO = 1.8
 #: A part (or a rod's cross-section) is flat when its thinnest extent is under this
@@ -241,11 +246,65 @@ def demo_grasps(
         if not thumb or not others:
             continue
         closing = local[k, others].mean(axis=0) - local[k, thumb].mean(axis=0)
+        if np.linalg.norm(closing) < 1e-6:
+            continue
         approach = _core_point(cen[k], bbox) - cen[k]
         approach = approach - (approach @ closing) / (closing @ closing) * closing
-        if np.linalg.norm(closing) < 1e-6 or np.linalg.norm(approach) < 1e-6:
+        if np.linalg.norm(approach) < CORE_TOL_M:
+            # The fingertips pinch the part's core (a board held across its thickness):
+            # the hand came in along the fingers, across the line of the fingertips.
+            approach = _finger_approach(local[k], thumb, others, closing, bbox)
+        if np.linalg.norm(approach) < 1e-6:
             continue
         out.append(Grasp(tool_frame(cen[k], approach, closing), "demo", f"demo:{hand}"))
+    return out
+
+
+def square_to_box(grasps: Sequence[Grasp], bbox_min: ArrayLike, bbox_max: ArrayLike) -> list[Grasp]:
+    """Demonstrated grasps, each followed by its copy closing square to the part's faces.
+
+    A hand's thumb and fingers meet a board at a slant a parallel gripper cannot hold:
+    its jaws must close along the normal of the faces they press, and come in square to
+    the edge they reach over. Where a grasp closes within 45° of one of the box's axes,
+    the copy closes along that axis and keeps the demonstration's tool centre (where
+    along the part the person held it) and its approach made perpendicular to the new
+    closing direction — along the nearest box axis when within 45° of one (the side the
+    person reached from). It is labelled ``"<label>/square"`` and comes right after the
+    exact grasp.
+    Shape grasps and grasps already square (within 1°) are returned as given.
+
+    Parameters
+    ----------
+    grasps : sequence of Grasp
+        ``T_part_tool``, part's body frame.
+    bbox_min, bbox_max : array_like, shape (3,)
+        The part's bounding box, body frame, metres (its axes are the faces' normals).
+
+    Returns
+    -------
+    list of Grasp
+    """
+    del bbox_min, bbox_max  # the box is axis-aligned in the body frame: its axes are e_x,y,z
+    out: list[Grasp] = []
+    for g in grasps:
+        out.append(g)
+        if g.source != "demo":
+            continue
+        y = g.pose[:3, 1]
+        a = int(np.argmax(np.abs(y)))
+        cos = abs(float(y[a]))
+        if cos < np.cos(np.pi / 4) or cos > np.cos(np.deg2rad(1.0)):
+            continue
+        closing = np.sign(y[a]) * np.eye(3)[a]
+        approach = g.pose[:3, 2] - (g.pose[:3, 2] @ closing) * closing
+        if np.linalg.norm(approach) < 1e-6:
+            continue
+        approach = approach / np.linalg.norm(approach)
+        b = int(np.argmax(np.abs(approach)))
+        if abs(approach[b]) >= np.cos(np.pi / 4):  # square to the edge it reaches over
+            approach = np.sign(approach[b]) * np.eye(3)[b]
+        t = tool_frame(g.pose[:3, 3], approach, closing)
+        out.append(Grasp(t, g.source, f"{g.label}/square"))
     return out
 
 
@@ -299,6 +358,60 @@ def rod_turns(
             turn = shift @ r @ invert(shift)
             out.append(Grasp(turn @ g.pose, g.source, f"{g.label}@{round(np.degrees(ang))}"))
     return out
+
+
+def _finger_approach(
+    tips: FloatArray,
+    thumb: Sequence[int],
+    others: Sequence[int],
+    closing: FloatArray,
+    bbox: tuple[ArrayLike, ArrayLike] | None,
+) -> FloatArray:
+    """The hand's approach (3,) from its fingertips (k, 3), part frame, for a pinch of the core.
+
+    The fingers lie side by side across the direction they point in: the approach is
+    perpendicular to the closing direction and to the line through the non-thumb tips
+    (the farthest pair), or, with a single such tip, to the closing direction and the
+    part's nearest face. Its sign puts the hand outside: the approach points away from
+    the nearer of the part's two faces along it (the edge the hand reached over).
+    Zero when neither rule gives a direction.
+    """
+    unit = closing / np.linalg.norm(closing)
+    lo, hi = (None, None) if bbox is None else (np.asarray(bbox[0]), np.asarray(bbox[1]))
+    cen = tips.mean(axis=0)
+    axis = np.zeros(3)
+    if len(others) >= 2:
+        pts = tips[list(others)]
+        gaps = pts[:, None, :] - pts[None, :, :]
+        i, j = np.unravel_index(np.argmax(np.linalg.norm(gaps, axis=2)), gaps.shape[:2])
+        axis = np.cross(unit, gaps[i, j])
+    if np.linalg.norm(axis) < FINGER_SPREAD_M * 0.5:
+        if lo is None or hi is None:
+            return np.zeros(3)
+        # the box axis across the closing direction whose face is nearest
+        best = np.inf
+        for a in range(3):
+            e = np.eye(3)[a]
+            e = e - (e @ unit) * unit
+            if np.linalg.norm(e) < np.sin(np.pi / 4):  # within 45° of the closing direction
+                continue
+            d = min(cen[a] - lo[a], hi[a] - cen[a])
+            if d < best:
+                best, axis = d, e
+    axis = axis / np.linalg.norm(axis)
+    if lo is None or hi is None:
+        return np.asarray(axis, dtype=np.float64)
+    # the distance to the box's boundary going back along -axis and along +axis
+    back = _exit_distance(cen, -axis, lo, hi)
+    ahead = _exit_distance(cen, axis, lo, hi)
+    return np.asarray(axis if back <= ahead else -axis, dtype=np.float64)
+
+
+def _exit_distance(p: FloatArray, d: FloatArray, lo: FloatArray, hi: FloatArray) -> float:
+    """How far the ray ``p + s d`` (s ≥ 0) runs inside the box ``[lo, hi]``, metres."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = np.where(d > 0, (hi - p) / d, np.where(d < 0, (lo - p) / d, np.inf))
+    return float(max(np.min(t), 0.0))
 
 
 def _core_point(p: FloatArray, bbox: tuple[ArrayLike, ArrayLike] | None) -> FloatArray:
