@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 import time
 from dataclasses import replace
 from pathlib import Path
@@ -55,6 +56,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 import ruptures as rpt
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: `research`
 
 from research.primitive_labels import (
     ParserConfig,
