@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import coal
 import numpy as np
 import pinocchio as pin
@@ -195,3 +197,35 @@ def test_fixed_links_and_pairs_are_decided_once(panda: Robot) -> None:
     assert all(world.frame[k] == -1 for k in link1)
     qs = panda.random_q(np.random.default_rng(5), 300)
     np.testing.assert_array_equal(scene.valid_mask(qs), scene.valid_mask(qs, exact=True))
+
+
+def test_compiled_interpolation_is_the_reference_one(panda: Robot) -> None:
+    """``interpolate`` (compiled) gives the configurations of its definition: per segment
+    ``ceil(max(Σ|Δq|·lever / step_m, max|Δq| / step_rad))`` (at least 1) evenly spaced
+    steps, the waypoints included. The sphere path check over them proves free only what
+    the exact one accepts, and never a path leaving the joint limits."""
+    scene = CollisionScene(panda)
+    scene.add_table(height=0.75)
+    lever = scene.motion_bound()
+    rng = np.random.default_rng(9)
+    for n in (2, 3, 5):
+        qs = panda.random_q(rng, n)
+        qs[1] = qs[0]  # a zero-length segment: one step
+        got = scene.interpolate(qs, max_step_m=0.01, max_step_rad=0.02)
+        parts = [qs[:1]]
+        for a, b in itertools.pairwise(qs):
+            d = np.abs(b - a)
+            c = max(int(np.ceil(max(d @ lever / 0.01, d.max() / 0.02))), 1)
+            s = (np.arange(1, c + 1) / c)[:, None]
+            parts.append((1.0 - s) * a + s * b)
+        want = np.vstack(parts)
+        assert got.shape == want.shape
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-15)
+        free = scene.path_free_spheres(qs)
+        # the spheres prove free only what the exact check of the clearance accepts
+        if free:
+            assert scene.check_path(qs)
+    # a waypoint outside the joint limits: never free
+    bad = panda.random_q(rng, 2)
+    bad[1, 0] = panda.upper[0] + 0.1
+    assert not scene.path_free_spheres(bad)

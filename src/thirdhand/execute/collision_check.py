@@ -17,8 +17,10 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import Any
 
 import coal
+import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -85,6 +87,38 @@ def _coarse_to_fine(n: int) -> NDArray[np.intp]:
     return out
 
 
+@numba.njit(cache=True)
+def _dense_path(
+    qa: FloatArray, lever: FloatArray, max_step_m: float, max_step_rad: float
+) -> FloatArray:  # pragma: no cover - compiled
+    """:meth:`SceneChecks.interpolate`'s configurations (m, dof), compiled (same arithmetic)."""
+    n, dof = qa.shape
+    counts = np.empty(n - 1, dtype=np.int64)
+    total = 1
+    for k in range(n - 1):
+        lin = 0.0
+        big = 0.0
+        for j in range(dof):
+            d = abs(qa[k + 1, j] - qa[k, j])
+            lin += d * lever[j]
+            big = max(big, d)
+        steps = max(lin / max_step_m, big / max_step_rad)
+        c = max(int(np.ceil(steps)), 1)
+        counts[k] = c
+        total += c
+    out = np.empty((total, dof))
+    out[0] = qa[0]
+    row = 1
+    for k in range(n - 1):
+        c = counts[k]
+        for i in range(1, c + 1):
+            s = i / c
+            for j in range(dof):
+                out[row, j] = (1.0 - s) * qa[k, j] + s * qa[k + 1, j]
+            row += 1
+    return out
+
+
 def world_aabb(
     t: FloatArray, center: FloatArray, half: FloatArray
 ) -> tuple[FloatArray, FloatArray]:
@@ -124,7 +158,8 @@ class SceneChecks:
     _spairs: tuple[IntArray, sc.PairBlocks, IntArray, FloatArray] | None
     _fixed: list[FloatArray | None]
     _fixed_dist: dict[tuple[int, int], float]
-    _margin_cache: dict[float, FloatArray]
+    _margin_cache: dict[float, Any]
+    _chain_cache: tuple[object, sc.ChainArrays] | None
 
     # -- pairs ------------------------------------------------------------------------
 
@@ -288,8 +323,27 @@ class SceneChecks:
         return self._sworld
 
     def _chain_arrays(self) -> sc.ChainArrays:
-        chain = self.robot.chain
-        return sc.ChainArrays(chain.placements, chain.axes, chain.parents.astype(np.int64))
+        cached = self._chain_cache
+        if cached is None or cached[0] is not self.robot.chain:
+            chain = self.robot.chain
+            arrays = sc.ChainArrays(chain.placements, chain.axes, chain.parents.astype(np.int64))
+            cached = self._chain_cache = (chain, arrays)
+        return cached[1]
+
+    def _path_margins(self, clearance: float) -> tuple[FloatArray, FloatArray] | None:
+        """The kernels' margins of the moving pairs with ``clearance`` (cached till the world
+        changes), or None when two fixed bodies are within their contact margin."""
+        key = -1.0 - float(max(clearance, 0.0))  # beside _pair_margins' keys, never equal
+        cached = self._margin_cache.get(key)
+        if cached is None:
+            idx, pairs, fixed_idx, dists = self._sphere_pairs()
+            # fixed pairs do not move relative to each other: their contact margin applies
+            if np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6):
+                self._margin_cache[key] = ()
+                return None
+            m, bm = sc.sorted_margins(pairs, self._pair_margins(clearance)[idx])
+            cached = self._margin_cache[key] = (m, bm)
+        return None if not cached else (cached[0], cached[1])
 
     def _sphere_pairs(self) -> tuple[IntArray, sc.PairBlocks, IntArray, FloatArray]:
         """Active pairs split for the kernels: moving ones, and fixed ones (distance known).
@@ -376,16 +430,16 @@ class SceneChecks:
             return False
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
         dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
-        if not np.all((dense >= self.robot.lower - 1e-9) & (dense <= self.robot.upper + 1e-9)):
+        # a segment between two configurations within the limits stays within them
+        if not np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9)):
             return False
-        m = self._pair_margins(max_step_m / 2.0)
+        prepared = self._path_margins(max_step_m / 2.0)
+        if prepared is None:  # two fixed bodies in contact: no path is free by the spheres
+            return False
         world = self._sphere_world()
-        idx, pairs, fixed_idx, dists = self._sphere_pairs()
-        # fixed pairs do not move relative to each other: their contact margin applies
-        if np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6):
-            return False
+        _, pairs, _, _ = self._sphere_pairs()
         order = _coarse_to_fine(dense.shape[0])
-        first = sc.first_flagged(world, self._chain_arrays(), dense[order], pairs, m[idx])
+        first = sc.first_flagged(world, self._chain_arrays(), dense[order], pairs, prepared)
         self.n_checks += dense.shape[0] if first < 0 else first + 1
         return first < 0
 
@@ -610,15 +664,10 @@ class SceneChecks:
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
         if qa.shape[0] < 2:
             return qa.copy()
-        lever = self.motion_bound()
-        d = np.abs(np.diff(qa, axis=0))
-        steps = np.maximum(d @ lever / max_step_m, d.max(axis=1) / max_step_rad)
-        counts = np.maximum(np.ceil(steps).astype(np.intp), 1)
-        parts = [qa[:1]]
-        for k in range(qa.shape[0] - 1):
-            s = (np.arange(1, counts[k] + 1) / counts[k])[:, None]
-            parts.append((1.0 - s) * qa[k] + s * qa[k + 1])
-        return np.vstack(parts)
+        return np.asarray(
+            _dense_path(np.ascontiguousarray(qa), self.motion_bound(), max_step_m, max_step_rad),
+            dtype=np.float64,
+        )
 
     def check_path(
         self,

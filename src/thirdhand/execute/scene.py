@@ -108,6 +108,7 @@ class CollisionScene(SceneChecks):
         self._pairs: tuple[IntArray, IntArray] | None = None
         self._lever: FloatArray | None = None
         self._sworld: sc.SphereWorld | None = None
+        self._chain_cache: tuple[object, sc.ChainArrays] | None = None
         self._spairs: tuple[IntArray, sc.PairBlocks, IntArray, FloatArray] | None = None
         self._fixed: list[FloatArray | None] = []
         self._fixed_dist: dict[tuple[int, int], float] = {}

@@ -33,7 +33,7 @@ from thirdhand.execute.kinematics import _fk, joint_transforms_nb
 from thirdhand.execute.spheres import SphereCover
 
 __all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "first_flagged", "flags", "free",
-           "joint_transforms_nb", "pack", "pair_blocks", "warm_up"]  # fmt: skip
+           "joint_transforms_nb", "pack", "pair_blocks", "sorted_margins", "warm_up"]  # fmt: skip
 
 
 SPHERES = 0
@@ -161,6 +161,8 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
          stamp: IntArray, out: BoolArray) -> int:  # fmt: skip
     """Fill ``out`` (n, P) with the pair flags; returns the first flagged config or -1.
 
+    With ``stop`` 2, ``out`` is (1, P) and receives the first flagged configuration's flags.
+
     ``stop``: 0 flags every pair of every configuration, 1 stops each configuration at
     its first flagged pair, 2 stops the whole batch there. ``wc``, ``wb``, ``wg``,
     ``ws`` are scratch copies of ``clusters``, ``bound``, ``groups``, ``spheres``
@@ -235,7 +237,7 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
                             if hit:
                                 break
                 if hit:
-                    out[i, p] = True
+                    out[i if stop != 2 else 0, p] = True
                     if first < 0:
                         first = i
                     if stop == 2:
@@ -321,21 +323,40 @@ def free(
 
 
 def first_flagged(
-    world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBlocks, margins: FloatArray
+    world: SphereWorld,
+    chain: ChainArrays,
+    qs: FloatArray,
+    blocks: PairBlocks,
+    margins: FloatArray | tuple[FloatArray, FloatArray],
 ) -> int:
-    """Index of the first configuration (in order) with a flagged pair, -1 if none; stops there."""
+    """Index of the first configuration (in order) with a flagged pair, -1 if none; stops there.
+
+    ``margins``: (P,) in the caller's order, or :func:`sorted_margins` of them.
+    """
     return _call(world, chain, qs, blocks, margins, 2)[1]
 
 
-def _call(world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBlocks,
-          margins: FloatArray, stop: int) -> tuple[BoolArray, int]:  # fmt: skip
-    qa = np.ascontiguousarray(qs, dtype=np.float64)
-    n_pairs = len(blocks.pairs)
-    out = np.zeros((qa.shape[0], n_pairs), dtype=np.bool_)
-    if not n_pairs or not qa.shape[0]:
-        return out, -1
+def sorted_margins(blocks: PairBlocks, margins: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The kernels' margins: per sorted pair (P,) and per block (K,), metres.
+
+    ``margins`` (P,) in the caller's pair order; negative ones count as 0. Computed once
+    per world and margin set by callers that check many paths (:func:`first_flagged`).
+    """
     m = np.maximum(np.asarray(margins, dtype=np.float64)[blocks.order], 0.0) + 1e-9
     bm = np.maximum.reduceat(m, blocks.blocks[:, 0]) if len(blocks.blocks) else m[:0]
+    return m, bm
+
+
+def _call(world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBlocks,
+          margins: FloatArray | tuple[FloatArray, FloatArray], stop: int,
+          ) -> tuple[BoolArray, int]:  # fmt: skip
+    qa = np.ascontiguousarray(qs, dtype=np.float64)
+    n_pairs = len(blocks.pairs)
+    # stop 2 wants only the first flagged configuration: its flags go to row 0
+    out = np.zeros((qa.shape[0] if stop != 2 else 1, n_pairs), dtype=np.bool_)
+    if not n_pairs or not qa.shape[0]:
+        return out, -1
+    m, bm = margins if isinstance(margins, tuple) else sorted_margins(blocks, margins)
     wc, wb, wg, ws, stamp = blocks.scratch
     first = _run(qa, chain.placements, chain.axes, chain.parents, world.spheres, world.groups,
                  world.group_range, world.frame, world.kind, world.bound, world.body_groups,
