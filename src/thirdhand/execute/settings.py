@@ -31,7 +31,7 @@ class ExecuteSettings(Settings):
         "several demonstrations), plan, or parents (only parents first).",
     )
     max_grasps: int = Field(24, ge=1, le=10_000, description="Grasp candidates tried per step.")
-    goals: int = Field(16, ge=1, le=10_000, description="Goal poses tried per step (free DOFs).")
+    goals: int = Field(24, ge=1, le=10_000, description="Goal poses tried per step (free DOFs).")
     assembly_at: tuple[float, float] | None = Field(
         None, description="World x y (m) where the assembly is built (default: the robot's)."
     )

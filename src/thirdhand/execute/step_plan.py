@@ -84,7 +84,7 @@ class ExecutionOptions:
     """
 
     sample_free_dofs: bool = True
-    n_goal_samples: int = 16
+    n_goal_samples: int = 24
     max_grasps: int = 24
     rank_by_reach: bool = False
     n_rank_goals: int = 3
