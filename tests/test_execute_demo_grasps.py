@@ -84,7 +84,7 @@ def test_execute_with_demo_holds_each_leg_where_the_fingers_did(tmp_path, shared
         c = by_child[s["child"]]
         obj = next(o for o in task.objects if o.name == c.child)
         box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
-        found = square_to_box(demo_grasps(demo, c.child, c.time, bbox=box), *box)
+        found = square_to_box(demo_grasps(demo, c.child, c.time, bbox=box))
         hints = {g.label: g for g in rod_turns(found, *box)}
         lift = next(
             g for g in doc["segments"] if g["step"] == s["index"] and g["segment"] == "lift"
@@ -124,7 +124,7 @@ def test_a_pinch_of_a_board_approaches_across_the_fingers_from_the_nearer_edge()
 def test_square_to_box_closes_along_the_faces_normal_and_keeps_the_place() -> None:
     slant = tool_frame([0.05, 0.0, 0.0165], [0.3, -1.0, 0.4], [0.35, 0.3, 1.0])
     g = Grasp(slant, "demo", "demo:rh")
-    out = square_to_box([g], *BOARD)
+    out = square_to_box([g])
     assert [o.label for o in out] == ["demo:rh", "demo:rh/square"] and out[0] is g
     sq = out[1].pose
     np.testing.assert_allclose(sq[:3, 3], slant[:3, 3])  # the same place on the board
@@ -136,4 +136,4 @@ def test_square_to_box_closes_along_the_faces_normal_and_keeps_the_place() -> No
     square = Grasp(sq, "demo", "x")
     steep = Grasp(tool_frame([0, 0, 0], [0, 0, -1], [1.0, 1.0, 0.0]), "demo", "y")
     shape = Grasp(slant, "shape", "side")
-    assert square_to_box([square, steep, shape], *BOARD) == [square, steep, shape]
+    assert square_to_box([square, steep, shape]) == [square, steep, shape]

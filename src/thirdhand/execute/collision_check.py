@@ -17,15 +17,13 @@ from __future__ import annotations
 import hashlib
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any
 
 import coal
 import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from thirdhand.arrays import BoolArray, FloatArray
-from thirdhand.arrays import IndexArray as IntArray
+from thirdhand.arrays import BoolArray, FloatArray, IndexArray
 from thirdhand.execute import sphere_check as sc
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.spheres import SphereCover, cover_geometry, transform_cover
@@ -143,7 +141,7 @@ class SceneChecks:
     _requests: dict[float, coal.CollisionRequest]
     _result: coal.CollisionResult
     _links: list[Body]
-    _link_joint: IntArray
+    _link_joint: IndexArray
     _link_names: list[str]
     _self_pairs: list[tuple[int, int]]
     _objects: dict[str, Body]
@@ -151,14 +149,15 @@ class SceneChecks:
     _t_tool_attached: FloatArray
     _touch_links: set[str]
     _allowed: set[frozenset[str]]
-    _pairs: tuple[IntArray, IntArray] | None
+    _pairs: tuple[IndexArray, IndexArray] | None
     _lever: FloatArray | None
-    _moving: IntArray
+    _moving: IndexArray
     _sworld: sc.SphereWorld | None
-    _spairs: tuple[IntArray, sc.PairBlocks, IntArray, FloatArray] | None
+    _spairs: tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray] | None
     _fixed: list[FloatArray | None]
     _fixed_dist: dict[tuple[int, int], float]
-    _margin_cache: dict[float, Any]
+    _margin_cache: dict[float, FloatArray]
+    _path_margin_cache: dict[float, tuple[FloatArray, FloatArray] | None]
     _chain_cache: tuple[object, sc.ChainArrays] | None
 
     # -- pairs ------------------------------------------------------------------------
@@ -168,6 +167,7 @@ class SceneChecks:
         self._pairs = None
         self._spairs = None
         self._margin_cache = {}
+        self._path_margin_cache = {}
         if bodies:
             self._lever = None
             self._sworld = None
@@ -183,7 +183,7 @@ class SceneChecks:
                 return True
         return False
 
-    def _active_pairs(self) -> tuple[IntArray, IntArray]:
+    def _active_pairs(self) -> tuple[IndexArray, IndexArray]:
         """Body index pairs: links 0..G-1, objects G..G+E-1, grasped part G+E."""
         if self._pairs is not None:
             return self._pairs
@@ -333,19 +333,17 @@ class SceneChecks:
     def _path_margins(self, clearance: float) -> tuple[FloatArray, FloatArray] | None:
         """The kernels' margins of the moving pairs with ``clearance`` (cached till the world
         changes), or None when two fixed bodies are within their contact margin."""
-        key = -1.0 - float(max(clearance, 0.0))  # beside _pair_margins' keys, never equal
-        cached = self._margin_cache.get(key)
-        if cached is None:
+        key = float(max(clearance, 0.0))
+        if key not in self._path_margin_cache:
             idx, pairs, fixed_idx, dists = self._sphere_pairs()
             # fixed pairs do not move relative to each other: their contact margin applies
-            if np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6):
-                self._margin_cache[key] = ()
-                return None
-            m, bm = sc.sorted_margins(pairs, self._pair_margins(clearance)[idx])
-            cached = self._margin_cache[key] = (m, bm)
-        return None if not cached else (cached[0], cached[1])
+            touching = np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6)
+            self._path_margin_cache[key] = (
+                None if touching else sc.sorted_margins(pairs, self._pair_margins(clearance)[idx])
+            )
+        return self._path_margin_cache[key]
 
-    def _sphere_pairs(self) -> tuple[IntArray, sc.PairBlocks, IntArray, FloatArray]:
+    def _sphere_pairs(self) -> tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray]:
         """Active pairs split for the kernels: moving ones, and fixed ones (distance known).
 
         Returns the indices of the pairs with a moving body and their blocks for the
@@ -719,7 +717,8 @@ class SceneChecks:
                 margins = wide
         dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
         # the common case in one compiled call: the spheres clear every configuration
-        within = np.all((dense >= self.robot.lower - 1e-9) & (dense <= self.robot.upper + 1e-9))
+        # a segment between two configurations within the limits stays within them
+        within = np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9))
         if within and self.use_spheres and np.all(self.sphere_free_mask(dense, margins)):
             self.n_checks += dense.shape[0]
             return True

@@ -260,7 +260,7 @@ def demo_grasps(
     return out
 
 
-def square_to_box(grasps: Sequence[Grasp], bbox_min: ArrayLike, bbox_max: ArrayLike) -> list[Grasp]:
+def square_to_box(grasps: Sequence[Grasp]) -> list[Grasp]:
     """Demonstrated grasps, each followed by its copy closing square to the part's faces.
 
     A hand's thumb and fingers meet a board at a slant a parallel gripper cannot hold:
@@ -276,15 +276,13 @@ def square_to_box(grasps: Sequence[Grasp], bbox_min: ArrayLike, bbox_max: ArrayL
     Parameters
     ----------
     grasps : sequence of Grasp
-        ``T_part_tool``, part's body frame.
-    bbox_min, bbox_max : array_like, shape (3,)
-        The part's bounding box, body frame, metres (its axes are the faces' normals).
+        ``T_part_tool``, part's body frame (a part's box is axis-aligned there: the
+        frame's axes are its faces' normals).
 
     Returns
     -------
     list of Grasp
     """
-    del bbox_min, bbox_max  # the box is axis-aligned in the body frame: its axes are e_x,y,z
     out: list[Grasp] = []
     for g in grasps:
         out.append(g)

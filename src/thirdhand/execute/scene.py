@@ -31,8 +31,7 @@ import numpy as np
 import pinocchio as pin
 from numpy.typing import ArrayLike
 
-from thirdhand.arrays import FloatArray
-from thirdhand.arrays import IndexArray as IntArray
+from thirdhand.arrays import FloatArray, IndexArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute import meshes
 from thirdhand.execute import sphere_check as sc
@@ -105,11 +104,12 @@ class CollisionScene(SceneChecks):
         self._t_tool_attached = np.eye(4)
         self._touch_links: set[str] = set()
         self._allowed: set[frozenset[str]] = set()
-        self._pairs: tuple[IntArray, IntArray] | None = None
+        self._pairs: tuple[IndexArray, IndexArray] | None = None
         self._lever: FloatArray | None = None
         self._sworld: sc.SphereWorld | None = None
         self._chain_cache: tuple[object, sc.ChainArrays] | None = None
-        self._spairs: tuple[IntArray, sc.PairBlocks, IntArray, FloatArray] | None = None
+        self._path_margin_cache: dict[float, tuple[FloatArray, FloatArray] | None] = {}
+        self._spairs: tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray] | None = None
         self._fixed: list[FloatArray | None] = []
         self._fixed_dist: dict[tuple[int, int], float] = {}
         self._margin_cache: dict[float, FloatArray] = {}

@@ -33,8 +33,7 @@ from dataclasses import dataclass
 import coal
 import numpy as np
 
-from thirdhand.arrays import FloatArray
-from thirdhand.arrays import IndexArray as IntArray
+from thirdhand.arrays import FloatArray, IndexArray
 
 #: Added to every radius: float round-off of the transforms, metres.
 PAD = 1e-6
@@ -61,7 +60,7 @@ class SphereCover:
 
     spheres: FloatArray
     groups: FloatArray
-    group_range: IntArray
+    group_range: IndexArray
     bound: FloatArray
 
 
@@ -130,7 +129,7 @@ def triangle_spheres(triangles: FloatArray, cell: float) -> FloatArray:
     return _gather(balls, cell)
 
 
-def _enclosing_runs(balls: FloatArray, starts: IntArray) -> FloatArray:
+def _enclosing_runs(balls: FloatArray, starts: IndexArray) -> FloatArray:
     """:func:`enclosing` of each run ``balls[starts[i]:starts[i + 1]]``, shape (runs, 4)."""
     s0 = starts[:-1]
     lo = np.minimum.reduceat(balls[:, :3] - balls[:, 3:], s0, axis=0)
@@ -142,7 +141,7 @@ def _enclosing_runs(balls: FloatArray, starts: IntArray) -> FloatArray:
     return np.column_stack([c, r])
 
 
-def _voxel_runs(balls: FloatArray, side: float) -> tuple[FloatArray, IntArray]:
+def _voxel_runs(balls: FloatArray, side: float) -> tuple[FloatArray, IndexArray]:
     """``balls`` sorted by voxel of side ``side`` (by centre), and the start of each voxel's run."""
     cells = np.floor(balls[:, :3] / side).astype(np.int64)
     cells -= cells.min(axis=0)
