@@ -31,6 +31,10 @@ from thirdhand.execute.spheres import SphereCover, cover_geometry, transform_cov
 GRIPPER = "gripper"
 ROBOT = "robot"
 
+#: Reach of the path kernel's margin levels, configurations on either side (see
+#: :meth:`SceneChecks._path_levels`); a longer stretch is split before it is tested.
+PATH_REACH = np.concatenate([[0], 2 ** np.arange(13)]).astype(np.int64)
+
 
 @dataclass
 class Body:
@@ -157,7 +161,7 @@ class SceneChecks:
     _fixed: list[FloatArray | None]
     _fixed_dist: dict[tuple[int, int], float]
     _margin_cache: dict[float, FloatArray]
-    _path_margin_cache: dict[float, tuple[FloatArray, FloatArray] | None]
+    _path_margin_cache: dict[float, tuple[FloatArray, FloatArray, IndexArray] | None]
     _chain_cache: tuple[object, sc.ChainArrays] | None
 
     # -- pairs ------------------------------------------------------------------------
@@ -257,13 +261,17 @@ class SceneChecks:
         )
         if clearance <= 0.0:
             return base
-        n_links = len(self._links)
-        moving = np.zeros(len(bodies), dtype=bool)
-        moving[:n_links] = self._link_joint >= 0
+        n_moving = self._pair_moving()
+        return np.where(n_moving > 0, clearance * n_moving, base)
+
+    def _pair_moving(self) -> IndexArray:
+        """How many of each active pair's two bodies the arm moves (0, 1 or 2), shape (P,)."""
+        first, second = self._active_pairs()
+        moving = np.zeros(len(self._bodies()), dtype=bool)
+        moving[: len(self._links)] = self._link_joint >= 0
         if self._attached is not None:
             moving[-1] = True
-        n_moving = moving[first].astype(int) + moving[second].astype(int)
-        return np.where(n_moving > 0, clearance * n_moving, base)
+        return moving[first].astype(np.intp) + moving[second].astype(np.intp)
 
     def _fixed_frame(self, k: int) -> FloatArray | None:
         """World transform of link ``k`` if no joint moves it as a set, else None.
@@ -330,18 +338,48 @@ class SceneChecks:
             cached = self._chain_cache = (chain, arrays)
         return cached[1]
 
-    def _path_margins(self, clearance: float) -> tuple[FloatArray, FloatArray] | None:
-        """The kernels' margins of the moving pairs with ``clearance`` (cached till the world
-        changes), or None when two fixed bodies are within their contact margin."""
-        key = float(max(clearance, 0.0))
-        if key not in self._path_margin_cache:
-            idx, pairs, fixed_idx, dists = self._sphere_pairs()
-            # fixed pairs do not move relative to each other: their contact margin applies
-            touching = np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6)
-            self._path_margin_cache[key] = (
-                None if touching else sc.sorted_margins(pairs, self._pair_margins(clearance)[idx])
-            )
-        return self._path_margin_cache[key]
+    def _path_levels(
+        self, max_step_m: float, margins: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray, IndexArray] | None:
+        """The path kernel's margin levels (see :func:`.sphere_check.path_flagged`) for a path
+        interpolated at ``max_step_m``, or None when two fixed bodies are within their contact
+        margin.
+
+        Level 0 is ``margins`` (P,), by default the path clearance (half a step per moving
+        body, cached till the world changes); level l stands for the ``PATH_REACH[l]``
+        configurations on either side: it adds that many steps per moving body.
+        """
+        key = float(max_step_m)
+        if margins is None and key in self._path_margin_cache:
+            return self._path_margin_cache[key]
+        base = self._pair_margins(max_step_m / 2.0) if margins is None else margins
+        idx, pairs, fixed_idx, dists = self._sphere_pairs()
+        levels = None
+        # fixed pairs do not move relative to each other: their distance is known, and
+        # only their contact margin applies (no clearance)
+        if not np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6):
+            n_moving = self._pair_moving()[idx]
+            m = np.maximum(base[idx], 0.0)[None] + (PATH_REACH * max_step_m)[:, None] * n_moving
+            levels = (*sc.sorted_margins(pairs, m), PATH_REACH)
+        if margins is None:
+            self._path_margin_cache[key] = levels
+        return levels
+
+    def _path_first_flagged(
+        self, dense: FloatArray, max_step_m: float, margins: FloatArray | None = None
+    ) -> int:
+        """A configuration of ``dense`` (interpolated at ``max_step_m``) the spheres flag at
+        ``margins`` (default: the path clearance), or -1 if they clear all; -2 when two
+        fixed bodies touch (nothing is cleared). Counts the tests in :attr:`n_checks`."""
+        levels = self._path_levels(max_step_m, margins)
+        if levels is None:
+            return -2
+        _, pairs, _, _ = self._sphere_pairs()
+        first, tests = sc.path_flagged(
+            self._sphere_world(), self._chain_arrays(), dense, pairs, levels
+        )
+        self.n_checks += tests
+        return first
 
     def _sphere_pairs(self) -> tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray]:
         """Active pairs split for the kernels: moving ones, and fixed ones (distance known).
@@ -421,8 +459,8 @@ class SceneChecks:
 
         Conservative: True implies that :meth:`check_path` (with clearance) is True;
         False may be a path coal would accept (a part close to a surface). One
-        compiled call over the densely interpolated path, coarse to fine, stopping
-        at the first flagged configuration.
+        compiled call over the densely interpolated path: stretches cleared at their middle
+        with widened margins, coarse to fine, stopping at the first flagged configuration.
         """
         if not self.use_spheres:
             return False
@@ -431,15 +469,7 @@ class SceneChecks:
         # a segment between two configurations within the limits stays within them
         if not np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9)):
             return False
-        prepared = self._path_margins(max_step_m / 2.0)
-        if prepared is None:  # two fixed bodies in contact: no path is free by the spheres
-            return False
-        world = self._sphere_world()
-        _, pairs, _, _ = self._sphere_pairs()
-        order = _coarse_to_fine(dense.shape[0])
-        first = sc.first_flagged(world, self._chain_arrays(), dense[order], pairs, prepared)
-        self.n_checks += dense.shape[0] if first < 0 else first + 1
-        return first < 0
+        return self._path_first_flagged(dense, max_step_m) == -1
 
     def _bodies(self) -> list[Body]:
         bodies = self._links + list(self._objects.values())
@@ -719,9 +749,13 @@ class SceneChecks:
         # the common case in one compiled call: the spheres clear every configuration
         # a segment between two configurations within the limits stays within them
         within = np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9))
-        if within and self.use_spheres and np.all(self.sphere_free_mask(dense, margins)):
-            self.n_checks += dense.shape[0]
-            return True
+        if within and self.use_spheres:
+            first = self._path_first_flagged(dense, max_step_m, margins)
+            if first == -1:
+                return True
+            # coal decides first where the spheres flagged: a colliding path is rejected there
+            if first >= 0 and not self._check(dense[first : first + 1], margins, True)[0]:
+                return False
         # coarse to fine (bit-reversed order): a colliding stretch is hit after few checks
         dense = dense[_coarse_to_fine(dense.shape[0])]
         for k in range(0, dense.shape[0], chunk):

@@ -148,37 +148,46 @@ def rotation_error(r_target: FloatArray, r: FloatArray) -> FloatArray:
 @numba.njit(cache=True)
 def _fk(q: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
         out: FloatArray) -> None:  # fmt: skip
-    """Joint frames ``out`` (dof, 4, 4) of one configuration ``q`` (dof,)."""
-    dof = q.shape[0]
-    local = np.empty((4, 4))
-    rot = np.empty((3, 3))
-    for j in range(dof):
+    """Joint frames ``out`` (dof, 4, 4) of one configuration ``q`` (dof,).
+
+    Scalars only (no scratch arrays): this runs once per configuration in the
+    collision kernels, where an allocation costs as much as the arithmetic.
+    """
+    for j in range(q.shape[0]):
         x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
         c, s = np.cos(q[j]), np.sin(q[j])
         v = 1.0 - c
-        rot[0, 0], rot[0, 1], rot[0, 2] = c + x * x * v, x * y * v - z * s, x * z * v + y * s
-        rot[1, 0], rot[1, 1], rot[1, 2] = y * x * v + z * s, c + y * y * v, y * z * v - x * s
-        rot[2, 0], rot[2, 1], rot[2, 2] = z * x * v - y * s, z * y * v + x * s, c + z * z * v
+        r00, r01, r02 = c + x * x * v, x * y * v - z * s, x * z * v + y * s
+        r10, r11, r12 = y * x * v + z * s, c + y * y * v, y * z * v - x * s
+        r20, r21, r22 = z * x * v - y * s, z * y * v + x * s, c + z * z * v
         pl = placements[j]
-        for a in range(3):
-            for b in range(3):
-                local[a, b] = pl[a, 0] * rot[0, b] + pl[a, 1] * rot[1, b] + pl[a, 2] * rot[2, b]
-            local[a, 3] = pl[a, 3]
-        local[3, 0] = local[3, 1] = local[3, 2] = 0.0
-        local[3, 3] = 1.0
+        # local = placement · [rot 0; 0 1], row by row
+        l00 = pl[0, 0] * r00 + pl[0, 1] * r10 + pl[0, 2] * r20
+        l01 = pl[0, 0] * r01 + pl[0, 1] * r11 + pl[0, 2] * r21
+        l02 = pl[0, 0] * r02 + pl[0, 1] * r12 + pl[0, 2] * r22
+        l10 = pl[1, 0] * r00 + pl[1, 1] * r10 + pl[1, 2] * r20
+        l11 = pl[1, 0] * r01 + pl[1, 1] * r11 + pl[1, 2] * r21
+        l12 = pl[1, 0] * r02 + pl[1, 1] * r12 + pl[1, 2] * r22
+        l20 = pl[2, 0] * r00 + pl[2, 1] * r10 + pl[2, 2] * r20
+        l21 = pl[2, 0] * r01 + pl[2, 1] * r11 + pl[2, 2] * r21
+        l22 = pl[2, 0] * r02 + pl[2, 1] * r12 + pl[2, 2] * r22
+        l03, l13, l23 = pl[0, 3], pl[1, 3], pl[2, 3]
+        o = out[j]
         p = parents[j]
         if p < 0:
-            out[j] = local
+            o[0, 0], o[0, 1], o[0, 2], o[0, 3] = l00, l01, l02, l03
+            o[1, 0], o[1, 1], o[1, 2], o[1, 3] = l10, l11, l12, l13
+            o[2, 0], o[2, 1], o[2, 2], o[2, 3] = l20, l21, l22, l23
         else:
             par = out[p]
             for a in range(3):
-                for b in range(4):
-                    out[j, a, b] = (
-                        par[a, 0] * local[0, b] + par[a, 1] * local[1, b] + par[a, 2] * local[2, b]
-                    )
-                out[j, a, 3] += par[a, 3]
-            out[j, 3, 0] = out[j, 3, 1] = out[j, 3, 2] = 0.0
-            out[j, 3, 3] = 1.0
+                p0, p1, p2 = par[a, 0], par[a, 1], par[a, 2]
+                o[a, 0] = p0 * l00 + p1 * l10 + p2 * l20
+                o[a, 1] = p0 * l01 + p1 * l11 + p2 * l21
+                o[a, 2] = p0 * l02 + p1 * l12 + p2 * l22
+                o[a, 3] = p0 * l03 + p1 * l13 + p2 * l23 + par[a, 3]
+        o[3, 0] = o[3, 1] = o[3, 2] = 0.0
+        o[3, 3] = 1.0
 
 
 @numba.njit(cache=True)

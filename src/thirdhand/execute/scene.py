@@ -108,7 +108,7 @@ class CollisionScene(SceneChecks):
         self._lever: FloatArray | None = None
         self._sworld: sc.SphereWorld | None = None
         self._chain_cache: tuple[object, sc.ChainArrays] | None = None
-        self._path_margin_cache: dict[float, tuple[FloatArray, FloatArray] | None] = {}
+        self._path_margin_cache: dict[float, tuple[FloatArray, FloatArray, IndexArray] | None] = {}
         self._spairs: tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray] | None = None
         self._fixed: list[FloatArray | None] = []
         self._fixed_dist: dict[tuple[int, int], float] = {}

@@ -32,8 +32,8 @@ from thirdhand.arrays import BoolArray, FloatArray, IntArray
 from thirdhand.execute.kinematics import _fk, joint_transforms_nb
 from thirdhand.execute.spheres import SphereCover
 
-__all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "first_flagged", "flags", "free",
-           "joint_transforms_nb", "pack", "pair_blocks", "sorted_margins", "warm_up"]  # fmt: skip
+__all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "flags", "free", "joint_transforms_nb",
+           "pack", "pair_blocks", "path_flagged", "sorted_margins", "warm_up"]  # fmt: skip
 
 
 SPHERES = 0
@@ -151,103 +151,188 @@ def _near_box(a: FloatArray, i: int, inv: FloatArray, half: FloatArray, b: int,
     return acc <= r * r
 
 
+@numba.njit(cache=True, inline="always")
+def _flag_config(t: FloatArray, key: int, spheres: FloatArray, groups: FloatArray,
+                 group_range: IntArray, frame: IntArray, kind: IntArray, bound: FloatArray,
+                 body_groups: IntArray, box_inv: FloatArray, box_half: FloatArray,
+                 clusters: FloatArray, cluster_frame: IntArray, pairs: IntArray,
+                 margins: FloatArray, blocks: IntArray, block_margin: FloatArray, every: bool,
+                 wc: FloatArray, wb: FloatArray, wg: FloatArray, ws: FloatArray,
+                 stamps: IntArray, out: BoolArray, row: int) -> bool:  # fmt: skip
+    """Flag the pairs of one configuration (joint frames ``t``) in ``out[row]``; True if any.
+
+    ``every``: flag every pair, else stop at the first. ``key`` identifies the
+    configuration in ``stamps`` (3, max(B, G)): the configuration a body's bound, a
+    group's centre and a group's spheres were last moved for (moving bodies are moved
+    only when a test needs them). ``wc``, ``wb``, ``wg``, ``ws``: see :func:`_run`.
+    """
+    bstamp, gstamp, sstamp = stamps[0], stamps[1], stamps[2]
+    for c in range(clusters.shape[0]):
+        if cluster_frame[c] >= 0:
+            _move(t[cluster_frame[c]], clusters, c, wc)
+    flagged = False
+    for blk in range(blocks.shape[0]):
+        if not _near(wc, blocks[blk, 2], wc, blocks[blk, 3], block_margin[blk]):
+            continue
+        for p in range(blocks[blk, 0], blocks[blk, 1]):
+            a, b = pairs[p, 0], pairs[p, 1]
+            m = margins[p]
+            if kind[a] == BOX:
+                a, b = b, a
+            hit = False
+            for e in (a, b):
+                if frame[e] >= 0 and bstamp[e] != key:
+                    bstamp[e] = key
+                    _move(t[frame[e]], bound, e, wb)
+            if kind[a] == BOX:
+                hit = True  # two boxes: left to coal
+            elif kind[b] == BOX:
+                if not _near_box(wb, a, box_inv, box_half, b, m):
+                    continue
+                for g in range(body_groups[a, 0], body_groups[a, 1]):
+                    if frame[a] >= 0 and gstamp[g] != key:
+                        gstamp[g] = key
+                        _move(t[frame[a]], groups, g, wg)
+                    if not _near_box(wg, g, box_inv, box_half, b, m):
+                        continue
+                    if frame[a] >= 0 and sstamp[g] != key:
+                        sstamp[g] = key
+                        for k in range(group_range[g, 0], group_range[g, 1]):
+                            _move(t[frame[a]], spheres, k, ws)
+                    for k in range(group_range[g, 0], group_range[g, 1]):
+                        if _near_box(ws, k, box_inv, box_half, b, m):
+                            hit = True
+                            break
+                    if hit:
+                        break
+            elif _near(wb, a, wb, b, m):
+                for e in (a, b):
+                    if frame[e] >= 0:
+                        for g in range(body_groups[e, 0], body_groups[e, 1]):
+                            if gstamp[g] != key:
+                                gstamp[g] = key
+                                _move(t[frame[e]], groups, g, wg)
+                for ga in range(body_groups[a, 0], body_groups[a, 1]):
+                    if not _near(wg, ga, wb, b, m):
+                        continue
+                    for gb in range(body_groups[b, 0], body_groups[b, 1]):
+                        if not _near(wg, ga, wg, gb, m):
+                            continue
+                        for g, f in ((ga, frame[a]), (gb, frame[b])):
+                            if f >= 0 and sstamp[g] != key:
+                                sstamp[g] = key
+                                for k in range(group_range[g, 0], group_range[g, 1]):
+                                    _move(t[f], spheres, k, ws)
+                        for sa in range(group_range[ga, 0], group_range[ga, 1]):
+                            if not _near(ws, sa, wg, gb, m):
+                                continue
+                            for sb in range(group_range[gb, 0], group_range[gb, 1]):
+                                if _near(ws, sa, ws, sb, m):
+                                    hit = True
+                                    break
+                            if hit:
+                                break
+                        if hit:
+                            break
+                    if hit:
+                        break
+            if hit:
+                out[row, p] = True
+                flagged = True
+                if not every:
+                    return True
+    return flagged
+
+
 @numba.njit(cache=True)
 def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
          spheres: FloatArray, groups: FloatArray, group_range: IntArray, frame: IntArray,
          kind: IntArray, bound: FloatArray, body_groups: IntArray, box_inv: FloatArray,
          box_half: FloatArray, clusters: FloatArray, cluster_frame: IntArray,
-         pairs: IntArray, margins: FloatArray, blocks: IntArray, block_margin: FloatArray,
-         stop: int, wc: FloatArray, wb: FloatArray, wg: FloatArray, ws: FloatArray,
-         stamp: IntArray, out: BoolArray) -> int:  # fmt: skip
+         pairs: IntArray, margins: FloatArray, blocks: IntArray,
+         block_margin: FloatArray, stop: int, wc: FloatArray, wb: FloatArray, wg: FloatArray,
+         ws: FloatArray, stamps: IntArray, out: BoolArray) -> int:  # fmt: skip
     """Fill ``out`` (n, P) with the pair flags; returns the first flagged config or -1.
 
-    With ``stop`` 2, ``out`` is (1, P) and receives the first flagged configuration's flags.
-
     ``stop``: 0 flags every pair of every configuration, 1 stops each configuration at
-    its first flagged pair, 2 stops the whole batch there. ``wc``, ``wb``, ``wg``,
-    ``ws`` are scratch copies of ``clusters``, ``bound``, ``groups``, ``spheres``
-    (the fixed entries already in world coordinates); ``stamp`` (G,) scratch too.
+    its first flagged pair. ``wc``, ``wb``, ``wg``, ``ws`` are scratch copies of
+    ``clusters``, ``bound``, ``groups``, ``spheres`` (the fixed entries already in world
+    coordinates); ``stamps`` (3, max(B, G)) scratch too (see :func:`_flag_config`).
     """
     n, dof = qs.shape
-    n_bodies = frame.shape[0]
     t = np.empty((dof, 4, 4))
-    stamp[:] = -1
+    stamps[:] = -1
     first = -1
     for i in range(n):
         _fk(qs[i], placements, axes, parents, t)
-        for c in range(clusters.shape[0]):
-            if cluster_frame[c] >= 0:
-                _move(t[cluster_frame[c]], clusters, c, wc)
-        for b in range(n_bodies):
-            f = frame[b]
-            if f >= 0:
-                _move(t[f], bound, b, wb)
-                for g in range(body_groups[b, 0], body_groups[b, 1]):
-                    _move(t[f], groups, g, wg)
-        done = False
-        for blk in range(blocks.shape[0]):
-            if not _near(wc, blocks[blk, 2], wc, blocks[blk, 3], block_margin[blk]):
-                continue
-            for p in range(blocks[blk, 0], blocks[blk, 1]):
-                a, b = pairs[p, 0], pairs[p, 1]
-                m = margins[p]
-                if kind[a] == BOX:
-                    a, b = b, a
-                hit = False
-                if kind[a] == BOX:
-                    hit = True  # two boxes: left to coal
-                elif _near(wb, a, wb, b, m):
-                    if kind[b] == BOX:
-                        for g in range(body_groups[a, 0], body_groups[a, 1]):
-                            if not _near_box(wg, g, box_inv, box_half, b, m):
-                                continue
-                            if frame[a] >= 0 and stamp[g] != i:
-                                stamp[g] = i
-                                for k in range(group_range[g, 0], group_range[g, 1]):
-                                    _move(t[frame[a]], spheres, k, ws)
-                            for k in range(group_range[g, 0], group_range[g, 1]):
-                                if _near_box(ws, k, box_inv, box_half, b, m):
-                                    hit = True
-                                    break
-                            if hit:
-                                break
-                    else:
-                        for ga in range(body_groups[a, 0], body_groups[a, 1]):
-                            if not _near(wg, ga, wb, b, m):
-                                continue
-                            for gb in range(body_groups[b, 0], body_groups[b, 1]):
-                                if not _near(wg, ga, wg, gb, m):
-                                    continue
-                                for g, f in ((ga, frame[a]), (gb, frame[b])):
-                                    if f >= 0 and stamp[g] != i:
-                                        stamp[g] = i
-                                        for k in range(group_range[g, 0], group_range[g, 1]):
-                                            _move(t[f], spheres, k, ws)
-                                for sa in range(group_range[ga, 0], group_range[ga, 1]):
-                                    if not _near(ws, sa, wg, gb, m):
-                                        continue
-                                    for sb in range(group_range[gb, 0], group_range[gb, 1]):
-                                        if _near(ws, sa, ws, sb, m):
-                                            hit = True
-                                            break
-                                    if hit:
-                                        break
-                                if hit:
-                                    break
-                            if hit:
-                                break
-                if hit:
-                    out[i if stop != 2 else 0, p] = True
-                    if first < 0:
-                        first = i
-                    if stop == 2:
-                        return i
-                    if stop == 1:
-                        done = True
-                        break
-            if done:
-                break
+        hit = _flag_config(t, i, spheres, groups, group_range, frame, kind, bound, body_groups,
+                           box_inv, box_half, clusters, cluster_frame, pairs, margins, blocks,
+                           block_margin, stop == 0, wc, wb, wg, ws, stamps, out, i)  # fmt: skip
+        if hit and first < 0:
+            first = i
     return first
+
+
+@numba.njit(cache=True)
+def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
+              spheres: FloatArray, groups: FloatArray, group_range: IntArray, frame: IntArray,
+              kind: IntArray, bound: FloatArray, body_groups: IntArray, box_inv: FloatArray,
+              box_half: FloatArray, clusters: FloatArray, cluster_frame: IntArray,
+              pairs: IntArray, margins: FloatArray, blocks: IntArray, block_margin: FloatArray,
+              reach: IntArray, wc: FloatArray, wb: FloatArray, wg: FloatArray, ws: FloatArray,
+              stamps: IntArray, out: BoolArray) -> tuple[int, int]:  # fmt: skip
+    """A flagged configuration of a dense path ``qs`` (n, dof), or -1; and the tests made.
+
+    ``margins`` (L, P) and ``block_margin`` (L, K): level 0 is the path check's own
+    margins; level l > 0 holds for the ``reach[l]`` configurations on either side of the
+    one tested (no point moves more than a step between neighbours, and each level's
+    margins add that many steps). Intervals of the path are tested at their middle
+    configuration, breadth first (coarse to fine), with the smallest level covering
+    the interval; an interval that fails is tested at level 0 there and split in two.
+    ``out`` (1, P) receives the level-0 flags of the configuration returned.
+    """
+    n, dof = qs.shape
+    t = np.empty((dof, 4, 4))
+    stamps[:] = -1
+    lo_q = np.empty(2 * n + 1, dtype=np.int64)
+    hi_q = np.empty(2 * n + 1, dtype=np.int64)
+    lo_q[0], hi_q[0] = 0, n - 1
+    head, tail, tests = 0, 1, 0
+    top = reach.shape[0] - 1
+    while head < tail:
+        lo, hi = lo_q[head], hi_q[head]
+        head += 1
+        mid = (lo + hi) // 2
+        k = max(mid - lo, hi - mid)
+        level = 0
+        while level < top and reach[level] < k:
+            level += 1
+        _fk(qs[mid], placements, axes, parents, t)
+        hit = True
+        if reach[level] >= k:
+            tests += 1
+            hit = _flag_config(t, mid, spheres, groups, group_range, frame, kind, bound,
+                               body_groups, box_inv, box_half, clusters, cluster_frame, pairs,
+                               margins[level], blocks, block_margin[level], False, wc, wb, wg,
+                               ws, stamps, out, 0)  # fmt: skip
+        if not hit:
+            continue
+        if level > 0 or reach[level] < k:
+            out[0, :] = False
+            tests += 1
+            hit = _flag_config(t, mid, spheres, groups, group_range, frame, kind, bound,
+                               body_groups, box_inv, box_half, clusters, cluster_frame, pairs,
+                               margins[0], blocks, block_margin[0], False, wc, wb, wg, ws,
+                               stamps, out, 0)  # fmt: skip
+        if hit:
+            return mid, tests
+        if lo < mid:
+            lo_q[tail], hi_q[tail] = lo, mid - 1
+            tail += 1
+        if mid < hi:
+            lo_q[tail], hi_q[tail] = mid + 1, hi
+            tail += 1
+    return -1, tests
 
 
 @dataclass
@@ -289,7 +374,7 @@ def pair_blocks(world: SphereWorld, pairs: IntArray) -> PairBlocks:
         [starts[:-1], starts[1:], lo[order][starts[:-1]], hi[order][starts[:-1]]]
     ).astype(np.int64)
     scratch = (clusters.copy(), world.bound.copy(), world.groups.copy(), world.spheres.copy(),
-               np.full(len(world.groups), -1, dtype=np.int64))  # fmt: skip
+               np.full((3, max(n_bodies, len(world.groups))), -1, dtype=np.int64))  # fmt: skip
     return PairBlocks(order, pairs[order].copy(), blocks.reshape(-1, 4), clusters, cluster_frame,
                       scratch)  # fmt: skip
 
@@ -322,41 +407,57 @@ def free(
     return ~np.any(_call(world, chain, qs, blocks, margins, 1)[0], axis=1)
 
 
-def first_flagged(
+def path_flagged(
     world: SphereWorld,
     chain: ChainArrays,
     qs: FloatArray,
     blocks: PairBlocks,
-    margins: FloatArray | tuple[FloatArray, FloatArray],
-) -> int:
-    """Index of the first configuration (in order) with a flagged pair, -1 if none; stops there.
+    levels: tuple[FloatArray, FloatArray, IntArray],
+) -> tuple[int, int]:
+    """A flagged configuration of a dense path (-1 if none) and the number of tests made.
 
-    ``margins``: (P,) in the caller's order, or :func:`sorted_margins` of them.
+    ``qs`` (n, dof): a path interpolated so that no point moves more than a step ``s``
+    between neighbours. ``levels``: :func:`sorted_margins` of the margins (L, P) a
+    configuration needs to stand for the ``reach`` (L,) configurations on either side
+    (level 0: the path check's own margins, reach 0; level l: those plus ``reach[l] s``
+    per moving body) and ``reach``. A free stretch is cleared by one test at its middle;
+    where that fails, the stretch is split (coarse to fine), down to single configurations
+    at level 0, so the verdict is the dense check's at a fraction of its cost.
     """
-    return _call(world, chain, qs, blocks, margins, 2)[1]
+    qa = np.ascontiguousarray(qs, dtype=np.float64)
+    if not len(blocks.pairs) or not qa.shape[0]:
+        return -1, 0
+    m, bm, reach = levels
+    wc, wb, wg, ws, stamps = blocks.scratch
+    out = np.zeros((1, len(blocks.pairs)), dtype=np.bool_)
+    first, tests = _run_path(qa, chain.placements, chain.axes, chain.parents, world.spheres,
+                             world.groups, world.group_range, world.frame, world.kind,
+                             world.bound, world.body_groups, world.box_inv, world.box_half,
+                             blocks.clusters, blocks.cluster_frame, blocks.pairs, m,
+                             blocks.blocks, bm, reach, wc, wb, wg, ws, stamps, out)  # fmt: skip
+    return int(first), int(tests)
 
 
 def sorted_margins(blocks: PairBlocks, margins: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The kernels' margins: per sorted pair (P,) and per block (K,), metres.
+    """The kernels' margins: per sorted pair (..., P) and per block (..., K), metres.
 
-    ``margins`` (P,) in the caller's pair order; negative ones count as 0. Computed once
-    per world and margin set by callers that check many paths (:func:`first_flagged`).
+    ``margins`` (..., P) in the caller's pair order; negative ones count as 0. Computed once
+    per world and margin set by callers that check many paths (:func:`path_flagged`).
     """
-    m = np.maximum(np.asarray(margins, dtype=np.float64)[blocks.order], 0.0) + 1e-9
-    bm = np.maximum.reduceat(m, blocks.blocks[:, 0]) if len(blocks.blocks) else m[:0]
-    return m, bm
+    m = np.maximum(np.asarray(margins, dtype=np.float64)[..., blocks.order], 0.0) + 1e-9
+    if not len(blocks.blocks):
+        return m, m[..., :0]
+    return m, np.maximum.reduceat(m, blocks.blocks[:, 0], axis=-1)
 
 
 def _call(world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBlocks,
-          margins: FloatArray | tuple[FloatArray, FloatArray], stop: int,
-          ) -> tuple[BoolArray, int]:  # fmt: skip
+          margins: FloatArray, stop: int) -> tuple[BoolArray, int]:  # fmt: skip
     qa = np.ascontiguousarray(qs, dtype=np.float64)
     n_pairs = len(blocks.pairs)
-    # stop 2 wants only the first flagged configuration: its flags go to row 0
-    out = np.zeros((qa.shape[0] if stop != 2 else 1, n_pairs), dtype=np.bool_)
+    out = np.zeros((qa.shape[0], n_pairs), dtype=np.bool_)
     if not n_pairs or not qa.shape[0]:
         return out, -1
-    m, bm = margins if isinstance(margins, tuple) else sorted_margins(blocks, margins)
+    m, bm = sorted_margins(blocks, margins)
     wc, wb, wg, ws, stamp = blocks.scratch
     first = _run(qa, chain.placements, chain.axes, chain.parents, world.spheres, world.groups,
                  world.group_range, world.frame, world.kind, world.bound, world.body_groups,
@@ -383,6 +484,7 @@ def warm_up() -> None:
     margins = np.zeros(1)
     flags(world, arrays, qs, blocks, margins)
     free(world, arrays, qs, blocks, margins)
-    first_flagged(world, arrays, qs, blocks, margins)
+    levels = (*sorted_margins(blocks, np.zeros((2, 1))), np.array([0, 1], dtype=np.int64))
+    path_flagged(world, arrays, qs, blocks, levels)
     joint_transforms_nb(qs, arrays.placements, arrays.axes, arrays.parents)
     solve_ik(chain, 0, np.eye(4), np.eye(4), qs, np.array([-1.0]), np.array([1.0]))
