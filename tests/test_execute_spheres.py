@@ -259,6 +259,40 @@ def test_a_fixed_pair_within_the_clearance_does_not_block_the_path_check(panda: 
     assert cleared >= 20
 
 
+def test_allowing_and_disallowing_a_pair_brings_back_its_checks(panda: Robot) -> None:
+    """Step search allows and disallows a gripper at its part hundreds of times: the pairs,
+    margins and kernel split of an allowed set are kept and brought back (the very same
+    arrays), with the verdicts of a fresh scene; moving an object drops them."""
+    def world() -> CollisionScene:
+        scene = CollisionScene(panda)
+        scene.add_table(height=0.75)
+        scene.add_box("post", ([0.45, 0.2, 0.9], [0, 0, 0, 1]), (0.05, 0.05, 0.3))
+        scene.add_object("held", ([0.5, 0.0, 1.05], [0, 0, 0, 1]), size=(0.04, 0.04, 0.2))
+        return scene
+
+    scene = world()
+    qs = panda.random_q(np.random.default_rng(13), 400)
+    base = scene.valid_mask(qs)
+    split = scene._sphere_pairs()
+    scene.allow("gripper", "held")
+    allowed = scene.valid_mask(qs)
+    assert np.any(allowed & ~base)  # not vacuous: the gripper meets the part somewhere
+    scene.disallow("gripper", "held")
+    assert scene._sphere_pairs() is split
+    np.testing.assert_array_equal(scene.valid_mask(qs), base)
+    scene.allow("gripper", "held")
+    np.testing.assert_array_equal(scene.valid_mask(qs), allowed)
+    scene.disallow("gripper", "held")
+    # a moved object: new distances, new verdicts, the same as a scene built that way
+    scene.set_object_pose("held", ([0.3, -0.3, 1.0], [0, 0, 0, 1]))
+    assert scene._sphere_pairs() is not split
+    fresh = world()
+    fresh.set_object_pose("held", ([0.3, -0.3, 1.0], [0, 0, 0, 1]))
+    moved = scene.valid_mask(qs)
+    assert np.any(moved != base)
+    np.testing.assert_array_equal(moved, fresh.valid_mask(qs, exact=True))
+
+
 def test_compiled_interpolation_is_the_reference_one(panda: Robot) -> None:
     """``interpolate`` (compiled) gives the configurations of its definition: per segment
     ``ceil(max(Σ|Δq|·lever / step_m, max|Δq| / step_rad))`` (at least 1) evenly spaced

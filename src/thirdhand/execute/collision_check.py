@@ -35,6 +35,15 @@ ROBOT = "robot"
 #: :meth:`SceneChecks._path_levels`); a longer stretch is split before it is tested.
 PATH_REACH = np.concatenate([[0], 2 ** np.arange(13)]).astype(np.int64)
 
+#: What :meth:`SceneChecks._invalidate` keeps per allowed set: the active pairs, their
+#: split for the kernels, the margins and the path kernel's margin levels.
+PairState = tuple[
+    tuple[IndexArray, IndexArray],
+    tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray] | None,
+    dict[float, FloatArray],
+    dict[float, tuple[FloatArray, FloatArray, IndexArray] | None],
+]
+
 
 @dataclass
 class Body:
@@ -163,11 +172,25 @@ class SceneChecks:
     _margin_cache: dict[float, FloatArray]
     _path_margin_cache: dict[float, tuple[FloatArray, FloatArray, IndexArray] | None]
     _chain_cache: tuple[object, sc.ChainArrays] | None
+    _pairs_key: frozenset[frozenset[str]]
+    _pair_states: dict[frozenset[frozenset[str]], PairState]
 
     # -- pairs ------------------------------------------------------------------------
 
-    def _invalidate(self, *, bodies: bool = True) -> None:
-        """Forget the cached pairs and margins (and, with ``bodies``, lever arms and spheres)."""
+    def _invalidate(self, *, bodies: bool = True, poses: bool = True) -> None:
+        """Forget the cached pairs and margins (and, with ``bodies``, lever arms and spheres).
+
+        Without ``bodies`` (a pair allowed or disallowed) the pairs and margins of the
+        allowed set left are kept, for when it comes back: step search allows and
+        disallows a gripper at its part hundreds of times per step. ``poses`` (an object
+        moved) drops those too (their fixed distances changed).
+        """
+        if bodies or poses:
+            self._pair_states = {}
+        elif self._pairs is not None:
+            self._pair_states[self._pairs_key] = (
+                self._pairs, self._spairs, self._margin_cache, self._path_margin_cache
+            )  # fmt: skip
         self._pairs = None
         self._spairs = None
         self._margin_cache = {}
@@ -190,6 +213,11 @@ class SceneChecks:
     def _active_pairs(self) -> tuple[IndexArray, IndexArray]:
         """Body index pairs: links 0..G-1, objects G..G+E-1, grasped part G+E."""
         if self._pairs is not None:
+            return self._pairs
+        self._pairs_key = frozenset(self._allowed)
+        state = self._pair_states.get(self._pairs_key)
+        if state is not None:
+            self._pairs, self._spairs, self._margin_cache, self._path_margin_cache = state
             return self._pairs
         names = self._link_names
         n_links = len(names)
@@ -247,6 +275,7 @@ class SceneChecks:
         Without clearance, the contact margin. With it, pairs with one moving body
         need ``clearance`` and pairs of two moving bodies twice that.
         """
+        self._active_pairs()  # first: it brings back a kept allowed set's margins
         key = float(max(clearance, 0.0))
         cached = self._margin_cache.get(key)
         if cached is None:
@@ -349,6 +378,7 @@ class SceneChecks:
         body, cached till the world changes); level l stands for the ``PATH_REACH[l]``
         configurations on either side: it adds that many steps per moving body.
         """
+        self._active_pairs()  # first: it brings back a kept allowed set's levels
         key = float(max_step_m)
         if margins is None and key in self._path_margin_cache:
             return self._path_margin_cache[key]
@@ -388,6 +418,7 @@ class SceneChecks:
         kernels, the indices of the pairs of two fixed bodies and coal's exact distance
         of each (computed once: it does not depend on the configuration).
         """
+        self._active_pairs()  # first: it brings back a kept allowed set's split
         if self._spairs is not None:
             return self._spairs
         world = self._sphere_world()

@@ -39,6 +39,7 @@ from thirdhand.execute.collision_check import (
     GRIPPER,
     ROBOT,
     Body,
+    PairState,
     SceneChecks,
     coal_transform,
     world_aabb,
@@ -113,6 +114,8 @@ class CollisionScene(SceneChecks):
         self._fixed: list[FloatArray | None] = []
         self._fixed_dist: dict[tuple[int, int], float] = {}
         self._margin_cache: dict[float, FloatArray] = {}
+        self._pairs_key: frozenset[frozenset[str]] = frozenset()
+        self._pair_states: dict[frozenset[frozenset[str]], PairState] = {}
         g_idx = self._link_joint >= 0
         self._moving = np.flatnonzero(g_idx)
 
@@ -260,7 +263,7 @@ class CollisionScene(SceneChecks):
         body = self._body(name)
         body.transform = pose_matrix(pose) @ body.offset
         self._sworld = None
-        self._spairs = None
+        self._invalidate(bodies=False)
 
     def object_pose(self, name: str, q: ArrayLike | None = None) -> tuple[FloatArray, FloatArray]:
         """Pose ``(pos, quat)`` of an object in the world; a grasped one needs the arm's ``q``."""
@@ -289,12 +292,12 @@ class CollisionScene(SceneChecks):
     def allow(self, a: str, b: str) -> None:
         """Ignore collisions of ``a`` with ``b``: object/link names, ``"gripper"``, ``"robot"``."""
         self._allowed.add(frozenset((a, b)))
-        self._invalidate(bodies=False)
+        self._invalidate(bodies=False, poses=False)
 
     def disallow(self, a: str, b: str) -> None:
         """Undo :meth:`allow` for the pair (no effect if it was not allowed)."""
         self._allowed.discard(frozenset((a, b)))
-        self._invalidate(bodies=False)
+        self._invalidate(bodies=False, poses=False)
 
     def attach(self, name: str, q: ArrayLike) -> None:
         """Grasp object ``name``: from now on it moves rigidly with the tool frame.
