@@ -263,6 +263,7 @@ def test_allowing_and_disallowing_a_pair_brings_back_its_checks(panda: Robot) ->
     """Step search allows and disallows a gripper at its part hundreds of times: the pairs,
     margins and kernel split of an allowed set are kept and brought back (the very same
     arrays), with the verdicts of a fresh scene; moving an object drops them."""
+
     def world() -> CollisionScene:
         scene = CollisionScene(panda)
         scene.add_table(height=0.75)
