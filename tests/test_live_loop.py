@@ -3,6 +3,7 @@ undone when taken apart, interchangeable legs, a dropped stream reported, bad in
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
@@ -190,3 +191,35 @@ def test_cli_bad_input(
     assert doc["steps"] == [] and doc["assists"] == []
     rc, _, err = call(capsys, "live", str(rec), "--task", str(tf), "--json", str(out))
     assert rc == 1 and "--force" in err  # never over an existing file
+
+
+def _kernels() -> dict[str, int]:
+    """Compiled signatures of every numba kernel the live loop's modules define."""
+    from numba.core.registry import CPUDispatcher
+
+    from thirdhand.live import features, state
+
+    return {
+        f"{m.__name__}.{k}": len(v.signatures)
+        for m in (features, state)
+        for k, v in vars(m).items()
+        if isinstance(v, CPUDispatcher)
+    }
+
+
+def test_nothing_compiles_once_the_stream_has_started(task: TaskFile, chair: Demonstration) -> None:
+    """The warm-up compiles every kernel for the types the stream brings: a kernel compiled
+    mid-stream stalls an update for seconds (4 s on the real toolbox once: an array of
+    another layout)."""
+    demo = cut(chair, 12.0)
+    loop = LiveLoop(task, demo.bodies, demo.meta)
+    before = _kernels()
+    assert before["thirdhand.live.features._window_rows"] >= 1  # the warm-up compiled it
+
+    # frames as a reader may give them: arrays in Fortran order (the real toolbox's quaternions)
+    frames = (
+        dataclasses.replace(f, pos=np.asfortranarray(f.pos), quat=np.asfortranarray(f.quat))
+        for f in ReplaySource(demo, 0)
+    )
+    loop.run(frames)  # type: ignore[arg-type]
+    assert _kernels() == before

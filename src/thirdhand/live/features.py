@@ -247,9 +247,12 @@ class CausalFeatures:
         i0, i1 = int(np.argmax(sel)), len(sel) - int(np.argmax(sel[::-1]))
         frame_step = ks[i0:i1] - lo
         n_local = hi - lo
-        pos = np.stack(self._pos[i0:i1])  # (n, B, 3); frames are in step order
-        quat = np.stack(self._quat[i0:i1])
-        valid = np.stack(self._valid[i0:i1])
+        # (n, B, 3); frames are in step order. Contiguous float64/bool whatever the source
+        # gave: the kernel is compiled for those before the stream (a new layout or dtype
+        # would compile mid-stream, a stall of seconds)
+        pos = np.ascontiguousarray(np.stack(self._pos[i0:i1]), dtype=np.float64)
+        quat = np.ascontiguousarray(np.stack(self._quat[i0:i1]), dtype=np.float64)
+        valid = np.ascontiguousarray(np.stack(self._valid[i0:i1]), dtype=np.bool_)
         r = j - lo
         per_step = np.bincount(frame_step, minlength=n_local).astype(float)
         w0 = cfg.window
