@@ -196,3 +196,19 @@ def test_bad_input_raises_clear_errors() -> None:
         QuaternionDMP().fit(t, q0)
     with pytest.raises(PrimitiveError, match="goal must be 3 finite"):
         DMP().fit(t, pos).rollout(goal=[1.0, 2.0])
+
+
+def test_fft_convolution_is_the_direct_sum() -> None:
+    """``dmp._convolve`` (numpy's FFT) against the direct sum, broadcast over trailing axes."""
+    from thirdhand.primitives.dmp import _convolve
+
+    rng = np.random.default_rng(4)
+    for na, nb in ((1, 1), (2, 5), (17, 17), (300, 120)):
+        a, b = rng.normal(size=(na, 2, 1)), rng.normal(size=(nb, 1, 3))
+        want = np.empty((na + nb - 1, 2, 3))
+        for i in range(2):
+            for j in range(3):
+                want[:, i, j] = np.convolve(a[:, i, 0], b[:, 0, j])
+        # round-off of an FFT of that length: a few ulps times the sum of |terms|
+        scale = np.sqrt(na * nb) * np.abs(a).max() * np.abs(b).max()
+        np.testing.assert_allclose(_convolve(a, b), want, rtol=0, atol=1e-13 * scale)

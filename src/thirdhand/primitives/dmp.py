@@ -28,7 +28,6 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.linalg import expm
-from scipy.signal import fftconvolve
 
 from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError, check_trajectory
@@ -85,6 +84,16 @@ def _powers(m: FloatArray, n: int) -> FloatArray:
     return out
 
 
+def _convolve(a: FloatArray, b: FloatArray) -> FloatArray:
+    """Full linear convolution along axis 0 of ``a`` (na, ...) and ``b`` (nb, ...), the other
+    axes broadcast: (na + nb - 1, ...). By FFT (numpy's: ``scipy.signal`` costs execution
+    about a second to import, for this one function)."""
+    n = a.shape[0] + b.shape[0] - 1
+    size = 1 << max(n - 1, 0).bit_length()
+    spectrum = np.fft.rfft(a, size, axis=0) * np.fft.rfft(b, size, axis=0)
+    return np.asarray(np.fft.irfft(spectrum, size, axis=0)[:n], dtype=np.float64)
+
+
 def linear_rollout(
     s: FloatArray, u: FloatArray, e0: FloatArray, v0: FloatArray, *, k: float, d: float, tau: float
 ) -> tuple[FloatArray, FloatArray]:
@@ -120,8 +129,8 @@ def linear_rollout(
     h1 = pw @ g2
     out = free.copy()
     if n > 1:
-        c0 = fftconvolve(h0[:, :, None], u[:, None, :], axes=0)[: n - 1]
-        c1 = fftconvolve(h1[:, :, None], u[:, None, :], axes=0)[1:n]
+        c0 = _convolve(h0[:, :, None], u[:, None, :])[: n - 1]
+        c1 = _convolve(h1[:, :, None], u[:, None, :])[1:n]
         forced = c0 + c1 - h1[1:n, :, None] * u[0]
         out[1:] += forced
     return out[:, 0, :], out[:, 1, :]
