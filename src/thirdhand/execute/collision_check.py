@@ -180,21 +180,29 @@ class SceneChecks:
     def _invalidate(self, *, bodies: bool = True, poses: bool = True) -> None:
         """Forget the cached pairs and margins (and, with ``bodies``, lever arms and spheres).
 
-        Without ``bodies`` (a pair allowed or disallowed) the pairs and margins of the
-        allowed set left are kept, for when it comes back: step search allows and
-        disallows a gripper at its part hundreds of times per step. ``poses`` (an object
-        moved) drops those too (their fixed distances changed).
+        Without ``bodies`` and ``poses`` (a pair allowed or disallowed: ``_allowed`` already
+        changed) the pairs, margins and kernel split of the allowed set left are kept, and
+        those of the set now in force come back if it was seen before: step search allows
+        and disallows a gripper at its part hundreds of times per step. ``poses`` (an object
+        moved) drops them all (their fixed distances changed).
         """
+        kept = None
         if bodies or poses:
             self._pair_states = {}
-        elif self._pairs is not None:
-            self._pair_states[self._pairs_key] = (
-                self._pairs, self._spairs, self._margin_cache, self._path_margin_cache
-            )  # fmt: skip
-        self._pairs = None
-        self._spairs = None
-        self._margin_cache = {}
-        self._path_margin_cache = {}
+        else:
+            if self._pairs is not None:
+                self._pair_states[self._pairs_key] = (
+                    self._pairs, self._spairs, self._margin_cache, self._path_margin_cache
+                )  # fmt: skip
+            kept = self._pair_states.get(frozenset(self._allowed))
+        if kept is not None:
+            self._pairs, self._spairs, self._margin_cache, self._path_margin_cache = kept
+            self._pairs_key = frozenset(self._allowed)
+        else:
+            self._pairs = None
+            self._spairs = None
+            self._margin_cache = {}
+            self._path_margin_cache = {}
         if bodies:
             self._lever = None
             self._sworld = None
@@ -215,10 +223,6 @@ class SceneChecks:
         if self._pairs is not None:
             return self._pairs
         self._pairs_key = frozenset(self._allowed)
-        state = self._pair_states.get(self._pairs_key)
-        if state is not None:
-            self._pairs, self._spairs, self._margin_cache, self._path_margin_cache = state
-            return self._pairs
         names = self._link_names
         n_links = len(names)
         objs = list(self._objects.values())
@@ -275,7 +279,6 @@ class SceneChecks:
         Without clearance, the contact margin. With it, pairs with one moving body
         need ``clearance`` and pairs of two moving bodies twice that.
         """
-        self._active_pairs()  # first: it brings back a kept allowed set's margins
         key = float(max(clearance, 0.0))
         cached = self._margin_cache.get(key)
         if cached is None:
@@ -378,7 +381,6 @@ class SceneChecks:
         body, cached till the world changes); level l stands for the ``PATH_REACH[l]``
         configurations on either side: it adds that many steps per moving body.
         """
-        self._active_pairs()  # first: it brings back a kept allowed set's levels
         key = float(max_step_m)
         if margins is None and key in self._path_margin_cache:
             return self._path_margin_cache[key]
@@ -418,7 +420,6 @@ class SceneChecks:
         kernels, the indices of the pairs of two fixed bodies and coal's exact distance
         of each (computed once: it does not depend on the configuration).
         """
-        self._active_pairs()  # first: it brings back a kept allowed set's split
         if self._spairs is not None:
             return self._spairs
         world = self._sphere_world()

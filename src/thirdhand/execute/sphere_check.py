@@ -289,7 +289,7 @@ def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents:
     margins add that many steps). Intervals of the path are tested at their middle
     configuration, breadth first (coarse to fine), with the smallest level covering
     the interval; an interval that fails is tested at level 0 there and split in two.
-    ``out`` (1, P) receives the level-0 flags of the configuration returned.
+    ``out`` (1, P): scratch for the pair flags of the tests.
     """
     n, dof = qs.shape
     t = np.empty((dof, 4, 4))
@@ -318,7 +318,6 @@ def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents:
         if not hit:
             continue
         if level > 0 or reach[level] < k:
-            out[0, :] = False
             tests += 1
             hit = _flag_config(t, mid, spheres, groups, group_range, frame, kind, bound,
                                body_groups, box_inv, box_half, clusters, cluster_frame, pairs,
