@@ -199,3 +199,48 @@ def test_report_draws_each_keyframe_with_the_parts_shapes(tmp_path: Path) -> Non
     assert _keyframe_views(result, 0, shapes)  # a PNG
     page = write_report(result, tmp_path / "report", boxed, tmp_path / "task.json").read_text()
     assert "<h3>Keyframes</h3>" in page and "(child)" in page
+
+
+@pytest.mark.slow
+def test_learn_explains_new_motions_with_an_earlier_tasks_skill_library(tmp_path: Path) -> None:
+    """Learned once, reused: ``[learn] skill_library`` parses a new chair with chair 3's skills."""
+    from thirdhand.cli import app
+
+    runner = CliRunner()
+    for seed in (3, 4):
+        r = runner.invoke(app, ["synth", "chair", "-o", str(tmp_path / f"c{seed}.parquet"),
+                                "--seed", str(seed)])  # fmt: skip
+        assert r.exit_code == 0, r.output
+    first = tmp_path / "first.json"
+    cfg = settings_file(tmp_path, "learn", reward=False)
+    r = runner.invoke(app, ["learn", str(tmp_path / "c3.parquet"), "-o", str(first),
+                            "--config", str(cfg)])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    reuse = tmp_path / "reuse"
+    reuse.mkdir()
+    cfg2 = settings_file(reuse, "learn", reward=False, skill_library=str(first))
+    second = tmp_path / "second.json"
+    r = runner.invoke(app, ["learn", str(tmp_path / "c4.parquet"), "-o", str(second),
+                            "--config", str(cfg2)])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    a, b = (load_task(p).stages.primitives for p in (first, second))
+    assert a is not None and b is not None and a.skill_library and b.skill_library
+    # the same skills, not a new fit; chair 4's own motions explained by them
+    assert b.skill_library.skills == a.skill_library.skills
+    assert all(c.skills and c.skills[0].source == "c4.parquet" for c in b.constraints.values())
+    turn = int(np.argmax([s.typical_angular_speed_rad_s for s in a.skill_library.summary]))
+    legs = [c for c in b.constraints.values() if c.child.startswith("leg")]
+    assert len(legs) == 4
+    assert all(turn in [s.skill for s in c.skills[0].steps] for c in legs if c.skills)
+    # a task without a library: one line, nothing written
+    bare = tmp_path / "bare.json"
+    cfg0 = settings_file(tmp_path, "learn", reward=False, skills=0)
+    r = runner.invoke(app, ["learn", str(tmp_path / "c3.parquet"), "-o", str(bare),
+                            "--config", str(cfg0)])  # fmt: skip
+    assert r.exit_code == 0, r.output
+    cfg3 = settings_file(reuse, "learn", skill_library=str(bare))
+    r = runner.invoke(app, ["learn", str(tmp_path / "c4.parquet"), "-o", str(tmp_path / "x.json"),
+                            "--config", str(cfg3)])  # fmt: skip
+    msg = str(r.exception)
+    assert r.exit_code != 0 and "has no stages.primitives.skill_library" in msg and "\n" not in msg
+    assert not (tmp_path / "x.json").exists()

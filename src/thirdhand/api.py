@@ -99,6 +99,7 @@ def fit_primitives(
     skills: int | None = None,
     names: Sequence[str] | None = None,
     seed: int = 0,
+    skill_library: SkillLibrary | None = None,
 ) -> PrimitivesBlock:
     """A quaternion DMP and a ProMP per constraint, from the motions that created it.
 
@@ -114,6 +115,9 @@ def fit_primitives(
         A name per recording (the source of its explained motions).
     seed : int
         Seeds the skill library's restarts.
+    skill_library : SkillLibrary, optional
+        A library learned before (``task.stages.primitives.skill_library.fitted()``)
+        that explains the motions instead of a new one.
 
     Returns
     -------
@@ -128,7 +132,14 @@ def fit_primitives(
         raise ThirdhandError(
             f"fit_primitives: {len(constraints)} constraint lists for {len(demos)} recordings"
         )
-    return primitives_stage(demos, events=constraints, skills=skills, names=names, seed=seed)
+    return primitives_stage(
+        demos,
+        events=constraints,
+        skills=skills,
+        names=names,
+        seed=seed,
+        skill_library=skill_library,
+    )
 
 
 def learn_skills(

@@ -153,8 +153,13 @@ def _write_task(learned: LearnedTask, out: Path, summary: dict[str, Any]) -> Pat
                 if c.skills
             }
             summary["primitives"]["skills"] = seqs
+            kinds = "; ".join(
+                f"{s.id}: {s.typical_speed_m_s:.2g} m/s, {s.typical_angular_speed_rad_s:.2g} rad/s"
+                for s in lib.summary
+            )
             summary["lines"].append(
-                f"skills: {lib.n_skills} library skills explain the constraint motions ("
+                f"skills: {lib.n_skills} library skills ({kinds}) explain the constraint "
+                "motions ("
                 + "; ".join(f"{k}: {v}" for k, v in sorted(seqs.items()))
                 + ") → stages.primitives.skill_library"
             )

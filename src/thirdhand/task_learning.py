@@ -39,6 +39,7 @@ if TYPE_CHECKING:
     from thirdhand.constraints.detect import DetectionResult
     from thirdhand.plan.assembly import AssemblyPlan
     from thirdhand.plan.learn import Learned
+    from thirdhand.primitives.skill_library import SkillLibrary
     from thirdhand.relational.assembly import AssemblyModel, RewardPlan
     from thirdhand.segment.model import SegmentModel
     from thirdhand.segment.pipeline import SegmentationResult
@@ -198,7 +199,11 @@ def learned_events(learned: Learned) -> list[tuple[ConstraintEvent, ...]]:
 
 
 def fit_task_primitives(
-    learned: Learned, *, skills: int | None = DEFAULT_SKILLS, seed: int = 0
+    learned: Learned,
+    *,
+    skills: int | None = DEFAULT_SKILLS,
+    seed: int = 0,
+    skill_library: SkillLibrary | None = None,
 ) -> PrimitivesBlock | None:
     """Motor primitives (quaternion DMP + ProMP) of every learned constraint.
 
@@ -210,6 +215,8 @@ def fit_task_primitives(
         explained as a sequence of them (None: no library).
     seed : int
         Seeds the library's restarts.
+    skill_library : SkillLibrary, optional
+        A library learned before that explains the motions instead of a new one.
 
     Returns
     -------
@@ -228,6 +235,7 @@ def fit_task_primitives(
         skills=skills,
         names=[n for _, _, n in used],
         seed=seed,
+        skill_library=skill_library,
     )
 
 
@@ -363,6 +371,7 @@ def learn_task(
     segment_model: SegmentModel | None = None,
     primitives: bool = True,
     skills: int | None = DEFAULT_SKILLS,
+    skill_library: SkillLibrary | None = None,
     reward: bool = True,
     reward_plans: Mapping[str, Sequence[str]] | None = None,
     grasps: bool = True,
@@ -394,6 +403,9 @@ def learn_task(
     skills : int, optional
         Skills of the library that explains the constraint motions in the
         primitives block (None: no library).
+    skill_library : SkillLibrary, optional
+        A library learned before (an earlier task's) that explains the motions instead
+        of a new one.
     reward_plans : mapping of str to sequence of str, optional
         Part sets the learned reward plans for; default :func:`reward_targets`.
     seed : int
@@ -478,7 +490,7 @@ def learn_task(
         skipped.append("primitives: skipped by the user")
     else:
         say("primitives")
-        block = fit_task_primitives(learned, skills=skills, seed=seed)
+        block = fit_task_primitives(learned, skills=skills, seed=seed, skill_library=skill_library)
         if block is None:
             skipped.append("primitives: no constraint was learned")
         task.stages.primitives = block

@@ -25,6 +25,11 @@ class LearnSettings(Settings):
         description="Skills of the library that explains the constraint motions "
         "(stages.primitives.skill_library; 0: no library).",
     )
+    skill_library: str | None = Field(
+        None,
+        description="A task file from an earlier `learn` whose skill library explains the "
+        "new motions (stages.primitives.skill_library; default: learn one, `skills` skills).",
+    )
     min_support: float = Field(
         0.5,
         ge=0.0,

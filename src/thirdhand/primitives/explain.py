@@ -1,22 +1,20 @@
-"""Constraint motions explained by library skills: a leg insertion as transport, insert, screw.
+"""Constraint motions explained by library skills: a leg insertion as transport, insert, turns.
 
 The primitives stage learns one pose DMP per constraint. This module adds the
-level below: one primitive library (:class:`~thirdhand.primitives.library.PrimitiveLibrary`)
-learned over the motions of *all* the task's constraints at once — the child's
-pose in the parent's frame, from :func:`~thirdhand.primitives.segments.constraint_segments`
-— so that a skill found in one motion (a screwing turn) is the same skill in
-every other; every motion is then parsed into a sequence of skills with their
-time spans, consecutive segments of one skill merged into one step (a screwing
-phase of several turns is one step).
+level below: one skill library (:class:`~thirdhand.primitives.skill_library.SkillLibrary`,
+the product parser, a hidden semi-Markov model) learned over the motions of
+*all* the task's constraints at once — the child's pose in the parent's frame,
+from :func:`~thirdhand.primitives.segments.constraint_segments` — so that a
+skill found in one motion (a screwing turn) is the same skill in every other;
+every motion is then parsed into runs of skills with their time spans.
 
-Channels of a motion, on a regular grid of ``rate`` Hz (gaps in the tracking
-interpolated):
-
-- shape: the child's position in the parent frame (:data:`SHAPE_UNITS` ``pos``)
-  and its accumulated rotation, the sum of the sample-to-sample rotation
-  vectors in the parent frame (a leg turned four times by 100° about its axis
-  reads 7 rad along that axis, where a log map would wrap at π);
-- levels: speed and angular speed (smoothed over ``window`` samples).
+Channels (:data:`CHANNELS`): how fast the child moves and turns relative to its
+parent (``logspeed``, ``logangular`` of :mod:`~thirdhand.primitives.pose_channels`),
+both unchanged by where the task happened and by how the parent stood. Height
+and vertical speed are left out: the parent's frame has no "up". No entry and
+exit skills: a constraint motion ends when the constraint forms, so its last
+run is the work itself (the last screwing turn), the same skill as the turns
+before it.
 """
 
 from __future__ import annotations
@@ -26,94 +24,51 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import uniform_filter1d
 
-from thirdhand import se3
-from thirdhand.arrays import FloatArray
 from thirdhand.primitives._checks import PrimitiveError
-from thirdhand.primitives.library import PrimitiveLibrary
+from thirdhand.primitives.pose_channels import LOG_UNIT, MIN_SAMPLES, UNITS, PoseTrack
 from thirdhand.primitives.segments import ConstraintSegment
-from thirdhand.primitives.serialize import promp_to_dict
+from thirdhand.primitives.skill_library import (
+    MAX_SKILLS,
+    SkillLibrary,
+    SkillParserOptions,
+    TrackParse,
+)
 
-#: Unit of each shape channel (values are divided by it): metres, radians.
-SHAPE_UNITS = {"pos": 0.02, "rot": 0.1}
-#: Unit of each level channel: m/s, rad/s.
-LEVEL_UNITS = {"speed": 0.02, "angular": 0.1}
-#: Shortest segment, grid samples (0.2 s at 20 Hz); shorter motions are not parsed.
-MIN_SAMPLES = 4
+#: Channels of a constraint motion: the child's speed and angular rate in the parent frame.
+CHANNELS = ("logspeed", "logangular")
+#: Grid rate of the channels, Hz.
+RATE_HZ = 20.0
 
 METHOD = (
-    "primitive library (mixture of ProMPs over segments, exact DP over candidate cuts) "
-    "learned over every constraint motion of the task; consecutive segments of one skill "
-    "are one step"
+    "skill library (hidden semi-Markov model over the child's speed and angular rate in "
+    "the parent frame) learned over every constraint motion of the task; a run of one "
+    "skill is one step"
 )
 
 
-@dataclass(frozen=True)
-class MotionChannels:
-    """A constraint motion on a regular grid, in channel units.
-
-    Attributes
-    ----------
-    t : ndarray, shape (n,)
-        Seconds on the demonstration's clock.
-    shape : ndarray, shape (n, 6)
-        Position (``/ SHAPE_UNITS["pos"]``), then accumulated rotation
-        (``/ SHAPE_UNITS["rot"]``), parent frame.
-    levels : ndarray, shape (n, 2)
-        Speed (``/ LEVEL_UNITS["speed"]``) and angular speed (``/ LEVEL_UNITS["angular"]``).
-    """
-
-    t: FloatArray
-    shape: FloatArray
-    levels: FloatArray
-
-
-def accumulated_rotation(quat: FloatArray) -> FloatArray:
-    """Sum of the sample-to-sample rotation vectors, shape (n, 3), radians, the quaternions' frame.
+def motion_options(n_skills: int | None = 4, *, seed: int = 0) -> SkillParserOptions:
+    """The parser's settings for constraint motions (see the module docstring).
 
     Parameters
     ----------
-    quat : ndarray, shape (n, 4), x y z w
-        Orientation of a body in some frame (sign-continuous or not).
+    n_skills : int or None
+        ``K``; None: chosen by BIC.
+    seed : int
     """
-    q = np.asarray(quat, dtype=np.float64)
-    step = se3.quat_to_rotvec(se3.quat_multiply(q[1:], se3.quat_conjugate(q[:-1])))
-    return np.vstack([np.zeros((1, 3)), np.cumsum(step, axis=0)])
+    return SkillParserOptions(
+        n_skills=n_skills, ends=False, channels=CHANNELS, rate_hz=RATE_HZ, seed=seed
+    )
 
 
-def motion_channels(
-    segment: ConstraintSegment, *, rate: float = 20.0, window: int = 3
-) -> MotionChannels:
-    """The channels of one constraint motion (see the module docstring).
-
-    Parameters
-    ----------
-    segment : ConstraintSegment
-    rate : float
-        Grid rate, Hz.
-    window : int
-        Smoothing of the level channels, grid samples.
-    """
-    t0, t1 = float(segment.t[0]), float(segment.t[-1])
-    n = max(int(np.floor((t1 - t0) * rate)) + 1, 2)
-    t = np.linspace(t0, t0 + (n - 1) / rate, n)
-    # average over one grid step first: tracker noise resampled as it is would
-    # read as speed at the grid's rate
-    per_step = (
-        max(round(1.0 / (rate * float(np.median(np.diff(segment.t))))), 1) | 1
-    )  # odd: centred
-    raw = np.hstack([segment.pos, accumulated_rotation(segment.quat)])
-    raw = uniform_filter1d(raw, size=per_step, axis=0, mode="nearest")
-    pos = np.stack([np.interp(t, segment.t, c) for c in raw[:, :3].T], axis=1)
-    rot = np.stack([np.interp(t, segment.t, c) for c in raw[:, 3:].T], axis=1)
-    dt = 1.0 / rate
-    speed = np.linalg.norm(np.gradient(pos, dt, axis=0), axis=1)
-    angular = np.linalg.norm(np.gradient(rot, dt, axis=0), axis=1)
-    lev = np.stack([speed / LEVEL_UNITS["speed"], angular / LEVEL_UNITS["angular"]], axis=1)
-    lev = uniform_filter1d(lev, size=max(window, 1), axis=0, mode="nearest")
-    shape = np.hstack([pos / SHAPE_UNITS["pos"], rot / SHAPE_UNITS["rot"]])
-    return MotionChannels(t, shape, np.asarray(lev, dtype=np.float64))
+def _parseable(segment: ConstraintSegment) -> str:
+    """Why a motion cannot be parsed, or ``""``."""
+    if segment.t.size < MIN_SAMPLES or segment.duration * RATE_HZ + 1 < MIN_SAMPLES:
+        return (
+            f"{segment.duration:.2f} s, {segment.t.size} samples: shorter than "
+            f"{MIN_SAMPLES} samples at {RATE_HZ:g} Hz"
+        )
+    return ""
 
 
 @dataclass(frozen=True)
@@ -158,65 +113,57 @@ class SkillLibraryResult:
 
     Attributes
     ----------
-    library : PrimitiveLibrary
+    library : SkillLibrary
     explanations : list of MotionExplanation
         One per segment, in the order given.
-    rate : float
-        Grid rate of the channels, Hz.
+    parses : list of TrackParse or None
+        Per segment, the parse the explanation came from (None where not parsed).
     """
 
-    library: PrimitiveLibrary
+    library: SkillLibrary
     explanations: list[MotionExplanation]
-    rate: float
+    parses: list[TrackParse | None]
 
-    def skill_dicts(self) -> list[dict[str, Any]]:
-        """Each skill's parameters (JSON-able), ids 0…K−1."""
-        mix = self.library.mixture_
-        lev_mean = mix.level_mean_
+    def summary(self) -> list[dict[str, Any]]:
+        """Per skill, what it does: its typical speed and angular rate, its share, its steps."""
+        lib = self.library
+        means = lib.model_.means_
+        col = {c: i for i, c in enumerate(lib.channels_)}
+        share = lib.skill_fractions([p for p in self.parses if p is not None])
         out = []
-        for k, promp in enumerate(self.library.skills()):
+        for k in range(lib.n_skills_):
             spans = [s.end - s.start for e in self.explanations for s in e.steps if s.skill == k]
+            # the channel's mean back in SI: the level at the skill's mean log magnitude
             out.append(
                 {
                     "id": k,
-                    "weight": float(mix.weights_[k]),
-                    "mean_speed_m_s": float(lev_mean[k, 0] * LEVEL_UNITS["speed"]),
-                    "mean_angular_speed_rad_s": float(lev_mean[k, 1] * LEVEL_UNITS["angular"]),
+                    "typical_speed_m_s": float(
+                        UNITS["speed"] * np.expm1(means[k, col["logspeed"]] * LOG_UNIT)
+                    ),
+                    "typical_angular_speed_rad_s": float(
+                        UNITS["angular"] * np.expm1(means[k, col["logangular"]] * LOG_UNIT)
+                    ),
+                    "share": float(share[k]),
                     "n_steps": len(spans),
                     "mean_step_s": float(np.mean(spans)) if spans else 0.0,
-                    "level_mean": [float(v) for v in lev_mean[k]],
-                    "level_var": [float(v) for v in mix.level_var_[k]],
-                    "promp": promp_to_dict(promp),
                 }
             )
         return out
 
     def library_block(self) -> dict[str, Any]:
-        """The ``stages.primitives.skill_library`` block."""
-        lib = self.library
-        return {
-            "method": METHOD,
-            "frame": "child pose in the parent part's frame",
-            "rate_hz": self.rate,
-            "shape_channels": [
-                {"name": "pos", "unit": SHAPE_UNITS["pos"], "si": "m", "columns": 3},
-                {"name": "rot", "unit": SHAPE_UNITS["rot"], "si": "rad", "columns": 3},
-            ],
-            "level_channels": [
-                {"name": "speed", "unit": LEVEL_UNITS["speed"], "si": "m/s", "columns": 1},
-                {
-                    "name": "angular_speed",
-                    "unit": LEVEL_UNITS["angular"],
-                    "si": "rad/s",
-                    "columns": 1,
-                },
-            ],
-            "promp_segment": "time scaled to [0, 1], translated to start at 0, turned about z",
-            "n_skills": lib.n_skills,
-            "switch_penalty": lib.switch_penalty,
-            "log_likelihood": float(lib.log_likelihood_),
-            "skills": self.skill_dicts(),
-        }
+        """The ``stages.primitives.skill_library`` block: the saved library, and what it means.
+
+        ``SkillLibrary.from_dict`` reads the block back (the extra keys are ignored).
+        """
+        doc = self.library.to_dict()
+        for key in ("log_trans", "log_init", "log_final"):  # NaN (impossible) as null
+            a = np.asarray(doc["skills"][key], dtype=object)
+            a[np.isnan(a.astype(np.float64))] = None
+            doc["skills"][key] = a.tolist()
+        doc["method"] = METHOD
+        doc["frame"] = "child pose in the parent part's frame"
+        doc["summary"] = self.summary()
+        return doc
 
     def steps_by_key(self) -> dict[str, list[dict[str, Any]]]:
         """Per constraint symbol, its explained examples (JSON-able, one per demonstration)."""
@@ -235,12 +182,9 @@ class SkillLibraryResult:
 def explain_constraint_motions(
     segments: Sequence[ConstraintSegment],
     *,
-    n_skills: int = 3,
-    rate: float = 20.0,
-    grid: float | None = 0.25,
-    switch_penalty: float = 0.0,
-    n_init: int = 2,
+    n_skills: int | None = 4,
     seed: int = 0,
+    library: SkillLibrary | None = None,
 ) -> SkillLibraryResult:
     """Learn a skill library over constraint motions and parse each into skill steps.
 
@@ -248,17 +192,12 @@ def explain_constraint_motions(
     ----------
     segments : sequence of ConstraintSegment
         The motions (child in parent frame) of the task's constraints, all demonstrations.
-    n_skills : int
-        ``K``; lowered to the number of possible segments when there are fewer.
-    rate : float
-        Grid of the channels, Hz.
-    grid : float or None
-        Extra candidate cuts every ``grid`` seconds (beside the speed minima).
-    switch_penalty : float
-        Cost of a change of skill in the parse, nats.
-    n_init : int
-        Restarts of the library's EM.
+    n_skills : int or None
+        ``K``; None: chosen by BIC over 2…6 (:class:`SkillParserOptions`).
     seed : int
+        Seeds the library's restarts.
+    library : SkillLibrary, optional
+        A library fitted before (on :data:`CHANNELS`): parse with it, learn nothing.
 
     Returns
     -------
@@ -267,54 +206,46 @@ def explain_constraint_motions(
     Raises
     ------
     PrimitiveError
-        If no segment is given or a motion is shorter than one speed window.
+        If no segment is given, every motion is too short to parse, ``n_skills``
+        is out of range, or ``library`` reads other channels.
     """
     if not segments:
         raise PrimitiveError("skill library: no constraint motion given")
-    if n_skills < 1:
-        raise PrimitiveError(f"skill library: at least 1 skill, got {n_skills}")
-    chans = [motion_channels(s, rate=rate) for s in segments]
-    usable = [i for i, c in enumerate(chans) if c.t.size >= MIN_SAMPLES]
+    if n_skills is not None and not 1 <= n_skills <= MAX_SKILLS:
+        raise PrimitiveError(f"skill library: 1 to {MAX_SKILLS} skills, got {n_skills}")
+    notes = [_parseable(s) for s in segments]
+    usable = [i for i, n in enumerate(notes) if not n]
     if not usable:
+        raise PrimitiveError(f"skill library: every constraint motion is {notes[0]}")
+    tracks = {
+        i: PoseTrack(
+            segments[i].t,
+            segments[i].pos,
+            segments[i].quat,
+            name=f"{segments[i].source} {segments[i].key}",
+        )
+        for i in usable
+    }
+    if library is None:
+        library = SkillLibrary(motion_options(n_skills, seed=seed)).fit(list(tracks.values()))
+    elif tuple(library.channels_) != CHANNELS:
         raise PrimitiveError(
-            f"skill library: every constraint motion is shorter than {MIN_SAMPLES} samples "
-            f"at {rate:g} Hz"
+            f"skill library: reads channels {list(library.channels_)}; constraint motions "
+            f"are parsed on {list(CHANNELS)}"
         )
-    tracks = [(chans[i].t, chans[i].shape, chans[i].levels) for i in usable]
-    peaks = [
-        float(np.linalg.norm(np.gradient(y, 1.0 / rate, axis=0), axis=1).max())
-        for _, y, _ in tracks
-    ]
-
-    def library(k: int) -> PrimitiveLibrary:
-        return PrimitiveLibrary(
-            k,
-            # candidate cuts where a motion is nearly still, relative to how fast they go
-            threshold=0.05 * float(np.median(peaks)),
-            window=3,
-            min_length=MIN_SAMPLES,
-            grid=grid,
-            switch_penalty=switch_penalty,
-            n_init=n_init,
-            seed=seed,
-        )
-
-    lib = library(n_skills)
-    n_possible = lib.n_possible_segments(tracks)
-    if n_possible < n_skills:
-        lib = library(n_possible)
-    lib.fit(tracks)
-    explained = []
-    for i, (seg, c) in enumerate(zip(segments, chans, strict=True)):
-        if i not in usable:
-            note = f"{seg.duration:.2f} s: shorter than one segment of {MIN_SAMPLES} samples"
-            explained.append(MotionExplanation(seg.key, seg.source, (), note))
+    explained: list[MotionExplanation] = []
+    parses: list[TrackParse | None] = []
+    for i, seg in enumerate(segments):
+        if i not in tracks:
+            explained.append(MotionExplanation(seg.key, seg.source, (), notes[i]))
+            parses.append(None)
             continue
-        parse = lib.parse(c.t, c.shape, levels=c.levels, name=f"{seg.source} {seg.key}").merged()
-        b = parse.bounds
+        p = library.parse(tracks[i])
+        bounds = [*p.starts.tolist(), seg.t.size - 1]
         steps = tuple(
-            SkillStep(int(k), float(c.t[b[j]]), float(c.t[b[j + 1]]))
-            for j, k in enumerate(parse.labels)
+            SkillStep(int(k), float(seg.t[bounds[j]]), float(seg.t[bounds[j + 1]]))
+            for j, k in enumerate(p.skills.tolist())
         )
         explained.append(MotionExplanation(seg.key, seg.source, steps))
-    return SkillLibraryResult(lib, explained, rate)
+        parses.append(p)
+    return SkillLibraryResult(library, explained, parses)

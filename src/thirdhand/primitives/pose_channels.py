@@ -7,8 +7,8 @@ unchanged by a translation of the whole scene and by a rotation about the
 vertical (the frame a task was recorded in says nothing about the task):
 
 - ``logspeed``: ``log1p(|v| / 0.02 m/s)`` of the smoothed position's velocity;
-- ``logangular``: ``log1p(|ω| / 0.1 rad/s)`` of the body's angular rate (needs
-  orientations);
+- ``logangular``: ``log1p(|ω| / 0.1 rad/s)`` of the body's angular velocity,
+  smoothed as a vector before its magnitude is taken (needs orientations);
 - ``height``: the position along the vertical above the recording's 10th
   percentile of it, in units of 2 cm (the work surface is the recording's own low
   level, wherever it is in the room);
@@ -200,11 +200,31 @@ def _log(x: FloatArray, unit: float) -> FloatArray:
     return np.asarray(np.log1p(np.maximum(x, 0.0) / unit) / LOG_UNIT, dtype=np.float64)
 
 
-def _angular_rate(t: FloatArray, quat: FloatArray) -> FloatArray:
-    """``|log(R_tᵀ R_{t+1})| / dt``, rad/s, shape (n,): the same in any world frame."""
-    q = se3.check_quat(quat)
-    step = se3.quat_angle(q[:-1], q[1:]) / np.diff(t)
-    return np.asarray(np.concatenate([step[:1], step]), dtype=np.float64)
+def accumulated_rotation(quat: FloatArray) -> FloatArray:
+    """Sum of the sample-to-sample rotation vectors, shape (n, 3), radians, the quaternions' frame.
+
+    A body turned four times by 100° about one axis reads 7 rad along it, where a
+    log map would wrap at π; its time derivative is the angular velocity.
+
+    Parameters
+    ----------
+    quat : ndarray, shape (n, 4), x y z w
+        Orientation of a body in some frame (sign-continuous or not).
+    """
+    q = np.asarray(quat, dtype=np.float64)
+    step = se3.quat_to_rotvec(se3.quat_multiply(q[1:], se3.quat_conjugate(q[:-1])))
+    return np.vstack([np.zeros((1, 3)), np.cumsum(step, axis=0)])
+
+
+def _angular_rate(t: FloatArray, quat: FloatArray, window: int) -> FloatArray:
+    """Magnitude of the smoothed angular velocity, rad/s, shape (n,): the same in any world frame.
+
+    The accumulated rotation is smoothed over ``window`` samples before it is
+    differentiated, as positions are before their speed: tracker noise on the
+    orientations averages out instead of adding to the magnitude.
+    """
+    rot = _smooth(accumulated_rotation(se3.check_quat(quat)), window)
+    return np.asarray(np.linalg.norm(np.gradient(rot, t, axis=0), axis=1), dtype=np.float64)
 
 
 def _nearest(pos: FloatArray, others: Sequence[FloatArray]) -> FloatArray:
@@ -267,7 +287,7 @@ def pose_channels(
         elif name == "logangular":
             if track.quat is None:
                 raise PrimitiveError(f"{track.name}: channel 'logangular' needs orientations")
-            col = _log(_smooth(_angular_rate(t, track.quat), w), UNITS["angular"])
+            col = _log(_angular_rate(t, track.quat, w), UNITS["angular"])
         elif name == "height":
             z = pos[:, 2]
             col = (z - np.percentile(z, 10)) / UNITS["height"]

@@ -25,6 +25,7 @@ from thirdhand.primitives.segments import ConstraintSegment, constraint_segments
 from thirdhand.primitives.serialize import pose_dmp_to_dict, promp_to_dict
 
 if TYPE_CHECKING:
+    from thirdhand.primitives.skill_library import SkillLibrary
     from thirdhand.task.stages import PrimitiveRecord, PrimitivesBlock
 
 
@@ -200,6 +201,7 @@ def primitives_stage(
     skills: int | None = None,
     names: Sequence[str] | None = None,
     seed: int = 0,
+    skill_library: SkillLibrary | None = None,
 ) -> PrimitivesBlock:
     """Learn per-constraint primitives from demonstrations: the task file's primitives block.
 
@@ -223,6 +225,9 @@ def primitives_stage(
         (default each demonstration's ``meta["source"]``).
     seed : int
         Seeds the skill library's restarts.
+    skill_library : SkillLibrary, optional
+        A library fitted before (a task file's, :meth:`~thirdhand.task.stages.SkillLibrary.fitted`):
+        it explains the motions instead of a new one (``skills`` is then ignored).
 
     Returns
     -------
@@ -260,10 +265,12 @@ def primitives_stage(
             group, n_weights=n_weights, promp_weights=promp_weights, align=align
         )
         out["constraints"][key] = prim.to_dict()
-    if skills is not None:
+    if skills is not None or skill_library is not None:
         from thirdhand.primitives.explain import explain_constraint_motions
 
-        explained = explain_constraint_motions(segs, n_skills=skills, seed=seed)
+        explained = explain_constraint_motions(
+            segs, n_skills=skills, seed=seed, library=skill_library
+        )
         out["skill_library"] = explained.library_block()
         for key, examples in explained.steps_by_key().items():
             out["constraints"][key]["skills"] = examples

@@ -59,9 +59,6 @@ def learn(
     legs: Annotated[
         list[int] | None, typer.Option(help="Plan chairs with these numbers of legs.")
     ] = None,
-    n_random: Annotated[
-        int, typer.Option(help="Random one-step transitions per MDP.", min=0)
-    ] = 300,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the result as JSON.")
@@ -75,14 +72,13 @@ def learn(
         check_output(json_out, force=force, inputs=tasks or [])
     options.seed(seed)
     options.integer("--synth", synth, low=0, high=MAX_SYNTH)
-    options.integer("--n-random", n_random, low=0, high=100000)
     for n in legs or []:
         options.integer("--legs", n, low=1, high=MAX_LEGS)
     trajectories = [load_trajectory(p) for p in tasks or []]
     trajectories += synth_trajectories("chair", range(seed, seed + synth)) if synth else []
     if not trajectories:
         raise RelationalError("irl learn: no demonstration (give task files or --synth N)")
-    model = learn_assembly(trajectories, n_random=n_random, seed=seed)
+    model = learn_assembly(trajectories, seed=seed)
     out.print(f"[bold]learned reward[/bold] ({len(trajectories)} demonstrations)")
     out.print(str(model.rcsi.reward))
     targets = {"bench": {"seating": 1, "leg": 4}}

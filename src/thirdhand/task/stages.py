@@ -36,7 +36,7 @@ Blocks
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import (
     ConfigDict,
@@ -341,53 +341,105 @@ class PrimitiveRecord(TaskModel):
         return promp_from_dict(self.promp.model_dump(mode="json"))
 
 
-class LibrarySkill(TaskModel):
-    """A skill of the library: its ProMP and the Gaussian of its levels."""
+class HsmmSkills(TaskModel):
+    """The parameters of a skill library's hidden semi-Markov model, K skills over C channels.
+
+    ``log_*`` are log-probabilities, null where a move is impossible.
+    """
+
+    means: list[list[float]]
+    covs: list[list[list[float]]]
+    duration_log_mean: list[float]
+    duration_log_sd: list[float]
+    max_duration: int = Field(ge=1)
+    log_trans: list[list[float | None]]
+    log_init: list[float | None]
+    log_final: list[float | None]
+
+
+class SkillSummary(TaskModel):
+    """What a skill does, for a reader: typical speed and angular rate, share of the motions."""
 
     id: int = Field(ge=0)
-    weight: float = Field(ge=0, le=1)
-    level_mean: list[float]
-    level_var: list[float]
-    promp: ProMPParameters
+    typical_speed_m_s: float = Field(ge=0)
+    typical_angular_speed_rad_s: float = Field(ge=0)
+    share: float = Field(ge=0, le=1)
+    n_steps: int = Field(ge=0)
+    mean_step_s: float = Field(ge=0)
 
-    @model_validator(mode="after")
-    def _check_levels(self) -> LibrarySkill:
-        if len(self.level_var) != len(self.level_mean):
-            raise ValueError(
-                f"level_var: expected {len(self.level_mean)} numbers like level_mean, "
-                f"got {len(self.level_var)}"
-            )
-        if any(v <= 0 for v in self.level_var):
-            raise ValueError("level_var: variances must be positive")
-        return self
+
+def _shape(value: Any) -> tuple[int, ...]:
+    """The shape of a nested list, () for a number; -1 where rows differ in length."""
+    if not isinstance(value, list):
+        return ()
+    if not value:
+        return (0,)
+    inner = {_shape(v) for v in value}
+    return (len(value), *inner.pop()) if len(inner) == 1 else (len(value), -1)
 
 
 class SkillLibrary(TaskModel):
-    """The skills, ids ``0…K−1`` in order, that explain the constraint motions."""
+    """The skill library that explains the constraint motions (``thirdhand.skill-library/1``).
 
+    The document :meth:`thirdhand.primitives.skill_library.SkillLibrary.to_dict`
+    writes, with the method, the frame and a per-skill ``summary`` beside it;
+    :meth:`fitted` rebuilds the library that parses new motions.
+    """
+
+    schema_: Literal["thirdhand.skill-library/1"] = Field(alias="schema")
+    parser: Literal["hsmm"] = "hsmm"
+    method: str = ""
+    frame: str = "child pose in the parent part's frame"
     n_skills: int = Field(ge=1)
+    ends: bool
+    channels: list[str] = Field(min_length=1)
     rate_hz: float = Field(gt=0)
-    skills: list[LibrarySkill]
+    window: int = Field(ge=1)
+    seed: int
+    skills: HsmmSkills
+    summary: list[SkillSummary] = Field(default_factory=list)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _older(cls, data: Any) -> Any:
+        if isinstance(data, dict) and "schema" not in data and isinstance(data.get("skills"), list):
+            raise ValueError(
+                "a library of ProMP skills written by an earlier thirdhand; run "
+                "`thirdhand learn` again to explain the motions with today's skill library"
+            )
+        return data
 
     @model_validator(mode="after")
-    def _check_skills(self) -> SkillLibrary:
-        if len(self.skills) != self.n_skills:
-            raise ValueError(
-                f"skills: expected {self.n_skills} skills (n_skills), got {len(self.skills)}"
-            )
-        n_levels = None
-        for i, s in enumerate(self.skills):
+    def _check_shapes(self) -> SkillLibrary:
+        k, c = self.n_skills, len(self.channels)
+        want = {
+            "means": (k, c),
+            "covs": (k, c, c),
+            "duration_log_mean": (k,),
+            "duration_log_sd": (k,),
+            "log_trans": (k, k),
+            "log_init": (k,),
+            "log_final": (k,),
+        }
+        for name, shape in want.items():
+            got = _shape(getattr(self.skills, name))
+            if got != shape:
+                dims = " × ".join(str(d) for d in shape)
+                raise ValueError(
+                    f"skills.{name}: expected {dims} numbers (n_skills {k}, {c} channels)"
+                )
+        for i, s in enumerate(self.summary):
             if s.id != i:
-                raise ValueError(
-                    f"skills[{i}].id: expected {i} (skills are numbered in order), got {s.id}"
-                )
-            if n_levels is not None and len(s.level_mean) != n_levels:
-                raise ValueError(
-                    f"skills[{i}].level_mean: expected {n_levels} numbers like skills[0], "
-                    f"got {len(s.level_mean)}"
-                )
-            n_levels = len(s.level_mean)
+                raise ValueError(f"summary[{i}].id: expected {i} (skills in order), got {s.id}")
+        if self.summary and len(self.summary) != k:
+            raise ValueError(f"summary: expected {k} skills (n_skills), got {len(self.summary)}")
         return self
+
+    def fitted(self) -> Any:
+        """The :class:`~thirdhand.primitives.skill_library.SkillLibrary` this block saved."""
+        from thirdhand.primitives.skill_library import SkillLibrary as Fitted
+
+        return Fitted.from_dict(self.model_dump(mode="json", by_alias=True), source="skill_library")
 
 
 class PrimitivesBlock(Block):
