@@ -19,3 +19,111 @@ def test_down_grasp_points_down_along_the_part(direction: tuple[float, float]) -
     d = np.array([*direction, 0.0])
     want = d / np.linalg.norm(d) if np.linalg.norm(d) > 0 else np.array([1.0, 0.0, 0.0])
     np.testing.assert_allclose(x, want, atol=1e-12)
+
+
+def test_handover_tries_turn_about_the_vertical_and_rise() -> None:
+    from thirdhand.live.assist import HANDOVER_RAISE_M, _handover_targets
+
+    pos, quat = np.array([0.1, 0.2, 1.1]), _down_quat(np.array([1.0, 0.0]))
+    targets = _handover_targets((pos, quat))
+    assert len(targets) == 8
+    np.testing.assert_array_equal(targets[0][0], pos)
+    np.testing.assert_allclose(targets[0][1], quat, atol=1e-12)
+    xs = []
+    for k, (p, q) in enumerate(targets):
+        rise = np.array([0.0, 0.0, HANDOVER_RAISE_M * (k // 4)])
+        np.testing.assert_allclose(p, pos + rise, atol=1e-12)
+        # still pointing down, turned about the vertical only
+        np.testing.assert_allclose(se3.quat_rotate(q, [0.0, 0.0, 1.0]), [0, 0, -1.0], atol=1e-12)
+        xs.append(se3.quat_rotate(q, [1.0, 0.0, 0.0]))
+    np.testing.assert_allclose(xs[:4], [[1, 0, 0], [0, 1, 0], [0, -1, 0], [-1, 0, 0]], atol=1e-12)
+
+
+def test_grasps_of_a_flat_part_come_from_above_and_the_first_is_kept() -> None:
+    """A board lying tilted by 10°: every grasp approaches from above (cosine with straight
+    down > 0.7), each tried again 1 cm less deep; the given top-down grasp first."""
+    from thirdhand.live.assist import DOWN_COS, MAX_GRASPS, SHALLOWER_M, RobotAssist
+
+    meta = {
+        "geometry": {"board": {"bbox_min": [-0.2, -0.2, -0.015], "bbox_max": [0.2, 0.2, 0.015]}}
+    }
+    assist = RobotAssist(["board"], ["part"], meta, "board")
+    pos = np.array([[0.3, 0.1, 0.77]])
+    quat = se3.rotvec_to_quat(np.array([[np.radians(10.0), 0.0, 0.0]]))
+    first = (pos[0], _down_quat(np.array([1.0, 0.0])))
+    targets = assist._grasp_targets(0, pos, quat, first)
+    assert targets[0] is first and 2 < len(targets) <= MAX_GRASPS + 1
+    for k, (p, q) in enumerate(targets[1:]):
+        z = se3.quat_rotate(q, [0.0, 0.0, 1.0])
+        assert -z[2] > DOWN_COS
+        if k % 2:  # the shallower try of the grasp before it
+            up = np.array([0.0, 0.0, SHALLOWER_M])
+            np.testing.assert_allclose(p, targets[k][0] + up, atol=1e-12)
+        # on the board's top face: within its half extent of its centre, near its top
+        local = se3.quat_rotate(se3.quat_conjugate(quat[0]), p - pos[0])
+        assert np.all(np.abs(local[:2]) <= 0.2 + 1e-9) and abs(local[2]) < 0.03
+
+
+@pytest.mark.slow
+def test_a_real_time_stream_plans_in_the_background_a_fast_replay_in_line(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Where the assist's planning runs: a thread of its own for a real-time source (the
+    frames keep coming), the loop's thread for a replay as fast as possible (its clock
+    takes the planning time); every plan has finished when the run returns."""
+    import threading
+
+    from test_live_loop import cut, task_from_labels
+    from thirdhand.live.assist import AssistOptions, RobotAssist
+    from thirdhand.live.loop import LiveLoop, LiveOptions
+    from thirdhand.live.source import ReplaySource
+    from thirdhand.synth import make_scene
+
+    task = task_from_labels(make_scene("chair", seed=31))
+    demo = cut(make_scene("chair", seed=32), 8.0)
+    threads: list[str] = []
+    plan = RobotAssist._plan
+
+    def spy(self: RobotAssist, *args: object) -> None:
+        threads.append(threading.current_thread().name)
+        plan(self, *args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(RobotAssist, "_plan", spy)
+
+    class RealTime:
+        """The replay's frames, presented as a real-time source (speed 1, no waiting)."""
+
+        speed = 1.0
+        bodies, meta = demo.bodies, demo.meta
+
+        def __iter__(self):  # type: ignore[no-untyped-def]
+            return iter(ReplaySource(demo, 0))
+
+    for source, where in (
+        (ReplaySource(demo, 0), "MainThread"),
+        (RealTime(), "thirdhand-assist-plan"),
+    ):
+        threads.clear()
+        loop = LiveLoop(task, demo.bodies, demo.meta, options=LiveOptions(assist=AssistOptions()))
+        report = loop.run(source)  # type: ignore[arg-type]
+        assert threads and set(threads) == {where}
+        assert loop.assist is not None and loop.assist._planner is None
+        # every assist planned to its end: a schedule or a reason
+        for a in report.assists:
+            assert a["outcome"] in ("moving", "ready", "late", "unreachable", "no path"), a
+            assert a["plan_ms"] > 0
+
+
+def test_an_error_in_the_background_is_raised_in_the_loops_thread() -> None:
+    from thirdhand.live.assist import RobotAssist
+
+    meta = {"geometry": {"board": {"bbox_min": [-0.1, -0.1, -0.01], "bbox_max": [0.1, 0.1, 0.01]}}}
+    assist = RobotAssist(["board"], ["part"], meta, "board")
+
+    def fail() -> None:
+        raise RuntimeError("the planner broke")
+
+    assist._in_background(fail, (), "test")
+    with pytest.raises(RuntimeError, match="the planner broke"):
+        assist.finish()
+    assist.finish()  # raised once, then clear

@@ -140,6 +140,25 @@ def replay_demonstration(
     return Demonstration(t, bodies, pos, quat, meta=meta)
 
 
+def robot_joints_document(robot: Robot, t: FloatArray, q: FloatArray) -> dict[str, Any]:
+    """The arm part of a ``thirdhand.trajectory/1`` document: robot, base pose, joints.
+
+    ``base_pose`` is the robot root's pose in the world (``pos`` metres, ``quat``
+    x y z w); ``t`` (n,) seconds and ``q`` (n, dof) radians, rounded to 1e-6.
+    """
+    return {
+        "schema": "thirdhand.trajectory/1",
+        "robot": robot.name,
+        "base_pose": {
+            "pos": [float(v) for v in robot.base_pose[0]],
+            "quat": [float(v) for v in robot.base_pose[1]],
+        },
+        "joint_names": list(robot.joint_names),
+        "t": [round(float(v), 6) for v in t],
+        "q": [[round(float(v), 6) for v in row] for row in q],
+    }
+
+
 def trajectory_document(
     robot: Robot, result: ExecutionResult, *, rate_hz: float = 50.0
 ) -> dict[str, Any]:
@@ -155,16 +174,8 @@ def trajectory_document(
     spans: list[dict[str, Any]] = []
     t, q, _ = sample_run(robot, result, rate_hz=rate_hz, spans=spans)
     return {
-        "schema": "thirdhand.trajectory/1",
-        "robot": robot.name,
-        "base_pose": {
-            "pos": [float(v) for v in robot.base_pose[0]],
-            "quat": [float(v) for v in robot.base_pose[1]],
-        },
-        "joint_names": list(robot.joint_names),
+        **robot_joints_document(robot, t, q),
         "rate_hz": rate_hz,
-        "t": [round(float(v), 6) for v in t],
-        "q": [[round(float(v), 6) for v in row] for row in q],
         "success": result.success,
         "n_collisions": result.n_collisions,
         "segments": spans,

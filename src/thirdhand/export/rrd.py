@@ -26,6 +26,8 @@ the optional extra ``thirdhand[rerun]``). Entities and timelines written:
   trajectory, radians.
 - ``execution/bodies/<body>`` (``execution_time``): the replay's poses
   (``OUT.parquet`` beside ``OUT.json``).
+- ``live/steps`` (``time``): a live run's recognised and undone steps
+  (``thirdhand live … --record OUT``'s ``OUT.json``, ``recognised``).
 - ``execution/robot/<shape>`` (``execution_time``): the arm as the planner saw
   it, every collision shape of the robot (:mod:`thirdhand.export.robot_model`;
   cylinders, spheres, boxes, meshes, static) at its world pose per sample. The
@@ -325,15 +327,29 @@ def read_execution(path: Path) -> dict[str, Any]:
     doc = loads_json(read_text_input(path, what="execution file", error=error), error=error)
     if not isinstance(doc, dict) or "t" not in doc or "q" not in doc:
         raise FormatError(path, "expected an execution file with 't' and 'q' (thirdhand execute)")
-    t = np.asarray(doc["t"], dtype=np.float64)
-    q = np.asarray(doc["q"], dtype=np.float64)
+    t, q = _joint_arrays(doc)
     if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.size:
         raise FormatError(path, f"'q' must have one row per time: {q.shape} for {t.size} times")
+    steps = doc.get("recognised", [])
+    if not isinstance(steps, list) or not all(
+        isinstance(s, dict) and isinstance(s.get("t"), (int, float)) for s in steps
+    ):
+        raise FormatError(path, "'recognised' must be a list of {'t': seconds, ...}")
     if "base_pose" in doc and not _is_pose(doc["base_pose"]):
         raise FormatError(
             path, "'base_pose' must be {'pos': [x, y, z], 'quat': [x, y, z, w]}, finite, unit"
         )
     return doc
+
+
+def _joint_arrays(doc: dict[str, Any]) -> tuple[FloatArray, FloatArray]:
+    """``t`` (n,) seconds and ``q`` (n, dof) radians of a run file; (0,) and (0, 0) for a
+    live run without the arm."""
+    t = np.asarray(doc["t"], dtype=np.float64)
+    q = np.asarray(doc["q"], dtype=np.float64)
+    if t.size == 0 and q.size == 0:
+        q = q.reshape(0, 0)
+    return t, q
 
 
 def _is_pose(value: Any) -> bool:
@@ -415,10 +431,9 @@ def _log_robot(rec: Any, doc: dict[str, Any], replay: Demonstration | None, path
     base = _robot_base(doc, replay, arm)
     if base is None:
         return 0
-    q = np.asarray(doc["q"], dtype=np.float64)
+    t, q = _joint_arrays(doc)
     if q.shape[1] != arm.dof:
         raise FormatError(path, f"'q' has {q.shape[1]} joints; {name} has {arm.dof}")
-    t = np.asarray(doc["t"], dtype=np.float64)
     shapes = robot_shapes(arm)
     poses = base @ shape_transforms(arm, shapes, q)  # every shape moves with the root
     for k, shape in enumerate(shapes):
@@ -437,8 +452,18 @@ def _log_execution(rec: Any, doc: dict[str, Any], path: Path) -> tuple[int, int]
     """The joint scalars, the replay's bodies and the robot; (joints, robot shapes) written."""
     import rerun as rr
 
-    t = np.asarray(doc["t"], dtype=np.float64)
-    q = np.asarray(doc["q"], dtype=np.float64)
+    for s in doc.get("recognised", []):  # a live run's steps, on the stream's clock
+        rec.set_time(TIMELINE, duration=float(s["t"]))
+        verb = "recognised" if s.get("kind") == "formed" else "undone"
+        rec.log(
+            "live/steps",
+            rr.TextLog(
+                f"step {s.get('step')} {verb}: {s.get('constraint')} "
+                f"({s.get('parent')} <- {s.get('child')})"
+            ),
+        )
+    rec.reset_time()
+    t, q = _joint_arrays(doc)
     names = doc.get("joint_names") or doc.get("joints") or [f"q{i}" for i in range(q.shape[1])]
     for j, name in enumerate(names[: q.shape[1]]):
         rec.send_columns(

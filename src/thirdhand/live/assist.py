@@ -27,10 +27,11 @@ part. What is measured is whether the robot's part would have been waiting.
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -38,6 +39,19 @@ from thirdhand import se3
 from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.live.tracker import PlanTracker
 from thirdhand.segment.contact import body_box
+
+if TYPE_CHECKING:
+    from thirdhand.execute.robot import Robot
+
+
+#: A grasp comes from above when the tool's approach axis has this cosine with straight down.
+DOWN_COS = 0.7
+#: How much less deep the second try of each grasp from above goes, metres.
+SHALLOWER_M = 0.01
+#: Most grasp poses tried per assist (each one an IK search).
+MAX_GRASPS = 16
+#: How far above the hand-over pose its second set of tries is, metres.
+HANDOVER_RAISE_M = 0.15
 
 
 @dataclass(frozen=True)
@@ -53,7 +67,8 @@ class AssistOptions:
         from the person, metres.
     handover_m : tuple of 3 floats
         Hand-over point relative to the root's first position: towards the arm,
-        sideways, up, metres.
+        sideways, up, metres (0.3 m towards the arm: the parts being assembled stand
+        up around the root; docs/live.md).
     joint_speed : float
         Largest joint speed of the executed motion, rad/s.
     grasp_s : float
@@ -70,7 +85,7 @@ class AssistOptions:
 
     robot: str = "panda"
     base_offset_m: float = 0.45
-    handover_m: tuple[float, float, float] = (0.2, 0.0, 0.35)
+    handover_m: tuple[float, float, float] = (0.3, 0.0, 0.35)
     joint_speed: float = 1.5
     grasp_s: float = 0.5
     lift_m: float = 0.06
@@ -153,6 +168,12 @@ class RobotAssist:
     root : str
         The assembly's root part (where the person works).
     options : AssistOptions, optional
+
+    Attributes
+    ----------
+    background : bool
+        Plan each fetch in a background thread (default; a real-time stream), or in the
+        caller's (a replay as fast as possible: :meth:`LiveLoop.run` sets it).
     """
 
     def __init__(
@@ -180,8 +201,20 @@ class RobotAssist:
         self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
         self._robot: Any = None
         self._handover: tuple[FloatArray, FloatArray] | None = None
+        #: Plan in a background thread (a real-time stream: the frames keep coming while
+        #: the arm's motion is planned); False plans in the caller's thread (a replay as
+        #: fast as possible, whose clock the planning time is added to).
+        self.background = True
+        self._planner: threading.Thread | None = None
+        self._error: BaseException | None = None
 
     # ----------------------------------------------------------------- world
+    @property
+    def robot(self) -> Robot | None:
+        """The simulated arm, placed once the assembly's root was first tracked (else None)."""
+        robot: Robot | None = self._robot
+        return robot
+
     def _box(self, i: int) -> tuple[FloatArray, FloatArray]:
         """Box centre (in the part frame) and sides, metres."""
         b = self.boxes.get(i)
@@ -264,28 +297,32 @@ class RobotAssist:
         holding: Mapping[tuple[str, str], bool],
     ) -> None:
         """One latent step: start, follow or end an assist."""
-        if self._robot is None:
-            if not valid[self.root]:
-                return
-            self._setup(pos, quat, valid)
         held = {obj for (_, obj), h in holding.items() if h}
         used = tracker.used_children()
         a = self.active
+        self._raise_error()
+        if self._planner is not None:
+            # set up or planning in the background: the arm and the scene are that
+            # thread's until it is done
+            if self._planner.is_alive():
+                if a is not None and a.end_s is None:
+                    self._ends(a, t, held, used, tracker)
+                return
+            self._planner = None
+            if a is not None and a.end_s is not None:  # taken while it was planned
+                self._release()
+                self.active = None
+                return
+        if self._robot is None:
+            if not valid[self.root]:
+                return
+            args = (pos.copy(), quat.copy(), valid.copy())
+            if self.background:  # loading the arm and its world takes ~0.2 s
+                self._in_background(self._setup, args, "thirdhand-assist-setup")
+                return
+            self._setup(*args)
         if a is not None:
-            # Interchangeable parts: the robot's part serves whichever step of its kind
-            # comes next; the assist ends when a hand takes a new part of that kind.
-            parts = set(tracker.candidates_for(a.step)) | {a.part}
-            taken = (held & parts) - a.held_at_start - used
-            needed = any(
-                a.part in tracker.candidates_for(i)
-                for i in range(len(tracker.slots))
-                if i not in tracker.done
-            )
-            if taken or not needed:
-                a.end_s = t
-                a.taken = ", ".join(sorted(taken))
-                if a.outcome == "moving":
-                    a.outcome = "ready" if a.ready_s is not None and a.ready_s <= t else "late"
+            if self._ends(a, t, held, used, tracker):
                 self._release()
                 self.active = None
             else:
@@ -309,20 +346,79 @@ class RobotAssist:
             self.active.held_at_start = set(held)
             return
 
+    def _ends(
+        self, a: Assist, t: float, held: set[str], used: set[str], tracker: PlanTracker
+    ) -> bool:
+        """Whether ``a`` ends at ``t`` (a hand took a part of its kind, or none is needed)."""
+        # Interchangeable parts: the robot's part serves whichever step of its kind
+        # comes next; the assist ends when a hand takes a new part of that kind.
+        parts = set(tracker.candidates_for(a.step)) | {a.part}
+        taken = (held & parts) - a.held_at_start - used
+        needed = any(
+            a.part in tracker.candidates_for(i)
+            for i in range(len(tracker.slots))
+            if i not in tracker.done
+        )
+        if not (taken or not needed):
+            return False
+        a.end_s = t
+        a.taken = ", ".join(sorted(taken))
+        if a.outcome == "moving":
+            a.outcome = "ready" if a.ready_s is not None and a.ready_s <= t else "late"
+        return True
+
+    def _in_background(self, target: Any, args: tuple[Any, ...], name: str) -> None:
+        """Run ``target(*args)`` in :attr:`_planner`; an error it raises is raised again
+        by the next :meth:`update` (or :meth:`finish`), in the loop's thread."""
+
+        def run() -> None:
+            try:
+                target(*args)
+            except BaseException as exc:  # handed to the loop's thread
+                self._error = exc
+
+        self._planner = threading.Thread(target=run, name=name, daemon=True)
+        self._planner.start()
+
+    def _raise_error(self) -> None:
+        if self._error is not None:
+            exc, self._error = self._error, None
+            raise exc
+
+    def finish(self) -> None:
+        """Wait for a planning still running in the background (the end of a stream)."""
+        if self._planner is not None:
+            self._planner.join()
+            self._planner = None
+        self._raise_error()
+
     def _start(
         self, t: float, step: int, part: int, pos: FloatArray, quat: FloatArray, valid: BoolArray
     ) -> None:
-        from thirdhand.execute.planner import plan_motion
-
-        opt = self.options
         a = Assist(step=step, part=self.names[part], start_s=t)
         self.assists.append(a)
         self.active = a
         w0 = time.perf_counter()
-        scene = self._scene
         self._track(pos, quat, valid, skip=-1)
         self._carried = part
         self._carried_pose = (pos[part].copy(), quat[part].copy())
+        args = (a, t, part, pos.copy(), quat.copy(), w0)
+        if self.background:
+            self._in_background(self._plan, args, "thirdhand-assist-plan")
+        else:
+            self._plan(*args)
+
+    def _plan(
+        self, a: Assist, t: float, part: int, pos: FloatArray, quat: FloatArray, w0: float
+    ) -> None:
+        """Plan the fetch of ``part`` decided at ``t`` (stream clock) and schedule it in ``a``.
+
+        The schedule starts when the planning ends: ``t`` plus the planning's wall time.
+        """
+        from thirdhand.execute.planner import plan_motion
+
+        opt = self.options
+        scene = self._scene
         c, _ = self._box(part)
         centre = pos[part] + se3.quat_rotate(quat[part], c)
         _, size = self._box(part)
@@ -333,9 +429,11 @@ class RobotAssist:
         home = self._robot.home
         name = self.names[part]
         scene.allow(name, "gripper")
-        q_grasp = self._robot.ik(
-            (centre, _down_quat(axis[:2])), home, seed=0, accept=scene.is_valid
-        )
+        q_grasp = None
+        for target in self._grasp_targets(part, pos, quat, (centre, _down_quat(axis[:2]))):
+            q_grasp = self._robot.ik(target, home, seed=0, accept=scene.is_valid)
+            if q_grasp is not None:
+                break
         r1 = r2 = None
         q_hand = None
         if q_grasp is not None:
@@ -346,7 +444,7 @@ class RobotAssist:
                 q_grasp,
                 time_limit=opt.plan_time_s,
                 seed=0,
-                simplify=False,
+                simplify=True,
             )
             if r1.success:
                 # Lifted off the table it rests on: that contact is not a collision.
@@ -362,9 +460,12 @@ class RobotAssist:
                 scene.disallow(name, "table")
                 assert self._handover is not None
                 if q_lift is not None and scene.is_valid(q_lift):
-                    q_hand = self._robot.ik(
-                        self._handover, q_lift, seed=0, n_restarts=16, accept=scene.is_valid
-                    )
+                    for target in _handover_targets(self._handover):
+                        q_hand = self._robot.ik(
+                            target, q_lift, seed=0, n_restarts=16, accept=scene.is_valid
+                        )
+                        if q_hand is not None:
+                            break
                 if q_hand is not None and q_lift is not None:
                     self._lift = q_lift
                     r2 = plan_motion(
@@ -374,7 +475,7 @@ class RobotAssist:
                         q_hand,
                         time_limit=opt.plan_time_s,
                         seed=0,
-                        simplify=False,
+                        simplify=True,
                     )
                 scene.detach(name, q_grasp)
         a.plan_ms = 1e3 * (time.perf_counter() - w0)
@@ -393,6 +494,40 @@ class RobotAssist:
         a.times = t + a.plan_ms / 1e3 + np.concatenate([[0.0], np.cumsum(seg)])
         a.ready_s = float(a.times[-1])
         self._grasp_index = len(r1.path) - 1
+
+    def _grasp_targets(
+        self,
+        part: int,
+        pos: FloatArray,
+        quat: FloatArray,
+        first: tuple[FloatArray, FloatArray],
+    ) -> list[tuple[FloatArray, FloatArray]]:
+        """Tool poses (world) to grasp ``part`` from above, the best first.
+
+        ``first`` (the top-down grasp at the top of the part's box), then the
+        execution stage's shape grasps (:func:`~thirdhand.execute.grasps.shape_grasps`)
+        whose approach points down by more than :data:`DOWN_COS`, the most vertical
+        and central first, each also :data:`SHALLOWER_M` less deep (a flat part's
+        grasp can put the fingertips into the table it lies on), at most
+        :data:`MAX_GRASPS` of them.
+        """
+        from thirdhand.execute.grasps import shape_grasps
+
+        c, size = self._box(part)
+        t_wp = se3.pose_to_matrix(pos[part], quat[part])
+        world_c = pos[part] + se3.quat_rotate(quat[part], c)
+        ranked = []
+        for g in shape_grasps(c - size / 2.0, c + size / 2.0):
+            t = t_wp @ g.pose
+            down = -float(t[2, 2])
+            if down > DOWN_COS:
+                ranked.append((-round(down, 6), float(np.linalg.norm(t[:3, 3] - world_c)), t))
+        ranked.sort(key=lambda r: (r[0], r[1]))
+        out = [first]
+        for _, _, t in ranked[: MAX_GRASPS // 2]:
+            q = se3.quat_from_matrix(t[:3, :3])
+            out += [(t[:3, 3], q), (t[:3, 3] + np.array([0.0, 0.0, SHALLOWER_M]), q)]
+        return out
 
     def _check(
         self, a: Assist, t: float, pos: FloatArray, quat: FloatArray, valid: BoolArray
@@ -435,6 +570,21 @@ class RobotAssist:
                 name, (np.array([0.0, 0.0, -10.0]), np.array([0, 0, 0, 1.0]))
             )
             self._attached = False
+
+
+def _handover_targets(
+    handover: tuple[FloatArray, FloatArray],
+) -> list[tuple[FloatArray, FloatArray]]:
+    """The hand-over pose, then turned about the vertical and raised (a large part held
+    at the first may touch the assembly or the person): yaw 0, ±90°, 180° at the
+    pose's height and :data:`HANDOVER_RAISE_M` above it."""
+    pos, quat = handover
+    out = []
+    for dz in (0.0, HANDOVER_RAISE_M):
+        for yaw in (0.0, 0.5 * math.pi, -0.5 * math.pi, math.pi):
+            turn = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
+            out.append((pos + np.array([0.0, 0.0, dz]), np.asarray(se3.quat_multiply(turn, quat))))
+    return out
 
 
 def _down_quat(direction: FloatArray) -> FloatArray:

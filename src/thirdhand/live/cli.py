@@ -15,6 +15,8 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
+from thirdhand.errors import ThirdhandError
+
 
 def live_command(
     recording: Annotated[
@@ -39,8 +41,16 @@ def live_command(
             help="Simulate the robot assist: fetch the next step's part to a hand-over pose."
         ),
     ] = False,
+    record: Annotated[
+        Path | None,
+        typer.Option(
+            help="Write the run as OUT.parquet (the stream, the robot's tool) and OUT.json "
+            "(the arm's joints, the recognised steps, the assists); see docs/live.md."
+        ),
+    ] = None,
     force: Annotated[
-        bool, typer.Option(help="Replace an existing --json file (kept as a numbered .bak).")
+        bool,
+        typer.Option(help="Replace existing --json/--record files (kept as numbered .bak)."),
     ] = False,
 ) -> None:
     """Follow a person through a task's plan, live: the step they are in, done, and next."""
@@ -48,7 +58,8 @@ def live_command(
     from thirdhand.fileops import check_output, write_text
     from thirdhand.live.assist import AssistOptions
     from thirdhand.live.loop import LiveLoop, LiveOptions
-    from thirdhand.live.source import ReplaySource, check_speed
+    from thirdhand.live.mcap_source import being_written
+    from thirdhand.live.source import FrameLog, FrameSource, ReplaySource, check_speed
     from thirdhand.live.state import StateEvent
     from thirdhand.segment.model import resolve_model
     from thirdhand.task.store import load_task
@@ -56,13 +67,35 @@ def live_command(
     check_speed(speed)
     if json_out is not None:
         check_output(json_out, force=force, inputs=[recording, task])
+    if record is not None:
+        from thirdhand.execute.record import record_paths
+
+        targets = record_paths(record)
+        if json_out is not None and json_out.resolve() in {p.resolve() for p in targets}:
+            raise ThirdhandError(f"--record {record}: would write over --json {json_out}")
+        for target in targets:
+            check_output(target, force=force, inputs=[recording, task])
     t = load_task(task)
     model = resolve_model(segment_model)
-    demo = io.load(recording)
+    source: FrameSource
+    if being_written(recording):  # a recorder is appending to it: follow it as it grows
+        from thirdhand.live.mcap_source import McapSource
+
+        if speed != 1.0:
+            raise ThirdhandError(
+                f"--speed: {recording} is being written; it is followed as it grows "
+                "(leave --speed out)"
+            )
+        source = log = FrameLog(McapSource(recording))
+        t0 = 0.0
+    else:
+        log = None
+        demo = io.load(recording)
+        source = ReplaySource(demo, speed)
+        t0 = float(demo.t[0])
     opts = LiveOptions(assist=AssistOptions() if assist else None)
-    loop = LiveLoop(t, demo.bodies, demo.meta, model, opts, source_name=str(recording))
+    loop = LiveLoop(t, source.bodies, source.meta, model, opts, source_name=str(recording))
     console = Console(highlight=False, stderr=False)
-    t0 = float(demo.t[0])
 
     def show(now: float, events: list[StateEvent]) -> None:
         for e in events:
@@ -72,7 +105,7 @@ def live_command(
                 f"({e.parent} <- {e.child})"
             )
 
-    report = loop.run(ReplaySource(demo, speed), on_events=show)
+    report = loop.run(source, on_events=show)
     for a, b in report.dropped:
         console.print(f"dropped stream: no frame from {a - t0:.2f} s to {b - t0:.2f} s")
     doc = report.to_dict()
@@ -96,3 +129,9 @@ def live_command(
         doc["speed"] = speed
         write_text(json_out, json.dumps(doc, indent=1) + "\n")
         console.print(f"wrote {json_out}")
+    if record is not None:
+        from thirdhand.live.record import write_live_record
+
+        streamed = log.demonstration() if log is not None else demo
+        replay, traj = write_live_record(streamed, report, loop.assist, record)
+        console.print(f"wrote {replay} and {traj}")

@@ -81,6 +81,45 @@ class FrameSource(Protocol):
     def __iter__(self) -> Iterator[Frame]: ...
 
 
+class FrameLog:
+    """A source passed through, every frame kept: the stream as a Demonstration afterwards.
+
+    For a source that is not a recording already (a live client, a file being
+    written), so that ``--record`` can write what arrived.
+    """
+
+    def __init__(self, source: FrameSource) -> None:
+        self.source = source
+        self.bodies = source.bodies
+        self.meta = source.meta
+        self.speed = getattr(source, "speed", 1.0)
+        self.frames: list[Frame] = []
+
+    def __iter__(self) -> Iterator[Frame]:
+        for frame in self.source:
+            self.frames.append(frame)
+            yield frame
+
+    def demonstration(self) -> Demonstration:
+        """The frames received, as a recording (invalid rows NaN)."""
+        names = [b.name for b in self.bodies]
+        n = len(self.frames)
+        t = np.array([f.t for f in self.frames], dtype=np.float64)
+        valid = np.array([f.valid for f in self.frames], dtype=bool).reshape(n, len(names))
+        pos = np.array([f.pos for f in self.frames], dtype=np.float64).reshape(n, len(names), 3)
+        quat = np.array([f.quat for f in self.frames], dtype=np.float64).reshape(n, len(names), 4)
+        pos[~valid] = np.nan
+        quat[~valid] = np.nan
+        return Demonstration(
+            t,
+            list(self.bodies),
+            {b: pos[:, k] for k, b in enumerate(names)},
+            {b: quat[:, k] for k, b in enumerate(names)},
+            valid={b: valid[:, k] for k, b in enumerate(names)},
+            meta=dict(self.meta),
+        )
+
+
 def check_speed(speed: float) -> float:
     """A replay speed: finite and ≥ 0 (0: as fast as possible).
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import html
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 import viser
@@ -641,9 +641,34 @@ def _index_of(value: str, labels: list[str]) -> int:
         return 0 if labels else -1
 
 
+def live_steps_html(meta: Mapping[str, Any]) -> str:
+    """The steps a live run recognised (``thirdhand live --record``), in time order, or ``""``."""
+    steps = meta.get("live_steps")
+    if not isinstance(steps, list) or not steps:
+        return ""
+    rows = []
+    for s in steps:
+        if not isinstance(s, Mapping):
+            continue
+        verb = "recognised" if s.get("kind") == "formed" else "undone"
+        rows.append(
+            f"<tr><td>{float(s.get('t', 0.0)):.2f} s</td><td>step {s.get('step')} {verb}</td>"
+            f"<td>{html.escape(str(s.get('constraint')))}: "
+            f"{html.escape(str(s.get('parent')))} ← {html.escape(str(s.get('child')))}</td></tr>"
+        )
+    return (
+        '<div id="th-live-steps" style="padding:0 0.75em;font-size:0.85em">'
+        f"live run:<table>{''.join(rows)}</table></div>"
+    )
+
+
 def _legend_of(app: ReviewApp) -> str:
-    """The legend of the recording played back; for an execution, its outcome too."""
-    legend = _legend(app.motion.contacts[app.motion.demo_index].source)
+    """The legend of the recording played back; for an execution, its outcome too; for a
+    live run's record, the steps it recognised."""
+    tl = app.motion.timelines[app.motion.demo_index]
+    legend = _legend(app.motion.contacts[app.motion.demo_index].source) + live_steps_html(
+        tl.demo.meta
+    )
     replay = app.replay_shown()
     if replay is None:
         return legend
