@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -232,6 +233,17 @@ def test_learn_explains_new_motions_with_an_earlier_tasks_skill_library(tmp_path
     legs = [c for c in b.constraints.values() if c.child.startswith("leg")]
     assert len(legs) == 4
     assert all(turn in [s.skill for s in c.skills[0].steps] for c in legs if c.skills)
+    # `primitives library --library TASK` parses a track with the task's skills
+    chair = io.load(tmp_path / "c4.parquet")
+    leg = chair.track("leg1")
+    csv = tmp_path / "leg1.csv"
+    rows = np.column_stack([chair.t, leg.pos, leg.quat])[leg.valid]
+    np.savetxt(csv, rows, delimiter=",")
+    r = runner.invoke(app, ["primitives", "library", str(csv), "--library", str(first), "--json"])
+    assert r.exit_code == 0, r.output
+    parsed = json.loads(r.output)
+    assert parsed["n_skills"] == a.skill_library.n_skills and parsed["library"] == str(first)
+    assert turn in parsed["tracks"][0]["labels"]
     # a task without a library: one line, nothing written
     bare = tmp_path / "bare.json"
     cfg0 = settings_file(tmp_path, "learn", reward=False, skills=0)

@@ -27,8 +27,10 @@ class LearnSettings(Settings):
     )
     skill_library: str | None = Field(
         None,
-        description="A task file from an earlier `learn` whose skill library explains the "
-        "new motions (stages.primitives.skill_library; default: learn one, `skills` skills).",
+        description="A task file from an earlier `learn` (or a library saved by "
+        "`primitives library -o` on the channels logspeed, logangular) whose skill library "
+        "explains the new motions (stages.primitives.skill_library; default: learn one, "
+        "`skills` skills).",
     )
     min_support: float = Field(
         0.5,

@@ -9,7 +9,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated
+from typing import Annotated
 
 import typer
 from rich.console import Console
@@ -20,9 +20,6 @@ from thirdhand.demonstration import Demonstration
 from thirdhand.errors import TaskFileError, ThirdhandError
 from thirdhand.fileops import check_distinct_inputs, check_output
 from thirdhand.progress import stage_status
-
-if TYPE_CHECKING:
-    from thirdhand.primitives.skill_library import SkillLibrary
 
 out = Console(highlight=False, soft_wrap=True)
 
@@ -108,22 +105,6 @@ def _load(path: Path) -> Demonstration:
 
 
 @app.command("learn")
-def _skill_library(path: Path) -> SkillLibrary:
-    """The skill library of an earlier task file (``[learn] skill_library``)."""
-    from thirdhand.taskfile import load_task
-
-    if not path.is_file():
-        raise ThirdhandError(f"skill_library {path}: no such file")
-    prim = load_task(path).stages.primitives
-    if prim is None or prim.skill_library is None:
-        raise ThirdhandError(
-            f"skill_library {path}: the task has no stages.primitives.skill_library "
-            "(learn it with primitives on and skills > 0)"
-        )
-    fitted: SkillLibrary = prim.skill_library.fitted()
-    return fitted
-
-
 def learn_command(
     demos: Annotated[
         list[Path],
@@ -186,7 +167,9 @@ def learn_command(
         seg_model = resolve_model(cfg.segment_model)
     skill_library = None
     if library_path is not None and cfg.primitives:
-        skill_library = _skill_library(library_path)
+        from thirdhand.primitives.skill_library import read_skill_library
+
+        skill_library = read_skill_library(library_path)
     loaded = [_load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))

@@ -231,6 +231,7 @@ def library(
         SkillLibrary,
         SkillParserOptions,
         cuts_parses,
+        read_skill_library,
     )
 
     try:
@@ -265,11 +266,7 @@ def library(
             n_cand = [int(c.size) for c in seed_lib.candidates_]
         else:
             if lib_in is not None:
-                try:
-                    doc = json.loads(lib_in.read_text())
-                except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-                    raise FormatError(lib_in, f"not a JSON skill library: {exc}") from None
-                lib = SkillLibrary.from_dict(doc, source=str(lib_in))
+                lib = read_skill_library(lib_in)
             else:
                 lib = SkillLibrary(opts).fit(data)
             parses = [lib.parse(tr) for tr in data]

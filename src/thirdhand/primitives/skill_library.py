@@ -22,13 +22,16 @@ The seed's parser (candidate cuts at speed minima + a mixture of ProMP skills,
 
 from __future__ import annotations
 
+import json
 from collections.abc import Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Literal
 
 import numpy as np
 
 from thirdhand.arrays import FloatArray, IntArray
+from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov, runs
 from thirdhand.primitives.pose_channels import CHANNELS, PoseTrack, default_channels, pose_channels
@@ -335,6 +338,41 @@ class SkillLibrary:
         for p in parses:
             np.add.at(counts, p.labels, 1.0)
         return (counts / max(counts.sum(), 1.0)).tolist()
+
+
+def read_skill_library(path: Path) -> SkillLibrary:
+    """A saved skill library: the file ``primitives library -o`` writes, or a task's.
+
+    Parameters
+    ----------
+    path : Path
+        A ``thirdhand.skill-library/1`` document, or a task file
+        (``thirdhand.task/…``) whose ``stages.primitives.skill_library`` is read.
+
+    Raises
+    ------
+    ThirdhandError
+        No such file, not JSON, a task without a skill library, or a damaged library
+        (one line naming the file).
+    """
+    if not path.is_file():
+        raise ThirdhandError(f"{path}: no such file")
+    try:
+        doc = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise FormatError(path, f"not a JSON skill library or task file: {exc}") from None
+    if isinstance(doc, dict) and str(doc.get("schema", "")).startswith("thirdhand.task/"):
+        from thirdhand.taskfile import load_task
+
+        prim = load_task(path).stages.primitives
+        if prim is None or prim.skill_library is None:
+            raise ThirdhandError(
+                f"{path}: the task has no stages.primitives.skill_library "
+                "(learn it with primitives on and skills > 0)"
+            )
+        fitted: SkillLibrary = prim.skill_library.fitted()
+        return fitted
+    return SkillLibrary.from_dict(doc, source=str(path))
 
 
 def cuts_parses(
