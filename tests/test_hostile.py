@@ -132,7 +132,10 @@ CASES: list[tuple[str, str]] = [
     ("primitives library {demo} --body seat --skills 0", "--skills"),
     ("primitives library {demo} --body seat --skills 1000", "--skills"),
     ("primitives library {demo} --body seat --parser magic", "--parser"),
-    ("primitives library {demo} --body seat --library {task}", "skill library"),
+    (
+        "primitives library {demo} --body seat --library {task}",
+        "has no stages.primitives.skill_library",
+    ),
     ("primitives library {demo} --body seat --plot {dir}/x.csv", "figure"),
     ("primitives library {demo} --body seat --plot {existing_png}", "--force"),
     ("irl learn {task} --legs -2", "--legs"),

@@ -121,9 +121,10 @@ def _joint_start(p: FloatArray, q: FloatArray, lo: int, hi: int, params: HMMPara
 
 def _joint_dofs(
     p: FloatArray, q: FloatArray
-) -> tuple[str, FloatArray, FloatArray, FloatArray] | None:
-    """Type, constraint frame (position and quaternion in the child frame) and ranges of
-    an articulated span, fitted in the parent's frame.
+) -> tuple[str, FloatArray, FloatArray, FloatArray, JointFit | None] | None:
+    """Type, constraint frame (position and quaternion in the child frame), ranges and
+    runner-up (the next most probable type, fitted) of an articulated span, fitted in
+    the parent's frame.
 
     The frame is snapped to the child's axes when the joint axis is within 15° of
     one of them (a drawer sliding along its own x): its orientation is then the
@@ -149,9 +150,10 @@ def _joint_dofs(
         sign = 1.0 if axis[k] > 0 else -1.0
         ranges[dof + k] = sorted((sign * lo, sign * hi))
         origin = np.zeros(3) if fit.type == "prismatic" else np.asarray(fp, dtype=np.float64)
-        return fit.type, origin, np.array([0.0, 0.0, 0.0, 1.0]), ranges
+        return fit.type, origin, np.array([0.0, 0.0, 0.0, 1.0]), ranges, fit.runner_up
     ranges[dof] = (lo, hi)
-    return fit.type, np.asarray(fp, dtype=np.float64), np.asarray(fq, dtype=np.float64), ranges
+    frame_p, frame_q = np.asarray(fp, dtype=np.float64), np.asarray(fq, dtype=np.float64)
+    return fit.type, frame_p, frame_q, ranges, fit.runner_up
 
 
 def _free_spin(

@@ -156,8 +156,9 @@ def _instance(
     end = None if hi >= times.size - 1 else float(times[hi - 1] + 0.5 * step)
     frame_p = np.zeros(3)
     joint = _joint_dofs(p_run[lo:hi], q_run[lo:hi]) if c.joint else None
+    runner_up = None
     if joint is not None:
-        typ, frame_p, frame_q, ranges = joint
+        typ, frame_p, frame_q, ranges, runner_up = joint
         spin = 0.0
     else:
         frame_q, ranges, spin = _free_spin(p_run, q_run, lo, pos, quat, opt)
@@ -175,4 +176,5 @@ def _instance(
         ranges=ranges,
         confidence=c.conf,
         spin=spin,
+        runner_up=runner_up,
     )

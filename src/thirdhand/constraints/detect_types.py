@@ -10,7 +10,7 @@ import numpy as np
 
 from thirdhand.arrays import FloatArray
 from thirdhand.constraints.hmm import HMMParams
-from thirdhand.constraints.types import DOF_NAMES, ConstraintFitError
+from thirdhand.constraints.types import DOF_NAMES, ConstraintFitError, JointFit
 from thirdhand.demonstration import FreeDofs
 
 if TYPE_CHECKING:
@@ -48,6 +48,9 @@ class ConstraintInstance:
         Name of the demonstration it comes from.
     symbol : str or None
         Filled by :mod:`thirdhand.plan.symbols`.
+    runner_up : JointFit or None
+        For a joint chosen among types (a slide, a hinge): the next most probable
+        type, fitted in the parent's frame; None otherwise.
     """
 
     parent: str
@@ -64,6 +67,7 @@ class ConstraintInstance:
     spin: float = 0.0
     demo: str | None = None
     symbol: str | None = None
+    runner_up: JointFit | None = None
 
     @property
     def free_dofs(self) -> FreeDofs:
@@ -85,6 +89,7 @@ class ConstraintInstance:
             "confidence": self.confidence,
             "spin_deg": math.degrees(self.spin),
             "symbol": self.symbol,
+            "runner_up": None if self.runner_up is None else self.runner_up.alternative(),
         }
 
 

@@ -256,6 +256,25 @@ class JointFit:
             "runner_up": None if self.runner_up is None else self.runner_up.summary(),
         }
 
+    def alternative(self) -> dict[str, Any]:
+        """This fit as a task file's ``runner_up`` (:class:`thirdhand.task.constraint.RunnerUp`).
+
+        The axis and origin are in the frame the track was given in (the parent's
+        for a relative-pose track); ``travel`` is the range along the joint, metres
+        for a slide and radians for a hinge.
+        """
+        dof = {"prismatic": 0, "revolute": 3}.get(self.type)
+        travel = 0.0 if dof is None else float(self.ranges[dof, 1] - self.ranges[dof, 0])
+        radius = self.radius if self.type == "revolute" else None
+        return {
+            "type": self.type,
+            "probability": min(1.0, max(0.0, float(self.confidence))),
+            "axis": None if self.axis is None or self.type == "fixed" else _floats(self.axis),
+            "origin": _floats(self.origin) if self.type == "revolute" else None,
+            "radius": None if radius is None or not math.isfinite(radius) else float(radius),
+            "travel": max(travel, 0.0) if math.isfinite(travel) else 0.0,
+        }
+
     def summary(self) -> dict[str, Any]:
         """The type, its probability and its geometry (a runner-up's JSON form)."""
 

@@ -113,6 +113,7 @@ class Learned:
                     "confidence": min(1.0, max(0.0, s.confidence)),
                     "time": first.start,
                     "demo": first.demo,
+                    "runner_up": _runner_up(s),
                 }
             )
         plan = []
@@ -183,6 +184,15 @@ class Learned:
                 if m.demo == name and (m.parent, m.child) in kf_by_demo.get(name, {}):
                     return kf_by_demo[name][(m.parent, m.child)]
         return None
+
+
+def _runner_up(slot: Symbol) -> dict[str, Any] | None:
+    """The slot's most doubtful alternative: the most probable runner-up of its members
+    of the slot's type (a joint chosen among types), or None."""
+    alts = [m.runner_up for m in slot.members if m.type == slot.type and m.runner_up is not None]
+    if not alts:
+        return None
+    return max(alts, key=lambda f: f.confidence).alternative()
 
 
 def learn(

@@ -7,7 +7,9 @@ nearly full turn (a limited hinge or a full joint?). A locked DOF, a range far
 from every boundary and an exact full turn are clear and come last.
 
 A score reads as the chance that what the task says is wrong: ``1 - confidence``
-for a constraint; for a DOF, ``0.5 · a`` with the ambiguity
+for a constraint, ``1 - confidence · (1 - r)`` when the detector had a runner-up
+type of probability ``r`` (it holds, but as the other type); for a DOF,
+``0.5 · a`` with the ambiguity
 ``a = exp(-(ln(w / b))² / (2 σ²))``, ``w`` the range width, ``b`` the nearest
 boundary (:data:`~thirdhand.review.dofs.NOISE_TRANSLATION`,
 :data:`~thirdhand.review.dofs.NOISE_ROTATION`, a full turn) and ``σ = ln 2``: a
@@ -125,13 +127,16 @@ def clarification_queue(task: TaskFile, *, focus: str | None = None) -> list[Que
         focused = group[c.id] < 2
         done = set(confirmed.get(c.id, []))
         if "constraint" not in done:
+            # Wrong if the constraint does not hold, or holds as the runner-up's type.
+            other = 0.0 if c.runner_up is None else c.runner_up.probability
+            alt = "" if c.runner_up is None else f"; or {c.runner_up.type}, {other:.0%}"
             out.append(
                 Question(
                     c.id,
                     None,
-                    1.0 - c.confidence,
+                    1.0 - c.confidence * (1.0 - other),
                     f"Is {c.child} {c.type} on {c.parent} as shown "
-                    f"(confidence {c.confidence:.0%})?",
+                    f"(confidence {c.confidence:.0%}{alt})?",
                     focused,
                 )
             )

@@ -114,9 +114,10 @@ class MoveStep:
 class Confirm:
     """The person says the constraint (or one of its DOFs) is right.
 
-    The constraint's confidence becomes 1 (whole-constraint confirmation); the
-    confirmation is listed in ``stages.review.confirmed`` so the
-    clarification round does not ask again. Nothing else changes.
+    The constraint's confidence becomes 1 and its runner-up type is dropped
+    (whole-constraint confirmation); the confirmation is listed in
+    ``stages.review.confirmed`` so the clarification round does not ask again.
+    Nothing else changes.
     """
 
     constraint: str
@@ -528,6 +529,8 @@ def _confirm(task: TaskFile, e: Confirm, rec: _Recorder) -> None:
     if e.dof is None and c.confidence != 1.0:
         rec(f"constraints[{i}].confidence", c.confidence, 1.0, parameter="confirm")
         c.confidence = 1.0
+    if e.dof is None:
+        c.runner_up = None  # the person chose the type shown over the runner-up
     entry = task.stages.ensure_review().confirmed.setdefault(c.id, [])
     what = e.dof if e.dof is not None else "constraint"
     if what not in entry:
@@ -633,6 +636,7 @@ def apply_edit(task: TaskFile, edit: Edit, *, who: str = "user") -> TaskFile:
         raise EditError(f"unknown edit {edit!r}")
     for i in rec.changed:
         new.constraints[i].source = "corrected"
+        new.constraints[i].runner_up = None  # the person decided between the types
     try:
         return TaskFile.model_validate(new.model_dump(by_alias=True))
     except ValidationError as exc:

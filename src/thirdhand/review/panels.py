@@ -704,8 +704,25 @@ def _constraint_html(c: Constraint | None) -> str:
     return (
         f'<div id="th-constraint" style="padding:0 0.75em;font-size:0.85em">'
         f"<b>{html.escape(c.id)}</b>: {c.type}, confidence {c.confidence:.2f}, {c.source}<br>"
-        f"pose: {pose}<table>{''.join(rows)}</table></div>"
+        f"pose: {pose}<table>{''.join(rows)}</table>{_runner_up_html(c)}</div>"
     )
+
+
+def _runner_up_html(c: Constraint) -> str:
+    """The type the detector found next most likely, with its geometry (parent frame)."""
+    ru = c.runner_up
+    if ru is None:
+        return ""
+    parts = [f"{ru.type}, probability {ru.probability:.2f}"]
+    if ru.axis is not None:
+        parts.append("axis (" + ", ".join(f"{a:.2f}" for a in ru.axis) + ")")
+    if ru.radius is not None:
+        parts.append(f"radius {ru.radius * 100:.1f} cm")
+    if ru.type == "prismatic":
+        parts.append(f"travel {ru.travel * 100:.1f} cm")
+    elif ru.type == "revolute":
+        parts.append(f"turn {math.degrees(ru.travel):.1f}°")
+    return f'<div id="th-runner-up">runner-up: {html.escape("; ".join(parts))}</div>'
 
 
 def _motion_html(app: ReviewApp, path: Any) -> str:

@@ -12,7 +12,13 @@ from collections.abc import Sequence
 from typing import Annotated, Any, Literal, get_args
 
 import numpy as np
-from pydantic import Field, StringConstraints, ValidationError
+from pydantic import (
+    Field,
+    SerializerFunctionWrapHandler,
+    StringConstraints,
+    ValidationError,
+    model_serializer,
+)
 
 from thirdhand.arrays import FloatArray
 from thirdhand.errors import TaskFileError
@@ -61,6 +67,43 @@ def infer_constraint_type(free_dofs: FreeDofs) -> ConstraintType:
     return "free"
 
 
+def drop_empty_runner_up(data: dict[str, object]) -> dict[str, object]:
+    """A record's serialised fields without ``runner_up`` when it is None (files written
+    before it existed read back as they were)."""
+    if data.get("runner_up", 0) is None:
+        del data["runner_up"]
+    return data
+
+
+class RunnerUp(TaskModel):
+    """The joint type the detector found next most likely, with its geometry.
+
+    Attributes
+    ----------
+    type : str
+        One of the constraint types.
+    probability : float
+        Its probability among the types compared, in [0, 1] (the constraint's own
+        type has the rest, or most of it).
+    axis : tuple of 3 floats or None
+        Unit joint axis in the parent frame (None for ``fixed``).
+    origin : tuple of 3 floats or None
+        A point on a revolute joint's axis, parent frame, metres.
+    radius : float or None
+        Distance of the child's origin from a revolute axis, metres.
+    travel : float
+        Motion along the joint over the demonstration: metres for ``prismatic``,
+        radians for ``revolute``, 0 for ``fixed``.
+    """
+
+    type: ConstraintType
+    probability: UnitInterval
+    axis: Vec3 | None = None
+    origin: Vec3 | None = None
+    radius: float | None = Field(default=None, ge=0.0)
+    travel: float = Field(default=0.0, ge=0.0)
+
+
 class Constraint(TaskModel):
     """A kinematic constraint between two objects.
 
@@ -89,6 +132,9 @@ class Constraint(TaskModel):
         Seconds on the demonstration's time axis when it appears.
     demo : str or None
         The demonstration it was learned from.
+    runner_up : RunnerUp or None
+        The type that explains the motion next best, for a joint the detector
+        chose between types (None otherwise, and after a person's correction).
     """
 
     id: Name
@@ -104,6 +150,11 @@ class Constraint(TaskModel):
     source: ConstraintSource = "learned"
     time: float | None = None
     demo: str | None = None
+    runner_up: RunnerUp | None = None
+
+    @model_serializer(mode="wrap")
+    def _no_empty_runner_up(self, handler: SerializerFunctionWrapHandler) -> dict[str, object]:
+        return drop_empty_runner_up(handler(self))
 
     @property
     def pose(self) -> Pose:

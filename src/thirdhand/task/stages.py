@@ -48,6 +48,7 @@ from pydantic import (
     model_validator,
 )
 
+from thirdhand.task.constraint import RunnerUp, drop_empty_runner_up
 from thirdhand.task.geometry import Pose, Quat, TaskModel, Vec3
 
 if TYPE_CHECKING:
@@ -110,6 +111,8 @@ class ConstraintInstanceRecord(TaskModel):
     confidence : float
     spin_deg : float
     symbol : str or None
+    runner_up : RunnerUp or None
+        The next most probable type of a joint, with its geometry.
     """
 
     parent: str
@@ -124,6 +127,11 @@ class ConstraintInstanceRecord(TaskModel):
     confidence: float
     spin_deg: float | None = None
     symbol: str | None = None
+    runner_up: RunnerUp | None = None
+
+    @model_serializer(mode="wrap")
+    def _no_empty_runner_up(self, handler: SerializerFunctionWrapHandler) -> dict[str, object]:
+        return drop_empty_runner_up(handler(self))
 
 
 class HmmParameters(TaskModel):
