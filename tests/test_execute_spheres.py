@@ -324,3 +324,29 @@ def test_compiled_interpolation_is_the_reference_one(panda: Robot) -> None:
     bad = panda.random_q(rng, 2)
     bad[1, 0] = panda.upper[0] + 0.1
     assert not scene.path_free_spheres(bad)
+
+
+def test_block_pruning_flags_exactly_what_the_pairs_flag(panda: Robot) -> None:
+    """The blocks' box and side-sphere tests only skip pairs no sphere could flag: the
+    pair flags equal those of the same blocks tested by their cluster spheres alone."""
+    import dataclasses
+
+    scene = _world(panda, 0.75, 0.0)
+    world = scene._sphere_world()
+    idx, blocks, _, _ = scene._sphere_pairs()
+    assert np.any(blocks.blocks[:, 4] == 1)  # a link's side of the fingers is pruned
+    assert np.any(blocks.cluster_frame <= -2)  # the table is tested as a box
+    plain = dataclasses.replace(
+        blocks,
+        blocks=np.column_stack([blocks.blocks[:, :4], np.zeros(len(blocks.blocks), np.int64)]),
+        cluster_frame=np.where(blocks.cluster_frame <= -2, -1, blocks.cluster_frame),
+        scratch=tuple(a.copy() for a in blocks.scratch),
+    )
+    chain = scene._chain_arrays()
+    qs = panda.random_q(np.random.default_rng(11), 3000)
+    for margin in (0.0, 0.01):
+        m = scene._pair_margins(margin)[idx]
+        pruned = sc.flags(world, chain, qs, blocks, m)
+        np.testing.assert_array_equal(pruned, sc.flags(world, chain, qs, plain, m))
+        assert pruned.any() and not pruned.all()
+        np.testing.assert_array_equal(sc.free(world, chain, qs, blocks, m), ~pruned.any(axis=1))

@@ -152,11 +152,34 @@ def _near_box(a: FloatArray, i: int, inv: FloatArray, half: FloatArray, b: int,
 
 
 @numba.njit(cache=True, inline="always")
+def _sides_near(t: FloatArray, sides: FloatArray, blk: int, fa: int, fb: int,
+                margin: float) -> bool:  # fmt: skip
+    """The spheres around the bodies of each side of block ``blk`` (``sides`` (K, 2, 4), in
+    the sides' frames ``fa`` and ``fb``, -1 the world) closer than ``margin``."""
+    ax, ay, az = sides[blk, 0, 0], sides[blk, 0, 1], sides[blk, 0, 2]
+    bx, by, bz = sides[blk, 1, 0], sides[blk, 1, 1], sides[blk, 1, 2]
+    if fa >= 0:
+        m = t[fa]
+        ax, ay, az = (m[0, 0] * ax + m[0, 1] * ay + m[0, 2] * az + m[0, 3],
+                      m[1, 0] * ax + m[1, 1] * ay + m[1, 2] * az + m[1, 3],
+                      m[2, 0] * ax + m[2, 1] * ay + m[2, 2] * az + m[2, 3])  # fmt: skip
+    if fb >= 0:
+        m = t[fb]
+        bx, by, bz = (m[0, 0] * bx + m[0, 1] * by + m[0, 2] * bz + m[0, 3],
+                      m[1, 0] * bx + m[1, 1] * by + m[1, 2] * bz + m[1, 3],
+                      m[2, 0] * bx + m[2, 1] * by + m[2, 2] * bz + m[2, 3])  # fmt: skip
+    dx, dy, dz = ax - bx, ay - by, az - bz
+    r = sides[blk, 0, 3] + sides[blk, 1, 3] + margin
+    return dx * dx + dy * dy + dz * dz <= r * r
+
+
+@numba.njit(cache=True, inline="always")
 def _flag_config(t: FloatArray, key: int, spheres: FloatArray, groups: FloatArray,
                  group_range: IntArray, frame: IntArray, kind: IntArray, bound: FloatArray,
                  body_groups: IntArray, box_inv: FloatArray, box_half: FloatArray,
-                 clusters: FloatArray, cluster_frame: IntArray, pairs: IntArray,
-                 margins: FloatArray, blocks: IntArray, block_margin: FloatArray, every: bool,
+                 clusters: FloatArray, cluster_frame: IntArray, sides: FloatArray,
+                 pairs: IntArray, margins: FloatArray, blocks: IntArray,
+                 block_margin: FloatArray, every: bool,
                  wc: FloatArray, wb: FloatArray, wg: FloatArray, ws: FloatArray,
                  stamps: IntArray, out: BoolArray, row: int) -> bool:  # fmt: skip
     """Flag the pairs of one configuration (joint frames ``t``) in ``out[row]``; True if any.
@@ -172,7 +195,19 @@ def _flag_config(t: FloatArray, key: int, spheres: FloatArray, groups: FloatArra
             _move(t[cluster_frame[c]], clusters, c, wc)
     flagged = False
     for blk in range(blocks.shape[0]):
-        if not _near(wc, blocks[blk, 2], wc, blocks[blk, 3], block_margin[blk]):
+        ca, cb = blocks[blk, 2], blocks[blk, 3]
+        fa, fb = cluster_frame[ca], cluster_frame[cb]
+        # A fixed box is its own cluster (frame -2 - body): the cluster sphere against the
+        # box itself, not the box's bounding sphere (a table's is a metre wide).
+        if fb <= -2:
+            if fa > -2 and not _near_box(wc, ca, box_inv, box_half, -2 - fb, block_margin[blk]):
+                continue
+        elif fa <= -2:
+            if not _near_box(wc, cb, box_inv, box_half, -2 - fa, block_margin[blk]):
+                continue
+        elif not _near(wc, ca, wc, cb, block_margin[blk]):
+            continue
+        elif blocks[blk, 4] and not _sides_near(t, sides, blk, fa, fb, block_margin[blk]):
             continue
         for p in range(blocks[blk, 0], blocks[blk, 1]):
             a, b = pairs[p, 0], pairs[p, 1]
@@ -249,15 +284,17 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
          spheres: FloatArray, groups: FloatArray, group_range: IntArray, frame: IntArray,
          kind: IntArray, bound: FloatArray, body_groups: IntArray, box_inv: FloatArray,
          box_half: FloatArray, clusters: FloatArray, cluster_frame: IntArray,
-         pairs: IntArray, margins: FloatArray, blocks: IntArray,
+         sides: FloatArray, pairs: IntArray, margins: FloatArray, blocks: IntArray,
          block_margin: FloatArray, stop: int, wc: FloatArray, wb: FloatArray, wg: FloatArray,
-         ws: FloatArray, stamps: IntArray, out: BoolArray) -> int:  # fmt: skip
-    """Fill ``out`` (n, P) with the pair flags; returns the first flagged config or -1.
+         ws: FloatArray, stamps: IntArray, out: BoolArray, hits: BoolArray) -> int:  # fmt: skip
+    """Fill ``hits`` (n,) with whether a configuration has a flagged pair, and ``out`` with
+    the pair flags; returns the first flagged config or -1.
 
-    ``stop``: 0 flags every pair of every configuration, 1 stops each configuration at
-    its first flagged pair. ``wc``, ``wb``, ``wg``, ``ws`` are scratch copies of
-    ``clusters``, ``bound``, ``groups``, ``spheres`` (the fixed entries already in world
-    coordinates); ``stamps`` (3, max(B, G)) scratch too (see :func:`_flag_config`).
+    ``stop``: 0 flags every pair of every configuration in ``out`` (n, P); 1 stops each
+    configuration at its first flagged pair, ``out`` (1, P) then only scratch. ``wc``,
+    ``wb``, ``wg``, ``ws`` are scratch copies of ``clusters``, ``bound``, ``groups``,
+    ``spheres`` (the fixed entries already in world coordinates); ``stamps`` (3, max(B, G))
+    scratch too (see :func:`_flag_config`).
     """
     n, dof = qs.shape
     t = np.empty((dof, 4, 4))
@@ -266,8 +303,10 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
     for i in range(n):
         _fk(qs[i], placements, axes, parents, t)
         hit = _flag_config(t, i, spheres, groups, group_range, frame, kind, bound, body_groups,
-                           box_inv, box_half, clusters, cluster_frame, pairs, margins, blocks,
-                           block_margin, stop == 0, wc, wb, wg, ws, stamps, out, i)  # fmt: skip
+                           box_inv, box_half, clusters, cluster_frame, sides, pairs, margins,
+                           blocks, block_margin, stop == 0, wc, wb, wg, ws, stamps, out,
+                           i if stop == 0 else 0)  # fmt: skip
+        hits[i] = hit
         if hit and first < 0:
             first = i
     return first
@@ -278,9 +317,10 @@ def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents:
               spheres: FloatArray, groups: FloatArray, group_range: IntArray, frame: IntArray,
               kind: IntArray, bound: FloatArray, body_groups: IntArray, box_inv: FloatArray,
               box_half: FloatArray, clusters: FloatArray, cluster_frame: IntArray,
-              pairs: IntArray, margins: FloatArray, blocks: IntArray, block_margin: FloatArray,
-              reach: IntArray, wc: FloatArray, wb: FloatArray, wg: FloatArray, ws: FloatArray,
-              stamps: IntArray, out: BoolArray) -> tuple[int, int]:  # fmt: skip
+              sides: FloatArray, pairs: IntArray, margins: FloatArray, blocks: IntArray,
+              block_margin: FloatArray, reach: IntArray, wc: FloatArray, wb: FloatArray,
+              wg: FloatArray, ws: FloatArray, stamps: IntArray,
+              out: BoolArray) -> tuple[int, int]:  # fmt: skip
     """A flagged configuration of a dense path ``qs`` (n, dof), or -1; and the tests made.
 
     ``margins`` (L, P) and ``block_margin`` (L, K): level 0 is the path check's own
@@ -312,17 +352,17 @@ def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents:
         if reach[level] >= k:
             tests += 1
             hit = _flag_config(t, mid, spheres, groups, group_range, frame, kind, bound,
-                               body_groups, box_inv, box_half, clusters, cluster_frame, pairs,
-                               margins[level], blocks, block_margin[level], False, wc, wb, wg,
-                               ws, stamps, out, 0)  # fmt: skip
+                               body_groups, box_inv, box_half, clusters, cluster_frame, sides,
+                               pairs, margins[level], blocks, block_margin[level], False, wc, wb,
+                               wg, ws, stamps, out, 0)  # fmt: skip
         if not hit:
             continue
         if level > 0 or reach[level] < k:
             tests += 1
             hit = _flag_config(t, mid, spheres, groups, group_range, frame, kind, bound,
-                               body_groups, box_inv, box_half, clusters, cluster_frame, pairs,
-                               margins[0], blocks, block_margin[0], False, wc, wb, wg, ws,
-                               stamps, out, 0)  # fmt: skip
+                               body_groups, box_inv, box_half, clusters, cluster_frame, sides,
+                               pairs, margins[0], blocks, block_margin[0], False, wc, wb, wg,
+                               ws, stamps, out, 0)  # fmt: skip
         if hit:
             return mid, tests
         if lo < mid:
@@ -339,14 +379,17 @@ class PairBlocks:
     """Active pairs sorted into blocks of one cluster pair, for the kernels.
 
     A cluster is the set of bodies one joint moves (links and the grasped part),
-    or one fixed body; its bounding sphere is tested before any pair of the block.
+    or one fixed body; its bounding sphere is tested before any pair of the block
+    (against the box itself when the other cluster is a fixed box), then, where that
+    prunes more, the spheres around the bodies each side of the block names.
     """
 
     order: IntArray  # (P,) the caller's pair index of each sorted pair
     pairs: IntArray  # (P, 2) body pairs, sorted
-    blocks: IntArray  # (K, 4) start, stop, cluster a, cluster b
+    blocks: IntArray  # (K, 5) start, stop, cluster a, cluster b, test the sides (0/1)
     clusters: FloatArray  # (C, 4) bounding spheres, in each cluster's frame
-    cluster_frame: IntArray  # (C,)
+    cluster_frame: IntArray  # (C,) joint; -1 a fixed body of spheres, -2 - b the fixed box b
+    sides: FloatArray  # (K, 2, 4) per block, the sphere around each side's bodies in its pairs
     scratch: tuple[FloatArray, FloatArray, FloatArray, FloatArray, IntArray]
 
 
@@ -364,6 +407,8 @@ def pair_blocks(world: SphereWorld, pairs: IntArray) -> PairBlocks:
         members = np.flatnonzero(body_cluster == c)
         clusters[c] = _enclose(world.bound[members])
         cluster_frame[c] = world.frame[members[0]]
+        if cluster_frame[c] < 0 and len(members) == 1 and world.kind[members[0]] == BOX:
+            cluster_frame[c] = -2 - members[0]
     ca, cb = body_cluster[pairs[:, 0]], body_cluster[pairs[:, 1]]
     lo, hi = np.minimum(ca, cb), np.maximum(ca, cb)
     order = np.lexsort((hi, lo)).astype(np.int64)
@@ -372,10 +417,50 @@ def pair_blocks(world: SphereWorld, pairs: IntArray) -> PairBlocks:
     blocks = np.column_stack(
         [starts[:-1], starts[1:], lo[order][starts[:-1]], hi[order][starts[:-1]]]
     ).astype(np.int64)
+    blocks = blocks.reshape(-1, 4)
+    sorted_pairs = pairs[order].copy()
+    sides, use = _block_sides(world, sorted_pairs, blocks, body_cluster, clusters)
     scratch = (clusters.copy(), world.bound.copy(), world.groups.copy(), world.spheres.copy(),
                np.full((3, max(n_bodies, len(world.groups))), -1, dtype=np.int64))  # fmt: skip
-    return PairBlocks(order, pairs[order].copy(), blocks.reshape(-1, 4), clusters, cluster_frame,
-                      scratch)  # fmt: skip
+    return PairBlocks(order, sorted_pairs, np.column_stack([blocks, use]).astype(np.int64),
+                      clusters, cluster_frame, sides, scratch)  # fmt: skip
+
+
+#: A block's side spheres are tested when one is this much smaller than its cluster's.
+SIDE_SHRINK = 0.8
+
+
+def _block_sides(world: SphereWorld, pairs: IntArray, blocks: IntArray, body_cluster: IntArray,
+                 clusters: FloatArray) -> tuple[FloatArray, IntArray]:  # fmt: skip
+    """Per block, the sphere around the bodies of each side that its pairs name (K, 2, 4),
+    in the side's frame, and whether testing them can prune more than the clusters (K,):
+    a link's few bodies facing the fingers sit in a much smaller sphere than the link's
+    whole cluster, which holds the hand too. Vectorised over the sorted pairs (a body
+    named twice changes no enclosing sphere)."""
+    k = len(blocks)
+    sides = np.zeros((k, 2, 4))
+    if not k:
+        return sides, np.zeros(0, dtype=np.int64)
+    starts = blocks[:, 0]
+    block_of = np.repeat(np.arange(k), blocks[:, 1] - blocks[:, 0])
+    first_is_a = body_cluster[pairs[:, 0]] == blocks[block_of, 2]
+    use = np.zeros(k, dtype=bool)
+    for j, body in enumerate(
+        (
+            np.where(first_is_a, pairs[:, 0], pairs[:, 1]),
+            np.where(first_is_a, pairs[:, 1], pairs[:, 0]),
+        )
+    ):
+        b = world.bound[body]
+        lo = np.minimum.reduceat(b[:, :3] - b[:, 3:], starts, axis=0)
+        hi = np.maximum.reduceat(b[:, :3] + b[:, 3:], starts, axis=0)
+        centre = (lo + hi) / 2.0
+        reach = np.linalg.norm(b[:, :3] - centre[block_of], axis=1) + b[:, 3]
+        sides[:, j, :3] = centre
+        sides[:, j, 3] = np.maximum.reduceat(reach, starts)
+        use |= sides[:, j, 3] < SIDE_SHRINK * clusters[blocks[:, 2 + j], 3]
+    boxed = np.maximum.reduceat(world.kind[pairs].max(axis=1), starts) == BOX
+    return sides, (use & ~boxed & (blocks[:, 2] != blocks[:, 3])).astype(np.int64)
 
 
 def _enclose(spheres: FloatArray) -> FloatArray:
@@ -393,7 +478,7 @@ def flags(
     ``margins`` (P,) are the pairs' security margins, metres (negative ones count as
     0), in the caller's pair order, as is the output.
     """
-    sorted_flags, _ = _call(world, chain, qs, blocks, margins, 0)
+    sorted_flags, _, _ = _call(world, chain, qs, blocks, margins, 0)
     out = np.empty_like(sorted_flags)
     out[:, blocks.order] = sorted_flags
     return out
@@ -403,7 +488,7 @@ def free(
     world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBlocks, margins: FloatArray
 ) -> BoolArray:
     """True where no pair is flagged (certainly collision-free), shape (n,); stops per config."""
-    return ~np.any(_call(world, chain, qs, blocks, margins, 1)[0], axis=1)
+    return ~_call(world, chain, qs, blocks, margins, 1)[1]
 
 
 def path_flagged(
@@ -432,7 +517,7 @@ def path_flagged(
     first, tests = _run_path(qa, chain.placements, chain.axes, chain.parents, world.spheres,
                              world.groups, world.group_range, world.frame, world.kind,
                              world.bound, world.body_groups, world.box_inv, world.box_half,
-                             blocks.clusters, blocks.cluster_frame, blocks.pairs, m,
+                             blocks.clusters, blocks.cluster_frame, blocks.sides, blocks.pairs, m,
                              blocks.blocks, bm, reach, wc, wb, wg, ws, stamps, out)  # fmt: skip
     return int(first), int(tests)
 
@@ -450,19 +535,23 @@ def sorted_margins(blocks: PairBlocks, margins: FloatArray) -> tuple[FloatArray,
 
 
 def _call(world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBlocks,
-          margins: FloatArray, stop: int) -> tuple[BoolArray, int]:  # fmt: skip
+          margins: FloatArray, stop: int) -> tuple[BoolArray, BoolArray, int]:  # fmt: skip
+    """Pair flags (n, P) (``stop`` 0; else a (1, P) scratch row), per-configuration hits (n,)
+    and the first configuration flagged (-1 if none)."""
     qa = np.ascontiguousarray(qs, dtype=np.float64)
     n_pairs = len(blocks.pairs)
-    out = np.zeros((qa.shape[0], n_pairs), dtype=np.bool_)
+    out = np.zeros((qa.shape[0] if stop == 0 else 1, n_pairs), dtype=np.bool_)
+    hits = np.zeros(qa.shape[0], dtype=np.bool_)
     if not n_pairs or not qa.shape[0]:
-        return out, -1
+        return out, hits, -1
     m, bm = sorted_margins(blocks, margins)
     wc, wb, wg, ws, stamp = blocks.scratch
     first = _run(qa, chain.placements, chain.axes, chain.parents, world.spheres, world.groups,
                  world.group_range, world.frame, world.kind, world.bound, world.body_groups,
                  world.box_inv, world.box_half, blocks.clusters, blocks.cluster_frame,
-                 blocks.pairs, m, blocks.blocks, bm, stop, wc, wb, wg, ws, stamp, out)  # fmt: skip
-    return out, int(first)
+                 blocks.sides, blocks.pairs, m, blocks.blocks, bm, stop, wc, wb, wg, ws, stamp, out,
+                 hits)  # fmt: skip
+    return out, hits, int(first)
 
 
 def warm_up() -> None:
