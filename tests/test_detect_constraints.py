@@ -159,3 +159,41 @@ def test_toolbox_boards_go_from_free_to_fixed(shared_data) -> None:  # type: ign
     assert 10.0 < inst.start - t0 < float(demo.t[-1]) - t0 - 10.0
     assert np.nanmax(post[det.times < inst.start - 2.0]) < 0.5
     assert np.nanmin(post[det.times > inst.start + 2.0]) > 0.5
+
+
+def test_a_free_spin_is_measured_on_the_samples_not_on_long_steps() -> None:
+    """A part screwed in by 3 turns in 1 s, seen through 0.5-s steps (the length of an
+    interaction phase's latent step): the step poses alias the turn (1.5 turns per step),
+    the recording's samples give it, and the spin axis is the part's z."""
+    from thirdhand.constraints.detect_dofs import _free_spin
+    from thirdhand.constraints.detect_types import DetectOptions
+
+    rate = 120.0
+    t = np.arange(0.0, 3.0, 1.0 / rate)
+    goal = np.array([0.0, 0.0, 0.1])
+    # 0-1 s: down from 30 cm to the goal; 1-2 s: three turns about z there; then still
+    z = np.where(t < 1.0, 0.3 - 0.2 * t, 0.1)
+    p = np.column_stack([np.zeros_like(t), np.zeros_like(t), z])
+    angle = 6.0 * np.pi * np.clip(t - 1.0, 0.0, 1.0)
+    q = np.column_stack([np.zeros_like(t), np.zeros_like(t), np.sin(angle / 2), np.cos(angle / 2)])
+    edges = np.arange(0.0, 3.0 + 1e-9, 0.5)
+    centres = 0.5 * (edges[:-1] + edges[1:])
+    at = np.searchsorted(t, centres)
+    lo = 4  # the step starting at 2.0 s: the constraint holds from there
+    opt = DetectOptions()
+    _, _, stepped = _free_spin(p[at], q[at], lo, goal, q[-1], opt)
+    assert stepped < 2.0 * np.pi  # aliased: under a third of the turn
+    _, ranges, spin = _free_spin(p[at], q[at], lo, goal, q[-1], opt, raw=(t, p, q, edges))
+    assert spin == pytest.approx(6.0 * np.pi, rel=0.02)
+    np.testing.assert_allclose(ranges[5], [-np.pi, np.pi])
+    assert not ranges[3:5].any() and not ranges[:3].any()
+
+
+def test_a_segmented_chair_keeps_every_legs_spin() -> None:
+    """Chair seed 33 learned with its interaction phases (the default): leg1's spin was
+    measured on the phases' latent steps as 89 degrees and the leg learned as fixed."""
+    from thirdhand.plan.learn import learn
+
+    task = learn([make_scene("chair", seed=33)]).task()
+    legs = [c for c in task.constraints if c.child.startswith("leg")]
+    assert len(legs) == 4 and all(c.type == "revolute" for c in legs)

@@ -25,8 +25,10 @@ most direct constraints; every edge is oriented away from it.
 Free degrees of freedom. A leg screwed into a seat stays free to spin about its
 axis, but once screwed in it does not move, so the spin is only seen *before*
 the constraint is established. Rule: in the approach window (the contiguous
-steps before the onset in which the child is within ``approach_radius`` of its
-constrained position), the incremental rotations of the child in the parent are
+samples of the recording before the onset step in which the child is within
+``approach_radius`` of its constrained position, one per 0.05 s; not the step
+means, which on an interaction phase's long latent steps average a fast turn
+away), the incremental rotations of the child in the parent are
 expressed in the child's frame; if their dominant axis carries at least 80 % of
 the rotation and the child turned about it by more than ``full_turn`` (90° by
 default) in total, that rotation is free over ``[−π, π]``. The axis is snapped to
@@ -137,7 +139,7 @@ def detect_constraints(
         q[bad] = np.nan
         rel_p[k], rel_q[k] = p, q
         th_p[k], th_q[k] = _last_valid_pose(p, q)
-    tracks = PairTracks(times, pairs, world, rel_p, rel_q, phases)
+    tracks = PairTracks(times, pairs, world, rel_p, rel_q, phases, demo=demo, edges=edges)
     posterior, params, th_p, th_q = fit_hmm(rel_p, rel_q, th_p, th_q, n_iter=opt.n_iter)
     layers = [(k, posterior[k], th_p[k]) for k in range(len(pairs))]
     step = float(np.median(np.diff(edges)))

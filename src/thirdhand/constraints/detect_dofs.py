@@ -156,6 +156,36 @@ def _joint_dofs(
     return fit.type, frame_p, frame_q, ranges, fit.runner_up
 
 
+#: Spacing of the samples a free spin is measured on, seconds (sensor noise summed over
+#: every sample of a fast tracker would drown the turn's share of the rotation).
+SPIN_SPACING = 0.05
+
+
+def _raw_approach(
+    raw: tuple[FloatArray, FloatArray, FloatArray, FloatArray],
+    lo: int,
+    pos: FloatArray,
+    opt: DetectOptions,
+) -> FloatArray:
+    """Orientations (m, 4) of the approach on the recording's samples: the run of samples
+    within ``approach_radius`` of ``pos`` that ends at the onset step ``lo``, one per
+    :data:`SPIN_SPACING`, sign-continuous."""
+    t_raw, p_raw, q_raw, edges = raw
+    before = np.flatnonzero(t_raw < edges[lo])
+    if before.size == 0:
+        return np.zeros((0, 4))
+    far = np.linalg.norm(p_raw[before] - pos, axis=1) >= opt.approach_radius
+    start = int(np.flatnonzero(far)[-1]) + 1 if far.any() else 0
+    run = before[start:]
+    if run.size == 0:
+        return np.zeros((0, 4))
+    grid = np.arange(t_raw[run[0]], t_raw[run[-1]] + 1e-9, SPIN_SPACING)
+    pick = np.unique(
+        np.append(np.searchsorted(t_raw[run], grid), run.size - 1).clip(0, run.size - 1)
+    )
+    return np.asarray(se3.quat_make_continuous(q_raw[run[pick]]), dtype=np.float64)
+
+
 def _free_spin(
     p: FloatArray,
     q: FloatArray,
@@ -163,8 +193,15 @@ def _free_spin(
     pos: FloatArray,
     quat: FloatArray,
     opt: DetectOptions,
+    raw: tuple[FloatArray, FloatArray, FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray, float]:
-    """Constraint frame (quaternion in the child frame), DOF ranges and spin (module notes)."""
+    """Constraint frame (quaternion in the child frame), DOF ranges and spin (module notes).
+
+    The approach window is found on the step means ``p``, ``q``; with ``raw`` (the
+    recording's valid samples of the same relative pose: times (n,), positions (n, 3),
+    quaternions (n, 4), and the step edges (n_steps + 1,)) the spin is measured on the
+    samples within it, not on step means that can average a spinning part away.
+    """
     ranges = np.zeros((6, 2))
     identity = np.array([0.0, 0.0, 0.0, 1.0])
     near = np.linalg.norm(p[:lo] - pos, axis=1) < opt.approach_radius
@@ -176,9 +213,11 @@ def _free_spin(
         gap = 0 if near[i] else gap + 1
         i -= 1
     idx = np.flatnonzero(near[i + 1 : lo]) + i + 1
-    if idx.size < 3:
-        return identity, ranges, 0.0
     qw = se3.quat_make_continuous(q[idx])
+    if raw is not None:
+        qw = _raw_approach(raw, lo, pos, opt)
+    if len(qw) < 3:
+        return identity, ranges, 0.0
     # Incremental rotations in the child frame: log(q_{t-1}^-1 q_t).
     dq = se3.quat_multiply(se3.quat_conjugate(qw[:-1]), qw[1:])
     dq = dq * np.where(dq[:, 3:4] < 0, -1.0, 1.0)

@@ -161,7 +161,11 @@ def _instance(
         typ, frame_p, frame_q, ranges, runner_up = joint
         spin = 0.0
     else:
-        frame_q, ranges, spin = _free_spin(p_run, q_run, lo, pos, quat, opt)
+        raw = None
+        if tracks.demo is not None and tracks.edges is not None:
+            rp, rq, valid = tracks.demo.relative_pose(parent, child)
+            raw = (tracks.demo.t[valid], rp[valid], rq[valid], tracks.edges)
+        frame_q, ranges, spin = _free_spin(p_run, q_run, lo, pos, quat, opt, raw=raw)
         typ = "revolute" if np.any(ranges[3:, 1] > ranges[3:, 0]) else "fixed"
     return ConstraintInstance(
         parent=parent,

@@ -11,7 +11,7 @@ import numpy as np
 from thirdhand.arrays import FloatArray
 from thirdhand.constraints.hmm import HMMParams
 from thirdhand.constraints.types import DOF_NAMES, ConstraintFitError, JointFit
-from thirdhand.demonstration import FreeDofs
+from thirdhand.demonstration import Demonstration, FreeDofs
 
 if TYPE_CHECKING:
     from thirdhand.segment.pipeline import SegmentationResult
@@ -144,6 +144,11 @@ class PairTracks:
         Per pair ``(a, b)``, ``b``'s pose in ``a``'s frame, NaN where either is unseen.
     phases : SegmentationResult, optional
         The recording's interaction phases (hands holding parts).
+    demo : Demonstration, optional
+        The recording itself: a free spin is measured on its samples, not on step
+        means (a step of the phases can last longer than a quarter turn).
+    edges : ndarray, shape (n_steps + 1,), optional
+        The steps' edges, seconds.
     """
 
     times: FloatArray
@@ -152,6 +157,8 @@ class PairTracks:
     rel_p: FloatArray
     rel_q: FloatArray
     phases: SegmentationResult | None = None
+    demo: Demonstration | None = None
+    edges: FloatArray | None = None
 
     @property
     def step(self) -> float:
