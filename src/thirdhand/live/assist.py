@@ -1,6 +1,7 @@
 """The robot assist: fetch the next step's part and hold it where the person works.
 
-When the plan's next step (an available step, :mod:`thirdhand.live.tracker`)
+Once the person has started (a part in hand or a step done: the first part is
+theirs), when the plan's next step (an available step, :mod:`thirdhand.live.tracker`)
 has no part in the person's hands, the simulated arm (the execution stage's
 :class:`~thirdhand.execute.robot.Robot`, :class:`~thirdhand.execute.scene.CollisionScene`
 and :func:`~thirdhand.execute.planner.plan_motion`) picks one of the step's
@@ -81,6 +82,10 @@ class AssistOptions:
         Side of the box that stands for each tracked finger, metres.
     part_size_m : float
         Side of the box of a part without a known bounding box, metres.
+    wait_for_person : bool
+        Fetch nothing until the person has a part in hand or a step is done: at the
+        start the person takes the first part themselves, and an arm reaching into
+        the parts at that moment meets their hand (docs/live.md).
     """
 
     robot: str = "panda"
@@ -92,6 +97,7 @@ class AssistOptions:
     plan_time_s: float = 1.0
     hand_size_m: float = 0.06
     part_size_m: float = 0.05
+    wait_for_person: bool = True
 
 
 @dataclass
@@ -328,6 +334,9 @@ class RobotAssist:
             else:
                 self._check(a, t, pos, quat, valid)
             return
+        if self.options.wait_for_person and tracker.current is None and not held:
+            if not tracker.done:
+                return  # the person starts the first step with a part of their own
         # The next part the person will need: the first step not done (those the plan
         # allows now first) other than the one in progress, with a part nobody holds.
         order = tracker.available() + [
