@@ -186,6 +186,23 @@ def _raw_approach(
     return np.asarray(se3.quat_make_continuous(q_raw[run[pick]]), dtype=np.float64)
 
 
+def _step_approach(
+    p: FloatArray, q: FloatArray, lo: int, pos: FloatArray, opt: DetectOptions
+) -> FloatArray:
+    """Orientations (m, 4) of the approach on the step means: the contiguous steps before
+    the onset ``lo`` within ``approach_radius`` of ``pos`` (short tracking gaps allowed),
+    sign-continuous."""
+    near = np.linalg.norm(p[:lo] - pos, axis=1) < opt.approach_radius
+    near &= np.all(np.isfinite(q[:lo]), axis=1)
+    i = lo - 1
+    gap = 0
+    while i >= 0 and (near[i] or (gap < 5 and not np.isfinite(p[i, 0]))):
+        gap = 0 if near[i] else gap + 1
+        i -= 1
+    idx = np.flatnonzero(near[i + 1 : lo]) + i + 1
+    return np.asarray(se3.quat_make_continuous(q[idx]), dtype=np.float64)
+
+
 def _free_spin(
     p: FloatArray,
     q: FloatArray,
@@ -197,25 +214,17 @@ def _free_spin(
 ) -> tuple[FloatArray, FloatArray, float]:
     """Constraint frame (quaternion in the child frame), DOF ranges and spin (module notes).
 
-    The approach window is found on the step means ``p``, ``q``; with ``raw`` (the
-    recording's valid samples of the same relative pose: times (n,), positions (n, 3),
-    quaternions (n, 4), and the step edges (n_steps + 1,)) the spin is measured on the
-    samples within it, not on step means that can average a spinning part away.
+    The approach is read off ``raw`` when given (the recording's valid samples of the
+    same relative pose: times (n,), positions (n, 3), quaternions (n, 4), and the step
+    edges (n_steps + 1,); :func:`_raw_approach`), else off the step means ``p``, ``q``,
+    which can average a spinning part away.
     """
     ranges = np.zeros((6, 2))
     identity = np.array([0.0, 0.0, 0.0, 1.0])
-    near = np.linalg.norm(p[:lo] - pos, axis=1) < opt.approach_radius
-    near &= np.all(np.isfinite(q[:lo]), axis=1)
-    # The contiguous approach window ending at the onset (short tracking gaps allowed).
-    i = lo - 1
-    gap = 0
-    while i >= 0 and (near[i] or (gap < 5 and not np.isfinite(p[i, 0]))):
-        gap = 0 if near[i] else gap + 1
-        i -= 1
-    idx = np.flatnonzero(near[i + 1 : lo]) + i + 1
-    qw = se3.quat_make_continuous(q[idx])
     if raw is not None:
         qw = _raw_approach(raw, lo, pos, opt)
+    else:
+        qw = _step_approach(p, q, lo, pos, opt)
     if len(qw) < 3:
         return identity, ranges, 0.0
     # Incremental rotations in the child frame: log(q_{t-1}^-1 q_t).

@@ -334,9 +334,9 @@ class RobotAssist:
             else:
                 self._check(a, t, pos, quat, valid)
             return
-        if self.options.wait_for_person and tracker.current is None and not held:
-            if not tracker.done:
-                return  # the person starts the first step with a part of their own
+        started = held or tracker.current is not None or tracker.done
+        if self.options.wait_for_person and not started:
+            return  # the person starts the first step with a part of their own
         # The next part the person will need: the first step not done (those the plan
         # allows now first) other than the one in progress, with a part nobody holds.
         order = tracker.available() + [
