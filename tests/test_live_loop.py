@@ -13,7 +13,8 @@ import pytest
 from cli_helpers import call
 from thirdhand import io
 from thirdhand.demonstration import Demonstration
-from thirdhand.live.loop import LiveLoop
+from thirdhand.live.assist import AssistOptions
+from thirdhand.live.loop import LiveLoop, LiveOptions
 from thirdhand.live.source import ReplaySource
 from thirdhand.live.state import LiveTaskError
 from thirdhand.synth import make_scene
@@ -197,11 +198,12 @@ def _kernels() -> dict[str, int]:
     """Compiled signatures of every numba kernel the live loop's modules define."""
     from numba.core.registry import CPUDispatcher
 
+    from thirdhand.execute import collision_check, kinematics, sphere_check
     from thirdhand.live import features, state
 
     return {
         f"{m.__name__}.{k}": len(v.signatures)
-        for m in (features, state)
+        for m in (features, state, collision_check, kinematics, sphere_check)
         for k, v in vars(m).items()
         if isinstance(v, CPUDispatcher)
     }
@@ -222,4 +224,19 @@ def test_nothing_compiles_once_the_stream_has_started(task: TaskFile, chair: Dem
         for f in ReplaySource(demo, 0)
     )
     loop.run(frames)  # type: ignore[arg-type]
+    assert _kernels() == before
+
+
+def test_nothing_compiles_once_a_stream_with_the_assist_has_started(
+    task: TaskFile, chair: Demonstration
+) -> None:
+    """With the assist, the warm-up compiles the execution stage's kernels too: on a fresh
+    install the first fetch's planning compiled them and ran out of time ("no path")."""
+    demo = cut(chair, 12.0)
+    loop = LiveLoop(task, demo.bodies, demo.meta, options=LiveOptions(assist=AssistOptions()))
+    before = _kernels()
+    assert before["thirdhand.execute.sphere_check._run"] >= 1
+    assert before["thirdhand.execute.collision_check._dense_path"] >= 1
+    report = loop.run(ReplaySource(demo, 0))
+    assert report.assists  # a fetch was planned and checked
     assert _kernels() == before

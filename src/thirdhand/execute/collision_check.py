@@ -130,6 +130,13 @@ def _dense_path(
     return out
 
 
+def warm_up() -> None:
+    """Compile (or load from the cache) every collision and IK kernel before a deadline runs:
+    the sphere layer's (:func:`.sphere_check.warm_up`) and the dense path's."""
+    sc.warm_up()
+    _dense_path(np.zeros((2, 1)), np.ones(1), 0.01, 0.02)
+
+
 def world_aabb(
     t: FloatArray, center: FloatArray, half: FloatArray
 ) -> tuple[FloatArray, FloatArray]:

@@ -222,7 +222,7 @@ class Executor:
         search: Sequence[str | os.PathLike[str]] = (),
         demo: Demonstration | None = None,
     ) -> None:
-        from thirdhand.execute.sphere_check import warm_up
+        from thirdhand.execute.collision_check import warm_up
 
         warm_up()  # compile the kernels now, not inside a step's time limit
         self.robot = robot

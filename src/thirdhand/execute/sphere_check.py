@@ -527,11 +527,14 @@ def sorted_margins(blocks: PairBlocks, margins: FloatArray) -> tuple[FloatArray,
 
     ``margins`` (..., P) in the caller's pair order; negative ones count as 0. Computed once
     per world and margin set by callers that check many paths (:func:`path_flagged`).
+    Both in C order whatever the input's: indexing the last axis of (L, P) margins gives
+    Fortran order, a layout the kernels would be compiled for anew mid-run.
     """
     m = np.maximum(np.asarray(margins, dtype=np.float64)[..., blocks.order], 0.0) + 1e-9
+    m = np.ascontiguousarray(m)
     if not len(blocks.blocks):
         return m, m[..., :0]
-    return m, np.maximum.reduceat(m, blocks.blocks[:, 0], axis=-1)
+    return m, np.ascontiguousarray(np.maximum.reduceat(m, blocks.blocks[:, 0], axis=-1))
 
 
 def _call(world: SphereWorld, chain: ChainArrays, qs: FloatArray, blocks: PairBlocks,

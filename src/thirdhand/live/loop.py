@@ -258,7 +258,15 @@ class LiveLoop:
         slots: list[Slot],
         task: TaskFile,
     ) -> None:
-        """Compile every kernel before the stream starts (a throwaway copy, 1 s of frames)."""
+        """Compile every kernel before the stream starts (a throwaway copy, 1 s of frames).
+
+        With the assist, the execution stage's collision and IK kernels too: compiled
+        inside the stream (a fresh install), the first fetch's planning ran out of time.
+        """
+        if self.assist is not None:
+            from thirdhand.execute.collision_check import warm_up
+
+            warm_up()
         n = len(bodies)
         phases = OnlinePhases(bodies, meta, model, lag=self.options.smoother_lag)
         state = ConstraintState(
