@@ -45,7 +45,7 @@ def test_grasps_of_a_flat_part_come_from_above_and_the_first_is_kept() -> None:
     from thirdhand.live.assist import DOWN_COS, MAX_GRASPS, SHALLOWER_M, RobotAssist
 
     meta = {
-        "geometry": {"board": {"bbox_min": [-0.2, -0.2, -0.015], "bbox_max": [0.2, 0.2, 0.015]}}
+        "geometry": {"board": {"bbox_min_m": [-0.2, -0.2, -0.015], "bbox_max_m": [0.2, 0.2, 0.015]}}
     }
     assist = RobotAssist(["board"], ["part"], meta, "board")
     pos = np.array([[0.3, 0.1, 0.77]])
@@ -117,7 +117,8 @@ def test_a_real_time_stream_plans_in_the_background_a_fast_replay_in_line(
 def test_an_error_in_the_background_is_raised_in_the_loops_thread() -> None:
     from thirdhand.live.assist import RobotAssist
 
-    meta = {"geometry": {"board": {"bbox_min": [-0.1, -0.1, -0.01], "bbox_max": [0.1, 0.1, 0.01]}}}
+    box = {"bbox_min_m": [-0.1, -0.1, -0.01], "bbox_max_m": [0.1, 0.1, 0.01]}
+    meta = {"geometry": {"board": box}}
     assist = RobotAssist(["board"], ["part"], meta, "board")
 
     def fail() -> None:
@@ -127,3 +128,81 @@ def test_an_error_in_the_background_is_raised_in_the_loops_thread() -> None:
     with pytest.raises(RuntimeError, match="the planner broke"):
         assist.finish()
     assist.finish()  # raised once, then clear
+
+
+def test_the_assembly_reach_composes_the_plan_poses_from_the_root() -> None:
+    """A 0.2-m cube root, a 0.3-m bar on its +x face, a 0.1-m peg on the bar's end turned
+    90° about z, and a step of parts no step places: the reach is the farthest box corner
+    from the root's origin, worked out by hand."""
+    from thirdhand.live.assist import assembly_reach
+    from thirdhand.live.state import Slot
+
+    def slot(step: int, parent: str, child: str, pos: list[float], yaw: float, rows: tuple) -> Slot:
+        quat = np.array([0.0, 0.0, np.sin(yaw / 2.0), np.cos(yaw / 2.0)])
+        return Slot(step, f"c{step}", parent, child, np.array(pos), quat, np.zeros(3),
+                    np.array([0.0, 0.0, 0.0, 1.0]), np.zeros((6, 2)), [rows])  # fmt: skip
+
+    geometry = {
+        "base": {"bbox_min_m": [-0.1, -0.1, -0.1], "bbox_max_m": [0.1, 0.1, 0.1]},
+        "bar1": {"bbox_min_m": [0.0, -0.01, -0.01], "bbox_max_m": [0.3, 0.01, 0.01]},
+        "peg7": {"bbox_min_m": [0.0, -0.005, 0.0], "bbox_max_m": [0.1, 0.005, 0.02]},
+    }
+    names = ["base", "bar1", "peg7", "loose1", "loose2"]
+    slots = [
+        # the task calls them "bar" and "peg"; the stream's bodies (rows) carry the boxes
+        slot(0, "base", "bar", [0.1, 0.0, 0.0], 0.0, (0, 1)),
+        slot(1, "bar", "peg", [0.3, 0.0, 0.0], np.pi / 2, (1, 2)),
+        slot(2, "loose", "other", [5.0, 0.0, 0.0], 0.0, (3, 4)),
+    ]
+    got = assembly_reach(slots, names, {"geometry": geometry}, "base")
+    # the peg's far corner: (0.4, 0, 0) + Rz(90°)·(0.1, ±0.005, 0.02) = (0.4 ∓ 0.005, 0.1, 0.02)
+    want = np.linalg.norm([0.405, 0.1, 0.02])
+    assert got == pytest.approx(want, abs=1e-12)
+    # without a box, a part counts as a cube of part_size_m; the root alone is its own box
+    del geometry["peg7"]
+    cube = np.linalg.norm([0.4 + 0.025, 0.025, 0.025])  # turned 90°: its x half-side on y
+    assert assembly_reach(slots, names, {"geometry": geometry}, "base") == pytest.approx(cube)
+    assert assembly_reach([], names, {"geometry": geometry}, "base") == pytest.approx(
+        np.sqrt(3) * 0.1
+    )
+
+
+def test_the_hand_over_and_the_base_stand_beyond_the_assembly_reach() -> None:
+    """The hand-over point is ``handover_m[0]`` beyond the finished assembly's reach from the
+    root, away from the person, ``handover_m[2]`` up; the arm's base ``base_beyond_m`` past it."""
+    from thirdhand.live.assist import AssistOptions, RobotAssist
+
+    meta = {"geometry": {"seat": {"bbox_min_m": [-0.15] * 3, "bbox_max_m": [0.15] * 3}}}
+    names, kinds = ["seat", "rh_index"], ["part", "finger"]
+    opt = AssistOptions()
+    assist = RobotAssist(names, kinds, meta, "seat", opt, reach_m=0.48)
+    root = np.array([0.1, 0.2, 0.8])
+    pos = np.array([root, root + np.array([0.0, -0.4, 0.1])])  # the person's hand on -y
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (2, 1))
+    assist._setup(pos, quat, np.ones(2, dtype=bool))
+    assert assist._handover is not None
+    hp = assist._handover[0]
+    away = (hp - root)[:2] / np.linalg.norm((hp - root)[:2])
+    assert away @ [0.0, 1.0] > 0.0  # on the far side from the person
+    assert np.linalg.norm((hp - root)[:2]) == pytest.approx(0.48 + opt.handover_m[0], abs=1e-9)
+    assert hp[2] == pytest.approx(root[2] + opt.handover_m[2])
+    base = assist._base
+    reach = np.linalg.norm((base - root)[:2])
+    assert reach == pytest.approx(0.48 + opt.handover_m[0] + opt.base_beyond_m, abs=1e-9) or (
+        reach == pytest.approx(0.48 + opt.handover_m[0] + opt.base_beyond_m + 0.1, abs=1e-9)
+    )
+    # without a plan, the root's own box is the reach
+    assert RobotAssist(names, kinds, meta, "seat").reach_m == pytest.approx(np.sqrt(3) * 0.15)
+
+
+def test_a_part_the_arm_could_not_fetch_is_tried_again_only_once_moved() -> None:
+    from thirdhand.live.assist import RETRY_MOVED_M, RobotAssist
+
+    assist = RobotAssist(["seat", "leg1"], ["part", "part"], {}, "seat")
+    here = np.array([0.4, 0.1, 0.8])
+    assert assist._may_retry("leg1", here)
+    assist._failed["leg1"] = here.copy()
+    step = np.array([0.0, RETRY_MOVED_M, 0.0])
+    assert not assist._may_retry("leg1", here + 0.9 * step)
+    assert assist._may_retry("leg1", here + 1.1 * step)
+    assert assist._may_retry("seat", here)

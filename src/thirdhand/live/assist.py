@@ -5,10 +5,14 @@ theirs), when the plan's next step (an available step, :mod:`thirdhand.live.trac
 has no part in the person's hands, the simulated arm (the execution stage's
 :class:`~thirdhand.execute.robot.Robot`, :class:`~thirdhand.execute.scene.CollisionScene`
 and :func:`~thirdhand.execute.planner.plan_motion`) picks one of the step's
-parts (an unused interchangeable one, the nearest to the arm) with a top-down
-grasp and brings it to a hand-over pose above the assembly's root, on the
-arm's side. The world it plans in holds the table, every other part at its
-tracked pose and the person's tracked fingers as boxes of ``hand_size_m``.
+parts (one no hand has held yet, the nearest to the arm) with a top-down
+grasp and brings it to a hand-over pose beside the assembly, on the arm's side:
+just beyond the *reach of the finished assembly* (:func:`assembly_reach`, the
+farthest corner of any part's box from the root with every plan step's part at
+its learned pose: the sphere the person sweeps turning the assembly over), and
+the arm's base beyond that. The world it plans in holds the table, every other
+part at its tracked pose and the person's tracked fingers as boxes of
+``hand_size_m``.
 
 Timing: the arm starts when the assist is decided (stream clock), spends the
 measured planning time, then moves along the planned joint path at
@@ -38,6 +42,7 @@ import numpy as np
 
 from thirdhand import se3
 from thirdhand.arrays import BoolArray, FloatArray
+from thirdhand.live.state import Slot
 from thirdhand.live.tracker import PlanTracker
 from thirdhand.segment.contact import body_box
 
@@ -53,6 +58,14 @@ SHALLOWER_M = 0.01
 MAX_GRASPS = 16
 #: How far above the hand-over pose its second set of tries is, metres.
 HANDOVER_RAISE_M = 0.15
+#: Outcomes of a fetch the arm could not do; the assist ends at once and another part is tried.
+FAILED = ("unreachable", "no path")
+#: A part the arm could not fetch is tried again once it moved this far, metres.
+RETRY_MOVED_M = 0.05
+#: The arm plans this far from every tracked part and hand (their boxes grown by it), metres:
+#: a path planned to touch nothing grazed a board lying flat whose tracked tilt jitters by
+#: ±1° (7 mm at its edge) and was in collision at every other frame (docs/live.md).
+PLAN_CLEARANCE_M = 0.005
 
 
 @dataclass(frozen=True)
@@ -63,13 +76,15 @@ class AssistOptions:
     ----------
     robot : str
         ``"panda"``.
-    base_offset_m : float
-        The arm's base stands this far from the assembly's root, on the side away
-        from the person, metres.
     handover_m : tuple of 3 floats
-        Hand-over point relative to the root's first position: towards the arm,
-        sideways, up, metres (0.3 m towards the arm: the parts being assembled stand
-        up around the root; docs/live.md).
+        Hand-over point relative to the root's first position: towards the arm beyond
+        the finished assembly's reach (:func:`assembly_reach`), sideways, up, metres.
+        Outside that sphere the person turning the assembly over does not sweep the
+        arm and its part (docs/live.md: 0.3 m from the root, inside it, met the
+        chair's legs).
+    base_beyond_m : float
+        The arm's base stands this far beyond the hand-over point, on the side away
+        from the person, metres.
     joint_speed : float
         Largest joint speed of the executed motion, rad/s.
     grasp_s : float
@@ -89,8 +104,8 @@ class AssistOptions:
     """
 
     robot: str = "panda"
-    base_offset_m: float = 0.45
-    handover_m: tuple[float, float, float] = (0.3, 0.0, 0.35)
+    handover_m: tuple[float, float, float] = (0.07, 0.0, 0.35)
+    base_beyond_m: float = 0.15
     joint_speed: float = 1.5
     grasp_s: float = 0.5
     lift_m: float = 0.06
@@ -174,6 +189,9 @@ class RobotAssist:
     root : str
         The assembly's root part (where the person works).
     options : AssistOptions, optional
+    reach_m : float, optional
+        The finished assembly's reach from the root, metres (:func:`assembly_reach`;
+        default: the root's own box).
 
     Attributes
     ----------
@@ -189,6 +207,8 @@ class RobotAssist:
         meta: Mapping[str, Any],
         root: str,
         options: AssistOptions | None = None,
+        *,
+        reach_m: float | None = None,
     ) -> None:
         self.options = AssistOptions() if options is None else options
         self.names = list(names)
@@ -197,9 +217,19 @@ class RobotAssist:
         self.root = self.names.index(root)
         self.table_z = float(meta.get("table_z_m", 0.75) or 0.75)
         self.boxes = {i: body_box(meta, self.names[i]) for i in self.parts}
+        if reach_m is None:
+            c, size = self._box(self.root)
+            reach_m = float(np.linalg.norm(np.abs(c) + size / 2.0))
+        #: The finished assembly's reach from the root, metres.
+        self.reach_m = reach_m
         self.assists: list[Assist] = []
         self.active: Assist | None = None
+        #: Parts a hand has held since the stream began.
+        self._handled: set[str] = set()
+        #: Parts the arm could not fetch, with where they were then.
+        self._failed: dict[str, FloatArray] = {}
         self._scene: Any = None
+        self._plan_scene: Any = None
         self._attached = False
         self._carried = -1
         self._grasp_index = 0
@@ -241,56 +271,67 @@ class RobotAssist:
         away = away / max(float(np.linalg.norm(away)), 1e-9)
         # The first base pose, turning about the root from the far side, where the arm
         # at home touches nothing tracked.
+        near = self.reach_m + opt.handover_m[0] + opt.base_beyond_m
         self._robot = None
         for ang in (0.0, 0.5, -0.5, 1.0, -1.0, 1.4, -1.4):
             c, sn = math.cos(ang), math.sin(ang)
             d = np.array([c * away[0] - sn * away[1], sn * away[0] + c * away[1]])
-            for dist in (opt.base_offset_m, opt.base_offset_m + 0.1):
+            for dist in (near, near + 0.1):
                 base = np.array([*(root[:2] + dist * d), self.table_z])
                 yaw = math.atan2(-d[1], -d[0])
                 base_q = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
                 self._robot = Robot.load(opt.robot, base_pose=(base, base_q))
                 self._base = base
                 self._build_scene(pos, quat)
-                if self._scene.is_valid(self._robot.home):
+                if self._plan_scene.is_valid(self._robot.home):
                     break
             else:
                 continue
             break
         away = d
         side = np.array([-away[1], away[0]])
-        up, toward, lateral = opt.handover_m[2], opt.handover_m[0], opt.handover_m[1]
+        up, toward, lateral = opt.handover_m[2], self.reach_m + opt.handover_m[0], opt.handover_m[1]
         hp = np.array([*(root[:2] + toward * away + lateral * side), root[2] + up])
         # Hand-over: gripper pointing down, its x along the arm's reach.
         self._handover = (hp, _down_quat(away))
 
     def _build_scene(self, pos: FloatArray, quat: FloatArray) -> None:
+        """The world checked (:attr:`_scene`: the tracked boxes) and the one planned in
+        (:attr:`_plan_scene`: the same boxes grown by :data:`PLAN_CLEARANCE_M` on every
+        side, so that a path grazing a part does not collide with it at its next, noisy,
+        tracked pose)."""
         from thirdhand.execute.scene import CollisionScene
 
-        scene = CollisionScene(self._robot)
-        scene.add_table(height=self.table_z, center=(float(self._base[0]), float(self._base[1])))
-        ident = np.array([0.0, 0.0, 0.0, 1.0])
-        for i in self.parts:
-            c, size = self._box(i)
-            p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
-            q = quat[i] if np.all(np.isfinite(quat[i])) else ident
-            scene.add_object(self.names[i], (p, q), size=size, box_center=c)
-        s = self.options.hand_size_m
-        for i in self.fingers:
-            p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
-            scene.add_box(self.names[i], (p, ident), (s, s, s))
-        self._scene = scene
+        grow = 2.0 * PLAN_CLEARANCE_M
+        scenes = []
+        for extra in (0.0, grow):
+            scene = CollisionScene(self._robot)
+            centre = (float(self._base[0]), float(self._base[1]))
+            scene.add_table(height=self.table_z, center=centre)
+            ident = np.array([0.0, 0.0, 0.0, 1.0])
+            for i in self.parts:
+                c, size = self._box(i)
+                p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
+                q = quat[i] if np.all(np.isfinite(quat[i])) else ident
+                scene.add_object(self.names[i], (p, q), size=size + extra, box_center=c)
+            s = self.options.hand_size_m + extra
+            for i in self.fingers:
+                p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
+                scene.add_box(self.names[i], (p, ident), (s, s, s))
+            scenes.append(scene)
+        self._scene, self._plan_scene = scenes
         self._attached = False
 
     def _track(self, pos: FloatArray, quat: FloatArray, valid: BoolArray, skip: int) -> None:
-        """Move every tracked body of the scene to its pose now (the last one when not seen)."""
+        """Move every tracked body of both worlds to its pose now (the last one when not seen)."""
         ident = np.array([0.0, 0.0, 0.0, 1.0])
-        for i in self.parts:
-            if i != skip and valid[i]:
-                self._scene.set_object_pose(self.names[i], (pos[i], quat[i]))
-        for i in self.fingers:
-            if valid[i]:
-                self._scene.set_object_pose(self.names[i], (pos[i], ident))
+        for scene in (self._scene, self._plan_scene):
+            for i in self.parts:
+                if i != skip and valid[i]:
+                    scene.set_object_pose(self.names[i], (pos[i], quat[i]))
+            for i in self.fingers:
+                if valid[i]:
+                    scene.set_object_pose(self.names[i], (pos[i], ident))
 
     # ----------------------------------------------------------------- loop
     def update(
@@ -304,6 +345,7 @@ class RobotAssist:
     ) -> None:
         """One latent step: start, follow or end an assist."""
         held = {obj for (_, obj), h in holding.items() if h}
+        self._handled |= held
         used = tracker.used_children()
         a = self.active
         self._raise_error()
@@ -327,6 +369,13 @@ class RobotAssist:
                 self._in_background(self._setup, args, "thirdhand-assist-setup")
                 return
             self._setup(*args)
+        if a is not None and a.outcome in FAILED:
+            # the arm could not fetch that part: another one of the step may do, and
+            # this one again once it was moved
+            a.end_s = t
+            self._failed[a.part] = pos[self.names.index(a.part)].copy()
+            self.active = None
+            return
         if a is not None:
             if self._ends(a, t, held, used, tracker):
                 self._release()
@@ -338,15 +387,21 @@ class RobotAssist:
         if self.options.wait_for_person and not started:
             return  # the person starts the first step with a part of their own
         # The next part the person will need: the first step not done (those the plan
-        # allows now first) other than the one in progress, with a part nobody holds.
+        # allows now first) other than the one in progress, with a part no hand has
+        # held yet (one the person took is theirs: put down a moment while they mount
+        # it, it is not fetched from under their hands).
         order = tracker.available() + [
             i for i in range(len(tracker.slots)) if i not in tracker.done
         ]
         for step in dict.fromkeys(order):
             if step == tracker.current:
                 continue
-            cands = [c for c in tracker.candidates_for(step) if c not in held]
-            idx = [self.names.index(c) for c in cands if valid[self.names.index(c)]]
+            cands = [c for c in tracker.candidates_for(step) if c not in self._handled]
+            idx = [
+                i
+                for i in (self.names.index(c) for c in cands)
+                if valid[i] and self._may_retry(self.names[i], pos[i])
+            ]
             if not idx:
                 continue
             part = min(idx, key=lambda i: float(np.linalg.norm(pos[i] - self._base)))
@@ -354,6 +409,11 @@ class RobotAssist:
             assert self.active is not None
             self.active.held_at_start = set(held)
             return
+
+    def _may_retry(self, part: str, pos: FloatArray) -> bool:
+        """Whether ``part`` (at ``pos`` now) may be fetched: never failed, or moved since."""
+        where = self._failed.get(part)
+        return where is None or float(np.linalg.norm(pos - where)) > RETRY_MOVED_M
 
     def _ends(
         self, a: Assist, t: float, held: set[str], used: set[str], tracker: PlanTracker
@@ -427,7 +487,7 @@ class RobotAssist:
         from thirdhand.execute.planner import plan_motion
 
         opt = self.options
-        scene = self._scene
+        scene = self._plan_scene
         c, _ = self._box(part)
         centre = pos[part] + se3.quat_rotate(quat[part], c)
         _, size = self._box(part)
@@ -438,6 +498,7 @@ class RobotAssist:
         home = self._robot.home
         name = self.names[part]
         scene.allow(name, "gripper")
+        self._scene.allow(name, "gripper")
         q_grasp = None
         for target in self._grasp_targets(part, pos, quat, (centre, _down_quat(axis[:2]))):
             q_grasp = self._robot.ik(target, home, seed=0, accept=scene.is_valid)
@@ -575,10 +636,51 @@ class RobotAssist:
         if self._attached:
             name = self.names[self._carried]
             self._scene.detach(name, self._robot.home)
-            self._scene.set_object_pose(
-                name, (np.array([0.0, 0.0, -10.0]), np.array([0, 0, 0, 1.0]))
-            )
+            gone = (np.array([0.0, 0.0, -10.0]), np.array([0, 0, 0, 1.0]))
+            self._scene.set_object_pose(name, gone)
+            self._plan_scene.set_object_pose(name, gone)
             self._attached = False
+
+
+def assembly_reach(
+    slots: Sequence[Slot],
+    names: Sequence[str],
+    meta: Mapping[str, Any],
+    root: str,
+    part_size_m: float = 0.05,
+) -> float:
+    """How far the finished assembly reaches from its root, metres.
+
+    Every plan step's child is put at its learned pose in its parent (composed from
+    the root ``root``, :class:`~thirdhand.live.state.Slot`); the result is the largest
+    distance of any corner of any part's box from the root's origin. A person turning
+    the assembly over about its root sweeps this sphere. Boxes: the stream's
+    ``geometry`` of the body that may fill each step (``names``: the stream's bodies,
+    by row), a cube of ``part_size_m`` without one.
+    """
+    ident = np.array([0.0, 0.0, 0.0, 1.0])
+    poses: dict[str, tuple[FloatArray, FloatArray]] = {root: (np.zeros(3), ident)}
+    body = {root: root}
+    pending = list(slots)
+    while pending:
+        ready = [s for s in pending if s.parent in poses]
+        if not ready:
+            break  # steps whose parent no step places: not part of the assembly
+        for s in ready:
+            pp, pq = poses[s.parent]
+            if s.child not in poses:
+                poses[s.child] = (pp + se3.quat_rotate(pq, s.pos), se3.quat_multiply(pq, s.quat))
+                body[s.child] = names[s.candidates[0][1]] if s.candidates else s.child
+            pending.remove(s)
+    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    half = np.full(3, part_size_m / 2.0)
+    reach = 0.0
+    for name, (p, q) in poses.items():
+        box = body_box(meta, body[name])
+        lo, hi = box if box is not None else (-half, half)
+        pts = p + se3.quat_rotate(q, lo + corners * (hi - lo))
+        reach = max(reach, float(np.linalg.norm(pts, axis=1).max()))
+    return reach
 
 
 def _handover_targets(

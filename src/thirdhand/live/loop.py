@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from thirdhand.demonstration import BodyInfo
-from thirdhand.live.assist import AssistOptions, RobotAssist
+from thirdhand.live.assist import AssistOptions, RobotAssist, assembly_reach
 from thirdhand.live.filter import SMOOTHER_LAG, OnlinePhases
 from thirdhand.live.source import Frame, FrameSource
 from thirdhand.live.state import (
@@ -243,6 +243,7 @@ class LiveLoop:
                 meta,
                 self.state.slots[0].parent if root not in names else root,
                 opt.assist,
+                reach_m=assembly_reach(self.state.slots, names, meta, root, opt.assist.part_size_m),
             )
         self._assist_step = -1
         self._warm_up(bodies, meta, model, slots, task)
