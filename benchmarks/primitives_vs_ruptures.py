@@ -32,7 +32,7 @@ its ratio to the parser's (the parser's time includes fitting, leave one out).
 First, the **product table** (what ``thirdhand primitives library`` runs): on every
 shared labelled file (circular wiping, fender wiping, peeling), leave one
 recording out, K = the number of human labels, on the pose channels of the first
-arm only (speed, angular rate, height, vertical speed;
+arm only (speed, angular rate, height, vertical and axial speeds;
 :mod:`thirdhand.primitives.pose_channels`)
 and with the force and torque magnitudes added: the skill library (HSMM,
 :class:`~thirdhand.primitives.skill_library.SkillLibrary`) vs the seed parser
@@ -249,12 +249,20 @@ def product_table(files: list[Path], tol: float) -> None:
         streams = read_labelled_mat(path)
         tracks = _pose_tracks(streams)
         k = len(np.unique(np.concatenate([s.labels for s in streams])))
-        sets = [("pose", ("logspeed", "logangular", "height", "vertical"))]
+        sets = [("pose", ("logspeed", "logangular", "height", "vertical", "axial"))]
         if any(np.ptp(s.arms[0].force) > 0 for s in streams):
             sets.append(
                 (
                     "pose+forces",
-                    ("logspeed", "logangular", "height", "vertical", "logforce", "logtorque"),
+                    (
+                        "logspeed",
+                        "logangular",
+                        "height",
+                        "vertical",
+                        "axial",
+                        "logforce",
+                        "logtorque",
+                    ),
                 )
             )
         for set_name, names in sets:

@@ -75,7 +75,7 @@ def test_channels_and_parse_unchanged_by_a_rigid_motion_of_the_scene() -> None:
     turn = se3.quat_from_euler([0.0, 0.0, 2.1])
     moved = [tr.moved(turn, [3.0, -1.5, 0.7]) for tr in tracks]
     names = default_channels(tracks[0])
-    assert names == ("logspeed", "logangular", "height", "vertical")
+    assert names == ("logspeed", "logangular", "height", "vertical", "axial")
     for a, b in zip(tracks, moved, strict=True):
         np.testing.assert_allclose(
             pose_channels(a, names)[1], pose_channels(b, names)[1], atol=1e-8
@@ -85,6 +85,39 @@ def test_channels_and_parse_unchanged_by_a_rigid_motion_of_the_scene() -> None:
     lab_b = [SkillLibrary(opts).fit(moved).parse(tr).labels for tr in moved]
     for a, b in zip(lab_a, lab_b, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 35.0, 150.0, -100.0])
+def test_axial_speed_tells_a_stroke_from_its_return_whichever_way_the_task_faced(
+    heading_deg: float,
+) -> None:
+    """Strokes 0.3 m out and back along a horizontal heading, a slower sideways drift, 100 Hz:
+    the principal direction is the heading (to 1e-6) pointing the first way, and the axial
+    channel is positive on every outward stroke and negative on every return, exactly
+    ``log1p(|v| / 0.02) / LOG_UNIT`` in size where the heading is the whole motion."""
+    from thirdhand.primitives.pose_channels import LOG_UNIT, principal_direction
+
+    rate = 100.0
+    t = np.arange(1200) / rate
+    s = 0.15 * (1.0 - np.cos(2.0 * np.pi * t / 3.0))  # out 0.3 m and back, every 3 s
+    head = np.radians(heading_deg)
+    u = np.array([np.cos(head), np.sin(head), 0.0])
+    pos = np.outer(s, u) + np.array([2.0, -1.0, 0.8])
+    vel = np.gradient(pos, t, axis=0)
+    np.testing.assert_allclose(principal_direction(pos, vel), u, atol=1e-6)
+    drift = np.outer(0.01 * t, [-u[1], u[0], 0.0])  # sideways, 1 cm/s
+    np.testing.assert_allclose(
+        principal_direction(pos + drift, vel + np.gradient(drift, t, axis=0)), u, atol=1e-3
+    )
+    tg, x = pose_channels(PoseTrack(t, pos), ["axial"], rate_hz=20.0, window=1)
+    phase = (tg % 3.0) / 3.0
+    out = (phase > 0.1) & (phase < 0.4)
+    back = (phase > 0.6) & (phase < 0.9)
+    assert np.all(x[out, 0] > 0.0) and np.all(x[back, 0] < 0.0)
+    speed = np.interp(tg, t, np.linalg.norm(vel, axis=1))
+    inner = slice(1, -1)  # the smoothing's edge samples aside
+    want = np.log1p(speed[inner] / 0.02) / LOG_UNIT
+    np.testing.assert_allclose(np.abs(x[inner, 0]), want, atol=0.05)
 
 
 @pytest.mark.parametrize("noise_deg", [0.0, 0.5])
@@ -251,6 +284,7 @@ def test_cli_reads_a_labelled_mat_with_forces(tmp_path: Path) -> None:
         "logangular",
         "height",
         "vertical",
+        "axial",
         "logforce",
         "logtorque",
     ]

@@ -14,6 +14,9 @@ vertical (the frame a task was recorded in says nothing about the task):
   level, wherever it is in the room);
 - ``vertical``: the signed ``log1p(|v_z| / 0.02 m/s)`` of the vertical velocity
   (up positive): lowering and lifting differ;
+- ``axial``: the signed ``log1p(|v_a| / 0.02 m/s)`` of the velocity along the track's
+  principal horizontal direction of motion (:func:`principal_direction`), pointing the
+  way the body first moved: a stroke and its return differ, wherever the task faced;
 - ``curvature``: ``log1p`` of the path's turning rate ``|v × a| / |v|²`` in units
   of 0.5 rad/s;
 - ``logdist``: ``log1p`` of the distance to the nearest other tracked body in units
@@ -56,6 +59,7 @@ CHANNELS = (
     "logangular",
     "height",
     "vertical",
+    "axial",
     "curvature",
     "logdist",
     "logforce",
@@ -174,14 +178,14 @@ class PoseTrack:
 def default_channels(track: PoseTrack) -> tuple[str, ...]:
     """The channels the parser uses for a track: pose ones, forces when present.
 
-    Speed, angular rate (with orientations), height, signed vertical speed,
+    Speed, angular rate (with orientations), height, signed vertical and axial speeds,
     distance to the nearest other body (with other bodies), force and torque
     magnitudes (with forces).
     """
     names = ["logspeed"]
     if track.quat is not None:
         names.append("logangular")
-    names += ["height", "vertical"]
+    names += ["height", "vertical", "axial"]
     if track.others:
         names.append("logdist")
     if track.force is not None:
@@ -189,6 +193,35 @@ def default_channels(track: PoseTrack) -> tuple[str, ...]:
     if track.torque is not None:
         names.append("logtorque")
     return tuple(names)
+
+
+#: The body's first move, which fixes the sense of the principal direction, metres.
+FIRST_MOVE_M = 0.05
+
+
+def principal_direction(pos: FloatArray, vel: FloatArray) -> FloatArray:
+    """Unit horizontal direction (3,) along which a track moves most, pointing its first way.
+
+    The principal axis of the horizontal velocities (the eigenvector of their
+    second-moment matrix with the largest eigenvalue), turned to point the way the
+    body went from its start until it was first :data:`FIRST_MOVE_M` away
+    horizontally (its farthest point if never): the same task recorded facing
+    elsewhere in the room gives the same direction relative to the motion.
+
+    Parameters
+    ----------
+    pos, vel : ndarray, shape (n, 3)
+        Positions (metres) and velocities (m/s), world frame, third axis vertical.
+    """
+    h = vel[:, :2]
+    _, vec = np.linalg.eigh(h.T @ h)
+    u = vec[:, -1]
+    away = np.linalg.norm(pos[:, :2] - pos[0, :2], axis=1)
+    far = away > FIRST_MOVE_M
+    k = int(np.argmax(far)) if far.any() else int(np.argmax(away))
+    if float((pos[k, :2] - pos[0, :2]) @ u) < 0.0:
+        u = -u
+    return np.array([u[0], u[1], 0.0])
 
 
 def _smooth(x: FloatArray, window: int) -> FloatArray:
@@ -293,6 +326,9 @@ def pose_channels(
             col = (z - np.percentile(z, 10)) / UNITS["height"]
         elif name == "vertical":
             col = np.sign(vel[:, 2]) * _log(np.abs(vel[:, 2]), UNITS["speed"])
+        elif name == "axial":
+            va = vel @ principal_direction(pos, vel)
+            col = np.sign(va) * _log(np.abs(va), UNITS["speed"])
         elif name == "curvature":
             acc = np.gradient(vel, t, axis=0)
             turn = np.linalg.norm(np.cross(vel, acc), axis=1) / np.maximum(speed, 1e-3) ** 2
