@@ -237,7 +237,7 @@ def _loo_scores(
 def product_table(files: list[Path], tol: float) -> None:
     """Skill library vs seed parser vs KernelCPD vs ZCV, pose only and with forces."""
     from thirdhand.primitives.library import PrimitiveLibrary
-    from thirdhand.primitives.pose_channels import pose_channels
+    from thirdhand.primitives.pose_channels import default_channels, pose_channels
     from thirdhand.primitives.skill_library import SkillLibrary, SkillParserOptions
 
     print(
@@ -249,22 +249,11 @@ def product_table(files: list[Path], tol: float) -> None:
         streams = read_labelled_mat(path)
         tracks = _pose_tracks(streams)
         k = len(np.unique(np.concatenate([s.labels for s in streams])))
-        sets = [("pose", ("logspeed", "logangular", "height", "vertical", "axial"))]
+        # the product's channels (what `primitives library` uses), and the pose ones alone
+        full = default_channels(tracks[0])
+        sets = [("pose", tuple(n for n in full if n not in ("logforce", "logtorque")))]
         if any(np.ptp(s.arms[0].force) > 0 for s in streams):
-            sets.append(
-                (
-                    "pose+forces",
-                    (
-                        "logspeed",
-                        "logangular",
-                        "height",
-                        "vertical",
-                        "axial",
-                        "logforce",
-                        "logtorque",
-                    ),
-                )
-            )
+            sets.append(("pose+forces", full))
         for set_name, names in sets:
             rows = []
             opts = SkillParserOptions(n_skills=k, channels=names)

@@ -373,7 +373,7 @@ class RobotAssist:
             # the arm could not fetch that part: another one of the step may do, and
             # this one again once it was moved
             a.end_s = t
-            self._failed[a.part] = pos[self.names.index(a.part)].copy()
+            self._failed[a.part] = self._carried_pose[0].copy()  # where it was tried
             self.active = None
             return
         if a is not None:
