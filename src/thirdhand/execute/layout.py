@@ -50,6 +50,7 @@ from thirdhand.execute.collision_check import coal_transform
 from thirdhand.execute.goals import goal_pose, sweep_dofs, vary
 from thirdhand.execute.grasps import FLAT_RATIO, ROD_RATIO
 from thirdhand.execute.meshes import box, mesh_from_triangles
+from thirdhand.segment.contact import box_corners
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.meshes import object_triangles
 from thirdhand.task.model import TaskFile, TaskObject
@@ -810,9 +811,7 @@ def start_layout(
 
 def _box_vertices(size: FloatArray) -> FloatArray:
     h = np.asarray(size, dtype=np.float64) / 2.0
-    return np.array(
-        [[sx * h[0], sy * h[1], sz * h[2]] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-    )
+    return box_corners((-h, h))
 
 
 def _pose_in_base(task: TaskFile, base: str, name: str) -> FloatArray:

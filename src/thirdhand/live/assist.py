@@ -44,7 +44,7 @@ from thirdhand import se3
 from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.live.state import Slot
 from thirdhand.live.tracker import PlanTracker
-from thirdhand.segment.contact import body_box
+from thirdhand.segment.contact import body_box, box_corners
 
 if TYPE_CHECKING:
     from thirdhand.execute.robot import Robot
@@ -428,7 +428,7 @@ class RobotAssist:
             for i in range(len(tracker.slots))
             if i not in tracker.done
         )
-        if not (taken or not needed):
+        if needed and not taken:
             return False
         a.end_s = t
         a.taken = ", ".join(sorted(taken))
@@ -488,19 +488,12 @@ class RobotAssist:
 
         opt = self.options
         scene = self._plan_scene
-        c, _ = self._box(part)
-        centre = pos[part] + se3.quat_rotate(quat[part], c)
-        _, size = self._box(part)
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-        top = float(np.max(se3.quat_rotate(quat[part], 0.5 * corners * size)[:, 2]))
-        centre = centre + np.array([0.0, 0.0, max(top - 0.02, 0.0)])
-        axis = se3.quat_rotate(quat[part], np.array([1.0, 0.0, 0.0]))
         home = self._robot.home
         name = self.names[part]
         scene.allow(name, "gripper")
         self._scene.allow(name, "gripper")
         q_grasp = None
-        for target in self._grasp_targets(part, pos, quat, (centre, _down_quat(axis[:2]))):
+        for target in self._grasp_targets(part, pos, quat, self._top_grasp(part, pos, quat)):
             q_grasp = self._robot.ik(target, home, seed=0, accept=scene.is_valid)
             if q_grasp is not None:
                 break
@@ -564,6 +557,19 @@ class RobotAssist:
         a.times = t + a.plan_ms / 1e3 + np.concatenate([[0.0], np.cumsum(seg)])
         a.ready_s = float(a.times[-1])
         self._grasp_index = len(r1.path) - 1
+
+    def _top_grasp(
+        self, part: int, pos: FloatArray, quat: FloatArray
+    ) -> tuple[FloatArray, FloatArray]:
+        """The top-down grasp of ``part``: over its box's centre, 2 cm below the box's top,
+        the gripper along the part's x."""
+        c, size = self._box(part)
+        half = size / 2.0
+        top = float(np.max(se3.quat_rotate(quat[part], box_corners((-half, half)))[:, 2]))
+        centre = pos[part] + se3.quat_rotate(quat[part], c)
+        centre = centre + np.array([0.0, 0.0, max(top - 0.02, 0.0)])
+        axis = se3.quat_rotate(quat[part], np.array([1.0, 0.0, 0.0]))
+        return centre, _down_quat(axis[:2])
 
     def _grasp_targets(
         self,
@@ -672,13 +678,11 @@ def assembly_reach(
                 poses[s.child] = (pp + se3.quat_rotate(pq, s.pos), se3.quat_multiply(pq, s.quat))
                 body[s.child] = names[s.candidates[0][1]] if s.candidates else s.child
             pending.remove(s)
-    corners = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
     half = np.full(3, part_size_m / 2.0)
     reach = 0.0
     for name, (p, q) in poses.items():
         box = body_box(meta, body[name])
-        lo, hi = box if box is not None else (-half, half)
-        pts = p + se3.quat_rotate(q, lo + corners * (hi - lo))
+        pts = p + se3.quat_rotate(q, box_corners(box if box is not None else (-half, half)))
         reach = max(reach, float(np.linalg.norm(pts, axis=1).max()))
     return reach
 

@@ -66,12 +66,14 @@ def body_box(meta: Mapping[str, Any], name: str) -> Box | None:
     return lo, hi
 
 
-def _corners(box: Box | None) -> FloatArray:
+def box_corners(box: Box | None) -> FloatArray:
+    """The 8 corners (8, 3) of a box ``(lo (3,), hi (3,))``, x slowest, z fastest, lo
+    before hi; the origin (1, 3) for None (a body known as a point)."""
     if box is None:
         return np.zeros((1, 3))
     lo, hi = box
     idx = np.array([[i >> 2 & 1, i >> 1 & 1, i & 1] for i in range(8)], dtype=bool)
-    return np.where(idx, hi, lo)
+    return np.asarray(np.where(idx, hi, lo), dtype=np.float64)
 
 
 def _to_box(points: FloatArray, box: Box | None) -> FloatArray:
@@ -114,7 +116,7 @@ def box_gap(
     if not ok.any():
         return out
     p, q = p[ok], q[ok]
-    cb, ca = _corners(box_b), _corners(box_a)
+    cb, ca = box_corners(box_b), box_corners(box_a)
     # B's corners in A's frame: p + R c.
     b_in_a = p[:, None, :] + se3.quat_rotate(q[:, None, :], cb[None, :, :])
     # A's corners in B's frame: R⁻¹ (c − p).
@@ -125,4 +127,4 @@ def box_gap(
     return out
 
 
-__all__ = ["body_box", "box_gap"]
+__all__ = ["body_box", "box_corners", "box_gap"]
