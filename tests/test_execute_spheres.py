@@ -350,3 +350,64 @@ def test_block_pruning_flags_exactly_what_the_pairs_flag(panda: Robot) -> None:
         np.testing.assert_array_equal(pruned, sc.flags(world, chain, qs, plain, m))
         assert pruned.any() and not pruned.all()
         np.testing.assert_array_equal(sc.free(world, chain, qs, blocks, m), ~pruned.any(axis=1))
+
+
+def _brute_flags(world: sc.SphereWorld, t: np.ndarray, pairs: np.ndarray,
+                 margins: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Pair flags of one configuration (joint frames ``t``) with no hierarchy: some sphere of
+    one body within the margin of some sphere of the other, or of the box."""
+
+    def body_spheres(b: int) -> np.ndarray:
+        g0, g1 = world.body_groups[b]
+        s = world.spheres[world.group_range[g0, 0] : world.group_range[g1 - 1, 1]].copy()
+        if world.frame[b] >= 0:
+            m = t[world.frame[b]]
+            s[:, :3] = s[:, :3] @ m[:3, :3].T + m[:3, 3]
+        return s
+
+    out = np.zeros(len(pairs), dtype=bool)
+    for p, (a, b) in enumerate(pairs):
+        margin = max(float(margins[p]), 0.0)
+        if world.kind[a] == sc.BOX and world.kind[b] == sc.BOX:
+            out[p] = True
+            continue
+        if world.kind[a] == sc.BOX:
+            a, b = b, a
+        sa = body_spheres(a)
+        if world.kind[b] == sc.BOX:
+            local = sa[:, :3] @ world.box_inv[b, :3, :3].T + world.box_inv[b, :3, 3]
+            gap = np.linalg.norm(np.maximum(np.abs(local) - world.box_half[b], 0.0), axis=1)
+            out[p] = bool(np.any(gap <= sa[:, 3] + margin))
+        else:
+            sb = body_spheres(b)
+            d = np.linalg.norm(sa[:, None, :3] - sb[None, :, :3], axis=2)
+            out[p] = bool(np.any(d <= sa[:, None, 3] + sb[None, :, 3] + margin))
+    return out
+
+
+def test_batched_kernel_flags_what_every_sphere_pair_flags(panda: Robot) -> None:
+    """The batch kernel (configurations carried together through forward kinematics and
+    the cluster tests, then pair by pair) flags exactly the pairs with two spheres within
+    their margin, counted with no hierarchy; a batch that does not fill its last lanes, and
+    each configuration alone, give the same flags; its forward kinematics is the scalar one."""
+    scene = _world(panda, 0.75, 0.0)
+    world = scene._sphere_world()
+    idx, blocks, _, _ = scene._sphere_pairs()
+    chain = scene._chain_arrays()
+    qs = panda.random_q(np.random.default_rng(5), 2 * sc.LANES + 5)
+    t = sc.joint_transforms_nb(qs, chain.placements, chain.axes, chain.parents)
+    tl = np.empty((panda.dof + 1, 12, sc.LANES))
+    for i0 in range(0, len(qs), sc.LANES):
+        sc._fk_lanes(qs, i0, chain.placements, chain.axes, chain.parents, tl)
+        for lane in range(sc.LANES):
+            i = min(i0 + lane, len(qs) - 1)
+            np.testing.assert_allclose(
+                tl[: panda.dof, :, lane].reshape(-1, 3, 4), t[i, :, :3], atol=1e-12, rtol=0
+            )
+    m = scene._pair_margins(0.01)[idx]
+    flags = sc.flags(world, chain, qs, blocks, m)
+    assert flags.any() and not flags.all()
+    for i, q in enumerate(qs):
+        np.testing.assert_array_equal(flags[i], _brute_flags(world, t[i], blocks.pairs[
+            np.argsort(blocks.order)], m))  # fmt: skip
+        np.testing.assert_array_equal(sc.flags(world, chain, q[None], blocks, m)[0], flags[i])

@@ -38,6 +38,7 @@ __all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "flags", "free", "joint_t
 
 SPHERES = 0
 BOX = 1
+_NO_LANES = np.zeros((0, 1), dtype=np.bool_)
 
 
 @dataclass(frozen=True)
@@ -181,25 +182,32 @@ def _flag_config(t: FloatArray, key: int, spheres: FloatArray, groups: FloatArra
                  pairs: IntArray, margins: FloatArray, blocks: IntArray,
                  block_margin: FloatArray, every: bool,
                  wc: FloatArray, wb: FloatArray, wg: FloatArray, ws: FloatArray,
-                 stamps: IntArray, out: BoolArray, row: int) -> bool:  # fmt: skip
+                 stamps: IntArray, out: BoolArray, row: int, near: BoolArray,
+                 lane: int) -> bool:  # fmt: skip
     """Flag the pairs of one configuration (joint frames ``t``) in ``out[row]``; True if any.
 
     ``every``: flag every pair, else stop at the first. ``key`` identifies the
     configuration in ``stamps`` (3, max(B, G)): the configuration a body's bound, a
     group's centre and a group's spheres were last moved for (moving bodies are moved
     only when a test needs them). ``wc``, ``wb``, ``wg``, ``ws``: see :func:`_run`.
+    ``lane`` ≥ 0: the blocks' cluster tests are already made, ``near[:, lane]`` (K, lanes)
+    (:func:`_lanes_near`); -1: made here.
     """
     bstamp, gstamp, sstamp = stamps[0], stamps[1], stamps[2]
-    for c in range(clusters.shape[0]):
-        if cluster_frame[c] >= 0:
-            _move(t[cluster_frame[c]], clusters, c, wc)
+    if lane < 0:
+        for c in range(clusters.shape[0]):
+            if cluster_frame[c] >= 0:
+                _move(t[cluster_frame[c]], clusters, c, wc)
     flagged = False
     for blk in range(blocks.shape[0]):
         ca, cb = blocks[blk, 2], blocks[blk, 3]
         fa, fb = cluster_frame[ca], cluster_frame[cb]
+        if lane >= 0:
+            if not near[blk, lane]:
+                continue
         # A fixed box is its own cluster (frame -2 - body): the cluster sphere against the
         # box itself, not the box's bounding sphere (a table's is a metre wide).
-        if fb <= -2:
+        elif fb <= -2:
             if fa > -2 and not _near_box(wc, ca, box_inv, box_half, -2 - fb, block_margin[blk]):
                 continue
         elif fa <= -2:
@@ -298,18 +306,159 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
     """
     n, dof = qs.shape
     t = np.empty((dof, 4, 4))
+    t[:, 3, :3] = 0.0
+    t[:, 3, 3] = 1.0
+    tl = np.empty((dof + 1, 12, LANES))
+    near = np.empty((blocks.shape[0], LANES), dtype=np.bool_)
+    cl = np.empty((clusters.shape[0], 3, LANES))
+    for c in range(clusters.shape[0]):
+        for k in range(3):
+            cl[c, k, :] = clusters[c, k]
     stamps[:] = -1
     first = -1
-    for i in range(n):
-        _fk(qs[i], placements, axes, parents, t)
-        hit = _flag_config(t, i, spheres, groups, group_range, frame, kind, bound, body_groups,
-                           box_inv, box_half, clusters, cluster_frame, sides, pairs, margins,
-                           blocks, block_margin, stop == 0, wc, wb, wg, ws, stamps, out,
-                           i if stop == 0 else 0)  # fmt: skip
-        hits[i] = hit
-        if hit and first < 0:
-            first = i
+    for i0 in range(0, n, LANES):
+        _fk_lanes(qs, i0, placements, axes, parents, tl)
+        _lanes_near(tl, clusters, cluster_frame, cl, box_inv, box_half, sides, blocks,
+                    block_margin, near)  # fmt: skip
+        for lane in range(min(LANES, n - i0)):
+            i = i0 + lane
+            hit = False
+            for blk in range(blocks.shape[0]):
+                if near[blk, lane]:
+                    hit = True
+                    break
+            if hit:
+                for j in range(dof):
+                    for e in range(12):
+                        t[j, e // 4, e % 4] = tl[j, e, lane]
+                hit = _flag_config(t, i, spheres, groups, group_range, frame, kind, bound,
+                                   body_groups, box_inv, box_half, clusters, cluster_frame,
+                                   sides, pairs, margins, blocks, block_margin, stop == 0, wc,
+                                   wb, wg, ws, stamps, out, i if stop == 0 else 0, near,
+                                   lane)  # fmt: skip
+            hits[i] = hit
+            if hit and first < 0:
+                first = i
     return first
+
+
+#: Configurations the batch kernel carries together through forward kinematics and the
+#: blocks' cluster tests (loops over them that LLVM vectorises, AVX-512 holding 8 doubles);
+#: only those some block leaves near go on to the pairs, one by one.
+LANES = 8
+
+
+@numba.njit(cache=True)
+def _fk_lanes(qs: FloatArray, i0: int, placements: FloatArray, axes: FloatArray,
+              parents: IntArray, tl: FloatArray) -> None:  # fmt: skip
+    """Joint frames of configurations ``qs[i0 : i0 + LANES]`` (:func:`.kinematics._fk`'s
+    arithmetic, lane by lane): ``tl`` (dof + 1, 12, LANES), the top three rows of each
+    ``T_world_joint``, row-major, the configuration last; ``tl[dof]`` is the identity (the
+    world, parent of a root joint). Lanes past the end of ``qs`` repeat its last row."""
+    n, dof = qs.shape
+    nl = tl.shape[2]  # LANES; a trip count known only at run time lets LLVM vectorise
+    cs = np.empty(nl)
+    sn = np.empty(nl)
+    for e in range(12):
+        tl[dof, e, :] = 1.0 if e in (0, 5, 10) else 0.0
+    for j in range(dof):
+        for lane in range(nl):
+            q = qs[min(i0 + lane, n - 1), j]
+            cs[lane] = np.cos(q)
+            sn[lane] = np.sin(q)
+        x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
+        pl = placements[j]
+        par = tl[parents[j] if parents[j] >= 0 else dof]
+        o = tl[j]
+        for lane in range(nl):
+            c, s = cs[lane], sn[lane]
+            v = 1.0 - c
+            r00, r01, r02 = c + x * x * v, x * y * v - z * s, x * z * v + y * s
+            r10, r11, r12 = y * x * v + z * s, c + y * y * v, y * z * v - x * s
+            r20, r21, r22 = z * x * v - y * s, z * y * v + x * s, c + z * z * v
+            l00 = pl[0, 0] * r00 + pl[0, 1] * r10 + pl[0, 2] * r20
+            l01 = pl[0, 0] * r01 + pl[0, 1] * r11 + pl[0, 2] * r21
+            l02 = pl[0, 0] * r02 + pl[0, 1] * r12 + pl[0, 2] * r22
+            l10 = pl[1, 0] * r00 + pl[1, 1] * r10 + pl[1, 2] * r20
+            l11 = pl[1, 0] * r01 + pl[1, 1] * r11 + pl[1, 2] * r21
+            l12 = pl[1, 0] * r02 + pl[1, 1] * r12 + pl[1, 2] * r22
+            l20 = pl[2, 0] * r00 + pl[2, 1] * r10 + pl[2, 2] * r20
+            l21 = pl[2, 0] * r01 + pl[2, 1] * r11 + pl[2, 2] * r21
+            l22 = pl[2, 0] * r02 + pl[2, 1] * r12 + pl[2, 2] * r22
+            l03, l13, l23 = pl[0, 3], pl[1, 3], pl[2, 3]
+            for a in range(3):
+                p0, p1, p2 = par[4 * a, lane], par[4 * a + 1, lane], par[4 * a + 2, lane]
+                o[4 * a, lane] = p0 * l00 + p1 * l10 + p2 * l20
+                o[4 * a + 1, lane] = p0 * l01 + p1 * l11 + p2 * l21
+                o[4 * a + 2, lane] = p0 * l02 + p1 * l12 + p2 * l22
+                o[4 * a + 3, lane] = p0 * l03 + p1 * l13 + p2 * l23 + par[4 * a + 3, lane]
+
+
+@numba.njit(cache=True, inline="always")
+def _lanes_sides(tl: FloatArray, sides: FloatArray, blk: int, fa: int, fb: int, margin: float,
+                 near: BoolArray) -> None:  # fmt: skip
+    """:func:`_sides_near` of block ``blk`` for every lane of ``tl``, and-ed into ``near``."""
+    ax, ay, az = sides[blk, 0, 0], sides[blk, 0, 1], sides[blk, 0, 2]
+    bx, by, bz = sides[blk, 1, 0], sides[blk, 1, 1], sides[blk, 1, 2]
+    r = sides[blk, 0, 3] + sides[blk, 1, 3] + margin
+    ma, mb = tl[fa if fa >= 0 else tl.shape[0] - 1], tl[fb if fb >= 0 else tl.shape[0] - 1]
+    nl = tl.shape[2]
+    for lane in range(nl):
+        d2 = 0.0
+        for k in range(0, 12, 4):
+            pa = ma[k, lane] * ax + ma[k + 1, lane] * ay + ma[k + 2, lane] * az + ma[k + 3, lane]
+            pb = mb[k, lane] * bx + mb[k + 1, lane] * by + mb[k + 2, lane] * bz + mb[k + 3, lane]
+            d2 += (pa - pb) * (pa - pb)
+        near[blk, lane] &= d2 <= r * r
+
+
+@numba.njit(cache=True)
+def _lanes_near(tl: FloatArray, clusters: FloatArray, cluster_frame: IntArray, cl: FloatArray,
+                box_inv: FloatArray, box_half: FloatArray, sides: FloatArray, blocks: IntArray,
+                block_margin: FloatArray, near: BoolArray) -> None:  # fmt: skip
+    """The blocks' cluster and side tests of :func:`_flag_config` for
+    the configurations of ``tl`` (:func:`_fk_lanes`): ``near`` (K, LANES). ``cl`` (C, 3,
+    LANES): the clusters' centres in the world, the fixed ones already there."""
+    nl = tl.shape[2]
+    for c in range(clusters.shape[0]):
+        f = cluster_frame[c]
+        if f < 0:
+            continue
+        x, y, z = clusters[c, 0], clusters[c, 1], clusters[c, 2]
+        m = tl[f]
+        for k in range(3):
+            for lane in range(nl):
+                cl[c, k, lane] = (m[4 * k, lane] * x + m[4 * k + 1, lane] * y
+                                  + m[4 * k + 2, lane] * z + m[4 * k + 3, lane])  # fmt: skip
+    for blk in range(blocks.shape[0]):
+        ca, cb = blocks[blk, 2], blocks[blk, 3]
+        fa, fb = cluster_frame[ca], cluster_frame[cb]
+        if fa <= -2 and fb <= -2:
+            near[blk, :] = True  # two boxes: left to the pairs
+            continue
+        if fa <= -2 or fb <= -2:
+            # a fixed box (its own cluster, frame -2 - body) against the other cluster
+            box, c = (-2 - fb, ca) if fb <= -2 else (-2 - fa, cb)
+            r = clusters[c, 3] + block_margin[blk]
+            inv = box_inv[box]
+            h0, h1, h2 = box_half[box, 0], box_half[box, 1], box_half[box, 2]
+            for lane in range(nl):
+                x, y, z = cl[c, 0, lane], cl[c, 1, lane], cl[c, 2, lane]
+                e0 = abs(inv[0, 0] * x + inv[0, 1] * y + inv[0, 2] * z + inv[0, 3]) - h0
+                e1 = abs(inv[1, 0] * x + inv[1, 1] * y + inv[1, 2] * z + inv[1, 3]) - h1
+                e2 = abs(inv[2, 0] * x + inv[2, 1] * y + inv[2, 2] * z + inv[2, 3]) - h2
+                e0, e1, e2 = max(e0, 0.0), max(e1, 0.0), max(e2, 0.0)
+                near[blk, lane] = e0 * e0 + e1 * e1 + e2 * e2 <= r * r
+            continue
+        r = clusters[ca, 3] + clusters[cb, 3] + block_margin[blk]
+        for lane in range(nl):
+            dx = cl[ca, 0, lane] - cl[cb, 0, lane]
+            dy = cl[ca, 1, lane] - cl[cb, 1, lane]
+            dz = cl[ca, 2, lane] - cl[cb, 2, lane]
+            near[blk, lane] = dx * dx + dy * dy + dz * dz <= r * r
+        if blocks[blk, 4]:
+            # and the spheres around the bodies each side of the block names
+            _lanes_sides(tl, sides, blk, fa, fb, block_margin[blk], near)
 
 
 @numba.njit(cache=True)
@@ -354,7 +503,7 @@ def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents:
             hit = _flag_config(t, mid, spheres, groups, group_range, frame, kind, bound,
                                body_groups, box_inv, box_half, clusters, cluster_frame, sides,
                                pairs, margins[level], blocks, block_margin[level], False, wc, wb,
-                               wg, ws, stamps, out, 0)  # fmt: skip
+                               wg, ws, stamps, out, 0, _NO_LANES, -1)  # fmt: skip
         if not hit:
             continue
         if level > 0 or reach[level] < k:
@@ -362,7 +511,7 @@ def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents:
             hit = _flag_config(t, mid, spheres, groups, group_range, frame, kind, bound,
                                body_groups, box_inv, box_half, clusters, cluster_frame, sides,
                                pairs, margins[0], blocks, block_margin[0], False, wc, wb, wg,
-                               ws, stamps, out, 0)  # fmt: skip
+                               ws, stamps, out, 0, _NO_LANES, -1)  # fmt: skip
         if hit:
             return mid, tests
         if lo < mid:
