@@ -29,7 +29,7 @@ import numba
 import numpy as np
 
 from thirdhand.arrays import BoolArray, FloatArray, IntArray
-from thirdhand.execute.kinematics import _fk, joint_transforms_nb
+from thirdhand.execute.kinematics import _fk, joint_transforms_nb, sincos
 from thirdhand.execute.spheres import SphereCover
 
 __all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "flags", "free", "joint_transforms_nb",
@@ -329,8 +329,9 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
                     break
             if hit:
                 for j in range(dof):
-                    for e in range(12):
-                        t[j, e // 4, e % 4] = tl[j, e, lane]
+                    for r in range(3):
+                        for col in range(4):
+                            t[j, r, col] = tl[j, 4 * r + col, lane]
                 hit = _flag_config(t, i, spheres, groups, group_range, frame, kind, bound,
                                    body_groups, box_inv, box_half, clusters, cluster_frame,
                                    sides, pairs, margins, blocks, block_margin, stop == 0, wc,
@@ -363,9 +364,7 @@ def _fk_lanes(qs: FloatArray, i0: int, placements: FloatArray, axes: FloatArray,
         tl[dof, e, :] = 1.0 if e in (0, 5, 10) else 0.0
     for j in range(dof):
         for lane in range(nl):
-            q = qs[min(i0 + lane, n - 1), j]
-            cs[lane] = np.cos(q)
-            sn[lane] = np.sin(q)
+            sn[lane], cs[lane] = sincos(qs[min(i0 + lane, n - 1), j])
         x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
         pl = placements[j]
         par = tl[parents[j] if parents[j] >= 0 else dof]
