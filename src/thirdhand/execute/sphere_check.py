@@ -344,8 +344,8 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
 
 
 #: Configurations the batch kernel carries together through forward kinematics and the
-#: blocks' cluster tests (loops over them that LLVM vectorises, AVX-512 holding 8 doubles);
-#: only those some block leaves near go on to the pairs, one by one.
+#: blocks' cluster tests (loops over them: each array read once per block, part of the
+#: tests vectorised by LLVM); only those some block leaves near go on to the pairs, one by one.
 LANES = 8
 
 
@@ -357,7 +357,7 @@ def _fk_lanes(qs: FloatArray, i0: int, placements: FloatArray, axes: FloatArray,
     ``T_world_joint``, row-major, the configuration last; ``tl[dof]`` is the identity (the
     world, parent of a root joint). Lanes past the end of ``qs`` repeat its last row."""
     n, dof = qs.shape
-    nl = tl.shape[2]  # LANES; a trip count known only at run time lets LLVM vectorise
+    nl = tl.shape[2]  # LANES, as a run-time trip count: LLVM unrolls a constant one instead
     cs = np.empty(nl)
     sn = np.empty(nl)
     for e in range(12):
