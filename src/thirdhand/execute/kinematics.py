@@ -191,6 +191,32 @@ def sincos(q: float) -> tuple[float, float]:
     return -c, s
 
 
+@numba.njit(cache=True, inline="always")
+def joint_local(pl: FloatArray, x: float, y: float, z: float, s: float,
+                c: float) -> tuple[float, ...]:  # fmt: skip
+    """``T_parent_joint = placement · [R(axis, q) 0; 0 1]``, its top three rows row-major
+    (12 values), from the joint's placement ``pl`` (4, 4), unit axis ``(x, y, z)`` and
+    ``(sin q, cos q)``."""
+    v = 1.0 - c
+    r00, r01, r02 = c + x * x * v, x * y * v - z * s, x * z * v + y * s
+    r10, r11, r12 = y * x * v + z * s, c + y * y * v, y * z * v - x * s
+    r20, r21, r22 = z * x * v - y * s, z * y * v + x * s, c + z * z * v
+    return (
+        pl[0, 0] * r00 + pl[0, 1] * r10 + pl[0, 2] * r20,
+        pl[0, 0] * r01 + pl[0, 1] * r11 + pl[0, 2] * r21,
+        pl[0, 0] * r02 + pl[0, 1] * r12 + pl[0, 2] * r22,
+        pl[0, 3],
+        pl[1, 0] * r00 + pl[1, 1] * r10 + pl[1, 2] * r20,
+        pl[1, 0] * r01 + pl[1, 1] * r11 + pl[1, 2] * r21,
+        pl[1, 0] * r02 + pl[1, 1] * r12 + pl[1, 2] * r22,
+        pl[1, 3],
+        pl[2, 0] * r00 + pl[2, 1] * r10 + pl[2, 2] * r20,
+        pl[2, 0] * r01 + pl[2, 1] * r11 + pl[2, 2] * r21,
+        pl[2, 0] * r02 + pl[2, 1] * r12 + pl[2, 2] * r22,
+        pl[2, 3],
+    )
+
+
 @numba.njit(cache=True)
 def _fk(q: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
         out: FloatArray) -> None:  # fmt: skip
@@ -200,38 +226,19 @@ def _fk(q: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArr
     collision kernels, where an allocation costs as much as the arithmetic.
     """
     for j in range(q.shape[0]):
-        x, y, z = axes[j, 0], axes[j, 1], axes[j, 2]
         s, c = sincos(q[j])
-        v = 1.0 - c
-        r00, r01, r02 = c + x * x * v, x * y * v - z * s, x * z * v + y * s
-        r10, r11, r12 = y * x * v + z * s, c + y * y * v, y * z * v - x * s
-        r20, r21, r22 = z * x * v - y * s, z * y * v + x * s, c + z * z * v
-        pl = placements[j]
-        # local = placement · [rot 0; 0 1], row by row
-        l00 = pl[0, 0] * r00 + pl[0, 1] * r10 + pl[0, 2] * r20
-        l01 = pl[0, 0] * r01 + pl[0, 1] * r11 + pl[0, 2] * r21
-        l02 = pl[0, 0] * r02 + pl[0, 1] * r12 + pl[0, 2] * r22
-        l10 = pl[1, 0] * r00 + pl[1, 1] * r10 + pl[1, 2] * r20
-        l11 = pl[1, 0] * r01 + pl[1, 1] * r11 + pl[1, 2] * r21
-        l12 = pl[1, 0] * r02 + pl[1, 1] * r12 + pl[1, 2] * r22
-        l20 = pl[2, 0] * r00 + pl[2, 1] * r10 + pl[2, 2] * r20
-        l21 = pl[2, 0] * r01 + pl[2, 1] * r11 + pl[2, 2] * r21
-        l22 = pl[2, 0] * r02 + pl[2, 1] * r12 + pl[2, 2] * r22
-        l03, l13, l23 = pl[0, 3], pl[1, 3], pl[2, 3]
+        loc = joint_local(placements[j], axes[j, 0], axes[j, 1], axes[j, 2], s, c)
         o = out[j]
         p = parents[j]
-        if p < 0:
-            o[0, 0], o[0, 1], o[0, 2], o[0, 3] = l00, l01, l02, l03
-            o[1, 0], o[1, 1], o[1, 2], o[1, 3] = l10, l11, l12, l13
-            o[2, 0], o[2, 1], o[2, 2], o[2, 3] = l20, l21, l22, l23
-        else:
-            par = out[p]
-            for a in range(3):
-                p0, p1, p2 = par[a, 0], par[a, 1], par[a, 2]
-                o[a, 0] = p0 * l00 + p1 * l10 + p2 * l20
-                o[a, 1] = p0 * l01 + p1 * l11 + p2 * l21
-                o[a, 2] = p0 * l02 + p1 * l12 + p2 * l22
-                o[a, 3] = p0 * l03 + p1 * l13 + p2 * l23 + par[a, 3]
+        for a in range(3):
+            if p < 0:
+                for k in range(4):
+                    o[a, k] = loc[4 * a + k]
+            else:
+                p0, p1, p2 = out[p, a, 0], out[p, a, 1], out[p, a, 2]
+                for k in range(4):
+                    o[a, k] = p0 * loc[k] + p1 * loc[4 + k] + p2 * loc[8 + k]
+                o[a, 3] += out[p, a, 3]
         o[3, 0] = o[3, 1] = o[3, 2] = 0.0
         o[3, 3] = 1.0
 

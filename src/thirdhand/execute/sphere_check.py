@@ -29,7 +29,7 @@ import numba
 import numpy as np
 
 from thirdhand.arrays import BoolArray, FloatArray, IntArray
-from thirdhand.execute.kinematics import _fk, joint_transforms_nb, sincos
+from thirdhand.execute.kinematics import _fk, joint_local, joint_transforms_nb, sincos
 from thirdhand.execute.spheres import SphereCover
 
 __all__ = ["ChainArrays", "PairBlocks", "SphereWorld", "flags", "free", "joint_transforms_nb",
@@ -370,27 +370,12 @@ def _fk_lanes(qs: FloatArray, i0: int, placements: FloatArray, axes: FloatArray,
         par = tl[parents[j] if parents[j] >= 0 else dof]
         o = tl[j]
         for lane in range(nl):
-            c, s = cs[lane], sn[lane]
-            v = 1.0 - c
-            r00, r01, r02 = c + x * x * v, x * y * v - z * s, x * z * v + y * s
-            r10, r11, r12 = y * x * v + z * s, c + y * y * v, y * z * v - x * s
-            r20, r21, r22 = z * x * v - y * s, z * y * v + x * s, c + z * z * v
-            l00 = pl[0, 0] * r00 + pl[0, 1] * r10 + pl[0, 2] * r20
-            l01 = pl[0, 0] * r01 + pl[0, 1] * r11 + pl[0, 2] * r21
-            l02 = pl[0, 0] * r02 + pl[0, 1] * r12 + pl[0, 2] * r22
-            l10 = pl[1, 0] * r00 + pl[1, 1] * r10 + pl[1, 2] * r20
-            l11 = pl[1, 0] * r01 + pl[1, 1] * r11 + pl[1, 2] * r21
-            l12 = pl[1, 0] * r02 + pl[1, 1] * r12 + pl[1, 2] * r22
-            l20 = pl[2, 0] * r00 + pl[2, 1] * r10 + pl[2, 2] * r20
-            l21 = pl[2, 0] * r01 + pl[2, 1] * r11 + pl[2, 2] * r21
-            l22 = pl[2, 0] * r02 + pl[2, 1] * r12 + pl[2, 2] * r22
-            l03, l13, l23 = pl[0, 3], pl[1, 3], pl[2, 3]
+            loc = joint_local(pl, x, y, z, sn[lane], cs[lane])
             for a in range(3):
                 p0, p1, p2 = par[4 * a, lane], par[4 * a + 1, lane], par[4 * a + 2, lane]
-                o[4 * a, lane] = p0 * l00 + p1 * l10 + p2 * l20
-                o[4 * a + 1, lane] = p0 * l01 + p1 * l11 + p2 * l21
-                o[4 * a + 2, lane] = p0 * l02 + p1 * l12 + p2 * l22
-                o[4 * a + 3, lane] = p0 * l03 + p1 * l13 + p2 * l23 + par[4 * a + 3, lane]
+                for k in range(4):
+                    o[4 * a + k, lane] = p0 * loc[k] + p1 * loc[4 + k] + p2 * loc[8 + k]
+                o[4 * a + 3, lane] += par[4 * a + 3, lane]
 
 
 @numba.njit(cache=True, inline="always")
