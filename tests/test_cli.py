@@ -76,6 +76,24 @@ def test_bad_input_is_one_line_without_traceback(
     assert str(path) in lines[0]
 
 
+@pytest.mark.parametrize(
+    ("name", "content", "match"),
+    [
+        ("wiping.mat", b"MATLAB 5.0 MAT-file", "read by `thirdhand primitives library`"),
+        ("track.npy", b"\x93NUMPY", "read by `thirdhand primitives library`"),
+        ("track.csv", b"0,0.1,0.2,0.3\n0.01,0.1,0.2,0.3\n", "not a Motive CSV export"),
+    ],
+)
+def test_tracks_given_as_recordings_name_the_command_that_reads_them(
+    tmp_path: Path, name: str, content: bytes, match: str
+) -> None:
+    path = tmp_path / name
+    path.write_bytes(content)
+    rc, _, err = run("info", str(path))
+    lines = err.strip().splitlines()
+    assert rc != 0 and len(lines) == 1 and match in lines[0]
+
+
 def test_convert_refuses_overwrite_and_keeps_backup(
     capsys: pytest.CaptureFixture[str], small_demo: Path, tmp_path: Path
 ) -> None:

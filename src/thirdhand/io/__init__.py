@@ -77,6 +77,19 @@ def detect(path: str | os.PathLike[str]) -> str:
             f"holds labels ({', '.join(labels)}) but no {POSES}: labels without their "
             "recording; put them in the recording's folder beside its poses.dat",
         )
+    if p.suffix.lower() in (".mat", ".npy"):
+        raise FormatError(
+            p,
+            "not a recording of bodies: a .mat (Figueroa's labelled layout, LASA shapes) or an "
+            ".npy pose track (t x y z [qx qy qz qw]) is read by `thirdhand primitives library` "
+            "and `primitives evaluate`",
+        )
+    if p.suffix.lower() == ".csv":
+        raise FormatError(
+            p,
+            'not a Motive CSV export (no "Format Version" header); a CSV pose track (t x y z '
+            "[qx qy qz qw]) is read by `thirdhand primitives library`",
+        )
     raise FormatError(
         p, f"unrecognised recording format; readable formats are {', '.join(FORMATS)}"
     )
