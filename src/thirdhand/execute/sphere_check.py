@@ -303,6 +303,10 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
     ``wb``, ``wg``, ``ws`` are scratch copies of ``clusters``, ``bound``, ``groups``,
     ``spheres`` (the fixed entries already in world coordinates); ``stamps`` (3, max(B, G))
     scratch too (see :func:`_flag_config`).
+
+    Configurations go :data:`LANES` at a time through forward kinematics (:func:`_fk_lanes`)
+    and the blocks' cluster and side tests (:func:`_lanes_near`); one that some block leaves
+    near goes on alone to those blocks' pairs (:func:`_flag_config`).
     """
     n, dof = qs.shape
     t = np.empty((dof, 4, 4))
@@ -322,12 +326,13 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
                     block_margin, near)  # fmt: skip
         for lane in range(min(LANES, n - i0)):
             i = i0 + lane
-            hit = False
+            some = False
             for blk in range(blocks.shape[0]):
                 if near[blk, lane]:
-                    hit = True
+                    some = True
                     break
-            if hit:
+            hit = False
+            if some:
                 for j in range(dof):
                     for r in range(3):
                         for col in range(4):
