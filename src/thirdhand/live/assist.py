@@ -191,7 +191,7 @@ class RobotAssist:
     options : AssistOptions, optional
     reach_m : float, optional
         The finished assembly's reach from the root, metres (:func:`assembly_reach`;
-        default: the root's own box).
+        default: that of the root alone).
 
     Attributes
     ----------
@@ -218,8 +218,7 @@ class RobotAssist:
         self.table_z = float(meta.get("table_z_m", 0.75) or 0.75)
         self.boxes = {i: body_box(meta, self.names[i]) for i in self.parts}
         if reach_m is None:
-            c, size = self._box(self.root)
-            reach_m = float(np.linalg.norm(np.abs(c) + size / 2.0))
+            reach_m = assembly_reach((), self.names, meta, root, self.options.part_size_m)
         #: The finished assembly's reach from the root, metres.
         self.reach_m = reach_m
         self.assists: list[Assist] = []
