@@ -195,14 +195,81 @@ def test_the_hand_over_and_the_base_stand_beyond_the_assembly_reach() -> None:
     assert RobotAssist(names, kinds, meta, "seat").reach_m == pytest.approx(np.sqrt(3) * 0.15)
 
 
-def test_a_part_the_arm_could_not_fetch_is_tried_again_only_once_moved() -> None:
-    from thirdhand.live.assist import RETRY_MOVED_M, RobotAssist
+def test_a_part_the_arm_could_not_fetch_is_tried_again_once_it_or_what_was_near_moved() -> None:
+    from thirdhand.live.assist import RETRY_AFTER_S, RETRY_MOVED_M, RobotAssist
 
-    assist = RobotAssist(["seat", "leg1"], ["part", "part"], {}, "seat")
+    # rows: seat, leg1 (failed), leg2 (lying against it), a finger beside it, a far finger
+    names = ["seat", "leg1", "leg2", "rh_index", "lh_index"]
+    kinds = ["part", "part", "part", "finger", "finger"]
+    assist = RobotAssist(names, kinds, {}, "seat")
     here = np.array([0.4, 0.1, 0.8])
-    assert assist._may_retry("leg1", here)
-    assist._failed["leg1"] = here.copy()
+    beside, hand = here + np.array([0.09, 0.0, 0.0]), here + np.array([0.0, 0.2, 0.0])
+    pos = np.array([[0.0, 0.0, 0.8], here, beside, hand, [2.0, 0.0, 0.0]])
+    valid = np.ones(5, dtype=bool)
+    assert assist._may_retry(1, 0.0, pos, valid)
+    assist._failed["leg1"] = (10.0, here.copy(), {2: pos[2].copy(), 3: pos[3].copy()})
     step = np.array([0.0, RETRY_MOVED_M, 0.0])
-    assert not assist._may_retry("leg1", here + 0.9 * step)
-    assert assist._may_retry("leg1", here + 1.1 * step)
-    assert assist._may_retry("seat", here)
+    later = 10.0 + RETRY_AFTER_S
+
+    def moved(row: int, by: float) -> np.ndarray:
+        out = pos.copy()
+        out[row] += by * step
+        return out
+
+    assert not assist._may_retry(1, later, pos, valid)  # nothing moved
+    assert not assist._may_retry(1, later, moved(1, 0.9), valid)
+    assert assist._may_retry(1, later, moved(1, 1.1), valid)  # the part itself
+    assert assist._may_retry(1, later, moved(3, 1.1), valid)  # the hand beside it
+    assert assist._may_retry(1, later, moved(2, 1.1), valid)  # the part against it
+    assert not assist._may_retry(1, later, moved(4, 10.0), valid)  # a hand far away
+    assert not assist._may_retry(1, later - 0.01, moved(1, 1.1), valid)  # too soon
+    lost = valid.copy()
+    lost[3] = False
+    assert not assist._may_retry(1, later, moved(3, 1.1), lost)  # a hand not seen now
+    assert assist._may_retry(0, later, pos, valid)  # the seat never failed
+
+
+@pytest.mark.parametrize("higher", [True, False])
+def test_a_part_lying_against_another_is_lifted_clear_of_it(
+    higher: bool, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two legs (28 × 8 × 8 cm boxes) lie side by side on the table, 7 cm apart and
+    staggered by 22 cm along their length: their boxes' ends meet. The arm grasps leg1
+    from above, lifts it straight up (touching leg2 and the table on the way is not a
+    collision) until it touches nothing, 12 cm up, and brings it to the hand-over pose.
+    A lift of 6 cm alone (``higher=False``, as before 2026-12-04) leaves it in leg2's box:
+    no clear lift."""
+    from thirdhand.live.assist import RobotAssist
+
+    box = {"bbox_min_m": [-0.14, -0.04, -0.04], "bbox_max_m": [0.14, 0.04, 0.04]}
+    seat = {"bbox_min_m": [-0.15, -0.15, -0.01], "bbox_max_m": [0.15, 0.15, 0.01]}
+    meta = {"geometry": {"seat": seat, "leg1": box, "leg2": box}, "table_z_m": 0.75}
+    names, kinds = ["seat", "leg1", "leg2", "rh_index"], ["part", "part", "part", "finger"]
+    assist = RobotAssist(names, kinds, meta, "seat", reach_m=0.3)
+    assist.background = False
+    ident = [0.0, 0.0, 0.0, 1.0]
+    pos = np.array([[0.0, 0.0, 0.76], [0.3, 0.15, 0.79], [0.52, 0.22, 0.79], [0.0, -0.5, 0.9]])
+    quat = np.tile(ident, (4, 1))
+    valid = np.ones(4, dtype=bool)
+    assist._setup(pos, quat, valid)
+    if not higher:
+        monkeypatch.setattr("thirdhand.live.assist.LIFT_STEPS", (1,))
+    assist._start(0.0, 0, 1, pos, quat, valid)
+    a = assist.active
+    assert a is not None
+    if not higher:
+        assert (a.outcome, a.status) == ("unreachable", "no clear lift")
+        return
+    assert a.ready_s is not None and a.outcome == "moving", a.status
+    assert assist._resting == ("table", "leg2")
+    lift = assist._lift
+    assert lift is not None
+    scene = assist._plan_scene
+    grasp = a.path[assist._grasp_index]
+    scene.attach("leg1", grasp)
+    try:
+        assert scene.collisions(lift) == []  # clear of leg2 and the table, nothing allowed
+        lifted = scene.object_pose("leg1", lift)[0]
+        assert lifted[2] - pos[1, 2] == pytest.approx(2 * assist.options.lift_m, abs=1e-4)
+    finally:
+        scene.detach("leg1", grasp)

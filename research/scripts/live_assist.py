@@ -7,8 +7,10 @@ Usage::
 For each assist it prints the part, when it was ready at the hand-over pose, when
 the person's hand reached for a part of that kind (the recording's ground-truth
 holds, ``meta["holds"]``) and the configurations in collision; then how many steps
-had a part of the robot's ready before the hand reached (a step counts once, whichever
-of its assists, when the arm tried another part after one it could not fetch).
+had a part of the robot's ready before the hand reached. A step is counted per part the
+person took: the arm's leg, fetched for one leg slot, serves whichever leg the person
+mounts next, so two in-time assists with the same step id are two steps (before
+2026-12-04 they counted once).
 """
 
 from __future__ import annotations
@@ -31,13 +33,16 @@ def main(recording: str, task_path: str) -> None:
     doc = loop.run(ReplaySource(demo, 0)).to_dict()
     holds = demo.meta.get("holds", [])
     collisions = checked = 0
-    in_time: set[int] = set()
+    # One step per part the person took: with interchangeable parts an assist fetched for
+    # one slot serves whichever of its kind the person mounts next, so two assists of
+    # the same step id are two steps.
+    in_time: set[str] = set()
     for a in doc["assists"]:
         taken = [p for p in a["taken"].split(", ") if p]
         reach = min([h[2] for h in holds if h[1] in taken and h[2] >= a["start"] - 0.5] or [np.nan])
         ok = a["ready"] is not None and np.isfinite(reach) and a["ready"] <= reach
         if ok:
-            in_time.add(a["step"])
+            in_time.add(a["taken"])
         collisions += a["collisions"]
         checked += a["checked"]
         print(

@@ -60,8 +60,16 @@ MAX_GRASPS = 16
 HANDOVER_RAISE_M = 0.15
 #: Outcomes of a fetch the arm could not do; the assist ends at once and another part is tried.
 FAILED = ("unreachable", "no path")
-#: A part the arm could not fetch is tried again once it moved this far, metres.
+#: The straight lift after a grasp: ``lift_m`` times the first of these that leaves the part
+#: touching nothing (two legs lying side by side, tilted, meet 6 cm up).
+LIFT_STEPS = (1, 2, 3)
+#: A part the arm could not fetch is tried again once it, or a hand or part that was within
+#: :data:`RETRY_NEAR_M` of it, moved this far, metres (a hand working beside it, a part
+#: lying against it, that blocked its grasp or its lift), and not before
+#: :data:`RETRY_AFTER_S` (a hand moving about it would have it planned at every step).
 RETRY_MOVED_M = 0.05
+RETRY_NEAR_M = 0.3
+RETRY_AFTER_S = 0.5
 #: The arm plans this far from every tracked part and hand (their boxes grown by it), metres:
 #: a path planned to touch nothing grazed a board lying flat whose tracked tilt jitters by
 #: ±1° (7 mm at its edge) and was in collision at every other frame (docs/live.md).
@@ -225,14 +233,17 @@ class RobotAssist:
         self.active: Assist | None = None
         #: Parts a hand has held since the stream began.
         self._handled: set[str] = set()
-        #: Parts the arm could not fetch, with where they were then.
-        self._failed: dict[str, FloatArray] = {}
+        #: Parts the arm could not fetch: when, where they were then, and where the hands
+        #: and parts near them were (row -> position).
+        self._failed: dict[str, tuple[float, FloatArray, dict[int, FloatArray]]] = {}
         self._scene: Any = None
         self._plan_scene: Any = None
         self._attached = False
         self._carried = -1
         self._grasp_index = 0
         self._lift: FloatArray | None = None
+        #: What the carried part rested on when grasped (the table, parts against it).
+        self._resting: tuple[str, ...] = ()
         self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
         self._robot: Any = None
         self._handover: tuple[FloatArray, FloatArray] | None = None
@@ -372,7 +383,15 @@ class RobotAssist:
             # the arm could not fetch that part: another one of the step may do, and
             # this one again once it was moved
             a.end_s = t
-            self._failed[a.part] = self._carried_pose[0].copy()  # where it was tried
+            where = self._carried_pose[0].copy()  # where it was tried
+            near = {
+                i: pos[i].copy()
+                for i in (*self.parts, *self.fingers)
+                if i != self._carried
+                and valid[i]
+                and float(np.linalg.norm(pos[i] - where)) < RETRY_NEAR_M
+            }
+            self._failed[a.part] = (t, where, near)
             self.active = None
             return
         if a is not None:
@@ -385,21 +404,20 @@ class RobotAssist:
         started = held or tracker.current is not None or tracker.done
         if self.options.wait_for_person and not started:
             return  # the person starts the first step with a part of their own
-        # The next part the person will need: the first step not done (those the plan
-        # allows now first) other than the one in progress, with a part no hand has
-        # held yet (one the person took is theirs: put down a moment while they mount
-        # it, it is not fetched from under their hands).
-        order = tracker.available() + [
-            i for i in range(len(tracker.slots)) if i not in tracker.done
-        ]
-        for step in dict.fromkeys(order):
+        # The next part the person will need: the first step not done other than the one
+        # in progress, that the plan allows now or once the one in progress is done (the
+        # back of a chair waits for its legs: fetched at once, it would be held at the
+        # hand-over for a minute, and the arm could fetch nothing else), with a part no
+        # hand has held yet (one the person took is theirs: put down a moment while they
+        # mount it, it is not fetched from under their hands).
+        for step in tracker.coming():
             if step == tracker.current:
                 continue
             cands = [c for c in tracker.candidates_for(step) if c not in self._handled]
             idx = [
                 i
                 for i in (self.names.index(c) for c in cands)
-                if valid[i] and self._may_retry(self.names[i], pos[i])
+                if valid[i] and self._may_retry(i, t, pos, valid)
             ]
             if not idx:
                 continue
@@ -409,10 +427,18 @@ class RobotAssist:
             self.active.held_at_start = set(held)
             return
 
-    def _may_retry(self, part: str, pos: FloatArray) -> bool:
-        """Whether ``part`` (at ``pos`` now) may be fetched: never failed, or moved since."""
-        where = self._failed.get(part)
-        return where is None or float(np.linalg.norm(pos - where)) > RETRY_MOVED_M
+    def _may_retry(self, part: int, t: float, pos: FloatArray, valid: BoolArray) -> bool:
+        """Whether the part of row ``part`` may be fetched at ``t`` (``pos``, ``valid``: every
+        body now): never failed, or since it failed (at least :data:`RETRY_AFTER_S` ago)
+        it or a hand or part that was near it has moved :data:`RETRY_MOVED_M`."""
+        failed = self._failed.get(self.names[part])
+        if failed is None:
+            return True
+        when, where, near = failed
+        if t - when < RETRY_AFTER_S:
+            return False
+        moved = [(part, where), *((i, p) for i, p in near.items() if valid[i])]
+        return any(float(np.linalg.norm(pos[i] - p)) > RETRY_MOVED_M for i, p in moved)
 
     def _ends(
         self, a: Assist, t: float, held: set[str], used: set[str], tracker: PlanTracker
@@ -492,6 +518,8 @@ class RobotAssist:
         scene.allow(name, "gripper")
         self._scene.allow(name, "gripper")
         q_grasp = None
+        self._lift = None
+        self._resting = ()
         for target in self._grasp_targets(part, pos, quat, self._top_grasp(part, pos, quat)):
             q_grasp = self._robot.ik(target, home, seed=0, accept=scene.is_valid)
             if q_grasp is not None:
@@ -509,19 +537,13 @@ class RobotAssist:
                 simplify=True,
             )
             if r1.success:
-                # Lifted off the table it rests on: that contact is not a collision.
-                # A straight lift off the table first (the only motion in which the
-                # part may touch the table it rests on), then a planned path.
-                scene.allow(name, "table")
+                # A straight lift first, the only motion in which the part may touch what
+                # it rests on (the table, parts lying against it), then a planned path.
                 scene.attach(name, q_grasp)
-                grasp_pose = self._robot.fk(q_grasp)
-                lift_pose = (grasp_pose[0] + np.array([0.0, 0.0, opt.lift_m]), grasp_pose[1])
-                q_lift = self._robot.ik(
-                    lift_pose, q_grasp, seed=0, n_restarts=4, accept=scene.is_valid
-                )
-                scene.disallow(name, "table")
+                self._resting = self._resting_on(scene, name, q_grasp)
+                q_lift = self._lift_clear(scene, name, q_grasp)
                 assert self._handover is not None
-                if q_lift is not None and scene.is_valid(q_lift):
+                if q_lift is not None:
                     for target in _handover_targets(self._handover):
                         q_hand = self._robot.ik(
                             target, q_lift, seed=0, n_restarts=16, accept=scene.is_valid
@@ -529,7 +551,6 @@ class RobotAssist:
                         if q_hand is not None:
                             break
                 if q_hand is not None and q_lift is not None:
-                    self._lift = q_lift
                     r2 = plan_motion(
                         self._robot,
                         scene,
@@ -543,7 +564,13 @@ class RobotAssist:
         a.plan_ms = 1e3 * (time.perf_counter() - w0)
         if q_grasp is None or (r1 is not None and r1.success and q_hand is None):
             a.outcome = "unreachable"
-            a.status = "no collision-free grasp" if q_grasp is None else "no hand-over pose"
+            a.status = (
+                "no collision-free grasp"
+                if q_grasp is None
+                else "no clear lift"
+                if self._lift is None
+                else "no hand-over pose"
+            )
             return
         if r1 is None or r2 is None or not r2.success or r1.path is None or r2.path is None:
             a.outcome = "no path"
@@ -556,6 +583,36 @@ class RobotAssist:
         a.times = t + a.plan_ms / 1e3 + np.concatenate([[0.0], np.cumsum(seg)])
         a.ready_s = float(a.times[-1])
         self._grasp_index = len(r1.path) - 1
+
+    def _resting_on(self, scene: Any, name: str, q_grasp: FloatArray) -> tuple[str, ...]:
+        """What the part ``name``, grasped at ``q_grasp``, touches as it lies: the table and
+        the parts whose boxes it meets there (legs lying side by side). Not a hand: a
+        hand on the part is the person's, and it is an obstacle."""
+        hands = {self.names[i] for i in self.fingers}
+        touching = {b if a == name else a for a, b in scene.collisions(q_grasp) if name in (a, b)}
+        return ("table", *sorted(o for o in touching - hands - {"table"} if o in scene.objects))
+
+    def _lift_clear(self, scene: Any, name: str, q_grasp: FloatArray) -> FloatArray | None:
+        """The configuration that has lifted the grasped part straight up until it touches
+        nothing (the table, a part lying against it: :meth:`_resting_on`), or None.
+
+        Lifts of ``lift_m`` times each of :data:`LIFT_STEPS` are tried: a part lying
+        against a taller one, or one tilted on its side, must rise above it.
+        """
+        grasp_pose = self._robot.fk(q_grasp)
+        for k in LIFT_STEPS:
+            up = np.array([0.0, 0.0, k * self.options.lift_m])
+            q = self._robot.ik(
+                (grasp_pose[0] + up, grasp_pose[1]),
+                q_grasp,
+                seed=0,
+                n_restarts=4,
+                accept=scene.is_valid,
+            )
+            if q is not None:
+                self._lift = np.asarray(q, dtype=np.float64)
+                return self._lift
+        return None
 
     def _top_grasp(
         self, part: int, pos: FloatArray, quat: FloatArray
@@ -618,12 +675,13 @@ class RobotAssist:
             q = a.path[k] + f * (a.path[k + 1] - a.path[k])
         carrying = k >= self._grasp_index
         name = self.names[self._carried]
-        # During the straight lift the part may still touch the table it rested on.
+        # During the straight lift the part may still touch what it rested on.
         lifting = k == self._grasp_index
-        if lifting:
-            self._scene.allow(name, "table")
-        else:
-            self._scene.disallow(name, "table")
+        for o in self._resting:
+            if lifting:
+                self._scene.allow(name, o)
+            else:
+                self._scene.disallow(name, o)
         if carrying and not self._attached:
             self._scene.set_object_pose(name, self._carried_pose)
             self._scene.attach(name, a.path[self._grasp_index])

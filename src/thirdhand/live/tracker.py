@@ -107,6 +107,17 @@ class PlanTracker:
             if i not in self.done and all(p in self.done for p in self.predecessors[i])
         ]
 
+    def coming(self) -> list[int]:
+        """Steps not done that may come next: the available ones (plan order), then those
+        whose predecessors are done or the step in progress (:attr:`current`)."""
+        after = [
+            i
+            for i in range(len(self.slots))
+            if i not in self.done
+            and all(p in self.done or p == self.current for p in self.predecessors[i])
+        ]
+        return list(dict.fromkeys(self.available() + after))
+
     def used_children(self) -> set[str]:
         """Stream bodies already in a done step's slot."""
         return {r.child for r in self.done.values()}
