@@ -98,7 +98,7 @@ def _coarse_to_fine(n: int) -> NDArray[np.intp]:
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _dense_path(
     qa: FloatArray, lever: FloatArray, max_step_m: float, max_step_rad: float
 ) -> FloatArray:  # pragma: no cover - compiled

@@ -217,7 +217,7 @@ def joint_local(pl: FloatArray, x: float, y: float, z: float, s: float,
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _fk(q: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
         out: FloatArray) -> None:  # fmt: skip
     """Joint frames ``out`` (dof, 4, 4) of one configuration ``q`` (dof,).
@@ -243,7 +243,7 @@ def _fk(q: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArr
         o[3, 3] = 1.0
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def joint_transforms_nb(qs: FloatArray, placements: FloatArray, axes: FloatArray,
                      parents: IntArray) -> FloatArray:  # fmt: skip
     """Joint frames ``T_world_joint`` of many configurations ``qs`` (n, dof): (n, dof, 4, 4)."""
@@ -254,7 +254,7 @@ def joint_transforms_nb(qs: FloatArray, placements: FloatArray, axes: FloatArray
     return out
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _rotation_log(r: FloatArray, out: FloatArray) -> None:
     """``out[3:6] = log(r)`` (axis times angle in [0, π]) of a rotation matrix r (3, 3).
 
@@ -292,7 +292,7 @@ def _rotation_log(r: FloatArray, out: FloatArray) -> None:
     out[3], out[4], out[5] = x * scale, y * scale, z * scale
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _solve_ik_nb(placements: FloatArray, axes: FloatArray, parents: IntArray, tool_joint: int,
                  t_joint_tool: FloatArray, targets: FloatArray, q0: FloatArray,
                  lower: FloatArray, upper: FloatArray, max_iter: int, tol_pos: float,

@@ -287,7 +287,7 @@ def _flag_config(t: FloatArray, key: int, spheres: FloatArray, groups: FloatArra
     return flagged
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
          spheres: FloatArray, groups: FloatArray, group_range: IntArray, frame: IntArray,
          kind: IntArray, bound: FloatArray, body_groups: IntArray, box_inv: FloatArray,
@@ -354,7 +354,7 @@ def _run(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntA
 LANES = 8
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _fk_lanes(qs: FloatArray, i0: int, placements: FloatArray, axes: FloatArray,
               parents: IntArray, tl: FloatArray) -> None:  # fmt: skip
     """Joint frames of configurations ``qs[i0 : i0 + LANES]`` (:func:`.kinematics._fk`'s
@@ -401,7 +401,7 @@ def _lanes_sides(tl: FloatArray, sides: FloatArray, blk: int, fa: int, fb: int, 
         near[blk, lane] &= d2 <= r * r
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _lanes_near(tl: FloatArray, clusters: FloatArray, cluster_frame: IntArray, cl: FloatArray,
                 box_inv: FloatArray, box_half: FloatArray, sides: FloatArray, blocks: IntArray,
                 block_margin: FloatArray, near: BoolArray) -> None:  # fmt: skip
@@ -450,7 +450,7 @@ def _lanes_near(tl: FloatArray, clusters: FloatArray, cluster_frame: IntArray, c
             _lanes_sides(tl, sides, blk, fa, fb, block_margin[blk], near)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def _run_path(qs: FloatArray, placements: FloatArray, axes: FloatArray, parents: IntArray,
               spheres: FloatArray, groups: FloatArray, group_range: IntArray, frame: IntArray,
               kind: IntArray, bound: FloatArray, body_groups: IntArray, box_inv: FloatArray,
