@@ -7,6 +7,7 @@ import pytest
 
 from thirdhand import se3
 from thirdhand.live.assist import _down_quat
+from thirdhand.live.state import Slot
 
 
 @pytest.mark.parametrize("direction", [(1.0, 0.0), (0.0, -2.0), (-1.0, 1.0), (0.0, 0.0)])
@@ -273,3 +274,45 @@ def test_a_part_lying_against_another_is_lifted_clear_of_it(
         assert lifted[2] - pos[1, 2] == pytest.approx(2 * assist.options.lift_m, abs=1e-4)
     finally:
         scene.detach("leg1", grasp)
+
+
+def test_the_part_being_mounted_is_planned_around_at_every_free_slot() -> None:
+    """Two leg slots: at (0.1, 0.1, -0.05) in the seat, turned 180° about x, and at (-0.1,
+    0.1, -0.05). The seat stands at (0.3, 0.2, 0.76) turned 90° about z. While a step is in
+    progress and a hand holds leg2, the arm plans around leg2's box at each slot not done
+    (world poses worked out by hand); not around leg1, held but already mounted; around
+    nothing with no step in progress or the seat not tracked."""
+    from thirdhand.live.assist import RobotAssist
+    from thirdhand.live.tracker import PlanTracker, RecognisedStep
+
+    ident = np.array([0.0, 0.0, 0.0, 1.0])
+    flip = np.array([1.0, 0.0, 0.0, 0.0])  # 180° about x
+
+    def slot(step: int, x: float) -> Slot:
+        return Slot(step, f"c{step}", "seat", "leg", np.array([x, 0.1, -0.05]), flip,
+                    np.zeros(3), ident, np.zeros((6, 2)), [(0, 1), (0, 2), (0, 3)])  # fmt: skip
+
+    names = ["seat", "leg1", "leg2", "leg3", "rh_index"]
+    assist = RobotAssist(names, ["part"] * 4 + ["finger"], {}, "seat")
+    tracker = PlanTracker([slot(0, 0.1), slot(1, -0.1), slot(2, 0.0)], [[], [], []], names)
+    tracker.done[2] = RecognisedStep(2, "c2", "seating", "leg1", 1.0, 0.5, True)
+    yaw = np.array([0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)])
+    pos = np.array([[0.3, 0.2, 0.76], [0.3, 0.2, 0.7], [0.5, -0.3, 0.9], [0.6, 0.4, 0.79],
+                    [0.5, -0.3, 0.95]])  # fmt: skip
+    quat = np.array([yaw, ident, ident, ident, ident])
+    valid = np.ones(5, dtype=bool)
+    held = {"seat", "leg1", "leg2"}
+    assert assist._mounting_poses(tracker, held, pos, quat, valid) == []  # none in progress
+    tracker.current = 0
+    got = assist._mounting_poses(tracker, held, pos, quat, valid)
+    assert [row for row, _, _ in got] == [2, 2]
+    # Rz(90°) (x, y) -> (-y, x); Rz(90°)·Rx(180°): x -> y, y -> x, z -> -z
+    np.testing.assert_allclose(got[0][1], [0.3 - 0.1, 0.2 + 0.1, 0.76 - 0.05], atol=1e-12)
+    np.testing.assert_allclose(got[1][1], [0.3 - 0.1, 0.2 - 0.1, 0.76 - 0.05], atol=1e-12)
+    for _, _, turn in got:
+        np.testing.assert_allclose(se3.quat_rotate(turn, [1.0, 0.0, 0.0]), [0, 1, 0], atol=1e-12)
+        np.testing.assert_allclose(se3.quat_rotate(turn, [0.0, 0.0, 1.0]), [0, 0, -1], atol=1e-12)
+    lost = valid.copy()
+    lost[0] = False
+    assert assist._mounting_poses(tracker, held, pos, quat, lost) == []
+    assert assist._mounting_poses(tracker, {"leg1"}, pos, quat, valid) == []  # mounted

@@ -74,6 +74,10 @@ RETRY_AFTER_S = 0.5
 #: a path planned to touch nothing grazed a board lying flat whose tracked tilt jitters by
 #: ±1° (7 mm at its edge) and was in collision at every other frame (docs/live.md).
 PLAN_CLEARANCE_M = 0.005
+#: The obstacles the arm plans around where the part being mounted may go (its box at each
+#: free slot's learned pose in its parent, grown by a hand on every side): the person
+#: brings it there.
+MOUNTING = "being mounted"
 
 
 @dataclass(frozen=True)
@@ -244,6 +248,8 @@ class RobotAssist:
         self._lift: FloatArray | None = None
         #: What the carried part rested on when grasped (the table, parts against it).
         self._resting: tuple[str, ...] = ()
+        #: Where the part being mounted may go (:meth:`_mounting_poses`).
+        self._mounting: list[tuple[int, FloatArray, FloatArray]] = []
         self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
         self._robot: Any = None
         self._handover: tuple[FloatArray, FloatArray] | None = None
@@ -422,6 +428,7 @@ class RobotAssist:
             if not idx:
                 continue
             part = min(idx, key=lambda i: float(np.linalg.norm(pos[i] - self._base)))
+            self._mounting = self._mounting_poses(tracker, held, pos, quat, valid)
             self._start(t, step, part, pos, quat, valid)
             assert self.active is not None
             self.active.held_at_start = set(held)
@@ -486,6 +493,35 @@ class RobotAssist:
             self._planner = None
         self._raise_error()
 
+    def _mounting_poses(
+        self,
+        tracker: PlanTracker,
+        held: set[str],
+        pos: FloatArray,
+        quat: FloatArray,
+        valid: BoolArray,
+    ) -> list[tuple[int, FloatArray, FloatArray]]:
+        """Where the part the person is mounting may go: ``(row, position, quaternion)`` each.
+
+        While a step is in progress (:attr:`PlanTracker.current`), a part a hand holds
+        that no done step uses, at the learned pose in its parent (as tracked now, world
+        frame) of every step not done that it may fill and that may come next
+        (:meth:`PlanTracker.coming`): an interchangeable leg may go to any free corner.
+        Empty when no step is in progress.
+        """
+        if tracker.current is None:
+            return []
+        used = tracker.used_children()
+        out = []
+        for step in tracker.coming():
+            slot = tracker.slots[step]
+            for p, c in slot.candidates:
+                name = self.names[c]
+                if name in held and name not in used and valid[p] and c in self.parts:
+                    where = pos[p] + se3.quat_rotate(quat[p], slot.pos)
+                    out.append((c, where, np.asarray(se3.quat_multiply(quat[p], slot.quat))))
+        return out
+
     def _start(
         self, t: float, step: int, part: int, pos: FloatArray, quat: FloatArray, valid: BoolArray
     ) -> None:
@@ -508,7 +544,26 @@ class RobotAssist:
         """Plan the fetch of ``part`` decided at ``t`` (stream clock) and schedule it in ``a``.
 
         The schedule starts when the planning ends: ``t`` plus the planning's wall time.
+        The arm plans around where the part the person is mounting may go
+        (:meth:`_mounting_poses`): a path planned through that place meets the part and the
+        hand that bring it there (chair 19, docs/live.md).
         """
+        scene = self._plan_scene
+        ghosts = [f"{MOUNTING} {k}" for k in range(len(self._mounting))]
+        grow = 2.0 * (PLAN_CLEARANCE_M + self.options.hand_size_m)
+        for ghost, (row, where, turn) in zip(ghosts, self._mounting, strict=True):
+            c, size = self._box(row)
+            scene.add_object(ghost, (where, turn), size=size + grow, box_center=c)
+        try:
+            self._plan_fetch(a, t, part, pos, quat, w0)
+        finally:
+            for ghost in ghosts:
+                scene.remove_object(ghost)
+
+    def _plan_fetch(
+        self, a: Assist, t: float, part: int, pos: FloatArray, quat: FloatArray, w0: float
+    ) -> None:
+        """:meth:`_plan` in the world as it is (the part being mounted added, if any)."""
         from thirdhand.execute.planner import plan_motion
 
         opt = self.options
