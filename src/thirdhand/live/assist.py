@@ -102,7 +102,8 @@ class AssistOptions:
     grasp_s : float
         Seconds to close the gripper on the part.
     lift_m : float
-        Straight lift off the table after the grasp, metres.
+        Straight lift after the grasp, metres; twice or three times it when the part
+        still touches something there (:data:`LIFT_STEPS`).
     plan_time_s : float
         Time limit of each planning query, seconds.
     hand_size_m : float
