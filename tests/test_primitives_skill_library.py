@@ -120,6 +120,36 @@ def test_axial_speed_tells_a_stroke_from_its_return_whichever_way_the_task_faced
     np.testing.assert_allclose(np.abs(x[inner, 0]), want, atol=0.05)
 
 
+@pytest.mark.parametrize("end_offset_mm", [-1.0, -0.2, 0.2, 1.0])
+def test_a_small_angle_points_the_way_it_first_went_along_its_axis(end_offset_mm: float) -> None:
+    """A handwritten shape 4.4 cm wide (LASA's scale): x goes steadily right while y rises
+    1.5 cm quickly, holds, and falls quickly, ending a millimetre above or below its start.
+    The axis is y (the faster motion) and points up, the way the stroke first went along
+    it, whichever way the end misses the start (the old rule took the sign from the end,
+    the farthest point, across the axis)."""
+    from thirdhand.primitives.pose_channels import principal_direction
+
+    t = np.arange(300) / 100.0
+    s = t / t[-1]
+
+    def smooth(u: np.ndarray) -> np.ndarray:
+        v = np.clip(u, 0.0, 1.0)
+        return v * v * (3.0 - 2.0 * v)
+
+    x = -0.044 + 0.044 * s
+    y = 0.015 * (smooth(s / 0.15) - smooth((s - 0.85) / 0.15)) + 1e-3 * end_offset_mm * s
+    pos = np.column_stack([x, y, np.zeros_like(x)])
+    vel = np.gradient(pos, t, axis=0)
+    np.testing.assert_allclose(principal_direction(pos, vel), [0.0, 1.0, 0.0], atol=0.05)
+    assert principal_direction(pos, vel)[1] > 0.99
+    # turned about the vertical, the direction turns with it
+    c, n = np.cos(2.0), np.sin(2.0)
+    turn = np.array([[c, -n, 0.0], [n, c, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(
+        principal_direction(pos @ turn.T, vel @ turn.T), turn @ [0.0, 1.0, 0.0], atol=0.05
+    )
+
+
 @pytest.mark.parametrize("noise_deg", [0.0, 0.5])
 def test_angular_rate_is_smoothed_as_a_vector_so_tracker_noise_does_not_add(
     noise_deg: float,

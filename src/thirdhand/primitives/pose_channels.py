@@ -195,7 +195,8 @@ def default_channels(track: PoseTrack) -> tuple[str, ...]:
     return tuple(names)
 
 
-#: The body's first move, which fixes the sense of the principal direction, metres.
+#: The body's first move along its principal direction, which fixes that direction's sense,
+#: metres (or a quarter of the track's extent along it, if that is less).
 FIRST_MOVE_M = 0.05
 
 
@@ -204,9 +205,13 @@ def principal_direction(pos: FloatArray, vel: FloatArray) -> FloatArray:
 
     The principal axis of the horizontal velocities (the eigenvector of their
     second-moment matrix with the largest eigenvalue), turned to point the way the
-    body went from its start until it was first :data:`FIRST_MOVE_M` away
-    horizontally (its farthest point if never): the same task recorded facing
-    elsewhere in the room gives the same direction relative to the motion.
+    body first went along it: the sign of its displacement from the start along the
+    axis when that first reaches :data:`FIRST_MOVE_M` (or a quarter of the track's
+    extent along the axis, if that is less). The same task recorded facing elsewhere
+    in the room gives the same direction relative to the motion. (Until 2026-12-04 the
+    sign came from the first displacement of 5 cm in any horizontal direction, or the
+    farthest point: on a 4.5-cm handwritten LASA angle that point lay across the axis,
+    and the sense flipped between demonstrations by millimetres.)
 
     Parameters
     ----------
@@ -216,10 +221,11 @@ def principal_direction(pos: FloatArray, vel: FloatArray) -> FloatArray:
     h = vel[:, :2]
     _, vec = np.linalg.eigh(h.T @ h)
     u = vec[:, -1]
-    away = np.linalg.norm(pos[:, :2] - pos[0, :2], axis=1)
-    far = away > FIRST_MOVE_M
-    k = int(np.argmax(far)) if far.any() else int(np.argmax(away))
-    if float((pos[k, :2] - pos[0, :2]) @ u) < 0.0:
+    along = (pos[:, :2] - pos[0, :2]) @ u
+    reach = min(FIRST_MOVE_M, 0.25 * float(np.ptp(along)))
+    far = np.abs(along) >= reach
+    k = int(np.argmax(far)) if reach > 0.0 and far.any() else int(np.argmax(np.abs(along)))
+    if along[k] < 0.0:
         u = -u
     return np.array([u[0], u[1], 0.0])
 
