@@ -2,7 +2,8 @@
 
 Usage::
 
-    python scripts/live_assist.py chair11.parquet chair_task.json
+    python research/scripts/live_assist.py chair11.parquet chair_task.json
+    python research/scripts/live_assist.py chair_task.json chair1[1-5].parquet   # several, a total
 
 For each assist it prints the part, when it was ready at the hand-over pose, when
 the person's hand reached for a part of that kind (the recording's ground-truth
@@ -26,7 +27,9 @@ from thirdhand.live.source import ReplaySource
 from thirdhand.task.store import load_task
 
 
-def main(recording: str, task_path: str) -> None:
+def main(recording: str, task_path: str) -> tuple[int, int, int, int]:
+    """Run one recording; print its assists; return (steps in time, steps, in collision,
+    configurations checked)."""
     demo = io.load(recording)
     task = load_task(task_path)
     loop = LiveLoop(task, demo.bodies, demo.meta, options=LiveOptions(assist=AssistOptions()))
@@ -55,7 +58,18 @@ def main(recording: str, task_path: str) -> None:
         f"{collisions} of {checked} configurations in collision; planning "
         f"{doc['assist_ms']['max']} ms at most"
     )
+    return len(in_time), len(task.plan), collisions, checked
 
 
 if __name__ == "__main__":
-    main(sys.argv[1], sys.argv[2])
+    if sys.argv[1].endswith(".json"):  # a task, then recordings
+        total = np.zeros(4, dtype=int)
+        for rec in sys.argv[2:]:
+            print(f"== {rec}")
+            total += main(rec, sys.argv[1])
+        print(
+            f"all {len(sys.argv) - 2}: {total[0]} of {total[1]} steps in time; "
+            f"{total[2]} of {total[3]} configurations in collision"
+        )
+    else:
+        main(sys.argv[1], sys.argv[2])
