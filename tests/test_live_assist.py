@@ -263,7 +263,7 @@ def test_a_part_lying_against_another_is_lifted_clear_of_it(
         return
     assert a.ready_s is not None and a.outcome == "moving", a.status
     assert assist._resting == ("table", "leg2")
-    lift = assist._lift
+    lift = a.path[assist._grasp_index + 1]  # the planned path goes on from the lift
     assert lift is not None
     scene = assist._plan_scene
     grasp = a.path[assist._grasp_index]

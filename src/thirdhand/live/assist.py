@@ -246,11 +246,8 @@ class RobotAssist:
         self._attached = False
         self._carried = -1
         self._grasp_index = 0
-        self._lift: FloatArray | None = None
         #: What the carried part rested on when grasped (the table, parts against it).
         self._resting: tuple[str, ...] = ()
-        #: Where the part being mounted may go (:meth:`_mounting_poses`).
-        self._mounting: list[tuple[int, FloatArray, FloatArray]] = []
         self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
         self._robot: Any = None
         self._handover: tuple[FloatArray, FloatArray] | None = None
@@ -429,8 +426,8 @@ class RobotAssist:
             if not idx:
                 continue
             part = min(idx, key=lambda i: float(np.linalg.norm(pos[i] - self._base)))
-            self._mounting = self._mounting_poses(tracker, held, pos, quat, valid)
-            self._start(t, step, part, pos, quat, valid)
+            mounting = self._mounting_poses(tracker, held, pos, quat, valid)
+            self._start(t, step, part, pos, quat, valid, mounting)
             assert self.active is not None
             self.active.held_at_start = set(held)
             return
@@ -524,8 +521,17 @@ class RobotAssist:
         return out
 
     def _start(
-        self, t: float, step: int, part: int, pos: FloatArray, quat: FloatArray, valid: BoolArray
+        self,
+        t: float,
+        step: int,
+        part: int,
+        pos: FloatArray,
+        quat: FloatArray,
+        valid: BoolArray,
+        mounting: Sequence[tuple[int, FloatArray, FloatArray]] = (),
     ) -> None:
+        """Start the fetch of ``part`` for ``step`` at ``t``; plan it (in the background on a
+        real-time stream) around ``mounting`` (:meth:`_mounting_poses`)."""
         a = Assist(step=step, part=self.names[part], start_s=t)
         self.assists.append(a)
         self.active = a
@@ -533,14 +539,21 @@ class RobotAssist:
         self._track(pos, quat, valid, skip=-1)
         self._carried = part
         self._carried_pose = (pos[part].copy(), quat[part].copy())
-        args = (a, t, part, pos.copy(), quat.copy(), w0)
+        args = (a, t, part, pos.copy(), quat.copy(), w0, tuple(mounting))
         if self.background:
             self._in_background(self._plan, args, "thirdhand-assist-plan")
         else:
             self._plan(*args)
 
     def _plan(
-        self, a: Assist, t: float, part: int, pos: FloatArray, quat: FloatArray, w0: float
+        self,
+        a: Assist,
+        t: float,
+        part: int,
+        pos: FloatArray,
+        quat: FloatArray,
+        w0: float,
+        mounting: Sequence[tuple[int, FloatArray, FloatArray]],
     ) -> None:
         """Plan the fetch of ``part`` decided at ``t`` (stream clock) and schedule it in ``a``.
 
@@ -550,9 +563,9 @@ class RobotAssist:
         hand that bring it there (chair 19, docs/live.md).
         """
         scene = self._plan_scene
-        ghosts = [f"{MOUNTING} {k}" for k in range(len(self._mounting))]
+        ghosts = [f"{MOUNTING} {k}" for k in range(len(mounting))]
         grow = 2.0 * (PLAN_CLEARANCE_M + self.options.hand_size_m)
-        for ghost, (row, where, turn) in zip(ghosts, self._mounting, strict=True):
+        for ghost, (row, where, turn) in zip(ghosts, mounting, strict=True):
             c, size = self._box(row)
             scene.add_object(ghost, (where, turn), size=size + grow, box_center=c)
         try:
@@ -573,8 +586,7 @@ class RobotAssist:
         name = self.names[part]
         scene.allow(name, "gripper")
         self._scene.allow(name, "gripper")
-        q_grasp = None
-        self._lift = None
+        q_grasp = q_lift = None
         self._resting = ()
         for target in self._grasp_targets(part, pos, quat, self._top_grasp(part, pos, quat)):
             q_grasp = self._robot.ik(target, home, seed=0, accept=scene.is_valid)
@@ -624,7 +636,7 @@ class RobotAssist:
                 "no collision-free grasp"
                 if q_grasp is None
                 else "no clear lift"
-                if self._lift is None
+                if q_lift is None
                 else "no hand-over pose"
             )
             return
@@ -666,8 +678,7 @@ class RobotAssist:
                 accept=scene.is_valid,
             )
             if q is not None:
-                self._lift = np.asarray(q, dtype=np.float64)
-                return self._lift
+                return np.asarray(q, dtype=np.float64)
         return None
 
     def _top_grasp(

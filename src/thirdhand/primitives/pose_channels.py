@@ -223,8 +223,8 @@ def principal_direction(pos: FloatArray, vel: FloatArray) -> FloatArray:
     u = vec[:, -1]
     along = (pos[:, :2] - pos[0, :2]) @ u
     reach = min(FIRST_MOVE_M, 0.25 * float(np.ptp(along)))
-    far = np.abs(along) >= reach
-    k = int(np.argmax(far)) if reach > 0.0 and far.any() else int(np.argmax(np.abs(along)))
+    # the first sample that far along it (there is one: some |along| is at least ptp / 2)
+    k = int(np.argmax(np.abs(along) >= reach))
     if along[k] < 0.0:
         u = -u
     return np.array([u[0], u[1], 0.0])
