@@ -197,3 +197,56 @@ def test_a_segmented_chair_keeps_every_legs_spin() -> None:
     task = learn([make_scene("chair", seed=33)]).task()
     legs = [c for c in task.constraints if c.child.startswith("leg")]
     assert len(legs) == 4 and all(c.type == "revolute" for c in legs)
+
+
+def _noisy_run(
+    rng: np.random.Generator, n: int, sigma: tuple[float, float]
+) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` steps at the identity pose with per-axis noise ``sigma`` (metres, radians)."""
+    p = rng.normal(scale=sigma[0], size=(n, 3))
+    q = se3.rotvec_to_quat(rng.normal(scale=sigma[1], size=(n, 3)))
+    return p, q
+
+
+def test_a_run_starts_where_its_parts_settle(rng: np.random.Generator) -> None:
+    from thirdhand.constraints.detect_parents import SETTLED_SIGMA, _settled_start
+
+    sigma = (0.003, math.radians(1.0))
+    p, q = _noisy_run(rng, 60, sigma)
+    identity = (np.zeros(3), np.array([0.0, 0.0, 0.0, 1.0]))
+    # Parts held still at the pose from the run's start: it starts there.
+    assert _settled_start(p, q, 0, 60, *identity, sigma, 5) == 0
+    # Sliding 3 cm either way along each other for 15 steps, through the pose at
+    # steps 0, 5 and 10 (where a smoother may open the run), then holding it.
+    slide = p.copy()
+    slide[:15, 0] += 0.03 * np.sin(np.linspace(0.0, 2.0 * np.pi, 15, endpoint=False) * 1.5)
+    dev = np.linalg.norm(slide[:15], axis=1) / sigma[0]
+    assert dev[0] <= SETTLED_SIGMA and np.median(dev[:5]) > SETTLED_SIGMA
+    got = _settled_start(slide, q, 0, 60, *identity, sigma, 5)
+    assert got == 15
+    # One step of 6 noise levels within the hold neither delays nor advances it.
+    bumped = p.copy()
+    bumped[2, 0] += 6.0 * sigma[0]
+    assert _settled_start(bumped, q, 0, 60, *identity, sigma, 5) == 0
+    # Missing steps are skipped; a run that never settles starts where the HMM opened it.
+    gap = p.copy()
+    gap[:3] = np.nan
+    assert _settled_start(gap, q, 0, 60, *identity, sigma, 5) == 3
+    assert _settled_start(p + 0.05, q, 4, 60, *identity, sigma, 5) == 4
+
+
+def test_a_run_pose_is_the_pose_held_not_the_mean_of_excursions(
+    rng: np.random.Generator,
+) -> None:
+    from thirdhand.constraints.detect_runs import _run_pose
+
+    sigma = (0.001, math.radians(0.3))
+    p, q = _noisy_run(rng, 100, sigma)
+    # The last 30 steps a person pushes the part 12 mm and 3° out of place.
+    p[70:, 1] += 0.012
+    q[70:] = se3.quat_multiply(se3.rotvec_to_quat(np.array([0.0, 0.0, math.radians(3.0)])), q[70:])
+    pos, quat = _run_pose(p, q, np.zeros(3))
+    # The mean would be 3.6 mm and 0.9° off; the median of 70 held steps and 30
+    # pushed ones is within the held steps' spread (a few sigma / sqrt(70)).
+    assert np.linalg.norm(pos) < 0.0015
+    assert math.degrees(float(se3.quat_angle(quat, np.array([0.0, 0.0, 0.0, 1.0])))) < 0.4

@@ -102,6 +102,17 @@ def _executor(task, seed, search, **options):
     return Executor(robot, task, cell, start, ExecutionOptions(**options), search=search)
 
 
+def _polyline_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Distance (n,) of each point (n, 3) from the polyline through ``line`` (m, 3)."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    w = np.einsum("nmj,mj->nm", points[:, None] - a[None], ab) / np.maximum(
+        np.einsum("mj,mj->m", ab, ab), 1e-18
+    )
+    foot = a[None] + np.clip(w, 0.0, 1.0)[..., None] * ab[None]
+    return np.linalg.norm(points[:, None] - foot, axis=2).min(axis=1)
+
+
 @pytest.mark.slow
 def test_learned_chair_follows_its_primitives_without_collisions(
     learned_chair, meshes, tmp_path
@@ -132,8 +143,12 @@ def test_learned_chair_follows_its_primitives_without_collisions(
             grasp=invert(seg["t_tool_part"]), constraint=c,
         )  # fmt: skip
         got = ex.robot.tool_transforms(seg["path"])
-        assert got.shape == expect.shape
-        np.testing.assert_allclose(got[:, :3, 3], expect[:, :3, 3], atol=2e-3)
+        # ``final_poses`` is where the part ended, within the arm's IK precision of the
+        # goal the executor used (0.1 mm): the resampled path may gain or lose a pose.
+        assert abs(len(got) - len(expect)) <= 1
+        np.testing.assert_allclose(got[-1, :3, 3], expect[-1, :3, 3], atol=2e-3)
+        np.testing.assert_allclose(got[0, :3, 3], expect[0, :3, 3], atol=2e-3)
+        assert _polyline_distance(got[:, :3, 3], expect[:, :3, 3]).max() < 2e-3
     # the JSON trajectory says which motion each segment used
     _, traj = write_run(ex.robot, result, tmp_path / "run.parquet")
     doc = json.loads(traj.read_text())

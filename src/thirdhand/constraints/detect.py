@@ -165,7 +165,9 @@ def detect_constraints(
                 candidates.append(_Run(float(edges[lo_j]), k, lo_j, hi, conf, joint, held))
     candidates.sort(key=lambda c: (c.start, c.k))
     motion = {n: _path_length(*world[n]) for n in names}
-    instances, root = _assign_parents(tracks, candidates, th_p, t_end, motion, opt)
+    instances, root = _assign_parents(
+        tracks, candidates, th_p, t_end, motion, opt, (params.sigma_pos, params.sigma_rot)
+    )
     for inst in instances:
         inst.demo = demo_name
     for k, post, _ in layers[len(pairs) :]:

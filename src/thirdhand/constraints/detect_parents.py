@@ -18,6 +18,7 @@ def _assign_parents(
     t_end: float,
     motion: dict[str, float],
     opt: DetectOptions,
+    noise: tuple[float, float],
 ) -> tuple[list[ConstraintInstance], str | None]:
     """Keep, in time order, the runs that join two rigid groups of parts.
 
@@ -26,7 +27,9 @@ def _assign_parents(
     again. The root is the part with most direct constraints at the end of the
     recording (then most overall; a short spurious constraint, made and removed,
     must not make a leg the base); among equals, the one that travelled least in
-    the world (the base stays put while parts are brought to it).
+    the world (the base stays put while parts are brought to it). ``noise`` is the
+    constraint-state noise the HMM learned (metres, radians): a run starts where its
+    parts settle (:func:`_settled_start`).
     """
     pairs, times = tracks.pairs, tracks.times
     n_steps = times.size
@@ -104,8 +107,54 @@ def _assign_parents(
         a, b = pairs[c.k]
         child = b if parent_of.get(b) == a else a
         parent = a if child == b else b
-        out.append(_instance(tracks, c, parent, child, th_p, t_end, opt))
+        out.append(_instance(tracks, c, parent, child, th_p, t_end, opt, noise))
     return out, root
+
+
+#: A run's parts hold its pose within this many constraint-noise levels (the HMM's
+#: per-axis sigma): the 97th percentile of the norm of 3-d Gaussian noise.
+SETTLED_SIGMA = 3.0
+
+
+def _settled_start(
+    p: FloatArray,
+    q: FloatArray,
+    lo: int,
+    hi: int,
+    pos: FloatArray,
+    quat: FloatArray,
+    noise: tuple[float, float],
+    n_hold: int,
+) -> int:
+    """First step of a fixed-pose run from which its parts hold the run's pose.
+
+    The HMM's smoother may open a run where the parts first pass through the pose
+    while they still slide along each other (a real toolbox's boards: 1.5 s, 3 cm
+    either way), and a brief pass joins the run as the same pose. The run starts at
+    its first valid step that lies within :data:`SETTLED_SIGMA` noise levels of the
+    run's pose ``pos``, ``quat`` (in position and in rotation), and whose next
+    ``n_hold`` steps do so in the median (so that one noisy step neither delays nor
+    advances the start); at ``lo`` when there is none.
+
+    Parameters
+    ----------
+    p : ndarray, shape (n_steps, 3), metres
+    q : ndarray, shape (n_steps, 4), x y z w
+        The pair's relative pose per step, in the frame ``pos``, ``quat`` is in.
+    lo, hi : int
+        The run's steps ``[lo, hi)``.
+    noise : tuple of (float, float)
+        Constraint-state noise per axis, metres and radians.
+    n_hold : int
+        Steps the pose must hold.
+    """
+    dp = np.linalg.norm(p[lo:hi] - pos, axis=1) / noise[0]
+    dr = se3.quat_angle(q[lo:hi], np.broadcast_to(quat, (hi - lo, 4))) / noise[1]
+    dev = np.maximum(dp, dr)  # NaN where a part is not tracked
+    for s in np.flatnonzero(dev <= SETTLED_SIGMA):
+        if np.nanmedian(dev[s : s + n_hold]) <= SETTLED_SIGMA:
+            return lo + int(s)
+    return lo
 
 
 def _orient(edges: list[tuple[str, str]], root: str) -> dict[str, str]:
@@ -142,12 +191,16 @@ def _instance(
     th_p: FloatArray,
     t_end: float,
     opt: DetectOptions,
+    noise: tuple[float, float],
 ) -> ConstraintInstance:
     k, lo, hi = c.k, c.lo, c.hi
     rel_p, rel_q, times = tracks.rel_p, tracks.rel_q, tracks.times
     a, _ = tracks.pairs[k]
     p_run, q_run = rel_p[k], rel_q[k]
     pos, quat = _run_pose(p_run[lo:hi], q_run[lo:hi], th_p[k], c.held[lo:hi])
+    if not c.joint:
+        n_hold = max(1, round(opt.min_duration / tracks.step))
+        lo = _settled_start(p_run, q_run, lo, hi, pos, quat, noise, n_hold)
     if parent != a:
         pos, quat = se3.pose_invert(pos, quat)
         p_run, q_run = se3.pose_invert(rel_p[k], rel_q[k])

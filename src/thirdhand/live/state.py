@@ -16,7 +16,9 @@ frames,
 
 and both stayed true for ``dwell_s``. It is then *formed* at the current
 frame's time. A formed constraint *breaks* (the step is undone) when its
-deviation exceeds ``break_factor`` times the tolerances for ``break_s``.
+deviation exceeds ``break_factor`` times the tolerances, and the offline
+detection's same-pose bounds (``break_pos_min`` / ``break_rot_min``: two runs
+within them are one constraint offline), for ``break_s``.
 Missing samples never form nor break anything: the counters stop.
 
 The tolerances follow the task: ``tol_sigma`` times the constraint-state noise
@@ -71,6 +73,11 @@ class StateOptions:
         A formed constraint breaks beyond this many tolerances ...
     break_s : float
         ... sustained this long, seconds.
+    break_pos_min, break_rot_min : float
+        ... and never within these bounds, metres and radians: the offline
+        detection's same-pose bounds (``DetectOptions.same_pose``), within which
+        it joins two runs as one constraint (a person handling an assembled
+        toolbox pushes its joined boards 2 cm out of place for a second).
     min_samples : int
         Frames with both bodies valid needed in a window.
     """
@@ -84,6 +91,8 @@ class StateOptions:
     stable_rot: float = math.radians(2.0)
     break_factor: float = 4.0
     break_s: float = 0.5
+    break_pos_min: float = 0.02
+    break_rot_min: float = math.radians(10.0)
     min_samples: int = 4
 
 
@@ -485,7 +494,9 @@ class ConstraintState:
             & (dpos <= opt.stable_pos)
             & (drot <= opt.stable_rot)
         )
-        far = (pdev > opt.break_factor * self.pos_tol) | (rdev > opt.break_factor * self.rot_tol)
+        far = (pdev > max(opt.break_factor * self.pos_tol, opt.break_pos_min)) | (
+            rdev > max(opt.break_factor * self.rot_tol, opt.break_rot_min)
+        )
         self._near_since = np.where(
             known & near, np.where(np.isnan(self._near_since), now, self._near_since), np.nan
         )
