@@ -284,3 +284,30 @@ def test_no_full_collection_traverses_the_loop_during_the_stream(
     loop.run(watched())  # type: ignore[arg-type]
     assert seen and min(seen) > 1000
     assert gc.get_freeze_count() == 0
+
+
+def test_an_assist_names_the_step_its_part_served() -> None:
+    """With interchangeable legs the arm's leg, fetched for one slot, serves the slot the
+    person fills next with the leg they took: the first step recognised after the assist
+    ended with that leg as its child."""
+    from thirdhand.live.loop import LiveReport
+    from thirdhand.live.tracker import PlanTracker, RecognisedStep
+
+    tracker = PlanTracker([], [], [])
+    tracker.history = [
+        RecognisedStep(0, "c1", "seat", "leg2", 5.0, 4.8, True),
+        RecognisedStep(3, "c4", "seat", "leg1", 9.0, 8.8, True),
+        RecognisedStep(2, "c3", "seat", "leg2", 12.0, 11.8, True),  # leg2 again, later
+    ]
+    base = {"step": 3, "part": "leg3", "start": 1.0, "ready": 3.0, "outcome": "ready"}
+    report = LiveReport(
+        tracker=tracker,
+        assists=[
+            {**base, "end": 6.0, "taken": "leg2"},  # leg2 went into step 3 at 12 s
+            {**base, "end": 4.0, "taken": "leg1"},
+            {**base, "end": 7.0, "taken": "leg4"},  # never mounted
+            {**base, "end": None, "taken": ""},  # still held at the hand-over
+        ],
+    )
+    served = [a["served_step"] for a in report.to_dict()["assists"]]
+    assert served == [3, 4, None, None]

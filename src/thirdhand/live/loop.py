@@ -170,9 +170,26 @@ class LiveReport:
                 {"time_s": round(t, 4), "step": None if s is None else s + 1}
                 for t, s in self.current
             ],
-            "assists": self.assists,
+            "assists": [self._served(a) for a in self.assists],
             "assist_ms": _stats(self.assist_time),
         }
+
+    def _served(self, assist: dict[str, Any]) -> dict[str, Any]:
+        """``assist`` with ``served_step``: the plan step the part taken went into.
+
+        An assist ends when a hand takes a part of its kind (``taken``); the first
+        step recognised afterwards with that part as its child is the slot the
+        robot's part served (with interchangeable legs, not necessarily the step
+        it was fetched for, ``step``). None when no such step was recognised.
+        """
+        taken = {p.strip() for p in str(assist.get("taken") or "").split(",") if p.strip()}
+        end = assist.get("end")
+        served = None
+        if taken and end is not None and self.tracker is not None:
+            after = [r for r in self.tracker.history if r.child in taken and r.recognised_s >= end]
+            if after:
+                served = min(after, key=lambda r: r.recognised_s).step + 1
+        return {**assist, "served_step": served}
 
 
 class LiveLoop:
