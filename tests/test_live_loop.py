@@ -311,3 +311,18 @@ def test_an_assist_names_the_step_its_part_served() -> None:
     )
     served = [a["served_step"] for a in report.to_dict()["assists"]]
     assert served == [3, 4, None, None]
+
+
+@pytest.mark.slow
+def test_the_assist_on_the_demo_chair_touches_no_hand_and_no_part(task: TaskFile) -> None:
+    """The embedded default chair (seed 0): a leg lying beside the arm's base met the base
+    half-way up its lift (6 configurations in collision) while the lift's end was clear;
+    the lift is now checked along its motion."""
+    demo = make_scene("chair", seed=0)
+    loop = LiveLoop(task, demo.bodies, demo.meta, options=LiveOptions(assist=AssistOptions()))
+    doc = loop.run(ReplaySource(demo, 0)).to_dict()
+    fetched = [a for a in doc["assists"] if a["checked"] > 0]
+    assert len(fetched) >= 3
+    assert sum(a["collisions"] for a in doc["assists"]) == 0, [
+        a["colliding_pairs"] for a in doc["assists"]
+    ]

@@ -665,7 +665,10 @@ class RobotAssist:
         nothing (the table, a part lying against it: :meth:`_resting_on`), or None.
 
         Lifts of ``lift_m`` times each of :data:`LIFT_STEPS` are tried: a part lying
-        against a taller one, or one tilted on its side, must rise above it.
+        against a taller one, or one tilted on its side, must rise above it. The
+        motion to it is checked densely, the part allowed to touch only what it
+        rested on (``self._resting``): on the synthetic chair of seed 0 a leg lying
+        beside the arm's base met the base half-way up a lift whose end was clear.
         """
         grasp_pose = self._robot.fk(q_grasp)
         for k in LIFT_STEPS:
@@ -677,7 +680,16 @@ class RobotAssist:
                 n_restarts=4,
                 accept=scene.is_valid,
             )
-            if q is not None:
+            if q is None:
+                continue
+            for o in self._resting:
+                scene.allow(name, o)
+            try:
+                clear = scene.check_path(np.stack([q_grasp, q]))
+            finally:
+                for o in self._resting:
+                    scene.disallow(name, o)
+            if clear:
                 return np.asarray(q, dtype=np.float64)
         return None
 
