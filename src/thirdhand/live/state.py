@@ -45,6 +45,7 @@ import numpy as np
 
 from thirdhand import se3
 from thirdhand.arrays import BoolArray, FloatArray
+from thirdhand.constraints.detect_types import DetectOptions
 from thirdhand.errors import ThirdhandError
 from thirdhand.taskfile import TaskFile
 
@@ -91,8 +92,8 @@ class StateOptions:
     stable_rot: float = math.radians(2.0)
     break_factor: float = 4.0
     break_s: float = 0.5
-    break_pos_min: float = 0.02
-    break_rot_min: float = math.radians(10.0)
+    break_pos_min: float = DetectOptions().same_pose[0]
+    break_rot_min: float = DetectOptions().same_pose[1]
     min_samples: int = 4
 
 
