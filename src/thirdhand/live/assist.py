@@ -609,7 +609,7 @@ class RobotAssist:
                 # it rests on (the table, parts lying against it), then a planned path.
                 scene.attach(name, q_grasp)
                 self._resting = self._resting_on(scene, name, q_grasp)
-                q_lift = self._lift_clear(scene, name, q_grasp)
+                q_lift = self._lift_clear(scene, name, q_grasp, self._resting)
                 assert self._handover is not None
                 if q_lift is not None:
                     for target in _handover_targets(self._handover):
@@ -660,14 +660,16 @@ class RobotAssist:
         touching = {b if a == name else a for a, b in scene.collisions(q_grasp) if name in (a, b)}
         return ("table", *sorted(o for o in touching - hands - {"table"} if o in scene.objects))
 
-    def _lift_clear(self, scene: Any, name: str, q_grasp: FloatArray) -> FloatArray | None:
+    def _lift_clear(
+        self, scene: Any, name: str, q_grasp: FloatArray, resting: Sequence[str]
+    ) -> FloatArray | None:
         """The configuration that has lifted the grasped part straight up until it touches
         nothing (the table, a part lying against it: :meth:`_resting_on`), or None.
 
         Lifts of ``lift_m`` times each of :data:`LIFT_STEPS` are tried: a part lying
         against a taller one, or one tilted on its side, must rise above it. The
         motion to it is checked densely, the part allowed to touch only what it
-        rested on (``self._resting``): on the synthetic chair of seed 0 a leg lying
+        rested on (``resting``): on the synthetic chair of seed 0 a leg lying
         beside the arm's base met the base half-way up a lift whose end was clear.
         """
         grasp_pose = self._robot.fk(q_grasp)
@@ -682,12 +684,12 @@ class RobotAssist:
             )
             if q is None:
                 continue
-            for o in self._resting:
+            for o in resting:
                 scene.allow(name, o)
             try:
                 clear = scene.check_path(np.stack([q_grasp, q]))
             finally:
-                for o in self._resting:
+                for o in resting:
                     scene.disallow(name, o)
             if clear:
                 return np.asarray(q, dtype=np.float64)
