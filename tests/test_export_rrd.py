@@ -337,3 +337,41 @@ def test_bad_base_pose_is_one_error(
     rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--with", str(execution))
     assert rc == 1 and "'base_pose' must be" in err and err.count("\n") == 1
     assert not target.exists()
+
+
+def test_a_base_that_drove_carries_the_arm_with_it(
+    scene: dict[str, Any], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A live record whose base drove (``base_pos``): at each sample every shape stands where
+    pinocchio puts it for the arm loaded with its root there; a ``base_pos`` of the wrong
+    length is one error."""
+    import pinocchio as pin
+
+    from thirdhand.execute.robot import Robot
+    from thirdhand.export.robot_model import robot_shapes
+
+    execution, _, q = _run_with_robot(tmp_path, stored_base=True)
+    doc = json.loads(execution.read_text())
+    n = len(doc["t"])
+    start = np.asarray(doc["base_pose"]["pos"])
+    moved = start + np.outer(np.linspace(0.0, 1.0, n), [0.3, -0.2, 0.0])
+    doc["base_pos"] = moved.tolist()
+    execution.write_text(json.dumps(doc))
+    out = tmp_path / "moved.rrd"
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(out), "--with", str(execution))
+    assert rc == 0, err
+    for k in (0, 37, n - 1):
+        there = Robot.load("panda", base_pose=(moved[k], np.asarray(doc["base_pose"]["quat"])))
+        data, gdata = there.model.createData(), pin.GeometryData(there.geometry)
+        pin.forwardKinematics(there.model, data, q[k])
+        pin.updateGeometryPlacements(there.model, data, there.geometry, gdata)
+        for g, shape in enumerate(robot_shapes(there)):
+            e = "/execution/robot/" + rr.escape_entity_path_part(shape.name)
+            logged = _column(out, e, "Transform3D:translation")
+            assert np.abs(logged[k] - gdata.oMg[g].translation).max() < 1e-5
+    doc["base_pos"] = doc["base_pos"][:-1]
+    execution.write_text(json.dumps(doc))
+    target = tmp_path / "short.rrd"
+    rc, _, err = call(capsys, "convert", str(scene["rec"]), str(target), "--with", str(execution))
+    assert rc == 1 and "'base_pos' must be" in err and err.count("\n") == 1
+    assert not target.exists()

@@ -316,3 +316,93 @@ def test_the_part_being_mounted_is_planned_around_at_every_free_slot() -> None:
     lost[0] = False
     assert assist._mounting_poses(tracker, held, pos, quat, lost) == []
     assert assist._mounting_poses(tracker, {"leg1"}, pos, quat, valid) == []  # mounted
+
+
+def test_the_base_drives_round_a_board_on_its_track_to_a_part_out_of_reach() -> None:
+    """A seat at the origin, the person's hand on -y, the track 0.52 m beyond the seat
+    (reach 0.3 + hand-over 0.07 + base 0.15) along x. A 40 × 40 cm board lies across the
+    track's middle: the base starts beside it. A leg lies on the board's other side, 0.8 m
+    along x and 0.2 m towards the track: beyond the reach of an arm standing there (1.1 m
+    and more away, its fetch unreachable), but the moving base drives back from the track
+    round the board to a station near the leg and has it at the hand-over. The arm at home
+    touches nothing at any point of the drive, checked in the world as tracked."""
+    from thirdhand.live.assist import AssistOptions, RobotAssist
+
+    leg = {"bbox_min_m": [-0.14, -0.04, -0.04], "bbox_max_m": [0.14, 0.04, 0.04]}
+    seat = {"bbox_min_m": [-0.15, -0.15, -0.01], "bbox_max_m": [0.15, 0.15, 0.01]}
+    board = {"bbox_min_m": [-0.2, -0.2, -0.015], "bbox_max_m": [0.2, 0.2, 0.015]}
+    meta = {"geometry": {"seat": seat, "leg1": leg, "back": board}, "table_z_m": 0.75}
+    names, kinds = ["seat", "leg1", "back", "rh_index"], ["part", "part", "part", "finger"]
+    ident = [0.0, 0.0, 0.0, 1.0]
+    quat = np.tile(ident, (4, 1))
+    valid = np.ones(4, dtype=bool)
+    pos = np.array([[0.0, 0.0, 0.76], [0.0, 0.2, 0.79], [0.0, 0.6, 0.765], [0.0, -0.4, 0.9]])
+    outcomes = {}
+    for track_m in (0.0, 1.6):
+        opt = AssistOptions(base_track_m=track_m)
+        assist = RobotAssist(names, kinds, meta, "seat", opt, reach_m=0.3)
+        assist.background = False
+        assist._setup(pos, quat, valid)
+        start = assist.initial_base.copy()
+        if track_m:
+            assert abs(start[0]) > 0.2  # beside the board, not on it
+            assert start[1] == pytest.approx(0.52)
+        # the leg on the far side of the board from where the base stands
+        pos[1, 0] = -np.sign(start[0]) * 0.8
+        assert np.linalg.norm(pos[1, :2] - start[:2]) > 1.1
+        assist._start(1.0, 0, 1, pos, quat, valid)
+        a = assist.active
+        assert a is not None
+        outcomes[track_m] = a.outcome
+        if not track_m:
+            continue
+        assert a.outcome == "moving" and a.ready_s is not None, a.status
+        route = a.base_route
+        np.testing.assert_allclose(route[0], start, atol=1e-9)
+        assert np.linalg.norm(route[-1][:2] - pos[1, :2]) < 0.8
+        assert np.sign(route[-1][0]) == np.sign(pos[1, 0])
+        # round the board: back from the track, beyond the board's far edge (y 0.8)
+        assert route[:, 1].max() > 0.8
+        assert a.times[0] == pytest.approx(a.base_times[-1])
+        drive = np.linalg.norm(np.diff(route, axis=0), axis=1).sum()
+        assert a.base_times[-1] - a.base_times[0] == pytest.approx(drive / opt.base_speed)
+        assert a.to_dict()["base_travel_m"] == pytest.approx(drive, abs=1e-3)
+        # the drive as the live loop checks it: every point, the world as tracked; the arm's
+        # own motion waits for its end
+        assert assist._driving is a
+        for t in a.base_times[:-1]:
+            assist._check(a, float(t) + 1e-9, pos, quat, valid)
+            assist._drive(float(t) + 1e-9, pos, quat, valid)
+        assert a.checked == len(route) - 1 and a.collisions == 0
+        assist._drive(float(a.base_times[-1]), pos, quat, valid)
+        assert assist._driving is None
+        np.testing.assert_allclose(assist._base, route[-1], atol=1e-12)
+    assert outcomes[0.0] == "unreachable"
+
+
+def test_the_part_is_held_farthest_from_the_sphere_the_person_sweeps_first() -> None:
+    """A 60-cm board grasped top-down at its middle, its length along the tool's x. The
+    assembly reaches 0.45 m from the root at (0, 0, 0.76); the hand-over point is 0.52 m
+    from the root towards the arm (+y) and 0.35 m up. The board's nearest corner is, from
+    the root: turned 90° and raised 15 cm, 0.74 m; turned 90°, 0.65 m; along +y (yaw 0 or
+    180°) raised, 0.54 m; along +y, 0.40 m (inside the sphere). Tried in that order."""
+    from thirdhand.live.assist import RobotAssist, _handover_targets
+
+    board = {"bbox_min_m": [-0.3, -0.05, -0.015], "bbox_max_m": [0.3, 0.05, 0.015]}
+    names, kinds = ["board", "seat", "rh_index"], ["part", "part", "finger"]
+    assist = RobotAssist(names, kinds, {"geometry": {"board": board}}, "seat", reach_m=0.45)
+    pos = np.array([[0.5, 0.0, 0.775], [0.0, 0.0, 0.76], [0.0, -0.4, 0.9]])
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (3, 1))
+    assist._setup(pos, quat, np.ones(3, dtype=bool))
+    assert assist._handover is not None
+    np.testing.assert_allclose(assist._handover[0], [0.0, 0.52, 1.11], atol=1e-9)
+    # the part's frame in the tool's: x along the tool's x, z against the tool's (down)
+    held = np.diag([1.0, -1.0, -1.0, 1.0])
+    got = assist._held_clear(0, held)
+    want = _handover_targets(assist._handover)
+    order = [
+        next(k for k, w in enumerate(want) if np.allclose(w[0], g[0]) and np.allclose(w[1], g[1]))
+        for g in got
+    ]
+    # mirror images tie (±90°, 0 and 180°): the order within each pair is the rounding's
+    assert [set(order[k : k + 2]) for k in (0, 2, 4, 6)] == [{5, 6}, {1, 2}, {4, 7}, {0, 3}]

@@ -13,6 +13,7 @@ from test_live_loop import cut, task_from_labels
 from thirdhand import io
 from thirdhand.execute.record import TOOL_BODY
 from thirdhand.execute.robot import Robot
+from thirdhand.live.assist import AssistOptions
 from thirdhand.synth import make_scene
 
 
@@ -55,9 +56,20 @@ def test_the_record_holds_the_stream_the_arm_and_the_steps(
     np.testing.assert_allclose(t, stream.t, atol=1e-6)
     base = doc["base_pose"]
     arm = Robot.load(doc["robot"], base_pose=(np.asarray(base["pos"]), np.asarray(base["quat"])))
-    tool = arm.tool_transforms(q)
-    # q rounded to 1e-6 rad: the tool moves < 1e-6 · (sum of lever arms ≈ 1.5 m) per joint
-    np.testing.assert_allclose(replay.pos(TOOL_BODY), tool[:, :3, 3], atol=2e-5)
+    # where the base stood at each frame: where it stood first, unless it drove
+    where = np.asarray(doc.get("base_pos", [base["pos"]] * t.size))
+    assert where.shape == (t.size, 3)
+    np.testing.assert_allclose(where[0], base["pos"], atol=1e-6)
+    # it drives at its speed at most (positions rounded to 1e-6 m)
+    speed = np.linalg.norm(np.diff(where, axis=0), axis=1) / np.diff(t)
+    assert np.all(speed <= AssistOptions().base_speed + 1e-3)
+    # q rounded to 1e-6 rad: the tool moves < 1e-6 · (sum of lever arms ≈ 1.5 m) per joint;
+    # checked with the arm loaded with its root where the base stood
+    for place in np.unique(where.round(4), axis=0):
+        there = np.all(np.abs(where - place) < 1e-4, axis=1)
+        arm_there = Robot.load(doc["robot"], base_pose=(place, np.asarray(base["quat"])))
+        tool = arm_there.tool_transforms(q[there])
+        np.testing.assert_allclose(replay.pos(TOOL_BODY)[there], tool[:, :3, 3], atol=2e-4)
     # home until the first assist's arm moves; at the hand-over pose once it is ready
     before = t < report["assists"][0]["start"]
     np.testing.assert_allclose(q[before], np.repeat(arm.home[None], before.sum(), 0), atol=1e-6)

@@ -31,7 +31,8 @@ the optional extra ``thirdhand[rerun]``). Entities and timelines written:
 - ``execution/robot/<shape>`` (``execution_time``): the arm as the planner saw
   it, every collision shape of the robot (:mod:`thirdhand.export.robot_model`;
   cylinders, spheres, boxes, meshes, static) at its world pose per sample. The
-  robot's root pose comes from the record (``base_pose``), or, for records made
+  robot's root pose comes from the record (``base_pose``; with ``base_pos``, a live
+  run whose base drove, the root's position at every sample), or, for records made
   before it was stored, from the replay's tool frame.
 
 Body names are escaped into one entity-path part each (``/human/rh/thumb``
@@ -339,6 +340,15 @@ def read_execution(path: Path) -> dict[str, Any]:
         raise FormatError(
             path, "'base_pose' must be {'pos': [x, y, z], 'quat': [x, y, z, w]}, finite, unit"
         )
+    if "base_pos" in doc:
+        try:
+            moved = np.asarray(doc["base_pos"], dtype=np.float64)
+        except (TypeError, ValueError):
+            moved = np.zeros(0)
+        if moved.shape != (t.size, 3) or not np.all(np.isfinite(moved)) or "base_pose" not in doc:
+            raise FormatError(
+                path, f"'base_pos' must be {t.size} finite [x, y, z] rows, beside a 'base_pose'"
+            )
     return doc
 
 
@@ -435,7 +445,12 @@ def _log_robot(rec: Any, doc: dict[str, Any], replay: Demonstration | None, path
     if q.shape[1] != arm.dof:
         raise FormatError(path, f"'q' has {q.shape[1]} joints; {name} has {arm.dof}")
     shapes = robot_shapes(arm)
-    poses = base @ shape_transforms(arm, shapes, q)  # every shape moves with the root
+    if "base_pos" in doc:  # a base that drove: the root's position at every sample
+        base = np.repeat(base[None], t.size, axis=0)
+        base[:, :3, 3] = np.asarray(doc["base_pos"], dtype=np.float64)
+        poses = base[:, None] @ shape_transforms(arm, shapes, q)
+    else:
+        poses = base @ shape_transforms(arm, shapes, q)  # every shape moves with the root
     for k, shape in enumerate(shapes):
         entity = f"execution/robot/{rr.escape_entity_path_part(shape.name)}"
         rec.log(entity, _robot_archetype(shape), static=True)

@@ -10,12 +10,14 @@ grasp and brings it to a hand-over pose beside the assembly, on the arm's side:
 just beyond the *reach of the finished assembly* (:func:`assembly_reach`, the
 farthest corner of any part's box from the root with every plan step's part at
 its learned pose: the sphere the person sweeps turning the assembly over), and
-the arm's base beyond that. The world it plans in holds the table, every other
-part at its tracked pose and the person's tracked fingers as boxes of
-``hand_size_m``.
+the arm's base beyond that, free to drive along a track there
+(:mod:`thirdhand.live.base_track`) to a place from which the part is in reach. The
+world it plans in holds the table, every other part at its tracked pose and the
+person's tracked fingers as boxes of ``hand_size_m``.
 
 Timing: the arm starts when the assist is decided (stream clock), spends the
-measured planning time, then moves along the planned joint path at
+measured planning time, waits for the base to finish a drive it is on, lets the base
+drive (``base_speed``), then moves along the planned joint path at
 ``joint_speed`` rad/s (the largest joint's motion sets each segment's
 duration), ``grasp_s`` to close the gripper. While it moves and while it holds
 the part, the configuration it has at each latent step is checked against the
@@ -42,6 +44,7 @@ import numpy as np
 
 from thirdhand import se3
 from thirdhand.arrays import BoolArray, FloatArray
+from thirdhand.live.base_track import RETREATS_M, BaseTrack, route_times
 from thirdhand.live.state import Slot
 from thirdhand.live.tracker import PlanTracker
 from thirdhand.segment.contact import body_box, box_corners
@@ -58,6 +61,8 @@ SHALLOWER_M = 0.01
 MAX_GRASPS = 16
 #: How far above the hand-over pose its second set of tries is, metres.
 HANDOVER_RAISE_M = 0.15
+#: A moving base tries the fetch from this many stations at most, the nearest the part first.
+MAX_STATIONS = 3
 #: Outcomes of a fetch the arm could not do; the assist ends at once and another part is tried.
 FAILED = ("unreachable", "no path")
 #: The straight lift after a grasp: ``lift_m`` times the first of these that leaves the part
@@ -114,6 +119,13 @@ class AssistOptions:
         Fetch nothing until the person has a part in hand or a step is done: at the
         start the person takes the first part themselves, and an arm reaching into
         the parts at that moment meets their hand (docs/live.md).
+    base_track_m : float
+        Length of the straight track across the assembly's far side along which the
+        arm's base moves (a mobile base, or an arm on a linear axis;
+        :mod:`thirdhand.live.base_track`), metres; 0 fixes the base. From one place the
+        Panda reaches two of the synthetic chair's four legs (docs/live.md).
+    base_speed : float
+        Speed of the base along its route, m/s.
     """
 
     robot: str = "panda"
@@ -126,6 +138,8 @@ class AssistOptions:
     hand_size_m: float = 0.06
     part_size_m: float = 0.05
     wait_for_person: bool = True
+    base_track_m: float = 1.2
+    base_speed: float = 0.5
 
 
 @dataclass
@@ -148,6 +162,10 @@ class Assist:
     path : ndarray, shape (m, dof)
     times : ndarray, shape (m,)
         Stream time at which the arm reaches each waypoint.
+    base_route : ndarray, shape (k, 3)
+        The base's drive before the arm moves (world, metres; empty: it did not move).
+    base_times : ndarray, shape (k,)
+        Stream time at which the base is at each point of ``base_route``.
     """
 
     step: int
@@ -165,6 +183,8 @@ class Assist:
     hits: dict[str, int] = field(default_factory=dict)
     path: FloatArray = field(default_factory=lambda: np.zeros((0, 7)))
     times: FloatArray = field(default_factory=lambda: np.zeros(0))
+    base_route: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
+    base_times: FloatArray = field(default_factory=lambda: np.zeros(0))
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able record."""
@@ -185,6 +205,9 @@ class Assist:
             "checked": self.checked,
             "collisions": self.collisions,
             "colliding_pairs": self.hits,
+            "base_travel_m": round(
+                float(np.linalg.norm(np.diff(self.base_route, axis=0), axis=1).sum()), 3
+            ),
         }
 
 
@@ -250,7 +273,24 @@ class RobotAssist:
         self._resting: tuple[str, ...] = ()
         self._carried_pose: tuple[FloatArray, FloatArray] = (np.zeros(3), np.zeros(4))
         self._robot: Any = None
+        self._base = np.zeros(3)
         self._handover: tuple[FloatArray, FloatArray] | None = None
+        #: The track the base moves along (None: a fixed base), the station it stands at,
+        #: and the arm and both worlds at every place it has stood or been checked at
+        #: (key: its x, y in millimetres).
+        self._base_track: BaseTrack | None = None
+        self._station = 0.0
+        self._places: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
+        self._place: tuple[int, int] | None = None
+        #: The assist whose base is driving (it drives on when the assist has ended) and
+        #: when the base is free again (stream clock): the next fetch waits for it.
+        self._driving: Assist | None = None
+        self._base_free_s = -math.inf
+        #: Where the base stood when the arm was set up (world, metres).
+        self.initial_base = np.zeros(3)
+        #: The root's position then (world, metres): the centre of the sphere the person
+        #: sweeps turning the assembly over.
+        self._root0 = np.zeros(3)
         #: Plan in a background thread (a real-time stream: the frames keep coming while
         #: the arm's motion is planned); False plans in the caller's thread (a replay as
         #: fast as possible, whose clock the planning time is added to).
@@ -275,39 +315,83 @@ class RobotAssist:
         return 0.5 * (lo + hi), np.maximum(hi - lo, 1e-3)
 
     def _setup(self, pos: FloatArray, quat: FloatArray, valid: BoolArray) -> None:
-        from thirdhand.execute.robot import Robot
-
         opt = self.options
         root = pos[self.root]
         hands = pos[self.fingers][valid[self.fingers]]
         person = hands.mean(axis=0) if len(hands) else root - np.array([0.0, 0.5, 0.0])
         away = root[:2] - person[:2]
         away = away / max(float(np.linalg.norm(away)), 1e-9)
-        # The first base pose, turning about the root from the far side, where the arm
-        # at home touches nothing tracked.
         near = self.reach_m + opt.handover_m[0] + opt.base_beyond_m
-        self._robot = None
-        for ang in (0.0, 0.5, -0.5, 1.0, -1.0, 1.4, -1.4):
-            c, sn = math.cos(ang), math.sin(ang)
-            d = np.array([c * away[0] - sn * away[1], sn * away[0] + c * away[1]])
-            for dist in (near, near + 0.1):
-                base = np.array([*(root[:2] + dist * d), self.table_z])
-                yaw = math.atan2(-d[1], -d[0])
-                base_q = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
-                self._robot = Robot.load(opt.robot, base_pose=(base, base_q))
-                self._base = base
-                self._build_scene(pos, quat)
+        if opt.base_track_m > 0:
+            # A moving base: the station nearest the middle of its track where the arm
+            # at home touches nothing tracked.
+            track = BaseTrack(root[:2] + near * away, away, opt.base_track_m / 2.0, self.table_z)
+            self._base_track = track
+            for s in track.stations():
+                self._stand(track.position(s), pos, quat, valid)
                 if self._plan_scene.is_valid(self._robot.home):
                     break
-            else:
-                continue
-            break
-        away = d
+            self._station = float(s)
+        else:
+            # A fixed base: the first pose, turning about the root from the far side,
+            # where the arm at home touches nothing tracked.
+            turned = away
+            for ang in (0.0, 0.5, -0.5, 1.0, -1.0, 1.4, -1.4):
+                c, sn = math.cos(ang), math.sin(ang)
+                turned = np.array([c * away[0] - sn * away[1], sn * away[0] + c * away[1]])
+                for dist in (near, near + 0.1):
+                    base = np.array([*(root[:2] + dist * turned), self.table_z])
+                    self._stand(base, pos, quat, valid, facing=-turned)
+                    if self._plan_scene.is_valid(self._robot.home):
+                        break
+                else:
+                    continue
+                break
+            away = turned
+        self.initial_base = self._base.copy()
+        self._root0 = root.copy()
         side = np.array([-away[1], away[0]])
         up, toward, lateral = opt.handover_m[2], self.reach_m + opt.handover_m[0], opt.handover_m[1]
         hp = np.array([*(root[:2] + toward * away + lateral * side), root[2] + up])
         # Hand-over: gripper pointing down, its x along the arm's reach.
         self._handover = (hp, _down_quat(away))
+
+    def _stand(
+        self,
+        base: FloatArray,
+        pos: FloatArray,
+        quat: FloatArray,
+        valid: BoolArray,
+        facing: FloatArray | None = None,
+    ) -> None:
+        """Make the arm and both worlds those of the base standing at ``base`` (3,), world.
+
+        ``facing`` (2,): the base's horizontal x axis (default: towards the assembly,
+        along the track's). An arm and its worlds are built once per place and kept;
+        the tracked bodies are moved to ``pos``, ``quat`` (where ``valid``) when the base
+        changes place.
+        """
+        from thirdhand.execute.robot import Robot
+
+        key = (round(1e3 * float(base[0])), round(1e3 * float(base[1])))
+        if key == self._place:
+            return
+        self._place = key
+        if key in self._places:
+            self._robot, self._scene, self._plan_scene = self._places[key]
+            self._base = np.asarray(base, dtype=np.float64).copy()
+            self._track(pos, quat, valid, skip=-1)
+            return
+        if facing is None:
+            assert self._base_track is not None
+            base_q = self._base_track.quat
+        else:
+            yaw = math.atan2(float(facing[1]), float(facing[0]))
+            base_q = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
+        self._robot = Robot.load(self.options.robot, base_pose=(base, base_q))
+        self._base = np.asarray(base, dtype=np.float64).copy()
+        self._build_scene(pos, quat)
+        self._places[key] = (self._robot, self._scene, self._plan_scene)
 
     def _build_scene(self, pos: FloatArray, quat: FloatArray) -> None:
         """The world checked (:attr:`_scene`: the tracked boxes) and the one planned in
@@ -383,6 +467,7 @@ class RobotAssist:
                 self._in_background(self._setup, args, "thirdhand-assist-setup")
                 return
             self._setup(*args)
+        self._drive(t, pos, quat, valid)
         if a is not None and a.outcome in FAILED:
             # the arm could not fetch that part: another one of the step may do, and
             # this one again once it was moved
@@ -425,12 +510,35 @@ class RobotAssist:
             ]
             if not idx:
                 continue
-            part = min(idx, key=lambda i: float(np.linalg.norm(pos[i] - self._base)))
+            part = min(idx, key=lambda i: self._distance(pos[i]))
             mounting = self._mounting_poses(tracker, held, pos, quat, valid)
             self._start(t, step, part, pos, quat, valid, mounting)
             assert self.active is not None
             self.active.held_at_start = set(held)
             return
+
+    def _drive(self, t: float, pos: FloatArray, quat: FloatArray, valid: BoolArray) -> None:
+        """Follow the base's drive at ``t``: the arm at home with the base at the last point
+        of the route passed is checked against the hands and parts now (counted in the
+        assist that drives, even once it has ended: the base finishes its drive)."""
+        d = self._driving
+        if d is None or t < d.base_times[0]:
+            return
+        if t >= d.base_times[-1]:
+            self._stand(d.base_route[-1], pos, quat, valid)
+            self._driving = None
+            return
+        k = int(np.searchsorted(d.base_times, t, side="right")) - 1
+        self._stand(d.base_route[k], pos, quat, valid)
+        d.checked += 1
+        self._count(d, self._robot.home)
+
+    def _distance(self, p: FloatArray) -> float:
+        """Horizontal distance from ``p`` (3,) to where the base stands (a moving base: where
+        it stands once its drive is done), metres: the part nearest it is fetched first, so
+        that the base drives only for a part out of the arm's reach from there."""
+        here = self._base if self._base_track is None else self._base_track.position(self._station)
+        return float(np.linalg.norm(p[:2] - here[:2]))
 
     def _may_retry(self, part: int, t: float, pos: FloatArray, valid: BoolArray) -> bool:
         """Whether the part of row ``part`` may be fetched at ``t`` (``pos``, ``valid``: every
@@ -539,7 +647,7 @@ class RobotAssist:
         self._track(pos, quat, valid, skip=-1)
         self._carried = part
         self._carried_pose = (pos[part].copy(), quat[part].copy())
-        args = (a, t, part, pos.copy(), quat.copy(), w0, tuple(mounting))
+        args = (a, t, part, pos.copy(), quat.copy(), valid.copy(), w0, tuple(mounting))
         if self.background:
             self._in_background(self._plan, args, "thirdhand-assist-plan")
         else:
@@ -552,6 +660,7 @@ class RobotAssist:
         part: int,
         pos: FloatArray,
         quat: FloatArray,
+        valid: BoolArray,
         w0: float,
         mounting: Sequence[tuple[int, FloatArray, FloatArray]],
     ) -> None:
@@ -560,24 +669,98 @@ class RobotAssist:
         The schedule starts when the planning ends: ``t`` plus the planning's wall time.
         The arm plans around where the part the person is mounting may go
         (:meth:`_mounting_poses`): a path planned through that place meets the part and the
-        hand that bring it there (chair 19, docs/live.md).
+        hand that bring it there (chair 19, docs/live.md). A moving base first tries the
+        :data:`MAX_STATIONS` stations nearest the part it can drive to (:meth:`_drives`);
+        the first from which the fetch can be done is kept, and the base drives there
+        (``a.base_route``) before the arm moves.
         """
-        scene = self._plan_scene
-        ghosts = [f"{MOUNTING} {k}" for k in range(len(mounting))]
-        grow = 2.0 * (PLAN_CLEARANCE_M + self.options.hand_size_m)
-        for ghost, (row, where, turn) in zip(ghosts, mounting, strict=True):
-            c, size = self._box(row)
-            scene.add_object(ghost, (where, turn), size=size + grow, box_center=c)
+        if self._base_track is not None:  # where the base stands once its drive is done
+            self._stand(self._base_track.position(self._station), pos, quat, valid)
+        here = self._base.copy()
+        drives = (
+            [np.zeros((0, 3))] if self._base_track is None else self._drives(part, pos, quat, valid)
+        )
+        for route in drives:
+            if len(route):
+                self._stand(route[-1], pos, quat, valid)
+            ghosts = [f"{MOUNTING} {k}" for k in range(len(mounting))]
+            grow = 2.0 * (PLAN_CLEARANCE_M + self.options.hand_size_m)
+            scene = self._plan_scene
+            for ghost, (row, where, turn) in zip(ghosts, mounting, strict=True):
+                c, size = self._box(row)
+                scene.add_object(ghost, (where, turn), size=size + grow, box_center=c)
+            try:
+                self._plan_fetch(a, t, part, pos, quat, w0, route)
+            finally:
+                for ghost in ghosts:
+                    scene.remove_object(ghost)
+            if a.outcome not in FAILED:
+                if len(a.base_route):
+                    assert self._base_track is not None
+                    self._station = float(
+                        self._base_track.side @ (route[-1][:2] - self._base_track.origin)
+                    )
+                    self._driving = a
+                    self._base_free_s = float(a.base_times[-1])
+                return
+        if drives and len(drives[-1]):  # nothing worked: the base stays where it is
+            self._stand(here, pos, quat, valid)
+        if not drives:
+            a.outcome, a.status = "unreachable", "no station to drive to"
+
+    def _drives(
+        self, part: int, pos: FloatArray, quat: FloatArray, valid: BoolArray
+    ) -> list[FloatArray]:
+        """The base's routes (each (m, 3), world) to the :data:`MAX_STATIONS` stations nearest
+        ``part`` at which the arm at home touches nothing tracked and to which it can drive
+        touching nothing (checked every :data:`~thirdhand.live.base_track.STATION_STEP_M`,
+        straight along the track or back from it by each of
+        :data:`~thirdhand.live.base_track.RETREATS_M` in turn). Leaves the base where it was.
+        """
+        track = self._base_track
+        assert track is not None
+        here = self._base.copy()
+        out: list[FloatArray] = []
         try:
-            self._plan_fetch(a, t, part, pos, quat, w0)
+            for s in track.by_distance(pos[part][:2]):
+                if len(out) == MAX_STATIONS:
+                    break
+                if abs(s - self._station) < 1e-9:
+                    out.append(here[None])
+                    continue
+                for back in RETREATS_M:
+                    route = track.route(self._station, float(s), back)
+                    if self._clear(route[1:], pos, quat, valid):
+                        out.append(route)
+                        break
         finally:
-            for ghost in ghosts:
-                scene.remove_object(ghost)
+            self._stand(here, pos, quat, valid)
+        return out
+
+    def _clear(
+        self, route: FloatArray, pos: FloatArray, quat: FloatArray, valid: BoolArray
+    ) -> bool:
+        """Whether the arm at home touches nothing tracked with its base at every point of
+        ``route`` (m, 3), in the world planned in (tracked bodies grown by
+        :data:`PLAN_CLEARANCE_M`). The last point first: most routes fail there."""
+        for p in route[::-1]:
+            self._stand(p, pos, quat, valid)
+            if not self._plan_scene.is_valid(self._robot.home):
+                return False
+        return True
 
     def _plan_fetch(
-        self, a: Assist, t: float, part: int, pos: FloatArray, quat: FloatArray, w0: float
+        self,
+        a: Assist,
+        t: float,
+        part: int,
+        pos: FloatArray,
+        quat: FloatArray,
+        w0: float,
+        route: FloatArray,
     ) -> None:
-        """:meth:`_plan` in the world as it is (the part being mounted added, if any)."""
+        """:meth:`_plan` in the world as it is (the part being mounted added, if any), the
+        base at the end of ``route`` (m, 3), to which it drives first (m > 1)."""
         from thirdhand.execute.planner import plan_motion
 
         opt = self.options
@@ -612,7 +795,10 @@ class RobotAssist:
                 q_lift = self._lift_clear(scene, name, q_grasp, self._resting)
                 assert self._handover is not None
                 if q_lift is not None:
-                    for target in _handover_targets(self._handover):
+                    t_tool = se3.pose_to_matrix(*self._robot.fk(q_grasp))
+                    held = np.linalg.inv(t_tool) @ se3.pose_to_matrix(pos[part], quat[part])
+                    targets = self._held_clear(part, held)
+                    for target in targets:
                         q_hand = self._robot.ik(
                             target, q_lift, seed=0, n_restarts=16, accept=scene.is_valid
                         )
@@ -630,6 +816,7 @@ class RobotAssist:
                     )
                 scene.detach(name, q_grasp)
         a.plan_ms = 1e3 * (time.perf_counter() - w0)
+        a.outcome, a.status = "moving", ""  # this try's, not an earlier station's
         if q_grasp is None or (r1 is not None and r1.success and q_hand is None):
             a.outcome = "unreachable"
             a.status = (
@@ -648,9 +835,37 @@ class RobotAssist:
         seg = np.abs(np.diff(path, axis=0)).max(axis=1) / opt.joint_speed
         seg[len(r1.path) - 1] += opt.grasp_s  # closing the gripper between the two paths
         a.path = path
-        a.times = t + a.plan_ms / 1e3 + np.concatenate([[0.0], np.cumsum(seg)])
+        start = t + a.plan_ms / 1e3
+        if self._base_track is not None:  # the base finishes the drive it is on first
+            start = max(start, self._base_free_s)
+        if len(route) > 1:
+            a.base_route = route
+            a.base_times = route_times(route, start, opt.base_speed)
+            start = float(a.base_times[-1])
+        a.times = start + np.concatenate([[0.0], np.cumsum(seg)])
         a.ready_s = float(a.times[-1])
         self._grasp_index = len(r1.path) - 1
+
+    def _held_clear(
+        self, part: int, t_tool_part: FloatArray
+    ) -> list[tuple[FloatArray, FloatArray]]:
+        """The hand-over tool poses (:func:`_handover_targets`) in the order they are tried:
+        the part of row ``part``, held as grasped (``t_tool_part`` (4, 4): its frame in the
+        tool's), farthest from the sphere the person sweeps turning the assembly over (the
+        assembly's reach about the root's first position) first: its nearest box corner
+        farthest from the root. The person also lifts and moves the assembly: on chair 16 a
+        42-cm back held 3 cm outside the sphere met a leg of the chair turned over above
+        the table, 13 cm nearer the arm."""
+        assert self._handover is not None
+        c, size = self._box(part)
+        corners = box_corners((c - size / 2.0, c + size / 2.0))  # part frame
+        ranked = []
+        for target in _handover_targets(self._handover):
+            t_part = se3.pose_to_matrix(*target) @ t_tool_part
+            world = corners @ t_part[:3, :3].T + t_part[:3, 3]
+            ranked.append((float(np.linalg.norm(world - self._root0, axis=1).min()), target))
+        ranked.sort(key=lambda r: -r[0])
+        return [target for _, target in ranked]
 
     def _resting_on(self, scene: Any, name: str, q_grasp: FloatArray) -> tuple[str, ...]:
         """What the part ``name``, grasped at ``q_grasp``, touches as it lies: the table and
@@ -745,7 +960,8 @@ class RobotAssist:
     def _check(
         self, a: Assist, t: float, pos: FloatArray, quat: FloatArray, valid: BoolArray
     ) -> None:
-        """Check the arm's configuration at ``t`` against the hands and parts now."""
+        """Check the arm's configuration at ``t`` against the hands and parts now (the base's
+        drive before it: :meth:`_drive`)."""
         if a.path.shape[0] == 0 or t < a.times[0]:
             return
         k = int(np.searchsorted(a.times, t, side="right")) - 1
@@ -769,6 +985,10 @@ class RobotAssist:
             self._attached = True
         self._track(pos, quat, valid, skip=self._carried)
         a.checked += 1
+        self._count(a, q)
+
+    def _count(self, a: Assist, q: FloatArray) -> None:
+        """Count ``q`` in ``a`` if it is in collision in the world checked, with what it hit."""
         if not self._scene.is_valid(q):
             a.collisions += 1
             for pair in self._scene.collisions(q):

@@ -12,12 +12,16 @@ viewers read them:
   beside the playback.
 - ``OUT.json`` (``thirdhand.trajectory/1``, ``"source": "thirdhand.live"``): the
   arm's joint configuration at every frame time (``t`` on the stream's clock,
-  ``q`` radians), its base pose and joint names, and the timeline of the run:
+  ``q`` radians), its base pose (where it stood first) and joint names, ``base_pos``
+  (the base's position at every frame time, world metres) when the base moved, and
+  the timeline of the run:
   ``recognised`` (each step formed or undone, with its time), ``assists``.
   ``thirdhand convert OUT.parquet out.rrd --with OUT.json --with TASK.json``
   shows the person, the parts, the arm's shapes and the steps in Rerun.
 
-The arm between assists stands at home; during an assist it follows the
+The arm between assists stands at home; during an assist its base first drives
+along its route (:class:`~thirdhand.live.assist.Assist` ``base_route``, the arm at
+home), then the arm follows the
 planned path at the times the assist scheduled (:class:`~thirdhand.live.assist.Assist`
 ``times``), holds the hand-over pose, and is back at home once the person took
 the part (the simulation does not plan the way back). Without ``--assist``
@@ -67,6 +71,23 @@ def arm_configurations(assist: RobotAssist, t: FloatArray) -> FloatArray:
     return q
 
 
+def base_positions(assist: RobotAssist, t: FloatArray) -> FloatArray:
+    """The base's position at each time ``t`` (n,), shape (n, 3), world metres.
+
+    Where it stood first until the first drive; along each assist's route (linear
+    between its points, at the times the assist scheduled), then at its end until
+    the next drive.
+    """
+    out = np.repeat(assist.initial_base[None], t.size, axis=0)
+    for a in assist.assists:
+        if len(a.base_route) == 0:
+            continue
+        sel = t >= a.base_times[0]
+        ts = np.clip(t[sel], a.base_times[0], a.base_times[-1])
+        out[sel] = np.stack([np.interp(ts, a.base_times, a.base_route[:, j]) for j in range(3)], 1)
+    return out
+
+
 def live_replay(
     demo: Demonstration, report: LiveReport, assist: RobotAssist | None
 ) -> tuple[Demonstration, dict[str, Any]]:
@@ -97,11 +118,15 @@ def live_replay(
     if assist is not None and assist.robot is not None:
         robot = assist.robot
         q = arm_configurations(assist, t)
-        tool = robot.tool_transforms(q)
+        base = base_positions(assist, t)
+        tool = robot.tool_transforms(q)  # the base where it stands last; it keeps its turn
         bodies.append(BodyInfo(TOOL_BODY, kind="tool"))
-        pos[TOOL_BODY] = tool[:, :3, 3]
+        pos[TOOL_BODY] = tool[:, :3, 3] + (base - robot.base_pose[0])
         quat[TOOL_BODY] = se3.quat_from_matrix(tool[:, :3, :3])
         doc |= robot_joints_document(robot, t, q)
+        doc["base_pose"]["pos"] = [float(v) for v in assist.initial_base]
+        if np.any(base != assist.initial_base):
+            doc["base_pos"] = [[round(float(v), 6) for v in row] for row in base]
     doc["recognised"] = [
         {
             "t": round(float(e.time), 6),
@@ -144,4 +169,4 @@ def write_live_record(
     return replay_path, traj_path
 
 
-__all__ = ["arm_configurations", "live_replay", "write_live_record"]
+__all__ = ["arm_configurations", "base_positions", "live_replay", "write_live_record"]
