@@ -533,12 +533,17 @@ class RobotAssist:
         d.checked += 1
         self._count(d, self._robot.home)
 
+    def _standing(self) -> FloatArray:
+        """Where the base stands (3,), world metres; a moving base: once its drive is done."""
+        if self._base_track is None:
+            return self._base.copy()
+        return self._base_track.position(self._station)
+
     def _distance(self, p: FloatArray) -> float:
-        """Horizontal distance from ``p`` (3,) to where the base stands (a moving base: where
-        it stands once its drive is done), metres: the part nearest it is fetched first, so
-        that the base drives only for a part out of the arm's reach from there."""
-        here = self._base if self._base_track is None else self._base_track.position(self._station)
-        return float(np.linalg.norm(p[:2] - here[:2]))
+        """Horizontal distance from ``p`` (3,) to where the base stands (:meth:`_standing`),
+        metres: the part nearest it is fetched first, so that the base drives only for a
+        part out of the arm's reach from there."""
+        return float(np.linalg.norm(p[:2] - self._standing()[:2]))
 
     def _may_retry(self, part: int, t: float, pos: FloatArray, valid: BoolArray) -> bool:
         """Whether the part of row ``part`` may be fetched at ``t`` (``pos``, ``valid``: every
@@ -674,17 +679,16 @@ class RobotAssist:
         the first from which the fetch can be done is kept, and the base drives there
         (``a.base_route``) before the arm moves.
         """
-        if self._base_track is not None:  # where the base stands once its drive is done
-            self._stand(self._base_track.position(self._station), pos, quat, valid)
-        here = self._base.copy()
-        drives = (
-            [np.zeros((0, 3))] if self._base_track is None else self._drives(part, pos, quat, valid)
-        )
-        for route in drives:
+        here = self._standing()
+        drives = [(self._station, np.zeros((0, 3)))]
+        if self._base_track is not None:
+            self._stand(here, pos, quat, valid)
+            drives = self._drives(part, pos, quat, valid)
+        ghosts = [f"{MOUNTING} {k}" for k in range(len(mounting))]
+        grow = 2.0 * (PLAN_CLEARANCE_M + self.options.hand_size_m)
+        for station, route in drives:
             if len(route):
                 self._stand(route[-1], pos, quat, valid)
-            ghosts = [f"{MOUNTING} {k}" for k in range(len(mounting))]
-            grow = 2.0 * (PLAN_CLEARANCE_M + self.options.hand_size_m)
             scene = self._plan_scene
             for ghost, (row, where, turn) in zip(ghosts, mounting, strict=True):
                 c, size = self._box(row)
@@ -696,22 +700,20 @@ class RobotAssist:
                     scene.remove_object(ghost)
             if a.outcome not in FAILED:
                 if len(a.base_route):
-                    assert self._base_track is not None
-                    self._station = float(
-                        self._base_track.side @ (route[-1][:2] - self._base_track.origin)
-                    )
+                    self._station = station
                     self._driving = a
                     self._base_free_s = float(a.base_times[-1])
                 return
-        if drives and len(drives[-1]):  # nothing worked: the base stays where it is
+        if drives and len(drives[-1][1]):  # nothing worked: the base stays where it is
             self._stand(here, pos, quat, valid)
         if not drives:
             a.outcome, a.status = "unreachable", "no station to drive to"
 
     def _drives(
         self, part: int, pos: FloatArray, quat: FloatArray, valid: BoolArray
-    ) -> list[FloatArray]:
-        """The base's routes (each (m, 3), world) to the :data:`MAX_STATIONS` stations nearest
+    ) -> list[tuple[float, FloatArray]]:
+        """The station offsets and the base's routes (each (m, 3), world; one row: it stays)
+        to the :data:`MAX_STATIONS` stations nearest
         ``part`` at which the arm at home touches nothing tracked and to which it can drive
         touching nothing (checked every :data:`~thirdhand.live.base_track.STATION_STEP_M`,
         straight along the track or back from it by each of
@@ -720,18 +722,18 @@ class RobotAssist:
         track = self._base_track
         assert track is not None
         here = self._base.copy()
-        out: list[FloatArray] = []
+        out: list[tuple[float, FloatArray]] = []
         try:
             for s in track.by_distance(pos[part][:2]):
                 if len(out) == MAX_STATIONS:
                     break
                 if abs(s - self._station) < 1e-9:
-                    out.append(here[None])
+                    out.append((self._station, here[None]))
                     continue
                 for back in RETREATS_M:
                     route = track.route(self._station, float(s), back)
                     if self._clear(route[1:], pos, quat, valid):
-                        out.append(route)
+                        out.append((float(s), route))
                         break
         finally:
             self._stand(here, pos, quat, valid)
