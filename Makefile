@@ -33,6 +33,7 @@ lint: $(STAMP)
 	$(BIN)/ruff check src tests research benchmarks conftest.py
 	$(BIN)/ruff format --check src tests research benchmarks conftest.py
 	$(BIN)/mypy
+	$(BIN)/lint-imports
 
 clean:
 	rm -rf $(VENV) out

@@ -64,7 +64,7 @@ from scipy.spatial.transform import Rotation
 
 from thirdhand.arrays import FloatArray
 from thirdhand.io.figueroa import ArmTrack, LabelledStream
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 
 #: Unit of each shape channel (its values are divided by it).
 SHAPE_UNITS = {"pos": 0.02, "rot": 0.1, "force": 2.0, "torque": 0.2}

@@ -33,7 +33,7 @@ from research.primitive_scores import (
 )
 from thirdhand.arrays import IntArray
 from thirdhand.io.figueroa import LabelledStream
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov
 from thirdhand.primitives.library import PrimitiveLibrary
 from thirdhand.primitives.phases import PhaseGrouper, run_descriptors

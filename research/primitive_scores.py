@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from scipy.optimize import linear_sum_assignment
 
 from thirdhand.arrays import FloatArray, IntArray
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 
 
 @dataclass(frozen=True)

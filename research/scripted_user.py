@@ -254,13 +254,13 @@ def effort_table(
 
     For each sensor noise (position noise in mm, rotation noise ``noise / 2`` degrees)
     and seed: learn the chair from one synthetic demonstration
-    (:func:`thirdhand.plan.learn.learn`), count the scripted user's corrections
-    against the chair's ground truth, then transfer the learned task onto the
-    bench and count against the bench's ground truth.
+    (:func:`thirdhand.learn.run.learn_task` with the later stages off), count the
+    scripted user's corrections against the chair's ground truth, then transfer the
+    learned task onto the bench and count against the bench's ground truth.
 
     Run with ``python -m research.scripted_user``.
     """
-    from thirdhand.plan.learn import learn
+    from thirdhand.learn.run import learn_task
     from thirdhand.review.transfer import transfer
     from thirdhand.synth import make_scene
     from thirdhand.synth.sensor import SensorModel
@@ -276,7 +276,7 @@ def effort_table(
         sensor = SensorModel(pos_noise=mm * 1e-3, rot_noise=math.radians(mm / 2))
         for seed in seeds:
             demo = make_scene("chair", seed=seed, sensor=sensor)
-            learned = learn([demo]).task()
+            learned = learn_task([demo], primitives=False, reward=False, grasps=False).task
             chair = scripted_corrections(learned, truth_task(demo))
             moved = scripted_corrections(transfer(learned, "bench").task, bench)
             miss = f", missing {'+'.join(chair.missing)}" if chair.missing else ""

@@ -63,7 +63,7 @@ def test_verbs_agree_with_learn_task() -> None:
     plan = th.plan_assembly([detection])
     learned = th.learn_task([demo], segment=False)
     assert [str(s) for s in plan.steps] == [str(s) for s in learned.learned.plan.steps]
-    events = th.task_learning.learned_events(learned.learned)
+    events = th.learn.learned_events(learned.learned)
     prims = th.fit_primitives([demo], events)
     # learn_task adds each motion's explanation by library skills beside the DMP and ProMP
     assert learned.primitives is not None
@@ -106,9 +106,9 @@ def test_stages_do_not_import_the_synthetic_world() -> None:
     # Nor the experiments and data sets kept at the edges of the package.
     code = (
         "import sys, thirdhand.task, thirdhand.task.meshes, thirdhand.taskfile\n"
-        "import thirdhand.plan.learn, thirdhand.segment, thirdhand.constraints\n"
+        "import thirdhand.learn.build, thirdhand.segment, thirdhand.constraints\n"
         "import thirdhand.primitives, thirdhand.execute, thirdhand.review\n"
-        "import thirdhand.task_learning\n"
+        "import thirdhand.learn.run, thirdhand.learn.stages\n"
         "edges = ('thirdhand.synth', 'research', 'thirdhand.datasets')\n"
         "print([m for m in sys.modules if m.startswith(edges)])\n"
     )

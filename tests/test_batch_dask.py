@@ -68,9 +68,9 @@ def test_serial_and_process_maps_keep_order() -> None:
 def test_learn_units_on_the_cluster_equal_serial(cluster: str) -> None:
     """``learn --scheduler``'s unit (segment + detect one recording) gives the serial results."""
     from thirdhand.constraints.detect import detect_constraints
+    from thirdhand.learn.recordings import RecordingUnit, recording_stages
     from thirdhand.segment import segment_demonstration
     from thirdhand.synth import make_scene
-    from thirdhand.task_learning import RecordingUnit, recording_stages
 
     demos = [make_scene("drawer", seed=s, sensor=None).slice(0.0, 4.0) for s in (1, 2)]
     serial = [segment_demonstration(d) for d in demos]

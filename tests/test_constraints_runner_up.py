@@ -10,7 +10,7 @@ import pytest
 
 from thirdhand.constraints.detect import detect_constraints
 from thirdhand.constraints.select import fit_constraint
-from thirdhand.plan.learn import learn
+from thirdhand.learn.run import learn_task
 from thirdhand.review.clarify import clarification_queue
 from thirdhand.review.edits import Confirm, apply_edit
 from thirdhand.review.panels import _constraint_html
@@ -44,7 +44,7 @@ def test_a_learned_drawer_carries_its_runner_up_to_the_task_and_the_review() -> 
     (inst,) = detect_constraints(demo).instances
     assert inst.type == "prismatic" and inst.runner_up is not None
     assert inst.to_dict()["runner_up"]["type"] == inst.runner_up.type
-    task = learn([demo], segment=False).task()
+    task = learn_task([demo], segment=False, primitives=False, reward=False, grasps=False).task
     (c,) = task.constraints
     assert c.type == "prismatic" and c.runner_up is not None
     assert c.runner_up.type == inst.runner_up.type

@@ -16,10 +16,12 @@ from thirdhand.task.stages import Stages
 
 
 def _learned_chair(seed: int):
-    from thirdhand.plan.learn import learn
+    from thirdhand.learn.run import learn_task
     from thirdhand.synth import make_scene
 
-    return learn([make_scene("chair", seed=seed)]).task()
+    return learn_task(
+        [make_scene("chair", seed=seed)], primitives=False, reward=False, grasps=False
+    ).task
 
 
 def test_sweep_covers_a_full_turn_in_ten_degree_steps() -> None:
@@ -134,10 +136,12 @@ def test_far_start_spot_on_baxter_is_laid_within_reach() -> None:
     from thirdhand.execute.placement import reach_check
     from thirdhand.execute.robot import Robot
     from thirdhand.execute.scene import CollisionScene
-    from thirdhand.plan.learn import learn
+    from thirdhand.learn.run import learn_task
     from thirdhand.synth import make_scene
 
-    task = learn([make_scene("bench", seed=4)]).task()
+    task = learn_task(
+        [make_scene("bench", seed=4)], primitives=False, reward=False, grasps=False
+    ).task
     cell = make_workcell(task, "baxter")
     arm = Robot.load("baxter", base_pose=(cell.robot_base[:3, 3], np.array([0.0, 0.0, 0.0, 1.0])))
     scene = CollisionScene(arm)

@@ -23,8 +23,8 @@ from thirdhand.task.stages import PoseDmpParameters
 @pytest.fixture(scope="module")
 def learned_chair():
     """The chair task learned from one synthetic demonstration, with its primitives block."""
+    from thirdhand.learn.run import learn_task
     from thirdhand.synth import make_scene
-    from thirdhand.task_learning import learn_task
 
     demo = make_scene("chair", seed=0)
     return learn_task([demo], segment=False, reward=False).task

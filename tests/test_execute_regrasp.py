@@ -70,10 +70,12 @@ def test_far_start_spot_on_the_panda_is_solved_by_a_regrasp() -> None:
 def test_far_start_spot_on_baxter_is_solved_by_a_regrasp() -> None:
     # The learned bench of seed 4 lays leg1 0.75 m from Baxter's right shoulder (the sweep's
     # one failure): 2 of 24 grasps reached there, no goal reachable with them.
-    from thirdhand.plan.learn import learn
+    from thirdhand.learn.run import learn_task
     from thirdhand.synth import make_scene
 
-    task = learn([make_scene("bench", seed=4)]).task()
+    task = learn_task(
+        [make_scene("bench", seed=4)], primitives=False, reward=False, grasps=False
+    ).task
     step = next(s for s in task.plan if s.child == "leg1")
     task = task.model_copy(update={"plan": [step.model_copy(update={"after": []})]})
     ex = Executor.for_task(

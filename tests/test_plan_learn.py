@@ -12,8 +12,9 @@ from typer.testing import CliRunner
 from cli_helpers import settings_file
 from thirdhand import io
 from thirdhand.errors import OptionError
+from thirdhand.learn.figures import plan_figures
+from thirdhand.learn.run import learn_task
 from thirdhand.plan.assembly import plan_from_demos, plan_success, truth_slot
-from thirdhand.plan.learn import learn, plan_figures
 from thirdhand.synth import SensorModel, make_scene
 from thirdhand.taskfile import dump_task, load_task, parse_task
 
@@ -25,7 +26,7 @@ def _bijection(pairs: list[tuple[str, str]]) -> bool:
 
 def test_noise_free_symbols_order_and_plan() -> None:
     demos = [make_scene("chair", seed=s, sensor=None) for s in (0, 1)]
-    res = learn(demos, segment=False)
+    res = learn_task(demos, segment=False, primitives=False, reward=False, grasps=False).learned
     assert len(res.symbols) == 5
     # Our symbols name the same slots as the truth's, whichever leg went where.
     pairs = [
@@ -40,7 +41,7 @@ def test_noise_free_symbols_order_and_plan() -> None:
     assert res.plan.interchangeable()
     traj = res.plan.relational_trajectory()
     assert traj[0] == frozenset() and len(traj[-1]) == 5
-    one = learn(demos[:1], segment=False)
+    one = learn_task(demos[:1], segment=False, primitives=False, reward=False, grasps=False).learned
     order = [(s.parent, s.child) for s in one.plan.steps]
     assert order == [(c.parent, c.child) for c in demos[0].labels.constraints]
     for sym in one.symbols:
@@ -49,7 +50,7 @@ def test_noise_free_symbols_order_and_plan() -> None:
 
 def test_plan_fails_when_a_slot_is_used_twice() -> None:
     demo = make_scene("bench", seed=0, sensor=None)
-    res = learn([demo], segment=False)
+    res = learn_task([demo], segment=False, primitives=False, reward=False, grasps=False).learned
     assert plan_success(res.plan, res.symbols, demo.labels.constraints)
     res.plan.steps[1].symbol = res.plan.steps[0].symbol
     assert not plan_success(res.plan, res.symbols, demo.labels.constraints)
@@ -57,7 +58,7 @@ def test_plan_fails_when_a_slot_is_used_twice() -> None:
 
 def test_a_recording_without_constraints_does_not_vote() -> None:
     demos = [make_scene("chair", seed=s, sensor=None) for s in (0, 1)]
-    res = learn(demos, segment=False)
+    res = learn_task(demos, segment=False, primitives=False, reward=False, grasps=False).learned
     full, other = res.instances
     truth = demos[0].labels.constraints
     # An excerpt that shows no constraint: before, every slot was seen in 1 of 2
@@ -90,21 +91,23 @@ def test_real_toolbox_with_its_excerpt_keeps_the_plan(shared_data: Path, tmp_pat
 
     folder = shared_data / "3rdhand"
     whole, excerpt = io.load(folder / "toolbox_coop_4"), io.load(folder / "toolbox_coop_4_excerpt")
-    alone = learn([whole], segment=False).task()
+    alone = learn_task([whole], segment=False, primitives=False, reward=False, grasps=False).task
     assert len(alone.plan) == 1
     for demos, names in (
         ([whole, excerpt], ["whole", "excerpt"]),
         ([excerpt, whole], ["excerpt", "whole"]),
     ):
-        res = learn(demos, names=names, segment=False)
-        task = res.task()
+        both = learn_task(
+            demos, names=names, segment=False, primitives=False, reward=False, grasps=False
+        )
+        res, task = both.learned, both.task
         assert [(s.parent, s.child) for s in task.plan] == [(s.parent, s.child) for s in alone.plan]
         assert task.stages.plan is not None
         assert task.stages.plan.silent_demos == ["excerpt"]
         assert task.stages.plan.support == [1]
         # The keyframe comes from the recording that has the step, whichever is first.
         assert task.plan[0].keyframe == alone.plan[0].keyframe != {}
-    from thirdhand.plan.report import write_report
+    from thirdhand.learn.report import write_report
 
     page = write_report(res, tmp_path / "report").read_text(encoding="utf-8")
     assert "excerpt: no constraint found; it does not vote" in page
@@ -125,11 +128,11 @@ def test_real_toolbox_with_its_excerpt_keeps_the_plan(shared_data: Path, tmp_pat
 
 def test_task_file_validates_and_round_trips(tmp_path: Path) -> None:
     demo = make_scene("chair", seed=2, sensor=SensorModel())
-    from thirdhand.plan.report import write_report
+    from thirdhand.learn.report import write_report
     from thirdhand.taskfile import save_task
 
-    result = learn([demo])
-    task = result.task()
+    both = learn_task([demo], primitives=False, reward=False, grasps=False)
+    result, task = both.learned, both.task
     save_task(task, tmp_path / "task.json")
     write_report(result, tmp_path / "report")
     block, line = plan_figures(result)
@@ -151,7 +154,7 @@ def test_task_file_validates_and_round_trips(tmp_path: Path) -> None:
 def test_cli_learn(tmp_path: Path) -> None:
     import typer
 
-    from thirdhand.plan.cli import learn_command
+    from thirdhand.learn.cli import learn_command
 
     demo = make_scene("bench", seed=3, sensor=None)
     path = tmp_path / "bench.parquet"
@@ -172,19 +175,19 @@ def test_toolbox_excerpt_runs_despite_missing_frames(shared_data: Path, tmp_path
     demo = io.load(shared_data / "3rdhand" / "toolbox_coop_4_excerpt")
     from thirdhand.taskfile import save_task
 
-    task = learn([demo]).task()
+    task = learn_task([demo], primitives=False, reward=False, grasps=False).task
     save_task(task, tmp_path / "task.json")
     assert load_task(tmp_path / "task.json").schema_ == task.schema_
 
 
 def test_report_draws_each_keyframe_with_the_parts_shapes(tmp_path: Path) -> None:
     """The task's meshes where found, else its boxes; one view per step, the pair named."""
-    from thirdhand.plan.report import _keyframe_views, part_shapes, write_report
+    from thirdhand.learn.report import _keyframe_views, part_shapes, write_report
     from thirdhand.task.meshes import box_triangles
 
     demo = make_scene("chair", seed=2, sensor=None)
-    result = learn([demo], segment=False)
-    task = result.task()
+    both = learn_task([demo], segment=False, primitives=False, reward=False, grasps=False)
+    result, task = both.learned, both.task
     # No mesh file beside the task and no search path: every part is its box.
     boxed = task.model_copy(
         update={"objects": [o.model_copy(update={"mesh": None}) for o in task.objects]}

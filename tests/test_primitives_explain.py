@@ -17,6 +17,7 @@ from thirdhand.primitives import PrimitiveError
 from thirdhand.primitives.explain import explain_constraint_motions
 from thirdhand.primitives.pose_channels import accumulated_rotation
 from thirdhand.primitives.segments import ConstraintSegment, constraint_segments
+from thirdhand.primitives.skill_library import skill_library_from_record
 from thirdhand.primitives.stage import primitives_stage
 from thirdhand.synth import make_scene
 from thirdhand.taskfile import TaskFile, load_task, save_task
@@ -124,7 +125,7 @@ def test_the_saved_library_round_trips_and_parses_as_it_was_fitted(
     assert again.stages.primitives is not None
     assert again.stages.primitives.model_dump(mode="json", by_alias=True) == block
     # the library read back from the file explains the motions exactly as it did
-    fitted = again.stages.primitives.skill_library.fitted()
+    fitted = skill_library_from_record(again.stages.primitives.skill_library)
     segs = [
         replace(sg, source=name)
         for demo, name in zip(chairs, ["chair0", "chair1"], strict=True)

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 
 from research.primitive_scores import best_label_map
 from thirdhand import se3
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.cli import app
 from thirdhand.primitives.pose_channels import PoseTrack, default_channels, pose_channels
 from thirdhand.primitives.skill_library import SCHEMA, SkillLibrary, SkillParserOptions

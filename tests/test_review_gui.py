@@ -614,10 +614,10 @@ def test_dof_animation_and_clarification_round(review: Review) -> None:
 
 @pytest.mark.slow
 def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, chair: Any) -> None:
-    from thirdhand.plan.learn import learn
+    from thirdhand.learn.run import learn_task
     from thirdhand.review.clarify import clarification_queue
 
-    task = learn([chair]).task()
+    task = learn_task([chair], primitives=False, reward=False, grasps=False).task
     review = open_review(task, "learned.task.json")
     app, page = review.app, review.page
     queue = clarification_queue(app.task)

@@ -25,6 +25,7 @@ from tests.test_review_gui import (  # noqa: F401  (fixtures)
     chromium_browser,
     open_review,
 )
+from thirdhand.primitives.serialize import pose_dmp_from_record
 from thirdhand.review.edits import EditError, SetPrimitivePoint, apply_edit
 from thirdhand.review.primitive_edit import (
     KEY_FRACTIONS,
@@ -70,7 +71,7 @@ def test_refit_of_an_unmoved_path_reproduces_it(task: TaskFile) -> None:
     assert block is not None
     for key, record in block.constraints.items():
         path = primitive_path(block, key)
-        dmp = record.pose_dmp()
+        dmp = pose_dmp_from_record(record)
         again = refit_position(dmp.position_, path.s, path.pos)
         np.testing.assert_array_equal(again.goal_, dmp.position_.goal_)
         np.testing.assert_array_equal(again.start_, dmp.position_.start_)

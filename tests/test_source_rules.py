@@ -6,6 +6,8 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
+import pytest
+
 import thirdhand
 
 PACKAGE = Path(thirdhand.__file__).parent
@@ -68,3 +70,92 @@ def test_no_research_inside_the_package() -> None:
                     else [node.module or ""]
                 )
                 assert not any(m == "research" or m.startswith("research.") for m in mods)
+
+
+def _import_graph(package: str = "thirdhand"):  # type: ignore[no-untyped-def]
+    import grimp
+
+    return grimp.build_graph(package, exclude_type_checking_imports=True, cache_dir=None)
+
+
+def _circles(graph) -> list[list[str]]:  # type: ignore[no-untyped-def]
+    """The import circles of a grimp graph: its strongly connected components of more
+    than one module (Tarjan, iterative)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    circles: list[list[str]] = []
+
+    def enter(node: str) -> None:
+        index[node] = low[node] = len(index)
+        stack.append(node)
+        on_stack.add(node)
+        work.append((node, iter(sorted(graph.find_modules_directly_imported_by(node)))))
+
+    for root in sorted(graph.modules):
+        if root in index:
+            continue
+        work: list = []
+        enter(root)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    enter(child)
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                component = []
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.append(member)
+                    if member == node:
+                        break
+                if len(component) > 1:
+                    circles.append(sorted(component))
+    return circles
+
+
+def test_no_import_circle() -> None:
+    """No module reaches itself through imports, counting those made inside functions
+    (an import deferred into a function is there for start-up time, never to hide a
+    circle); the layer order itself is the import-linter contract in pyproject.toml."""
+    assert _circles(_import_graph()) == []
+
+
+def test_an_import_circle_inside_functions_is_found(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two modules that import each other, one of them only inside a function, and a
+    third outside the circle."""
+    pkg = tmp_path / "circ"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "a.py").write_text("def f():\n    import circ.b\n")
+    (pkg / "b.py").write_text("import circ.a\n")
+    (pkg / "c.py").write_text("import circ.a\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert _circles(_import_graph("circ")) == [["circ.a", "circ.b"]]
+
+
+def test_no_module_imports_another_packages_private_module() -> None:
+    """``thirdhand.a._x`` is imported from inside ``thirdhand.a`` only."""
+    graph = _import_graph()
+    offenders = []
+    for module in sorted(graph.modules):
+        for imported in graph.find_modules_directly_imported_by(module):
+            parts = imported.split(".")
+            private = [i for i, p in enumerate(parts) if p.startswith("_") and p != "__main__"]
+            if not private:
+                continue
+            owner = ".".join(parts[: private[0]])
+            if not (module == owner or module.startswith(owner + ".")):
+                offenders.append(f"{module} -> {imported}")
+    assert offenders == []

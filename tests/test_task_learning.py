@@ -1,4 +1,4 @@
-"""``thirdhand.task_learning``: every stage that needs no robot, in memory, into one task."""
+"""``thirdhand.learn``: every stage that needs no robot, in memory, into one task."""
 
 from __future__ import annotations
 
@@ -11,8 +11,9 @@ import pytest
 from thirdhand import io
 from thirdhand.demonstration import Labels
 from thirdhand.errors import ThirdhandError
+from thirdhand.learn.run import learn_task
+from thirdhand.learn.stages import learned_events, reward_targets
 from thirdhand.synth import make_scene
-from thirdhand.task_learning import learn_task, learned_events, reward_targets
 from thirdhand.taskfile import dump_task, load_task, parse_task
 
 

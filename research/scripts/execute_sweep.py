@@ -5,11 +5,11 @@ Usage: ``python research/scripts/execute_sweep.py [--scene chair --scene bench] 
 [--placement auto|geometry|reach]``.
 
 Each run learns the task from the synthetic demonstration of ``scene`` with that seed
-(:func:`thirdhand.plan.learn.learn`, one demonstration), lays the parts out with the
-same seed and executes the plan offline. With ``--meshes`` the part meshes are used
-(and with ``--boxes`` as well, a second run with bounding boxes only). Prints one row per
-run (steps done, configurations in collision, planning time per step, the first failure)
-and the success table (see docs/execution.md).
+(:func:`thirdhand.learn.run.learn_task` with the later stages off, one demonstration),
+lays the parts out with the same seed and executes the plan offline. With ``--meshes``
+the part meshes are used (and with ``--boxes`` as well, a second run with bounding boxes
+only). Prints one row per run (steps done, configurations in collision, planning time
+per step, the first failure) and the success table (see docs/execution.md).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import statistics
 import time
 
 from thirdhand.execute.executor import ExecutionOptions, Executor
-from thirdhand.plan.learn import learn
+from thirdhand.learn.run import learn_task
 from thirdhand.synth import make_scene
 
 
@@ -56,7 +56,9 @@ def main() -> None:
     rows: dict[tuple[str, str, str], list[tuple[bool, int, list[float]]]] = {}
     for scene in args.scene or ["chair", "bench"]:
         for seed in args.seeds:
-            task = learn([make_scene(scene, seed=seed)]).task()
+            task = learn_task(
+                [make_scene(scene, seed=seed)], primitives=False, reward=False, grasps=False
+            ).task
             for robot in args.robot or ["panda"]:
                 for kind, search in kinds:
                     t0 = time.perf_counter()

@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 from thirdhand import io
+from thirdhand.primitives.serialize import pose_dmp_from_record
 from thirdhand.review.phase_labels import PhaseLabelling
 from thirdhand.review.primitive_edit import move_key_point, primitive_path, refit_position
 from thirdhand.segment import segment_demonstration
@@ -34,7 +35,7 @@ def primitive_figures(task_path: str) -> None:
         return
     for key, entry in block.constraints.items():
         path = primitive_path(block, key)
-        dmp = entry.pose_dmp()
+        dmp = pose_dmp_from_record(entry)
         again = refit_position(dmp.position_, path.s, path.pos)
         err0 = float(np.abs(again.rollout()[1] - path.pos).max())
         print(

@@ -17,7 +17,7 @@ from research.primitive_channels import (
     stream_channels,
 )
 from thirdhand.io.figueroa import ArmTrack, LabelledStream
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 
 N = 200
 DT = 0.01

@@ -66,11 +66,11 @@ def test_scripted_user_bench_after_transfer(chair: TaskFile, bench: TaskFile) ->
 
 @pytest.mark.slow
 def test_scripted_user_learned_chair() -> None:
-    from thirdhand.plan.learn import learn
+    from thirdhand.learn.run import learn_task
 
     demo = make_scene("chair", seed=1)
     truth = truth_task(demo)
-    learned = learn([demo]).task()
+    learned = learn_task([demo], primitives=False, reward=False, grasps=False).task
     result = scripted_corrections(learned, truth)
     assert result.n_parameters == 35
     assert not result.missing

@@ -10,6 +10,7 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
+from thirdhand._version import __version__
 from thirdhand.api import (
     detect_constraints,
     execute_task,
@@ -28,9 +29,8 @@ from thirdhand.demonstration import (
     PlanStep,
 )
 from thirdhand.errors import DemonstrationError, FormatError, TaskFileError, ThirdhandError
-from thirdhand.task_learning import LearnedTask, RecordingStages, learn_task
-
-__version__ = "0.1.0"
+from thirdhand.learn.results import LearnedTask, RecordingStages
+from thirdhand.learn.run import learn_task
 
 #: Subpackages and modules reachable as attributes, imported on first use.
 _LAZY_MODULES = frozenset(

@@ -108,7 +108,7 @@ def fit_primitives(
     demos : sequence of Demonstration
     constraints : sequence of sequences of ConstraintEvent
         Per recording, its constraints (e.g.
-        :func:`thirdhand.task_learning.learned_events` of a learned task).
+        :func:`thirdhand.learn.stages.learned_events` of a learned task).
     skills : int, optional
         Also learn a library of this many skills and explain each motion by them.
     names : sequence of str, optional
@@ -116,15 +116,16 @@ def fit_primitives(
     seed : int
         Seeds the skill library's restarts.
     skill_library : SkillLibrary, optional
-        A library learned before (``task.stages.primitives.skill_library.fitted()``)
-        that explains the motions instead of a new one.
+        A library learned before (a task file's, rebuilt by
+        :func:`~thirdhand.primitives.skill_library.skill_library_from_record`) that
+        explains the motions instead of a new one.
 
     Returns
     -------
     PrimitivesBlock
         The task file's ``stages.primitives``: a
         :class:`~thirdhand.task.stages.PrimitiveRecord` per constraint symbol
-        (``record.pose_dmp()`` rebuilds the fitted DMP).
+        (``pose_dmp_from_record(record)`` rebuilds the fitted DMP).
     """
     from thirdhand.primitives.stage import primitives_stage
 

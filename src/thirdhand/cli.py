@@ -36,7 +36,8 @@ from rich.console import Console  # noqa: E402
 from rich.table import Table  # noqa: E402
 from typer.core import TyperCommand, TyperGroup  # noqa: E402
 
-from thirdhand import __version__, options  # noqa: E402
+from thirdhand import options  # noqa: E402
+from thirdhand._version import __version__  # noqa: E402
 from thirdhand.config import ConfigOption, load_settings  # noqa: E402
 from thirdhand.errors import ThirdhandError  # noqa: E402
 from thirdhand.fileops import check_output  # noqa: E402
@@ -66,7 +67,7 @@ class LazyCommand:
 #: the order of ``thirdhand --help`` after the commands defined in this module.
 LAZY: dict[str, LazyCommand] = {
     "learn": LazyCommand(
-        "thirdhand.plan.cli", "learn_command", "Learn a task file from recordings (every stage)."
+        "thirdhand.learn.cli", "learn_command", "Learn a task file from recordings (every stage)."
     ),
     "segment": LazyCommand(
         "thirdhand.segment.cli", "app", "Interaction phases per body pair (linear-chain CRF)."
@@ -553,8 +554,8 @@ def demo(
     seed: Annotated[int, typer.Option(help="Random seed of the synthetic demonstration.")] = 0,
 ) -> None:
     """The main job: a synthetic chair assembly through every stage that exists."""
+    from thirdhand.demo import run_demo
     from thirdhand.fileops import write_text
-    from thirdhand.pipeline import run_demo
 
     options.seed(seed)
     start = time.perf_counter()

@@ -23,24 +23,20 @@ from __future__ import annotations
 import importlib
 import json
 from pathlib import Path
-from typing import Annotated, Any, TypeVar
+from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 
 import typer
-from pydantic import BaseModel, ConfigDict, ValidationError
 
 from thirdhand.errors import OptionError
+
+if TYPE_CHECKING:
+    from thirdhand.settings import Settings
 
 #: Largest configuration file read (bytes): a settings file is a few hundred bytes.
 MAX_CONFIG_BYTES = 1 << 20
 
 
-class Settings(BaseModel):
-    """Base of the commands' settings records: unknown keys are errors, values immutable."""
-
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-S = TypeVar("S", bound=Settings)
+S = TypeVar("S", bound="Settings")
 
 #: The ``--config FILE`` option every command with settings takes.
 ConfigOption = Annotated[
@@ -79,7 +75,7 @@ def check_batch(jobs: int, scheduler: str | None) -> None:
 REGISTRY: dict[str, str] = {
     "constraints.fit": "thirdhand.constraints.settings:FitSettings",
     "execute": "thirdhand.execute.settings:ExecuteSettings",
-    "learn": "thirdhand.task_settings:LearnSettings",
+    "learn": "thirdhand.learn.settings:LearnSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",
     "synth": "thirdhand.synth.settings:SynthSettings",
     "primitives.fit": "thirdhand.primitives.settings:FitSettings",
@@ -96,6 +92,8 @@ REGISTRY: dict[str, str] = {
 def settings_class(command: str) -> type[Settings]:
     """The settings record of ``command`` (a key of :data:`REGISTRY`)."""
     module, _, name = REGISTRY[command].partition(":")
+    from thirdhand.settings import Settings
+
     cls = getattr(importlib.import_module(module), name)
     assert issubclass(cls, Settings)
     return cls
@@ -156,6 +154,8 @@ def load_settings(path: Path | None, command: str, cls: type[S]) -> S:
     cls : type
         Its :class:`Settings` record.
     """
+    from pydantic import ValidationError
+
     if path is None:
         return cls()
     table: Any = read_config(path)

@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator
 
-from thirdhand.config import Settings
+from thirdhand.settings import Settings
 from thirdhand.constraints.select import DEFAULT_MODELS
 from thirdhand.constraints.types import MODEL_TYPES
 

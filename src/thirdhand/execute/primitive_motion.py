@@ -26,6 +26,7 @@ from thirdhand import se3
 from thirdhand.arrays import FloatArray
 from thirdhand.execute.goals import dof_displacement, invert, vary
 from thirdhand.execute.robot import Robot
+from thirdhand.primitives.serialize import pose_dmp_from_record
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.stages import PrimitivesBlock
 
@@ -115,7 +116,7 @@ def linear_motion(
 def find_primitive(block: PrimitivesBlock | None, parent: str, child: str) -> PoseDMP | None:
     """The learned pose DMP of ``child`` in ``parent``'s frame from a primitives block, or None."""
     found = None if block is None else block.find(parent, child)
-    return None if found is None else found[1].pose_dmp()
+    return None if found is None else pose_dmp_from_record(found[1])
 
 
 def primitive_place_path(

@@ -12,7 +12,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator
 
-from thirdhand.config import Settings
+from thirdhand.settings import Settings
 
 
 class ExecuteSettings(Settings):

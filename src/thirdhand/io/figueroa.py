@@ -28,6 +28,7 @@ import numpy as np
 
 from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.errors import FormatError
+from thirdhand.se3 import quat_make_continuous
 
 #: Sampling rate assumed for ``Data_*`` streams, which carry no time, Hz.
 DEFAULT_RATE_HZ = 100.0
@@ -141,8 +142,6 @@ def _cells(value: Any) -> list[Any]:
 
 
 def _arms(x: Any, path: Path, where: str) -> tuple[ArmTrack, ...]:
-    from thirdhand.primitives._checks import PrimitiveError, check_unit_quaternions
-
     a = np.asarray(x, dtype=np.float64)
     if a.ndim != 2 or a.shape[0] % ROWS_PER_ARM or a.shape[0] == 0:
         raise FormatError(
@@ -157,10 +156,6 @@ def _arms(x: Any, path: Path, where: str) -> tuple[ArmTrack, ...]:
     arms = []
     for i in range(a.shape[0] // ROWS_PER_ARM):
         b = a[i * ROWS_PER_ARM : (i + 1) * ROWS_PER_ARM].T
-        try:
-            q = check_unit_quaternions(b[:, [4, 5, 6, 3]], name=f"{where} arm {i}")
-        except PrimitiveError as exc:
-            raise FormatError(path, str(exc), where=where) from None
         norms = np.linalg.norm(b[:, 3:7], axis=1)
         if np.abs(norms - 1.0).max() > 1e-3:
             k = int(np.argmax(np.abs(norms - 1.0)))
@@ -169,6 +164,7 @@ def _arms(x: Any, path: Path, where: str) -> tuple[ArmTrack, ...]:
                 f"arm {i} rows 4-7 should be a unit quaternion, sample {k} has norm {norms[k]:.4g}",
                 where=where,
             )
+        q = quat_make_continuous(b[:, [4, 5, 6, 3]] / norms[:, None])
         arms.append(ArmTrack(b[:, 0:3].copy(), q, b[:, 7:10].copy(), b[:, 10:13].copy()))
     return tuple(arms)
 

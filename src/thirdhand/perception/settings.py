@@ -7,7 +7,7 @@ from typing import Literal
 
 from pydantic import Field, field_validator, model_validator
 
-from thirdhand.config import Settings
+from thirdhand.settings import Settings
 
 
 class HeadposeSettings(Settings):

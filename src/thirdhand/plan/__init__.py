@@ -5,7 +5,6 @@
   ``c1…cK`` across demonstrations (a spin about a free axis is the same slot).
 - :mod:`~thirdhand.plan.assembly`: the plan ``action(parent, child, symbol)`` with
   its partial order, the relational trajectory, symbolic execution.
-- :mod:`~thirdhand.plan.learn`: recordings to a task file (``thirdhand learn``).
 """
 
 from thirdhand.plan.assembly import AssemblyPlan, PlanAction, plan_from_demos, plan_success

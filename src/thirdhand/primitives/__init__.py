@@ -12,7 +12,7 @@
     hsmm.predict(x_new)                                   # a label per sample
 """
 
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.dmp import DMP
 from thirdhand.primitives.hsmm import HiddenSemiMarkov
 from thirdhand.primitives.library import Parse, PrimitiveLibrary

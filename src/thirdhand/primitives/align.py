@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 
 from thirdhand import se3
 from thirdhand.arrays import FloatArray, IntArray
-from thirdhand.primitives._checks import PrimitiveError, check_trajectory, check_unit_quaternions
+from thirdhand.primitives.checks import PrimitiveError, check_trajectory, check_unit_quaternions
 from thirdhand.primitives.quaternion_dmp import quat_exp, quat_log
 
 

@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike
 from scipy.linalg import expm
 
 from thirdhand.arrays import FloatArray
-from thirdhand.primitives._checks import PrimitiveError, check_trajectory
+from thirdhand.primitives.checks import PrimitiveError, check_trajectory
 
 #: Phase at the end of the demonstrated duration (sets ``alpha_x``).
 FINAL_PHASE = 0.01

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.pose_channels import LOG_UNIT, MIN_SAMPLES, UNITS, PoseTrack
 from thirdhand.primitives.segments import ConstraintSegment
 from thirdhand.primitives.skill_library import (

@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from thirdhand.arrays import FloatArray, IntArray
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 

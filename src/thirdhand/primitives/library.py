@@ -25,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.special import logsumexp
 
 from thirdhand.arrays import FloatArray, IntArray
-from thirdhand.primitives._checks import PrimitiveError, check_trajectory
+from thirdhand.primitives.checks import PrimitiveError, check_trajectory
 from thirdhand.primitives.mixture import ProMPMixture
 from thirdhand.primitives.promp import ProMP
 from thirdhand.primitives.segment_features import (

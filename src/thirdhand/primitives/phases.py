@@ -23,7 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from thirdhand.arrays import FloatArray, IntArray
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.library import Parse
 
 #: Weight of the skill identity in a run's descriptor, in standard deviations.

@@ -39,7 +39,7 @@ from scipy.ndimage import uniform_filter1d
 
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 
 #: Unit of the log-magnitude channels (dimensionless): a third of an e-fold.
 LOG_UNIT = 1.0 / 3.0

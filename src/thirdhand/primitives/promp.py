@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from thirdhand.arrays import FloatArray
-from thirdhand.primitives._checks import PrimitiveError, check_trajectory
+from thirdhand.primitives.checks import PrimitiveError, check_trajectory
 
 
 def rbf_features(z: ArrayLike, n_weights: int, *, width: float | None = None) -> FloatArray:

@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike
 
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
-from thirdhand.primitives._checks import PrimitiveError, check_trajectory, check_unit_quaternions
+from thirdhand.primitives.checks import PrimitiveError, check_trajectory, check_unit_quaternions
 from thirdhand.primitives.dmp import (
     DMP,
     TransformationSystem,

@@ -17,7 +17,7 @@ import numpy as np
 from scipy.special import logsumexp
 
 from thirdhand.arrays import FloatArray
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 
 
 def _check_scores(scores: FloatArray) -> int:

@@ -16,7 +16,7 @@ from scipy.ndimage import uniform_filter1d
 
 from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import ConstraintEvent, Demonstration
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 
 
 @dataclass(frozen=True)

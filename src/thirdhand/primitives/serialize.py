@@ -6,14 +6,17 @@ object exactly (the rollout of a rebuilt DMP equals the original's bit for bit).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.dmp import DMP
 from thirdhand.primitives.promp import ProMP
 from thirdhand.primitives.quaternion_dmp import PoseDMP, QuaternionDMP
+
+if TYPE_CHECKING:
+    from thirdhand.task.stages import PrimitiveRecord
 
 #: How rollouts interpret time, stored beside every DMP.
 TIME_CONVENTION = (
@@ -143,3 +146,13 @@ def promp_from_dict(data: dict[str, Any]) -> ProMP:
     chol = np.zeros((f, f))
     chol[np.tril_indices(f)] = packed
     return ProMP.from_params(mean, chol @ chol.T, dims=dims, noise=noise, duration=duration)
+
+
+def pose_dmp_from_record(record: PrimitiveRecord) -> PoseDMP:
+    """The fitted :class:`PoseDMP` a task file's primitive record saved (rebuilt exactly)."""
+    return pose_dmp_from_dict(record.dmp.model_dump(mode="json"))
+
+
+def promp_from_record(record: PrimitiveRecord) -> ProMP:
+    """The fitted :class:`ProMP` a task file's primitive record saved."""
+    return promp_from_dict(record.promp.model_dump(mode="json"))

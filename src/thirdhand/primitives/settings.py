@@ -6,7 +6,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from thirdhand.config import Settings
+from thirdhand.settings import Settings
 
 #: Most basis weights per dimension a DMP or ProMP may have.
 MAX_WEIGHTS = 1000

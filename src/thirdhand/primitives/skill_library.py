@@ -26,15 +26,18 @@ import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
 from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.errors import FormatError, ThirdhandError
-from thirdhand.primitives._checks import PrimitiveError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov, runs
 from thirdhand.primitives.pose_channels import CHANNELS, PoseTrack, default_channels, pose_channels
+
+if TYPE_CHECKING:
+    from thirdhand.task.stages import SkillLibraryRecord
 
 #: Schema of a saved library.
 SCHEMA = "thirdhand.skill-library/1"
@@ -370,9 +373,14 @@ def read_skill_library(path: Path) -> SkillLibrary:
                 f"{path}: the task has no stages.primitives.skill_library "
                 "(learn it with primitives on and skills > 0)"
             )
-        fitted: SkillLibrary = prim.skill_library.fitted()
-        return fitted
+        return skill_library_from_record(prim.skill_library)
     return SkillLibrary.from_dict(doc, source=str(path))
+
+
+def skill_library_from_record(record: SkillLibraryRecord) -> SkillLibrary:
+    """The fitted library a task file's ``stages.primitives.skill_library`` saved."""
+    doc = record.model_dump(mode="json", by_alias=True)
+    return SkillLibrary.from_dict(doc, source="skill_library")
 
 
 def cuts_parses(

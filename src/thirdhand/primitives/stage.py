@@ -17,8 +17,8 @@ from numpy.typing import ArrayLike
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import ConstraintEvent, Demonstration
-from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.primitives.align import average
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.promp import ProMP
 from thirdhand.primitives.quaternion_dmp import PoseDMP
 from thirdhand.primitives.segments import ConstraintSegment, constraint_segments, group_segments
@@ -213,7 +213,7 @@ def primitives_stage(
         Per demonstration, keyframe times (default: the constraint events).
     events : sequence of sequences of ConstraintEvent, optional
         Per demonstration, the constraints to learn motions for (e.g. the learned
-        ones, :func:`thirdhand.task_learning.learned_events`); default each
+        ones, :func:`thirdhand.learn.stages.learned_events`); default each
         demonstration's labels.
     skills : int, optional
         Also learn a library of this many skills over all the constraint motions
@@ -226,8 +226,9 @@ def primitives_stage(
     seed : int
         Seeds the skill library's restarts.
     skill_library : SkillLibrary, optional
-        A library fitted before (a task file's, :meth:`~thirdhand.task.stages.SkillLibrary.fitted`):
-        it explains the motions instead of a new one (``skills`` is then ignored).
+        A library fitted before (a task file's, rebuilt by
+        :func:`~thirdhand.primitives.skill_library.skill_library_from_record`): it explains
+        the motions instead of a new one (``skills`` is then ignored).
 
     Returns
     -------

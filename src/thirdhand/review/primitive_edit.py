@@ -30,7 +30,7 @@ from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.primitives.dmp import DMP, phase
 from thirdhand.primitives.quaternion_dmp import PoseDMP
-from thirdhand.primitives.serialize import dmp_to_dict
+from thirdhand.primitives.serialize import dmp_to_dict, pose_dmp_from_record
 from thirdhand.task.stages import DmpParameters, PrimitiveEdit, PrimitiveRecord, PrimitivesBlock
 
 #: Where the editable key points sit, as fractions of the motion's duration.
@@ -105,7 +105,7 @@ def key_for(block: PrimitivesBlock | None, parent: str, child: str) -> str | Non
 
 def _pose_dmp(entry: PrimitiveRecord, key: str) -> PoseDMP:
     try:
-        return entry.pose_dmp()
+        return pose_dmp_from_record(entry)
     except ThirdhandError as exc:
         raise PrimitiveEditError(f"primitive {key!r}: {exc}") from None
 

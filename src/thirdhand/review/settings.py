@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from thirdhand.config import Settings
+from thirdhand.settings import Settings
 
 
 class ReviewSettings(Settings):

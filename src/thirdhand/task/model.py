@@ -26,6 +26,7 @@ from pydantic import (
     model_validator,
 )
 
+from thirdhand._version import __version__
 from thirdhand.errors import TaskFileError
 from thirdhand.task.constraint import Constraint, Name
 from thirdhand.task.geometry import Pose, Positive, TaskModel, Vec3
@@ -301,8 +302,6 @@ class TaskFile(TaskModel):
         TaskFileError
             If the content is invalid (first error, with its location).
         """
-        from thirdhand import __version__
-
         now = utc_now()
         files = [i if isinstance(i, InputFile) else InputFile.from_path(i) for i in inputs]
         try:

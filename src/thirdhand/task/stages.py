@@ -36,7 +36,7 @@ Blocks
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 from pydantic import (
     ConfigDict,
@@ -50,10 +50,6 @@ from pydantic import (
 
 from thirdhand.task.constraint import RunnerUp, drop_empty_runner_up
 from thirdhand.task.geometry import Pose, Quat, TaskModel, Vec3
-
-if TYPE_CHECKING:
-    from thirdhand.primitives.promp import ProMP
-    from thirdhand.primitives.quaternion_dmp import PoseDMP
 
 
 class Block(TaskModel):
@@ -336,18 +332,6 @@ class PrimitiveRecord(TaskModel):
     source: str | None = Field(default=None, exclude_if=lambda v: v is None)
     edits: list[PrimitiveEdit] = Field(default_factory=list, exclude_if=lambda v: not v)
 
-    def pose_dmp(self) -> PoseDMP:
-        """The fitted :class:`~thirdhand.primitives.quaternion_dmp.PoseDMP` (rebuilt exactly)."""
-        from thirdhand.primitives.serialize import pose_dmp_from_dict
-
-        return pose_dmp_from_dict(self.dmp.model_dump(mode="json"))
-
-    def promp_model(self) -> ProMP:
-        """The fitted :class:`~thirdhand.primitives.promp.ProMP`."""
-        from thirdhand.primitives.serialize import promp_from_dict
-
-        return promp_from_dict(self.promp.model_dump(mode="json"))
-
 
 class HsmmSkills(TaskModel):
     """The parameters of a skill library's hidden semi-Markov model, K skills over C channels.
@@ -386,7 +370,7 @@ def _shape(value: Any) -> tuple[int, ...]:
     return (len(value), *inner.pop()) if len(inner) == 1 else (len(value), -1)
 
 
-class SkillLibrary(TaskModel):
+class SkillLibraryRecord(TaskModel):
     """The skill library that explains the constraint motions (``thirdhand.skill-library/1``).
 
     The document :meth:`thirdhand.primitives.skill_library.SkillLibrary.to_dict`
@@ -418,7 +402,7 @@ class SkillLibrary(TaskModel):
         return data
 
     @model_validator(mode="after")
-    def _check_shapes(self) -> SkillLibrary:
+    def _check_shapes(self) -> SkillLibraryRecord:
         k, c = self.n_skills, len(self.channels)
         want = {
             "means": (k, c),
@@ -443,12 +427,6 @@ class SkillLibrary(TaskModel):
             raise ValueError(f"summary: expected {k} skills (n_skills), got {len(self.summary)}")
         return self
 
-    def fitted(self) -> Any:
-        """The :class:`~thirdhand.primitives.skill_library.SkillLibrary` this block saved."""
-        from thirdhand.primitives.skill_library import SkillLibrary as Fitted
-
-        return Fitted.from_dict(self.model_dump(mode="json", by_alias=True), source="skill_library")
-
 
 class PrimitivesBlock(Block):
     """``stages.primitives``: a learned motion per constraint, and the skill library.
@@ -460,13 +438,13 @@ class PrimitivesBlock(Block):
     frame : str
     constraints : dict of str to PrimitiveRecord
         Keyed by the constraint's symbol.
-    skill_library : SkillLibrary or None
+    skill_library : SkillLibraryRecord or None
     """
 
     schema_: str = Field(default="thirdhand.primitives/1", alias="schema")
     frame: str = "child pose in the parent part's frame"
     constraints: dict[str, PrimitiveRecord] = Field(default_factory=dict)
-    skill_library: SkillLibrary | None = Field(default=None, exclude_if=lambda v: v is None)
+    skill_library: SkillLibraryRecord | None = Field(default=None, exclude_if=lambda v: v is None)
 
     @model_validator(mode="after")
     def _check_skills(self) -> PrimitivesBlock:

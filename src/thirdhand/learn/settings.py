@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pydantic import Field
 
-from thirdhand.config import Settings
+from thirdhand.settings import Settings
 
 
 class LearnSettings(Settings):

@@ -1,6 +1,6 @@
 """The main job: a synthetic chair assembly through every stage.
 
-Make the scene, learn the task in memory (:func:`thirdhand.task_learning.learn_task`:
+Make the scene, learn the task in memory (:func:`thirdhand.learn.run.learn_task`:
 phases, constraints, plan, primitives, relational reward, grasps), execute it on a
 simulated Panda, and write each output once into the output folder; the
 returned summary lists what was written and the key figures.
@@ -16,7 +16,8 @@ from typing import Any
 from thirdhand import io
 from thirdhand.demonstration import Demonstration
 from thirdhand.fileops import atomic_output, write_text
-from thirdhand.task_learning import LearnedTask, learn_task
+from thirdhand.learn.results import LearnedTask
+from thirdhand.learn.run import learn_task
 
 #: Part sets the learned reward plans for, to show it transfers to other sizes.
 REWARD_TARGETS: dict[str, list[str]] = {
@@ -120,8 +121,8 @@ def _write_segmentation(result: Any, out: Path, summary: dict[str, Any]) -> None
 
 def _write_task(learned: LearnedTask, out: Path, summary: dict[str, Any]) -> Path:
     """``task.json`` (every stage block), the HTML report, and each stage's figures."""
-    from thirdhand.plan.learn import plan_figures
-    from thirdhand.plan.report import write_report
+    from thirdhand.learn.figures import plan_figures
+    from thirdhand.learn.report import write_report
     from thirdhand.task.meshes import anchor_meshes, missing_mesh_note
     from thirdhand.taskfile import save_task
 

@@ -1,7 +1,8 @@
 """``thirdhand learn``: recordings to one task file (every stage that needs no robot).
 
-The integrator mounts :data:`learn_command` as ``thirdhand learn``. The accuracy
-experiments that used to live here are in the repository's ``research/`` folder.
+The command line mounts :data:`learn_command` as ``thirdhand learn``: it checks the
+inputs and outputs, reads the recordings, runs :func:`~thirdhand.learn.run.learn_task`
+and saves the task file it built.
 """
 
 from __future__ import annotations
@@ -31,46 +32,6 @@ app = typer.Typer(
 )
 
 
-def check_one_task(demos: Sequence[Demonstration], paths: Sequence[Path]) -> None:
-    """Refuse recordings of different tasks: groups of recordings that share no part.
-
-    Recordings of one task show (some of) the same parts; a recording whose parts
-    appear in no other recording of the group is of another task, and learning
-    from both gives an empty or mixed-up task.
-
-    Raises
-    ------
-    ThirdhandError
-        Naming the groups and their parts.
-    """
-    parts = [{b.name for b in d.bodies if b.kind == "part"} for d in demos]
-    group = list(range(len(demos)))
-
-    def root(i: int) -> int:
-        while group[i] != i:
-            i = group[i]
-        return i
-
-    for i in range(len(demos)):
-        for j in range(i):
-            if parts[i] & parts[j]:
-                group[root(i)] = root(j)
-    groups: dict[int, list[int]] = {}
-    for i in range(len(demos)):
-        groups.setdefault(root(i), []).append(i)
-    if len(groups) > 1:
-        listed = []
-        for members in groups.values():
-            names = sorted(set().union(*(parts[i] for i in members)))
-            files = ", ".join(str(paths[i]) for i in members)
-            listed.append(f"{files} (parts: {', '.join(names) or 'none'})")
-        desc = "; ".join(listed)
-        raise ThirdhandError(
-            f"the recordings show different tasks: no part is shared between {desc}; "
-            "learn each task from its own recordings"
-        )
-
-
 @contextlib.contextmanager
 def _kinds_hint(demos: Sequence[Demonstration], paths: Sequence[Path]) -> Iterator[None]:
     """Name the likely cause when a task learned from Motive exports without kinds is invalid."""
@@ -92,16 +53,6 @@ def _kinds_hint(demos: Sequence[Demonstration], paths: Sequence[Path]) -> Iterat
             '({"format": "thirdhand.motive-extra/1", "bodies": [{"name": ..., "kind": '
             '"finger", "hand": "right"}, ...]})'
         ) from None
-
-
-def _load(path: Path) -> Demonstration:
-    from thirdhand import io
-
-    if path.is_dir() and sorted(path.glob("*.bag")) and not (path / "metadata.yaml").exists():
-        from thirdhand.io import rosbag
-
-        return rosbag.read(sorted(path.glob("*.bag")))
-    return io.load(path)
 
 
 @app.command("learn")
@@ -143,9 +94,10 @@ def learn_command(
     one ``thirdhand: error:`` line. Settings (``[learn]`` of ``--config``): which stages
     run, the skill library's size, the plan's vote, the segmentation model.
     """
+    from thirdhand.learn.recordings import check_one_task, read_recording
+    from thirdhand.learn.run import learn_task
+    from thirdhand.learn.settings import LearnSettings
     from thirdhand.task.meshes import anchor_meshes
-    from thirdhand.task_learning import learn_task
-    from thirdhand.task_settings import LearnSettings
     from thirdhand.taskfile import save_task
 
     options.seed(seed)
@@ -170,7 +122,7 @@ def learn_command(
         from thirdhand.primitives.skill_library import read_skill_library
 
         skill_library = read_skill_library(library_path)
-    loaded = [_load(p) for p in demos]
+    loaded = [read_recording(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
     check_one_task(loaded, demos)
@@ -219,6 +171,6 @@ def learn_command(
     for reason in result.skipped:
         out.print(f"  {reason}")
     if report is not None:
-        from thirdhand.plan.report import write_report
+        from thirdhand.learn.report import write_report
 
         out.print(f"report → {write_report(result.learned, report, task, output)}")

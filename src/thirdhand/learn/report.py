@@ -26,7 +26,7 @@ from thirdhand.fileops import atomic_write_bytes
 if TYPE_CHECKING:
     from numpy.typing import NDArray
 
-    from thirdhand.plan.learn import Learned
+    from thirdhand.learn.results import Learned
     from thirdhand.task.model import TaskFile
 
     FloatArray = NDArray[np.float64]
@@ -84,7 +84,7 @@ def part_shapes(
 
     Parameters
     ----------
-    learned : thirdhand.plan.learn.Learned
+    learned : thirdhand.learn.results.Learned
     k : int
         The demonstration.
     task : TaskFile, optional
@@ -251,7 +251,7 @@ def write_report(
 
     Parameters
     ----------
-    learned : thirdhand.plan.learn.Learned
+    learned : thirdhand.learn.results.Learned
     folder : path-like
     task, task_path : TaskFile and its path, optional
         Where the parts' meshes come from (see :func:`part_shapes`).
