@@ -113,7 +113,7 @@ def hard_setup(
         key=lambda c: float(np.hypot(*(goal_pose(cell.base_pose, c)[:2, 3] - (rx, ry)))),
     )
     # the demonstrated pose: the nominal one turned at random inside the free DOFs
-    p, q = se3.matrix_to_pose(sample_goals(np.eye(4), far, 2, rng, include_nominal=False)[0][0])
+    p, q = se3.pose_from_matrix(sample_goals(np.eye(4), far, 2, rng, include_nominal=False)[0][0])
     new_far = far.model_copy(update={"pos": tuple(float(v) for v in p),
                                      "quat": tuple(float(v) for v in q)})  # fmt: skip
     hard = task.model_copy(
@@ -217,7 +217,7 @@ def feasible_spins(
     feasible = np.zeros(n_spins, dtype=bool)
     for k, g in enumerate(candidate_grasps(task, c, {}, part, max_grasps)):
         scene.allow(GRIPPER, c.child)
-        q_grasp = robot.ik(se3.matrix_to_pose(part @ g.pose), seed=seed + k, n_restarts=16,
+        q_grasp = robot.ik(se3.pose_from_matrix(part @ g.pose), seed=seed + k, n_restarts=16,
                            accept=scene.is_valid)  # fmt: skip
         scene.disallow(GRIPPER, c.child)
         if q_grasp is None:
@@ -226,7 +226,7 @@ def feasible_spins(
         scene.allow(c.child, c.parent)
         for j in np.flatnonzero(~feasible):
             t_place = parent @ vary(c, goals[j]) @ g.pose
-            q = robot.ik(se3.matrix_to_pose(t_place), q_grasp, seed=seed + int(j), n_restarts=16,
+            q = robot.ik(se3.pose_from_matrix(t_place), q_grasp, seed=seed + int(j), n_restarts=16,
                          accept=scene.is_valid)  # fmt: skip
             feasible[j] = q is not None
         scene.disallow(c.child, c.parent)

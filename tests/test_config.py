@@ -12,9 +12,9 @@ import pytest
 from cli_helpers import call
 from thirdhand import io
 from thirdhand.config import REGISTRY, defaults_toml, load_settings, settings_class
-from thirdhand.settings import Settings
 from thirdhand.errors import OptionError
 from thirdhand.merge.settings import MergeSettings
+from thirdhand.settings import Settings
 from thirdhand.synth import make_scene
 
 

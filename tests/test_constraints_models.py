@@ -442,9 +442,11 @@ def test_quaternion_helpers_match_scipy() -> None:
     p = se3.random_quat(rng)
     q = se3.random_quat(rng, 100)
     np.testing.assert_allclose(q @ g.quat_right_matrix(p), se3.quat_multiply(q, p), atol=1e-15)
-    np.testing.assert_allclose(se3.quat_to_rotvec(q), Rotation.from_quat(q).as_rotvec(), atol=1e-12)
-    np.testing.assert_allclose(se3.quat_to_rotvec(-q), se3.quat_to_rotvec(q), atol=1e-12)
-    assert np.all(se3.quat_to_rotvec(np.array([[0.0, 0.0, 0.0, -1.0]])) == 0.0)
+    np.testing.assert_allclose(
+        se3.rotvec_from_quat(q), Rotation.from_quat(q).as_rotvec(), atol=1e-12
+    )
+    np.testing.assert_allclose(se3.rotvec_from_quat(-q), se3.rotvec_from_quat(q), atol=1e-12)
+    assert np.all(se3.rotvec_from_quat(np.array([[0.0, 0.0, 0.0, -1.0]])) == 0.0)
     v = rng.standard_normal(3)
     angle = rng.uniform(-4, 4, 20)
     axis = v / np.linalg.norm(v)

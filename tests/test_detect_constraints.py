@@ -206,7 +206,7 @@ def _noisy_run(
 ) -> tuple[np.ndarray, np.ndarray]:
     """``n`` steps at the identity pose with per-axis noise ``sigma`` (metres, radians)."""
     p = rng.normal(scale=sigma[0], size=(n, 3))
-    q = se3.rotvec_to_quat(rng.normal(scale=sigma[1], size=(n, 3)))
+    q = se3.quat_from_rotvec(rng.normal(scale=sigma[1], size=(n, 3)))
     return p, q
 
 
@@ -246,7 +246,9 @@ def test_a_run_pose_is_the_pose_held_not_the_mean_of_excursions(
     p, q = _noisy_run(rng, 100, sigma)
     # The last 30 steps a person pushes the part 12 mm and 3° out of place.
     p[70:, 1] += 0.012
-    q[70:] = se3.quat_multiply(se3.rotvec_to_quat(np.array([0.0, 0.0, math.radians(3.0)])), q[70:])
+    q[70:] = se3.quat_multiply(
+        se3.quat_from_rotvec(np.array([0.0, 0.0, math.radians(3.0)])), q[70:]
+    )
     pos, quat = _run_pose(p, q, np.zeros(3))
     # The mean would be 3.6 mm and 0.9° off; the median of 70 held steps and 30
     # pushed ones is within the held steps' spread (a few sigma / sqrt(70)).

@@ -90,8 +90,8 @@ def test_execute_with_demo_holds_each_leg_where_the_fingers_did(tmp_path, shared
             g for g in doc["segments"] if g["step"] == s["index"] and g["segment"] == "lift"
         )
         k = int(np.argmin(np.abs(replay.t - lift["t_start"])))
-        t_part = se3.pose_to_matrix(replay.pos(c.child)[k], replay.quat(c.child)[k])
-        t_tool = se3.pose_to_matrix(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
+        t_part = se3.matrix_from_pose(replay.pos(c.child)[k], replay.quat(c.child)[k])
+        t_tool = se3.matrix_from_pose(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
         np.testing.assert_allclose(invert(t_part) @ t_tool, hints[s["grasp"]].pose, atol=1e-3)
 
 

@@ -205,10 +205,10 @@ def test_grasps_ranked_by_reach_at_pick_and_place() -> None:
     scene = CollisionScene(robot)
     scene.add_table(height=0.75)
     lo, hi = np.array([0.0, -0.02, -0.02]), np.array([0.28, 0.02, 0.02])
-    scene.add_box("leg", se3.matrix_to_pose(np.eye(4)), hi - lo)
+    scene.add_box("leg", se3.pose_from_matrix(np.eye(4)), hi - lo)
     part = np.eye(4)
     part[:3, 3] = [0.45, -0.25, 0.77]  # lying on the table, its axis along x
-    scene.set_object_pose("leg", se3.matrix_to_pose(part @ _centre(lo, hi)))
+    scene.set_object_pose("leg", se3.pose_from_matrix(part @ _centre(lo, hi)))
     goal = np.eye(4)
     goal[:3, :3] = [[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]]  # standing up
     goal[:3, 3] = [0.5, 0.2, 0.78]

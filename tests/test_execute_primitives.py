@@ -45,7 +45,7 @@ def _line_dmp(
     """
     t = np.linspace(0.0, 2.0, 201)
     s = 10 * (t / 2) ** 3 - 15 * (t / 2) ** 4 + 6 * (t / 2) ** 5  # minimum jerk 0 → 1
-    gp, gq = se3.matrix_to_pose(goal_rel)
+    gp, gq = se3.pose_from_matrix(goal_rel)
     pos = gp + (1.0 - s)[:, None] * length * np.asarray(direction)
     if spin_axis is None:
         quat = np.tile(gq, (t.size, 1))
@@ -65,11 +65,11 @@ def test_primitive_place_path_ends_on_the_goal_and_drops_the_free_spin() -> None
     c = next(c for c in task.constraints if c.child == "leg1")
     free = c.free_dof_array()
     assert np.ptp(free[3]) > 6.0 and np.ptp(free[4:], axis=1).max() == 0.0  # spins about x
-    parent = se3.pose_to_matrix([0.5, 0.1, 0.9], [0.0, 0.0, np.sin(0.3), np.cos(0.3)])
+    parent = se3.matrix_from_pose([0.5, 0.1, 0.9], [0.0, 0.0, np.sin(0.3), np.cos(0.3)])
     goal_rel = vary(c, [0, 0, 0, 1.1, 0, 0])  # a goal turned inside the free DOF
     axis_child = c.frame.matrix()[:3, 0]
     dmp = _line_dmp(goal_rel, [0.0, 0.0, 1.0], spin_axis=axis_child, spin=2.5)
-    grasp = se3.pose_to_matrix([0.1, 0.0, 0.02], [1.0, 0.0, 0.0, 0.0])
+    grasp = se3.matrix_from_pose([0.1, 0.0, 0.02], [1.0, 0.0, 0.0, 0.0])
     goal_w = parent @ goal_rel
     kept = primitive_place_path(
         dmp, parent_world=parent, child_goal=goal_w, grasp=grasp, length_m=0.06, constraint=c

@@ -288,7 +288,7 @@ def _run_with_robot(folder: Path, *, stored_base: bool) -> tuple[Path, Any, np.n
     path = folder / ("stored.json" if stored_base else "derived.json")
     path.write_text(json.dumps(doc))
     tool = arm.tool_transforms(q)
-    pos, quat = se3.matrix_to_pose(tool)
+    pos, quat = se3.pose_from_matrix(tool)
     replay = Demonstration(
         t, [BodyInfo(TOOL_BODY, kind="tool")], {TOOL_BODY: pos}, {TOOL_BODY: quat}
     )

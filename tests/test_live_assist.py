@@ -50,7 +50,7 @@ def test_grasps_of_a_flat_part_come_from_above_and_the_first_is_kept() -> None:
     }
     assist = RobotAssist(["board"], ["part"], meta, "board")
     pos = np.array([[0.3, 0.1, 0.77]])
-    quat = se3.rotvec_to_quat(np.array([[np.radians(10.0), 0.0, 0.0]]))
+    quat = se3.quat_from_rotvec(np.array([[np.radians(10.0), 0.0, 0.0]]))
     first = (pos[0], _down_quat(np.array([1.0, 0.0])))
     targets = assist._grasp_targets(0, pos, quat, first)
     assert targets[0] is first and 2 < len(targets) <= MAX_GRASPS + 1

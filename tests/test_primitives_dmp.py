@@ -109,13 +109,13 @@ def _numpy_rk4(
     """The rollout's RK4 written with the numpy quaternion functions (the reference)."""
     from thirdhand.primitives.dmp import forcing_features, phase, tail_gate
 
-    tau, s = dmp._time_grid(None, run_time, None, "reference")
+    tau, s = dmp.time_grid(None, run_time, None, "reference")
     n, m, k, d = len(s), dmp.substeps, dmp.stiffness, dmp.alpha
     q, w = start.copy(), w0.copy()
     e0 = 2.0 * quat_log(se3.quat_multiply(goal, se3.quat_conjugate(q)))
     fine = np.linspace(0.0, float(s[-1]), 2 * m * (n - 1) + 1)
     x = phase(fine, tau, dmp.alpha_x_)
-    fx = forcing_features(x, *dmp._basis()) @ dmp.weights_
+    fx = forcing_features(x, *dmp.basis()) @ dmp.weights_
     drive = tail_gate(fine, tau)[:, None, None] * (fx[:, None] - k * e0[None] * x[:, None, None])
     drive /= tau**2
     h = (s[1] - s[0]) / m

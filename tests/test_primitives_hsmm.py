@@ -11,6 +11,7 @@ from research.primitive_labels import one_se_choice, per_observation
 from thirdhand.primitives import PrimitiveError
 from thirdhand.primitives.hsmm import (
     HiddenSemiMarkov,
+    allowed_moves,
     brute_force_hsmm,
     hsmm_viterbi,
     path_score,
@@ -82,8 +83,7 @@ def test_viterbi_with_final_weights_equals_enumeration(
 def test_entry_exit_topology_under_viterbi_equals_enumeration(rng: np.random.Generator) -> None:
     # the allowed moves of ``ends`` as −inf weights: enumeration agrees, and every path
     # starts in the entry, ends in the exit and visits neither in between
-    model = HiddenSemiMarkov(2, ends=True)
-    allow_init, allow_trans, allow_final = model._topology(4, ends=True)
+    allow_init, allow_trans, allow_final = allowed_moves(4, ends=True)
     with np.errstate(divide="ignore"):
         ini, tr, fin = np.log(allow_init), np.log(allow_trans), np.log(allow_final)
     assert list(allow_final) == [0, 0, 0, 1] and list(allow_init) == [1, 0, 0, 0]

@@ -87,9 +87,9 @@ def test_library_e_step_equals_enumeration_on_a_real_track() -> None:
         [(t, y) for t, y, _, _ in train]
     )
     t, y, _, _ = max(train, key=lambda tr: tr[1].shape[0])
-    tr = lib._prepare(t, y, "track")
+    tr = lib.prepare(t, y, "track")
     assert 3 <= tr.nodes.size - 2 <= 12
-    scores, _ = lib._scores(tr, lib.mixture_)
+    scores, _ = lib.segment_scores(tr, lib.mixture_)
     u, log_z = segment_marginals(scores)
     u_bf, log_z_bf = brute_force_marginals(scores)
     assert log_z == pytest.approx(log_z_bf, rel=1e-12)

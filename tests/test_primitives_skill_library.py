@@ -44,7 +44,7 @@ def wipe_track(seed: int, rate: float = 100.0) -> tuple[PoseTrack, np.ndarray]:
     t = np.arange(pos.shape[0]) / rate
     # the tool tilts while it reaches and lifts, holds still while it wipes
     tilt = np.concatenate([0.6 * (1 - ease[0]), np.zeros(n[1]), 0.6 * ease[2]])
-    quat = se3.rotvec_to_quat(np.column_stack([tilt, 0 * tilt, 0 * tilt]))
+    quat = se3.quat_from_rotvec(np.column_stack([tilt, 0 * tilt, 0 * tilt]))
     labels = np.repeat([0, 1, 2], n)
     return PoseTrack(t, pos, quat, name=f"wipe{seed}"), labels
 
@@ -165,10 +165,10 @@ def test_angular_rate_is_smoothed_as_a_vector_so_tracker_noise_does_not_add(
     rate, omega = 100.0, 0.8
     t = np.arange(600) / rate
     axis = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
-    quat = se3.rotvec_to_quat(np.outer(omega * t, axis))
+    quat = se3.quat_from_rotvec(np.outer(omega * t, axis))
     if noise_deg:
         rng = np.random.default_rng(3)
-        jitter = se3.rotvec_to_quat(rng.normal(0.0, np.radians(noise_deg), (t.size, 3)))
+        jitter = se3.quat_from_rotvec(rng.normal(0.0, np.radians(noise_deg), (t.size, 3)))
         quat = se3.quat_multiply(jitter, quat)
     track = PoseTrack(t, np.zeros((t.size, 3)), quat)
     tg, x = pose_channels(track, ["logangular"], rate_hz=20.0, window=8)

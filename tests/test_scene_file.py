@@ -44,7 +44,7 @@ def test_scene_geometry_inverts_the_transformation(tmp_path: Path) -> None:
     # A 100 x 40 x 10 mm box; the sensor sits at (0.03, -0.01, 0.02) m in the mesh
     # frame, turned 90° about z: the mesh's pose in the body frame is the inverse.
     _write_stl(tmp_path / "box.stl", box_triangles([0, 0, 0], [100, 40, 10]))
-    q = se3.rotvec_to_quat([0.0, 0.0, np.pi / 2])
+    q = se3.quat_from_rotvec([0.0, 0.0, np.pi / 2])
     spec = {"mesh": "box.stl", "transformation": [[0.03, -0.01, 0.02], [float(v) for v in q]]}
     geo = scene_geometry(_scene(tmp_path / "scene_a.json", {"/a": spec}), ["/a", "/b"])
     assert (

@@ -66,7 +66,7 @@ def test_feasible_spins_agree_with_the_executor(shared_data) -> None:
         # the constraint turned to spin k, planned with that goal only
         dofs = np.zeros(6)
         dofs[3] = -np.pi + 2 * np.pi * k / 12
-        p, q = se3.matrix_to_pose(vary(c, dofs))
+        p, q = se3.pose_from_matrix(vary(c, dofs))
         new = c.model_copy(update={"pos": tuple(map(float, p)), "quat": tuple(map(float, q))})
         spun = task.model_copy(
             update={"constraints": [new if x.id == target else x for x in task.constraints]}

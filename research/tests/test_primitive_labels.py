@@ -222,8 +222,8 @@ def test_grid_cuts_give_a_motion_that_never_stops_candidates() -> None:
     t = np.arange(600) * 0.01
     y = np.stack([np.cos(t * 2 * np.pi), np.sin(t * 2 * np.pi)], 1)
     lib = PrimitiveLibrary(1, threshold=0.05, grid=0.5, n_init=1)
-    assert lib._prepare(t, y, "circle").nodes.size - 2 == 11
-    assert PrimitiveLibrary(1, threshold=0.05)._prepare(t, y, "circle").nodes.size == 2
+    assert lib.prepare(t, y, "circle").nodes.size - 2 == 11
+    assert PrimitiveLibrary(1, threshold=0.05).prepare(t, y, "circle").nodes.size == 2
 
 
 def test_rest_at_the_ends_joins_the_first_and_last_segment() -> None:

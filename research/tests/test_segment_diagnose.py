@@ -153,7 +153,7 @@ def test_contact_column_falls_back_to_the_origin_distance_without_geometry() -> 
     x, ev = feats.pair("box", "lid")
     from thirdhand.segment.features import pair_stats_multi
 
-    s = pair_stats_multi(feats._track("box"), feats._track("lid"), feats.axis, (5,))[0]
+    s = pair_stats_multi(feats.body_track("box"), feats.body_track("lid"), feats.axis, (5,))[0]
     assert s.mean_pos is not None
     origin = np.linalg.norm(s.mean_pos, axis=1)
     assert np.allclose(x[ev, -1], np.log(cfg.eps_contact + origin[ev]))

@@ -65,7 +65,7 @@ def wrong_parameters(inst: ConstraintInstance | None, ev: ConstraintEvent) -> in
     tol_t, tol_r = 0.005, math.radians(5.0)
     dp = inst.pos - np.asarray(ev.pos)
     q_true = np.asarray(ev.quat, dtype=np.float64)
-    rv = se3.quat_to_rotvec(se3.quat_multiply(se3.quat_conjugate(q_true), inst.quat))
+    rv = se3.rotvec_from_quat(se3.quat_multiply(se3.quat_conjugate(q_true), inst.quat))
     truth_ranges = ev.free_dofs.array()
     free_true = truth_ranges[:, 1] > truth_ranges[:, 0]
     # A spin about a truly free axis is not an error: take it out of the rotation.

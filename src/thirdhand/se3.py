@@ -171,7 +171,7 @@ def quat_slerp(q0: ArrayLike, q1: ArrayLike, w: ArrayLike) -> FloatArray:
     return out / np.linalg.norm(out, axis=-1, keepdims=True)
 
 
-def rotvec_to_quat(rotvec: ArrayLike) -> FloatArray:
+def quat_from_rotvec(rotvec: ArrayLike) -> FloatArray:
     """Unit quaternions (..., 4) x y z w of rotation vectors (..., 3), radians."""
     rv = np.asarray(rotvec, dtype=np.float64)
     angle = np.linalg.norm(rv, axis=-1, keepdims=True)
@@ -181,7 +181,7 @@ def rotvec_to_quat(rotvec: ArrayLike) -> FloatArray:
     return np.concatenate([rv * k, np.cos(half)], axis=-1)
 
 
-def quat_to_rotvec(q: ArrayLike) -> FloatArray:
+def rotvec_from_quat(q: ArrayLike) -> FloatArray:
     """Rotation vectors (..., 3), radians, of unit quaternions (..., 4) x y z w.
 
     The shorter of the rotations ``q`` and ``−q`` describe: angle in [0, π].
@@ -196,12 +196,12 @@ def quat_to_rotvec(q: ArrayLike) -> FloatArray:
 
 def quat_log(q: ArrayLike) -> FloatArray:
     """Logarithm of unit quaternions (..., 4): half the rotation vector, (..., 3), norm ≤ π/2."""
-    return 0.5 * quat_to_rotvec(q)
+    return 0.5 * rotvec_from_quat(q)
 
 
 def quat_exp(r: ArrayLike) -> FloatArray:
     """Exponential of pure quaternions (..., 3) into unit quaternions (..., 4) x y z w."""
-    return rotvec_to_quat(2.0 * np.asarray(r, dtype=np.float64))
+    return quat_from_rotvec(2.0 * np.asarray(r, dtype=np.float64))
 
 
 def quat_from_matrix(m: ArrayLike) -> FloatArray:
@@ -232,12 +232,12 @@ def matrix_from_quat(q: ArrayLike) -> FloatArray:
 
 def matrix_from_rotvec(rotvec: ArrayLike) -> FloatArray:
     """Rotation matrices (..., 3, 3) of rotation vectors (..., 3), radians."""
-    return matrix_from_quat(rotvec_to_quat(rotvec))
+    return matrix_from_quat(quat_from_rotvec(rotvec))
 
 
 def rotvec_from_matrix(m: ArrayLike) -> FloatArray:
     """Rotation vectors (..., 3), radians (angle in [0, π]), of rotation matrices (..., 3, 3)."""
-    return quat_to_rotvec(quat_from_matrix(m))
+    return rotvec_from_quat(quat_from_matrix(m))
 
 
 def quat_from_euler(angles: ArrayLike, seq: str = "xyz", *, degrees: bool = False) -> FloatArray:
@@ -332,7 +332,7 @@ def relative_pose(
     return quat_rotate(qa_inv, diff), quat_multiply(qa_inv, q_wb)
 
 
-def pose_to_matrix(p: ArrayLike, q: ArrayLike) -> FloatArray:
+def matrix_from_pose(p: ArrayLike, q: ArrayLike) -> FloatArray:
     """Homogeneous transforms (..., 4, 4) from positions (..., 3) and quaternions (..., 4)."""
     pa = np.asarray(p, dtype=np.float64)
     r = matrix_from_quat(q)
@@ -343,7 +343,7 @@ def pose_to_matrix(p: ArrayLike, q: ArrayLike) -> FloatArray:
     return out
 
 
-def matrix_to_pose(t: ArrayLike) -> tuple[FloatArray, FloatArray]:
+def pose_from_matrix(t: ArrayLike) -> tuple[FloatArray, FloatArray]:
     """Positions (..., 3) and quaternions (..., 4) from homogeneous transforms (..., 4, 4)."""
     arr = np.asarray(t, dtype=np.float64)
     return arr[..., :3, 3].copy(), quat_from_matrix(arr[..., :3, :3])

@@ -196,7 +196,7 @@ def align_x(q: FloatArray, axis: FloatArray) -> FloatArray:  # pragma: no cover 
 def rotvec_scale(x: float, y: float, z: float, w: float) -> float:
     """Factor taking the vector part of a unit quaternion to its rotation vector.
 
-    ``(x, y, z) * rotvec_scale(x, y, z, w)`` is :func:`thirdhand.se3.quat_to_rotvec`
+    ``(x, y, z) * rotvec_scale(x, y, z, w)`` is :func:`thirdhand.se3.rotvec_from_quat`
     of ``(x, y, z, w)``: angle in [0, π], the shorter of ``q`` and ``-q``.
     """
     norm = math.sqrt(x * x + y * y + z * z)

@@ -88,7 +88,7 @@ def to_constraint(
             ranges[:3, 0] = local.min(axis=0)
             ranges[:3, 1] = local.max(axis=0)
             if oriented and quat is not None:
-                rv = se3.quat_to_rotvec(se3.quat_multiply(se3.quat_conjugate(frame_q), quat[idx]))
+                rv = se3.rotvec_from_quat(se3.quat_multiply(se3.quat_conjugate(frame_q), quat[idx]))
                 ranges[3:, 0] = rv.min(axis=0)
                 ranges[3:, 1] = rv.max(axis=0)
             else:

@@ -6,9 +6,9 @@ from typing import Literal
 
 from pydantic import Field, field_validator
 
-from thirdhand.settings import Settings
 from thirdhand.constraints.select import DEFAULT_MODELS
 from thirdhand.constraints.types import MODEL_TYPES
+from thirdhand.settings import Settings
 
 
 class FitSettings(Settings):

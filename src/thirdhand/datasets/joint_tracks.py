@@ -254,7 +254,7 @@ def _pose_field(
     orientation (rad)]``, wavelengths 0.5-1.5 (m or rad), random directions and
     phases, amplitudes ``sqrt(2 / 4)``: over the whole space its variance is 1.
     """
-    rv = se3.quat_to_rotvec(
+    rv = se3.rotvec_from_quat(
         se3.quat_multiply(quat, np.tile(se3.quat_conjugate(q_rest), (pos.shape[0], 1)))
     )
     feat = np.concatenate([pos, rv], axis=1)

@@ -28,7 +28,7 @@ def _smooth_track(
     waves = np.sum(amps[None] * np.sin(2 * np.pi * freqs[None] * t[:, None, None] + phases), 1)
     pos = np.array([0.5, 0.0, 1.0]) + amplitude * waves[:, :3]
     rotvec = 0.8 * waves[:, 3:]
-    return pos, se3.rotvec_to_quat(rotvec)
+    return pos, se3.quat_from_rotvec(rotvec)
 
 
 def random_pick_place_demo(
@@ -120,7 +120,7 @@ def random_pick_place_demo(
             name = f"{hb}_f{i}"
             off = np.array([0.03 * i, 0.02, -0.01 * i])
             pos[name] = p_c + se3.quat_rotate(r, off)
-            quat[name] = se3.quat_multiply(r, se3.rotvec_to_quat([0.1 * i, 0.0, 0.2]))
+            quat[name] = se3.quat_multiply(r, se3.quat_from_rotvec([0.1 * i, 0.0, 0.2]))
             bodies.append(BodyInfo(name, kind="finger", hand=side, hand_body=hb))  # type: ignore[arg-type]
             fingers[side].append(name)
     labels: list[InteractionInterval] = []
@@ -158,7 +158,7 @@ def random_pick_place_demo(
         if noise_pos > 0:
             pos[name] = pos[name] + noise_pos * rng.standard_normal((n, 3))
         if noise_rot > 0:
-            dr = se3.rotvec_to_quat(noise_rot * rng.standard_normal((n, 3)))
+            dr = se3.quat_from_rotvec(noise_rot * rng.standard_normal((n, 3)))
             quat[name] = se3.quat_multiply(quat[name], dr)
         valid[name] = _random_valid(rng, n, missing)
     bodies += [BodyInfo(f"part{j}", kind="part") for j in range(n_parts)]

@@ -229,7 +229,7 @@ def demo_grasps(
     q_part = demo.quat(part)[frames]
     from thirdhand import se3
 
-    t_wp = se3.pose_to_matrix(p_part, q_part)
+    t_wp = se3.matrix_from_pose(p_part, q_part)
     t_pw = invert(t_wp)
     for hand, names in sorted(hands.items()):
         pts = np.stack([demo.pos(n)[frames] for n in names], axis=1)  # (k, f, 3)

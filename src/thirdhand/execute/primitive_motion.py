@@ -165,7 +165,7 @@ def primitive_place_path(
     """
     tp = np.asarray(parent_world, dtype=np.float64)
     goal_w = np.asarray(child_goal, dtype=np.float64)
-    gp, gq = se3.matrix_to_pose(invert(tp) @ goal_w)
+    gp, gq = se3.pose_from_matrix(invert(tp) @ goal_w)
     _, pos, quat = dmp.rollout(goal_pos=gp, goal_quat=gq, at_rest=True)
     dist = np.linalg.norm(pos - gp, axis=1)
     far = np.flatnonzero(dist >= length_m)
@@ -175,9 +175,9 @@ def primitive_place_path(
     if constraint is not None:
         free_rot = np.ptp(constraint.free_dof_array(), axis=1)[3:] > 0.0
         if free_rot.any():
-            d = dof_displacement(se3.pose_to_matrix(tail_p, tail_q), constraint)
+            d = dof_displacement(se3.matrix_from_pose(tail_p, tail_q), constraint)
             d[:, 3:][:, free_rot] = dof_displacement(invert(tp) @ goal_w, constraint)[3:][free_rot]
-            tail_p, tail_q = se3.matrix_to_pose(vary(constraint, d))
+            tail_p, tail_q = se3.pose_from_matrix(vary(constraint, d))
     # arc length of the child's motion (5 cm per radian of turning) to resample evenly
     dot = np.abs(np.sum(tail_q[1:] * tail_q[:-1], axis=1))
     ang = 2.0 * np.arccos(np.clip(dot, 0.0, 1.0))
@@ -186,6 +186,6 @@ def primitive_place_path(
     )
     n = max(int(np.ceil(arc[-1] / step_m)) + 1, 2)
     idx = np.unique(np.searchsorted(arc, np.linspace(0.0, arc[-1], n)).clip(0, len(arc) - 1))
-    child = tp @ se3.pose_to_matrix(tail_p[idx], tail_q[idx])
+    child = tp @ se3.matrix_from_pose(tail_p[idx], tail_q[idx])
     child[-1] = goal_w  # land exactly on the goal (the rollout converges to it asymptotically)
     return np.asarray(child @ np.asarray(grasp, dtype=np.float64), dtype=np.float64)

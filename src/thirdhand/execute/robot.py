@@ -65,7 +65,7 @@ def as_pose(pose: PoseLike) -> tuple[FloatArray, FloatArray]:
 
 def pose_matrix(pose: PoseLike) -> FloatArray:
     """Homogeneous transform (4, 4) of a pose."""
-    return se3.pose_to_matrix(*as_pose(pose))
+    return se3.matrix_from_pose(*as_pose(pose))
 
 
 def robots_dir() -> Path:
@@ -288,7 +288,7 @@ class Robot:
         if [model.names[j] for j in range(1, model.njoints)] != list(spec.arm_joints):
             raise RobotError(f"{name}: reduced model does not have the joints {spec.arm_joints}")
         pose = (np.zeros(3), se3.quat_identity()) if base_pose is None else as_pose(base_pose)
-        _prefold_base(model, rgeom, pin.SE3(se3.pose_to_matrix(*pose)))
+        _prefold_base(model, rgeom, pin.SE3(se3.matrix_from_pose(*pose)))
         rgeom.addAllCollisionPairs()
         pin.removeCollisionPairs(model, rgeom, str(srdf))
         return cls(name, model, rgeom, spec, srdf, pose)
@@ -348,11 +348,11 @@ class Robot:
         """
         qa = self.check_q(q)
         t = self.tool_transforms(qa[None])[0]
-        return se3.matrix_to_pose(t)
+        return se3.pose_from_matrix(t)
 
     def fk_batch(self, qs: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Tool poses of many configurations ``qs`` (n, dof): pos (n, 3), quat (n, 4)."""
-        return se3.matrix_to_pose(self.tool_transforms(qs))
+        return se3.pose_from_matrix(self.tool_transforms(qs))
 
     def tool_transforms(self, qs: ArrayLike) -> FloatArray:
         """``T_world_tool`` of many configurations (n, dof), shape (n, 4, 4)."""
@@ -373,7 +373,7 @@ class Robot:
             raise RobotError(f"{self.name}: no frame named {frame!r}")
         fid = self.model.getFrameId(frame)
         pin.framesForwardKinematics(self.model, self.data, qa)
-        return se3.matrix_to_pose(self.data.oMf[fid].homogeneous)
+        return se3.pose_from_matrix(self.data.oMf[fid].homogeneous)
 
     def ik(
         self,

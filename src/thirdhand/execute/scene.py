@@ -276,7 +276,7 @@ class CollisionScene(SceneChecks):
             t = self.robot.tool_transforms(self.robot.check_q(q)[None])[0] @ body.transform
         else:
             t = body.transform
-        return se3.matrix_to_pose(t @ np.linalg.inv(body.offset))
+        return se3.pose_from_matrix(t @ np.linalg.inv(body.offset))
 
     def remove_object(self, name: str) -> None:
         """Remove an object (grasped or not) from the world."""

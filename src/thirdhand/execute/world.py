@@ -54,7 +54,7 @@ class SimWorld:
         self.scene = CollisionScene(robot)
         self.scene.add_table(height=cell.table_z, size=cell.table_size, center=cell.table_center)
         for name, pose, size in cell.fixtures:
-            self.scene.add_box(name, se3.matrix_to_pose(pose), size)
+            self.scene.add_box(name, se3.pose_from_matrix(pose), size)
             self.scene.allow(name, cell.base)
         self.offset: dict[str, FloatArray] = {}
         objs = {o.name: o for o in task.objects}
@@ -66,14 +66,14 @@ class SimWorld:
                 self.offset[name] = m
                 scale = obj.scale if obj.scale is not None else 1.0
                 self.scene.add_object(
-                    name, se3.matrix_to_pose(pose @ m), mesh_path=path, scale=scale
+                    name, se3.pose_from_matrix(pose @ m), mesh_path=path, scale=scale
                 )
             elif obj.bbox_min is not None and obj.bbox_max is not None:
                 lo, hi = np.asarray(obj.bbox_min), np.asarray(obj.bbox_max)
                 self.offset[name] = np.eye(4)
                 self.scene.add_object(
                     name,
-                    se3.matrix_to_pose(pose),
+                    se3.pose_from_matrix(pose),
                     size=np.maximum(hi - lo, 1e-3),
                     box_center=(lo + hi) / 2.0,
                 )
@@ -84,12 +84,12 @@ class SimWorld:
 
     def pose(self, name: str, q: FloatArray | None = None) -> FloatArray:
         """``T_world_body`` of a part (a grasped one needs the arm's ``q``)."""
-        t = se3.pose_to_matrix(*self.scene.object_pose(name, q))
+        t = se3.matrix_from_pose(*self.scene.object_pose(name, q))
         return np.asarray(t @ invert(self.offset[name]), dtype=np.float64)
 
     def set_pose(self, name: str, pose: FloatArray) -> None:
         """Move a free part to ``T_world_body``."""
-        self.scene.set_object_pose(name, se3.matrix_to_pose(pose @ self.offset[name]))
+        self.scene.set_object_pose(name, se3.pose_from_matrix(pose @ self.offset[name]))
 
     def poses(self) -> dict[str, FloatArray]:
         """Every free part's body pose."""

@@ -389,7 +389,7 @@ def _robot_base(doc: dict[str, Any], replay: Demonstration | None, arm: Robot) -
 
     base = doc.get("base_pose")
     if base is not None:
-        return se3.pose_to_matrix(np.asarray(base["pos"]), np.asarray(base["quat"]))
+        return se3.matrix_from_pose(np.asarray(base["pos"]), np.asarray(base["quat"]))
     if replay is None or TOOL_BODY not in replay.body_names:
         return None
     from thirdhand.export.robot_model import base_from_tool
@@ -402,7 +402,7 @@ def _robot_base(doc: dict[str, Any], replay: Demonstration | None, arm: Robot) -
     j = int(np.argmin(np.abs(t - replay.t[k])))
     if abs(t[j] - replay.t[k]) > 1e-3:  # the two files sample the same run at the same times
         return None
-    tool = se3.pose_to_matrix(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
+    tool = se3.matrix_from_pose(replay.pos(TOOL_BODY)[k], replay.quat(TOOL_BODY)[k])
     return base_from_tool(arm, np.asarray(doc["q"][j], dtype=np.float64), tool)
 
 
@@ -454,7 +454,7 @@ def _log_robot(rec: Any, doc: dict[str, Any], replay: Demonstration | None, path
     for k, shape in enumerate(shapes):
         entity = f"execution/robot/{rr.escape_entity_path_part(shape.name)}"
         rec.log(entity, _robot_archetype(shape), static=True)
-        pos, quat = se3.matrix_to_pose(poses[:, k])
+        pos, quat = se3.pose_from_matrix(poses[:, k])
         rec.send_columns(
             entity,
             indexes=[rr.TimeColumn(EXECUTION_TIMELINE, duration=t)],

@@ -220,7 +220,7 @@ def demonstrated_grasps(
     import numpy as np
 
     from thirdhand.execute.grasps import demo_grasps
-    from thirdhand.se3 import matrix_to_pose
+    from thirdhand.se3 import pose_from_matrix
     from thirdhand.task.geometry import Pose
     from thirdhand.task.stages import DemoGraspRecord, GraspsBlock
 
@@ -236,7 +236,7 @@ def demonstrated_grasps(
             box = (np.asarray(obj.bbox_min), np.asarray(obj.bbox_max))
         records = []
         for g in demo_grasps(demo, c.child, c.time, bbox=box):
-            pos, quat = matrix_to_pose(g.pose)
+            pos, quat = pose_from_matrix(g.pose)
             pose = Pose.model_validate({"pos": pos.tolist(), "quat": quat.tolist()})
             records.append(DemoGraspRecord(hand=g.label, pose=pose, demo=c.demo, time=c.time))
         if records:

@@ -797,8 +797,8 @@ class RobotAssist:
                 q_lift = self._lift_clear(scene, name, q_grasp, self._resting)
                 assert self._handover is not None
                 if q_lift is not None:
-                    t_tool = se3.pose_to_matrix(*self._robot.fk(q_grasp))
-                    held = np.linalg.inv(t_tool) @ se3.pose_to_matrix(pos[part], quat[part])
+                    t_tool = se3.matrix_from_pose(*self._robot.fk(q_grasp))
+                    held = np.linalg.inv(t_tool) @ se3.matrix_from_pose(pos[part], quat[part])
                     targets = self._held_clear(part, held)
                     for target in targets:
                         q_hand = self._robot.ik(
@@ -863,7 +863,7 @@ class RobotAssist:
         corners = box_corners((c - size / 2.0, c + size / 2.0))  # part frame
         ranked = []
         for target in _handover_targets(self._handover):
-            t_part = se3.pose_to_matrix(*target) @ t_tool_part
+            t_part = se3.matrix_from_pose(*target) @ t_tool_part
             world = corners @ t_part[:3, :3].T + t_part[:3, 3]
             ranked.append((float(np.linalg.norm(world - self._root0, axis=1).min()), target))
         ranked.sort(key=lambda r: -r[0])
@@ -944,7 +944,7 @@ class RobotAssist:
         from thirdhand.execute.grasps import shape_grasps
 
         c, size = self._box(part)
-        t_wp = se3.pose_to_matrix(pos[part], quat[part])
+        t_wp = se3.matrix_from_pose(pos[part], quat[part])
         world_c = pos[part] + se3.quat_rotate(quat[part], c)
         ranked = []
         for g in shape_grasps(c - size / 2.0, c + size / 2.0):

@@ -522,7 +522,7 @@ def _refine(
                 dr = float(theta[1]) / t_scale
                 j = 2
         if fit_frame:
-            q = se3.rotvec_to_quat(theta[j : j + 3])
+            q = se3.quat_from_rotvec(theta[j : j + 3])
             p = theta[j + 3 : j + 6]
         return off, dr, p, q
 
@@ -535,7 +535,7 @@ def _refine(
     if fit_time:
         theta0 += [offset0, drift0 * t_scale] if fit_drift else [offset0]
     if fit_frame:
-        theta0 += [*se3.quat_to_rotvec(q0), *p0]
+        theta0 += [*se3.rotvec_from_quat(q0), *p0]
     if not theta0:
         return start
     sol = least_squares(fun, np.asarray(theta0), method="lm", xtol=1e-14, ftol=1e-14)

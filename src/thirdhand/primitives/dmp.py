@@ -179,17 +179,18 @@ class TransformationSystem:
         """The phase decay actually used."""
         return float(-np.log(FINAL_PHASE)) if self.alpha_x is None else float(self.alpha_x)
 
-    def _basis(self) -> tuple[FloatArray, FloatArray]:
+    def basis(self) -> tuple[FloatArray, FloatArray]:
+        """Centres and widths of the forcing term's phase RBFs (:func:`basis_centres`)."""
         return basis_centres(self.n_weights, self.alpha_x_)
 
     def _fit_weights(self, x: FloatArray, target: FloatArray) -> None:
         """Ridge least squares of the forcing weights: ``features(x) @ W ≈ target``."""
-        feats = forcing_features(x, *self._basis())
+        feats = forcing_features(x, *self.basis())
         gram = feats.T @ feats
         gram[np.diag_indices_from(gram)] += self.regularization * max(np.trace(gram), 1e-12)
         self.weights_ = np.linalg.solve(gram, feats.T @ target).astype(np.float64, copy=False)
 
-    def _time_grid(
+    def time_grid(
         self, duration: float | None, run_time: float | None, dt: float | None, what: str
     ) -> tuple[float, FloatArray]:
         """``tau`` and the output times (from 0, at least two) of a rollout.
@@ -265,7 +266,7 @@ class DMP(TransformationSystem):
 
     def forcing(self, x: ArrayLike) -> FloatArray:
         """Forcing term ``f(x)``, shape (n, dims)."""
-        return forcing_features(np.atleast_1d(x), *self._basis()) @ self.weights_
+        return forcing_features(np.atleast_1d(x), *self.basis()) @ self.weights_
 
     # ----------------------------------------------------------------- rollout
     def rollout(
@@ -300,7 +301,7 @@ class DMP(TransformationSystem):
         y, yd : ndarray, shape (n, dims)
             Positions and velocities.
         """
-        tau, s = self._time_grid(duration, run_time, dt, "DMP")
+        tau, s = self.time_grid(duration, run_time, dt, "DMP")
         dims = self.weights_.shape[1]
         y0 = self.start_ if start is None else _vec(start, dims, "start")
         g = self.goal_ if goal is None else _vec(goal, dims, "goal")

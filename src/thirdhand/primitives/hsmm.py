@@ -206,6 +206,32 @@ def _ends_of(z: IntArray, open_start: bool = False, open_end: bool = False) -> t
     return (0 if open_start else h), (0 if open_end else e)
 
 
+def allowed_moves(k_n: int, ends: bool) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Allowed first states, transitions and last states (1 allowed, 0 not) of ``k_n`` states.
+
+    With ``ends``, state 0 is the entry and state ``k_n - 1`` the exit: every run starts
+    in the entry and ends in the exit, visits neither in between, and does not go
+    straight from one to the other.
+
+    Returns
+    -------
+    init : ndarray, shape (k_n,)
+    trans : ndarray, shape (k_n, k_n)
+    final : ndarray, shape (k_n,)
+    """
+    if not ends:
+        trans = np.ones((k_n, k_n)) - np.eye(k_n) if k_n > 1 else np.ones((1, 1))
+        return np.ones(k_n), trans, np.ones(k_n)
+    last = k_n - 1
+    trans = np.ones((k_n, k_n)) - np.eye(k_n)
+    trans[:, 0] = 0.0  # nothing returns to the entry
+    trans[last, :] = 0.0  # nothing follows the exit
+    trans[0, last] = 0.0  # the work between them is not skipped
+    init, final = np.zeros(k_n), np.zeros(k_n)
+    init[0], final[last] = 1.0, 1.0
+    return init, trans, final
+
+
 class HiddenSemiMarkov:
     """Hidden semi-Markov model with Gaussian emissions and log-normal durations.
 
@@ -293,21 +319,6 @@ class HiddenSemiMarkov:
         self.cov_prior_runs = cov_prior_runs
 
     # ------------------------------------------------------------ fitting
-    @staticmethod
-    def _topology(k_n: int, ends: bool) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Allowed first states, transitions and last states (1 allowed, 0 not) of ``k_n``."""
-        if not ends:
-            trans = np.ones((k_n, k_n)) - np.eye(k_n) if k_n > 1 else np.ones((1, 1))
-            return np.ones(k_n), trans, np.ones(k_n)
-        last = k_n - 1
-        trans = np.ones((k_n, k_n)) - np.eye(k_n)
-        trans[:, 0] = 0.0  # nothing returns to the entry
-        trans[last, :] = 0.0  # nothing follows the exit
-        trans[0, last] = 0.0  # the work between them is not skipped
-        init, final = np.zeros(k_n), np.zeros(k_n)
-        init[0], final[last] = 1.0, 1.0
-        return init, trans, final
-
     def _fit_from(
         self, xs: Sequence[FloatArray], zs: Sequence[IntArray], k_n: int, ends: bool = False
     ) -> None:
@@ -340,7 +351,7 @@ class HiddenSemiMarkov:
             self.covs_[k] = cov + self.reg * np.eye(c)
         lens: list[list[float]] = [[] for _ in range(k_n)]
         # Laplace counts on the allowed moves (no self-transition; a single state only starts)
-        allow_init, allow_trans, allow_final = self._topology(k_n, ends)
+        allow_init, allow_trans, allow_final = allowed_moves(k_n, ends)
         trans, init = allow_trans.copy(), allow_init.copy()
         longest = 1
         for zz in zs:

@@ -85,7 +85,7 @@ class Parse:
 
 
 @dataclass
-class _Track:
+class PreparedTrack:
     y: FloatArray
     levels: FloatArray
     nodes: IntArray
@@ -199,14 +199,21 @@ class PrimitiveLibrary:
         self.seed = seed
 
     # ----------------------------------------------------------------- data
-    def _prepare(
+    def prepare(
         self,
         t: ArrayLike,
         y: ArrayLike,
         name: str,
         cuts: IntArray | None = None,
         levels: ArrayLike | None = None,
-    ) -> _Track:
+    ) -> PreparedTrack:
+        """A track checked and cut into candidate segments (nodes) with their features.
+
+        Raises
+        ------
+        PrimitiveError
+            If the track is shorter than a speed window and the shortest segment.
+        """
         need = max(self.min_length, 3, self.window)
         n_given = int(np.asarray(t).size)
         if n_given < need:
@@ -251,11 +258,15 @@ class PrimitiveLibrary:
             n_weights=self.n_weights,
             levels=la,
         )
-        return _Track(
+        return PreparedTrack(
             ya, la, nodes, ia.astype(np.int64), ib.astype(np.int64), allowed, feats, lo, n_full
         )
 
-    def _scores(self, tr: _Track, mixture: ProMPMixture) -> tuple[FloatArray, FloatArray]:
+    def segment_scores(
+        self, tr: PreparedTrack, mixture: ProMPMixture
+    ) -> tuple[FloatArray, FloatArray]:
+        """Log-scores of every candidate segment between the track's cut nodes, per skill
+        summed out (``mat[i, j]``: nodes i to j; -inf where not allowed), and per skill."""
         lj = mixture.log_joint(tr.features)
         s = np.where(tr.allowed, logsumexp(lj, axis=1), -np.inf)
         n = tr.nodes.size
@@ -264,11 +275,11 @@ class PrimitiveLibrary:
         return mat, lj
 
     def _e_step(
-        self, tracks: list[_Track], mixture: ProMPMixture
+        self, tracks: list[PreparedTrack], mixture: ProMPMixture
     ) -> tuple[FloatArray, float, list[FloatArray]]:
         us, total, mats = [], 0.0, []
         for tr in tracks:
-            mat, _ = self._scores(tr, mixture)
+            mat, _ = self.segment_scores(tr, mixture)
             u, log_z = segment_marginals(mat)
             us.append(u[tr.ia, tr.ib])
             mats.append(u)
@@ -294,7 +305,7 @@ class PrimitiveLibrary:
         if self.n_skills < 1:
             raise PrimitiveError(f"primitive library: at least 1 skill, got {self.n_skills}")
         prepared = [
-            self._prepare(tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None)
+            self.prepare(tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None)
             for i, tr in enumerate(tracks)
         ]
         dims = {(tr.y.shape[1], tr.levels.shape[1]) for tr in prepared}
@@ -357,7 +368,7 @@ class PrimitiveLibrary:
             As in :meth:`fit`.
         """
         prepared = [
-            self._prepare(tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None)
+            self.prepare(tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None)
             for i, tr in enumerate(tracks)
         ]
         return self._e_step(prepared, self.mixture_)[1]
@@ -372,7 +383,7 @@ class PrimitiveLibrary:
         """
         return sum(
             int(
-                self._prepare(
+                self.prepare(
                     tr[0], tr[1], f"track {i}", levels=tr[2] if len(tr) > 2 else None
                 ).allowed.sum()
             )
@@ -423,7 +434,7 @@ class PrimitiveLibrary:
         cuts : array_like of int, optional
             Candidate cuts to use instead of the speed threshold.
         """
-        tr = self._prepare(
+        tr = self.prepare(
             t,
             y,
             name,
@@ -472,7 +483,7 @@ def _union_cuts(a: IntArray, b: IntArray, min_gap: int) -> IntArray:
     return np.array(out, dtype=np.int64)
 
 
-def _flat(tr: _Track) -> FloatArray:
+def _flat(tr: PreparedTrack) -> FloatArray:
     n = tr.nodes.size
     mat = np.full((n, n), -np.inf)
     mat[tr.ia, tr.ib] = np.where(tr.allowed, 0.0, -np.inf)

@@ -251,7 +251,7 @@ def accumulated_rotation(quat: FloatArray) -> FloatArray:
         Orientation of a body in some frame (sign-continuous or not).
     """
     q = np.asarray(quat, dtype=np.float64)
-    step = se3.quat_to_rotvec(se3.quat_multiply(q[1:], se3.quat_conjugate(q[:-1])))
+    step = se3.rotvec_from_quat(se3.quat_multiply(q[1:], se3.quat_conjugate(q[:-1])))
     return np.vstack([np.zeros((1, 3)), np.cumsum(step, axis=0)])
 
 

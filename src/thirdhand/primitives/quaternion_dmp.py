@@ -56,7 +56,7 @@ def _derivative(  # pragma: no cover - compiled
 
     ``e = 2 log(g ⊗ q̄)`` (the rotation vector of the shorter turn), ``ω̇ = K/tau² e −
     D/tau ω + drive`` and ``q̇ = ½ (ω, 0) ⊗ q``, as :func:`thirdhand.se3.quat_multiply`
-    and :func:`thirdhand.se3.quat_to_rotvec` compute them.
+    and :func:`thirdhand.se3.rotvec_from_quat` compute them.
     """
     x2, y2, z2, w2 = -q[0], -q[1], -q[2], q[3]
     x1, y1, z1, w1 = g[0], g[1], g[2], g[3]
@@ -259,7 +259,7 @@ class QuaternionDMP(TransformationSystem):
         w : ndarray, shape (n, 3) or (n, batch, 3)
             Angular velocity, rad/s, base frame.
         """
-        tau, s = self._time_grid(duration, run_time, dt, "quaternion DMP")
+        tau, s = self.time_grid(duration, run_time, dt, "quaternion DMP")
         n, run = len(s), float(s[-1])
         q0 = self.start_ if start is None else np.asarray(start, dtype=np.float64)
         batched = q0.ndim == 2
@@ -283,7 +283,7 @@ class QuaternionDMP(TransformationSystem):
         m = self.substeps
         fine = np.linspace(0.0, run, 2 * m * (n - 1) + 1)
         x = phase(fine, tau, self.alpha_x_)
-        fx = forcing_features(x, *self._basis()) @ self.weights_
+        fx = forcing_features(x, *self.basis()) @ self.weights_
         gate = tail_gate(fine, tau)[:, None, None]
         drive = gate * (fx[:, None, :] - k * e0[None] * x[:, None, None]) / tau**2
         h = (s[1] - s[0]) / m

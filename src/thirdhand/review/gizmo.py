@@ -63,7 +63,7 @@ def moved_child(
 
 def dominant_operation(pos: FloatArray, quat: FloatArray) -> str:
     """Effort operation of a gizmo motion: its largest translation (m) or rotation (rad x 0.1 m)."""
-    rotvec = se3.quat_to_rotvec(quat)
+    rotvec = se3.rotvec_from_quat(quat)
     scores = np.concatenate([np.abs(pos), 0.1 * np.abs(rotvec)])
     return ("movex", "movey", "movez", "rotx", "roty", "rotz")[int(np.argmax(scores))]
 

@@ -256,7 +256,9 @@ class DemoFeatures:
         #: Frames per window whatever their validity, shape (n_steps,).
         self.nominal: FloatArray = cs[hi] - cs[lo]
 
-    def _track(self, name: str) -> tuple[FloatArray, FloatArray, BoolArray]:
+    def body_track(self, name: str) -> tuple[FloatArray, FloatArray, BoolArray]:
+        """A body's positions, quaternions and validity on the recording's frames, with
+        short gaps filled when ``fill_gaps_s`` is set (computed once)."""
         if name not in self._tracks:
             tr = self.demo.track(name)
             track = (tr.pos, tr.quat, tr.valid)
@@ -277,14 +279,14 @@ class DemoFeatures:
     def body(self, name: str) -> list[BodyStats]:
         """Windowed variances of one body (cached), one per window of the config."""
         if name not in self._bodies:
-            p, q, v = self._track(name)
+            p, q, v = self.body_track(name)
             self._bodies[name] = body_stats_multi(p, q, v, self.axis, self.config.windows)
         return self._bodies[name]
 
     def floor(self, name: str) -> NoiseFloor:
         """Noise floor of one body's track (cached; :mod:`thirdhand.segment.noise`)."""
         if name not in self._floors:
-            self._floors[name] = noise_floor(*self._track(name))
+            self._floors[name] = noise_floor(*self.body_track(name))
         return self._floors[name]
 
     def rest(self, name: str) -> BoolArray:
@@ -301,8 +303,8 @@ class DemoFeatures:
         if a == b:
             raise SegmentationError(f"pair ({a!r}, {b!r}) pairs a body with itself")
         stats = pair_stats_multi(
-            self._track(a),
-            self._track(b),
+            self.body_track(a),
+            self.body_track(b),
             self.axis,
             self.config.windows,
             distance=self.config.distance,

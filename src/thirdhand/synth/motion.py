@@ -35,8 +35,8 @@ def phase(t: FloatArray, t0: float, t1: float) -> FloatArray:
 
 
 # One rotation algebra for the whole package (thirdhand.se3); these names stay for the scenes.
-quat_exp = se3.rotvec_to_quat
-quat_log = se3.quat_to_rotvec
+quat_exp = se3.quat_from_rotvec
+quat_log = se3.rotvec_from_quat
 
 
 def axis_angle_quat(axis: ArrayLike, angle: float) -> FloatArray:

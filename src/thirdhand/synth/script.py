@@ -462,27 +462,7 @@ class Sim:
         :class:`Wobble` (a held body at rest following the hand's small motion,
         pushes included), a :class:`Hold` and an idle hand's sway are not moves.
         """
-        return _merge(self._moving(body, t0, t1, 0))
-
-    def _moving(self, body: str, t0: float, t1: float, depth: int) -> list[tuple[float, float]]:
-        if depth > 64:
-            raise RuntimeError(f"parent chain of {body} loops")
-        segs = self.timeline.segments[body]
-        out: list[tuple[float, float]] = []
-        for k, seg in enumerate(segs):
-            lo = max(t0, seg.start if k else -np.inf)
-            hi = min(t1, segs[k + 1].start if k + 1 < len(segs) else np.inf)
-            if hi <= lo:
-                continue
-            active = _driven(seg.motion)
-            if active is not None:
-                ends = [(u - seg.t_offset) / seg.t_sign for u in active]
-                a, b = min(ends), max(ends)
-                if min(b, hi) > max(a, lo):
-                    out.append((max(a, lo), min(b, hi)))
-            if seg.parent is not None:
-                out += self._moving(seg.parent, lo, hi, depth + 1)
-        return out
+        return _merge(_moving(self.timeline, body, t0, t1, 0))
 
     def _connected(
         self, links: list[tuple[str, str, float, float]], step: float = 1.0 / 960.0
@@ -495,7 +475,9 @@ class Sim:
         A chain of rigid links is rigid, so every labelled pair is.
         """
         spans = [
-            (a, b, s, e) for a, b, t0, t1 in links for s, e in self._rigid_spans(a, b, t0, t1, step)
+            (a, b, s, e)
+            for a, b, t0, t1 in links
+            for s, e in rigid_spans(self.timeline, a, b, t0, t1, step)
         ]
         order = {name: i for i, name in enumerate(self.bodies)}
         cuts = sorted({s for *_, s, _ in spans} | {e for *_, e in spans})
@@ -552,32 +534,57 @@ class Sim:
                     continue
                 key = (q, p, a, b)
                 if key not in rigid_cache:
-                    rigid_cache[key] = self._rigid_spans(q, p, a, b, step)
+                    rigid_cache[key] = rigid_spans(self.timeline, q, p, a, b, step)
                 out += [InteractionInterval(finger, p, s, e) for s, e in rigid_cache[key]]
         return out
 
-    def _rigid_spans(
-        self, parent: str, child: str, t0: float, t1: float, step: float
-    ) -> list[tuple[float, float]]:
-        """Sub-intervals of ``[t0, t1]`` where ``child`` is still in ``parent``'s frame."""
-        n = max(int(np.ceil((t1 - t0) / step)), 1) + 1
-        t = np.linspace(t0, t1, n)
-        poses = self.timeline.evaluate(t, [parent, child])
-        rp, rq = se3.relative_pose(*poses[parent], *poses[child])
-        rq = rq * np.where(np.sum(rq * rq[:1], axis=1) < 0, -1.0, 1.0)[:, None]
-        jump = np.maximum(
-            np.linalg.norm(np.diff(rp, axis=0), axis=1), np.linalg.norm(np.diff(rq, axis=0), axis=1)
-        )
-        moving = jump > 1e-9
-        still = np.ones(n, dtype=bool)
-        still[:-1] &= ~moving
-        still[1:] &= ~moving
-        spans = []
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
-        for lo, hi in zip(edges[::2], edges[1::2], strict=True):
-            if hi - lo >= 2:
-                spans.append((float(t[lo]), float(t[hi - 1])))
-        return spans
+
+def rigid_spans(
+    timeline: Timeline, parent: str, child: str, t0: float, t1: float, step: float
+) -> list[tuple[float, float]]:
+    """Sub-intervals of ``[t0, t1]`` (seconds) where ``child`` is still in ``parent``'s frame,
+    checked on a ``step``-second grid."""
+    n = max(int(np.ceil((t1 - t0) / step)), 1) + 1
+    t = np.linspace(t0, t1, n)
+    poses = timeline.evaluate(t, [parent, child])
+    rp, rq = se3.relative_pose(*poses[parent], *poses[child])
+    rq = rq * np.where(np.sum(rq * rq[:1], axis=1) < 0, -1.0, 1.0)[:, None]
+    jump = np.maximum(
+        np.linalg.norm(np.diff(rp, axis=0), axis=1), np.linalg.norm(np.diff(rq, axis=0), axis=1)
+    )
+    moving = jump > 1e-9
+    still = np.ones(n, dtype=bool)
+    still[:-1] &= ~moving
+    still[1:] &= ~moving
+    spans = []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+    for lo, hi in zip(edges[::2], edges[1::2], strict=True):
+        if hi - lo >= 2:
+            spans.append((float(t[lo]), float(t[hi - 1])))
+    return spans
+
+
+def _moving(
+    timeline: Timeline, body: str, t0: float, t1: float, depth: int
+) -> list[tuple[float, float]]:
+    if depth > 64:
+        raise RuntimeError(f"parent chain of {body} loops")
+    segs = timeline.segments[body]
+    out: list[tuple[float, float]] = []
+    for k, seg in enumerate(segs):
+        lo = max(t0, seg.start if k else -np.inf)
+        hi = min(t1, segs[k + 1].start if k + 1 < len(segs) else np.inf)
+        if hi <= lo:
+            continue
+        active = _driven(seg.motion)
+        if active is not None:
+            ends = [(u - seg.t_offset) / seg.t_sign for u in active]
+            a, b = min(ends), max(ends)
+            if min(b, hi) > max(a, lo):
+                out.append((max(a, lo), min(b, hi)))
+        if seg.parent is not None:
+            out += _moving(timeline, seg.parent, lo, hi, depth + 1)
+    return out
 
 
 def _driven(motion: object) -> tuple[float, float] | None:

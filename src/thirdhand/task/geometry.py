@@ -17,7 +17,7 @@ from thirdhand.arrays import FloatArray
 # Defined once, in the core types, and re-exported here for the task-file models.
 from thirdhand.demonstration import DOF_NAMES as DOF_NAMES
 from thirdhand.demonstration import FreeDofs as FreeDofs
-from thirdhand.se3 import pose_to_matrix
+from thirdhand.se3 import matrix_from_pose
 
 #: A quaternion whose norm is within this of 1 is stored exactly as given (so
 #: float32-exported data round-trip bit for bit).
@@ -111,4 +111,4 @@ class Pose(TaskModel):
 
     def matrix(self) -> FloatArray:
         """Homogeneous transform, shape (4, 4), mapping B coordinates into A."""
-        return pose_to_matrix(self.pos, self.quat)
+        return matrix_from_pose(self.pos, self.quat)
