@@ -159,3 +159,20 @@ def test_no_module_imports_another_packages_private_module() -> None:
             if not (module == owner or module.startswith(owner + ".")):
                 offenders.append(f"{module} -> {imported}")
     assert offenders == []
+
+
+def test_one_opencv_distribution() -> None:
+    """cv2 comes from one distribution: two (``opencv-python-headless`` beside the
+    ``opencv-contrib-python`` mediapipe requires) overwrite each other's files, and
+    which one wins depends on the order they were installed in."""
+    import importlib.metadata
+    import tomllib
+
+    project = tomllib.loads((PACKAGE.parents[1] / "pyproject.toml").read_text())["project"]
+    deps = list(project["dependencies"])
+    for extra in project["optional-dependencies"].values():
+        deps += extra
+    named = {d.split(">")[0].split("=")[0].split("<")[0].strip() for d in deps}
+    assert {n for n in named if n.startswith("opencv")} == {"opencv-contrib-python"}
+    providers = importlib.metadata.packages_distributions().get("cv2", [])
+    assert len(set(providers)) <= 1, providers
