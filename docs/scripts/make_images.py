@@ -32,6 +32,16 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 IMAGES = HERE.parent / "images"
+#: Headless chromium with software WebGL, as the review GUI's browser tests run it.
+CHROMIUM = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+]
 
 
 def _demo(folder: Path) -> None:
@@ -84,40 +94,43 @@ def _execution_plot(folder: Path, target: Path) -> None:
 
 def _review_screenshot(folder: Path, target: Path) -> None:
     import socket
+    import tempfile
     import time
 
+    from playwright.sync_api import TimeoutError as PlaywrightTimeout
     from playwright.sync_api import sync_playwright
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    server = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "thirdhand",
-            "review",
-            str(folder / "task.json"),
-            "--port",
-            str(port),
-        ],
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.DEVNULL,
-    )
-    try:
-        time.sleep(8)
-        with sync_playwright() as p:
-            browser = p.chromium.launch(
-                executable_path="/usr/bin/chromium", args=["--use-gl=swiftshader"]
-            )
-            page = browser.new_page(viewport={"width": 1280, "height": 720})
-            page.goto(f"http://127.0.0.1:{port}")
-            page.wait_for_timeout(12000)
-            page.screenshot(path=str(target))
-            browser.close()
-    finally:
-        server.terminate()
-        server.wait(timeout=30)
+    with tempfile.TemporaryDirectory() as tmp:
+        light = Path(tmp) / "light.toml"
+        light.write_text("[review]\nlight = true\n", encoding="utf-8")  # software WebGL
+        command = [sys.executable, "-m", "thirdhand", "review", str(folder / "task.json")]
+        command += ["--port", str(port), "--config", str(light)]
+        server = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        try:
+            with sync_playwright() as p:
+                browser = p.chromium.launch(executable_path="/usr/bin/chromium", args=CHROMIUM)
+                page = browser.new_page(viewport={"width": 1280, "height": 800})
+                for _ in range(60):  # the server imports its stage first
+                    try:
+                        page.goto(f"http://127.0.0.1:{port}")
+                        break
+                    except Exception:
+                        time.sleep(1.0)
+                page.get_by_role("button", name="Save", exact=True).wait_for(timeout=120_000)
+                notice = page.locator(".mantine-Notification-root", has_text="Software WebGL")
+                try:
+                    notice.locator("button").click(timeout=3000)
+                except PlaywrightTimeout:
+                    pass
+                time.sleep(3.0)  # let software WebGL draw
+                page.screenshot(path=str(target), timeout=120_000)
+                browser.close()
+        finally:
+            server.terminate()
+            server.wait(timeout=30)
 
 
 def main(argv: list[str] | None = None) -> None:

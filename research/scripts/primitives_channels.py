@@ -1,4 +1,4 @@
-"""One row of the channels table of ``docs/primitives.md``: a choice of level channels on a
+"""One row of the channels table of ``research/notes/primitives.md``: a choice of level channels on a
 labelled ``.mat`` file, unsupervised and (optionally) the supervised separability diagnostics.
 
 Unsupervised: the HSMM with entry and exit states, fitted without labels, leave one
