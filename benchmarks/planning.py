@@ -245,7 +245,8 @@ def vamp_status() -> str:
     py = f"{sys.version_info.major}.{sys.version_info.minor}"
     return (
         f"VAMP: not installed; vamp-planner 0.6.4 ships wheels for the cp312 stable ABI only, "
-        f"so on Python {py} pip must build its C++ from the sdist (research/notes/execution.md, VAMP)"
+        f"so on Python {py} pip must build its C++ from the sdist "
+        "(research/notes/execution.md, VAMP)"
     )
 
 

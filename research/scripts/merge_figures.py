@@ -10,7 +10,9 @@ later on a clock 80 ppm fast in a moved world frame, written by our writers as a
 (resampled), and a 30 Hz copy with 1 mm noise added. Prints Markdown tables of
 the errors (median and worst over seeds) and writes ``docs/images/merge_errors.png``.
 
-Usage: ``python research/scripts/merge_figures.py [--seeds 10] [--plot docs/images/merge_errors.png]``
+Usage::
+
+    python research/scripts/merge_figures.py [--seeds 10] [--plot docs/images/merge_errors.png]
 """
 
 from __future__ import annotations
