@@ -6,7 +6,7 @@ VENV ?= .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test lint install clean
+.PHONY: demo test lint install clean docs
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -26,8 +26,12 @@ demo: $(STAMP)
 
 ## The whole test suite, with lint and type checks.
 # One BLAS thread per worker: small matrix products are far slower with more on 2 cores.
-test: $(STAMP) lint
+test: $(STAMP) lint docs
 	OPENBLAS_NUM_THREADS=1 OMP_NUM_THREADS=1 $(BIN)/python -m pytest -n 2 --dist loadfile
+
+## The documentation site, into site/ (offline; warnings are errors).
+docs: $(STAMP)
+	$(BIN)/mkdocs build --strict -d site
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests research benchmarks conftest.py

@@ -1,7 +1,7 @@
 """Speed-up of ``python -m research irl noise`` on a Dask cluster of 2 workers against serial.
 
 Starts a ``dask scheduler`` and two single-threaded ``dask worker`` processes on
-127.0.0.1 (:func:`thirdhand.batch.dask_processes`, as in docs/cluster.md), runs
+127.0.0.1 (:func:`thirdhand.batch.dask_processes`, as in docs/how-to/cluster.md), runs
 ``python -m research irl noise --runs N --json …`` serially and then with
 ``--scheduler tcp://127.0.0.1:PORT`` on the cluster (the same trials as Dask
 tasks), checks that both JSON tables and both printed tables are identical, and

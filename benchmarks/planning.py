@@ -27,7 +27,7 @@ IK, planning) and the median executed path length per step.
 
 VAMP (``vamp-planner``) and mplib, the peers the issue names, are reported first: when
 they cannot be imported the script says why instead of timing them (see
-``docs/execution.md``, "VAMP").
+``research/notes/execution.md``, "VAMP").
 
 Usage: ``python benchmarks/planning.py [--queries 20] [--configs 2000] [--time-limit 5]
 [--step-seeds 0,1,2] [--scene chair]``
@@ -245,7 +245,8 @@ def vamp_status() -> str:
     py = f"{sys.version_info.major}.{sys.version_info.minor}"
     return (
         f"VAMP: not installed; vamp-planner 0.6.4 ships wheels for the cp312 stable ABI only, "
-        f"so on Python {py} pip must build its C++ from the sdist (docs/execution.md, VAMP)"
+        f"so on Python {py} pip must build its C++ from the sdist "
+        "(research/notes/execution.md, VAMP)"
     )
 
 

@@ -85,7 +85,7 @@ DATA = next(
 )
 #: The shared labelled files of the product table.
 PRODUCT_FILES = ("circular_wiping.mat", "fender_wiping.mat", "peeling_noobj.mat")
-#: Per file: the parser's channels (chosen in docs/primitives.md).
+#: Per file: the parser's channels (chosen in research/notes/primitives.md).
 CONFIGS = {
     # K selected by the one-SE rule (the default), not given
     "circular_wiping.mat": ParserConfig(

@@ -7,7 +7,7 @@ Run from the repository root::
     python -m research primitives evaluate FILE.mat [--model hsmm --ends ...]
 
 Each prints its table beside the report's (or the paper's) numbers. ``--scheduler``
-runs the seeded units as Dask tasks (``tcp://HOST:PORT`` or ``local``; docs/cluster.md).
+runs the seeded units as Dask tasks (``tcp://HOST:PORT`` or ``local``; docs/how-to/cluster.md).
 A bad option prints one ``research: error:`` line and exits 1.
 """
 

@@ -1,6 +1,6 @@
 """``python -m research primitives evaluate``: parsers scored against human phase labels.
 
-The evaluation recipe behind ``docs/primitives.md``'s tables (leave one recording
+The evaluation recipe behind ``research/notes/primitives.md``'s tables (leave one recording
 out, K by one standard error, semi-Markov models with entry/exit, level
 channels...). The product's parser is ``thirdhand primitives library``.
 """

@@ -32,7 +32,7 @@ GAMMA = 0.9
 METHODS = ("BLMRIL", "RCSI", "RCSI+shaping")
 # The noise and dynamics tables also show the paper's RCSI with its own shaping:
 # f by CMA-ES on the entropy of the targets ("RCSI+cma-shaping", see
-# docs/relational_results.md for its features and samples).
+# research/notes/relational_results.md for its features and samples).
 PAPER_METHODS = ("BLMRIL", "RCSI", "RCSI+cma-shaping", "RCSI+shaping")
 # Shaping of each RCSI method (fit_rcsi's ``shaping``).
 SHAPING: dict[str, bool | str] = {
@@ -40,7 +40,7 @@ SHAPING: dict[str, bool | str] = {
     "RCSI+shaping": "advantage",
     "RCSI+cma-shaping": "cma",
 }
-# Reward tree settings of the tables (see docs/relational_results.md): a node may
+# Reward tree settings of the tables (see research/notes/relational_results.md): a node may
 # add two atoms (TILDE lookahead), object identity among the test's variables
 # only, D_E and D_NE unweighted as in the paper.
 REWARD_LOOKAHEAD = 2

@@ -61,17 +61,17 @@ CHAIR_LEGS = (6, 7, 8)
 #: Groundings per configuration for R̄ (P_state's second stage). R̄ is a sample
 #: mean over groundings of a reward tree with colour tests; with 4 groundings the
 #: plan (hence perf) of one learned reward moved by up to 0.6 between draws
-#: (docs/relational_results.md), so 16 at 10 blocks, 12 at 15, 4 at 20 (time).
+#: (research/notes/relational_results.md), so 16 at 10 blocks, 12 at 15, 4 at 20 (time).
 N_GROUNDINGS = {10: 16, 15: 12, 20: 4}
 #: The learning method of every trial (a method of the tables, see
 #: :data:`research.relational_irl.SHAPING`). The paper's
 #: RCSI+cma-shaping learns stack on 4+5 blocks as well but transfers worse to
-#: 10 and 15 blocks (docs/relational_results.md).
+#: 10 and 15 blocks (research/notes/relational_results.md).
 METHOD = "RCSI+shaping"
 #: Bootstrap samples of the reward's bagged trees (:mod:`thirdhand.relational.bagging`):
 #: a single tree fit to 630 transitions of 4 + 5 blocks often keeps a test that
 #: only separates its sample, which decides plans on 10 – 20 blocks
-#: (docs/relational_results.md, "Rewards that carry over"). 20 trees, not 10:
+#: (research/notes/relational_results.md, "Rewards that carry over"). 20 trees, not 10:
 #: with 10 one run's reward depended on the bootstrap draw (seed 17: 0.64 at
 #: 10 blocks); with 20 every run of 20 seeds is ≥ 0.995 at 15 blocks.
 N_BAGS = 20

@@ -6,7 +6,7 @@ edits a careful person would make in the review GUI, applies them with
 :func:`~thirdhand.review.edits.apply_edit`, and counts the corrected parameters
 in the 3rdHand report's unit: per constraint, its parent and the six values of
 the child's pose in the parent frame (x y z, roll pitch yaw), 7 in all
-(``docs/review.md`` discusses the report's 30 and 28).
+(``research/notes/review.md`` discusses the report's 30 and 28).
 
 A value is corrected only when it is off by more than the tolerance (1 cm, 5°
 by default); a DOF range only when its class differs (locked, noise, limited,

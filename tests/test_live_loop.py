@@ -321,7 +321,7 @@ def test_the_assist_on_the_demo_chair_touches_no_hand_and_no_part(task: TaskFile
     person's hand reaches for it (the recording's ground-truth holds) in 4 of the 5 steps:
     the first leg is in the person's hand 0.5 s after the seat, before any arm could
     fetch one; from one place the arm reached two of the four legs (3 of 5 until its base
-    moved, docs/live.md)."""
+    moved, research/notes/live.md)."""
     demo = make_scene("chair", seed=0)
     loop = LiveLoop(task, demo.bodies, demo.meta, options=LiveOptions(assist=AssistOptions()))
     doc = loop.run(ReplaySource(demo, 0)).to_dict()

@@ -289,7 +289,7 @@ def test_cli_on_csv_poses_of_real_wiping(tmp_path: Path) -> None:
         run = np.searchsorted(np.asarray(tr["cuts_s"]), s.t, side="right")
         preds.append(np.asarray(tr["labels"])[run])
     acc = best_label_map(preds, [s.labels for s in streams])[1] / sum(s.n_samples for s in streams)
-    assert acc > 0.85  # measured 0.901 (docs/primitives.md)
+    assert acc > 0.85  # measured 0.901 (research/notes/primitives.md)
 
 
 def test_api_verb_learns_the_same_library_as_the_class() -> None:

@@ -210,7 +210,7 @@ def test_weighted_expert_transitions_stop_the_goal_cycle() -> None:
     # Weighing D_E to D_NE's total (balance=True, also in CMA-ES's entropy)
     # keeps the expert's transitions apart on this seed: the policy waits in
     # every goal state and stacks. Not the tables' default: over the 100 runs
-    # it lowers as many runs as it raises (docs/relational_results.md, "The
+    # it lowers as many runs as it raises (research/notes/relational_results.md, "The
     # rare failures of RCSI+cma-shaping").
     mdp = blocks_mdp(5)
     r = blocks_reward(mdp, "stack")

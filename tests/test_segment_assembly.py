@@ -112,7 +112,7 @@ def _part_part_f1(model: SegmentModel, scene: str, noisy: bool) -> float:
 @pytest.mark.parametrize("noisy", [True, False])
 def test_closure_recovers_pairs_joined_through_the_toolbox(noisy: bool) -> None:
     # Screws on different boards are joined through the boards; at rest only the
-    # closure can tell (docs/segmentation_results.md). Held-out seed, shipped model.
+    # closure can tell (research/notes/segmentation_results.md). Held-out seed, shipped model.
     # Measured with the shipped model (trained with geometry withheld in half the
     # scenes): 0.867 noisy / 0.940 noise-free with the closure, 0.784 / 0.803 without.
     model = default_model()

@@ -9,7 +9,7 @@ over every scene (default sensor / noise-free / random sensor): finger-object
 0.987 / 0.868. Per case (thresholds below the measured values, so a regression
 fails): chair 0.914 / part-part 0.992, bench 0.913 / 0.994, toolbox 0.962 /
 0.867, drawer 0.876 / 0.852 (noisy); chair 0.951 / 0.991, toolbox 0.974 / 0.940
-(noise-free). docs/segmentation_results.md has the tables.
+(noise-free). research/notes/segmentation_results.md has the tables.
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ def test_crf_beats_logistic_regression_table_one_protocol() -> None:
     # hands, in NLL (measured 0.0105 vs 0.0441 per variable on the training hand,
     # 0.121 vs 0.249 on the test hand) and in frame F1 (0.993 vs 0.980, 0.901 vs
     # 0.803). With the report's four features at 10 Hz its test-hand F1 is lower
-    # (0.80): see docs/segmentation_results.md.
+    # (0.80): see research/notes/segmentation_results.md.
     crf, lr = tab["crf"], tab["logistic"]
     assert crf["train"]["nll_per_variable"] < 0.5 * lr["train"]["nll_per_variable"]
     assert crf["test"]["nll_per_variable"] < 0.6 * lr["test"]["nll_per_variable"]

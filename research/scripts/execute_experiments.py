@@ -4,7 +4,7 @@ Usage: ``python research/scripts/execute_experiments.py [--condition reach+clutt
 [--meshes DIR]``. For each condition (default: all of
 ``research.execution.CONDITIONS``), seeds are taken in order until ``--runs``
 instances that are reachable in principle have run (the others are skipped and counted).
-Prints one row per run and the summary table (see docs/execution.md).
+Prints one row per run and the summary table (see research/notes/execution.md).
 """
 
 from __future__ import annotations

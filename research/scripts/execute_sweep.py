@@ -9,7 +9,7 @@ Each run learns the task from the synthetic demonstration of ``scene`` with that
 lays the parts out with the same seed and executes the plan offline. With ``--meshes``
 the part meshes are used (and with ``--boxes`` as well, a second run with bounding boxes
 only). Prints one row per run (steps done, configurations in collision, planning time
-per step, the first failure) and the success table (see docs/execution.md).
+per step, the first failure) and the success table (see research/notes/execution.md).
 """
 
 from __future__ import annotations

@@ -8,9 +8,11 @@ bags (parts 1-4, AR tags ar_0 and ar_13, 23 Hz) against a copy starting 2.5 s
 later on a clock 80 ppm fast in a moved world frame, written by our writers as a
 3rdHand poses.dat folder (same samples), a 30 Hz C3D and a 30 Hz Motive CSV
 (resampled), and a 30 Hz copy with 1 mm noise added. Prints Markdown tables of
-the errors (median and worst over seeds) and writes ``docs/merge_errors.png``.
+the errors (median and worst over seeds) and writes ``docs/images/merge_errors.png``.
 
-Usage: ``python research/scripts/merge_figures.py [--seeds 10] [--plot docs/merge_errors.png]``
+Usage::
+
+    python research/scripts/merge_figures.py [--seeds 10] [--plot docs/images/merge_errors.png]
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Figures of the review GUI's primitive editing and phase labelling (``docs/review.md``).
+"""Figures of the review GUI's primitive editing and phase labelling (``research/notes/review.md``).
 
 Primitive editing, for each learned motion of TASK: the refit error of the
 unmoved path, then each key point moved +2 cm and +5 cm in z: how close the

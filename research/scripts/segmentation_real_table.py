@@ -1,4 +1,4 @@
-"""The segmentation table of docs/segmentation_results.md: real left-hand pairs first.
+"""The segmentation table of research/notes/segmentation_results.md: real left-hand pairs first.
 
 Models compared: the synthetic-only one (``-m synthetic``), the shipped default
 (synthetic scenes plus the real left-hand pairs), and the synthetic-only model

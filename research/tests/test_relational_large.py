@@ -23,7 +23,7 @@ def test_large_experiment_table() -> None:
 
 @pytest.mark.slow
 def test_large_experiment_reward_fixes_the_seed_that_failed_on_the_training_size() -> None:
-    # Seed 3017 (docs/relational_results.md, "Per failing seed"): one unweighted tree
+    # Seed 3017 (research/notes/relational_results.md, "Per failing seed"): one unweighted tree
     # lumps waiting in the tower with moves and fails stack on 5 blocks; the bagged
     # rewards chosen by the demonstrations learn it.
     from research.relational_irl import GAMMA, true_reward

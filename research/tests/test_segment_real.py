@@ -7,7 +7,7 @@ labels, so these tests check what the model promises about gaps
 (``thirdhand.segment.pipeline``): a step has evidence only when its window
 holds enough valid samples of both bodies; runs without evidence up to
 ``max_gap_s`` are bridged by the chain; longer ones get label 0 and probability
-NaN — nothing is fabricated over them. Figures: docs/segmentation_results.md.
+NaN — nothing is fabricated over them. Figures: research/notes/segmentation_results.md.
 """
 
 from __future__ import annotations

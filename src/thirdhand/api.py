@@ -170,9 +170,14 @@ def learn_reward(plans: Sequence[AssemblyPlan | TaskFile], *, seed: int = 0) -> 
     ----------
     plans : sequence of AssemblyPlan or TaskFile
         Plans from :func:`plan_assembly`, or the plans of task files.
+    seed : int
+        Seeds the random trajectories of the reward's training.
 
-    Plan other part sets with it by
-    :func:`thirdhand.relational.assembly.plan_with_reward`.
+    Returns
+    -------
+    AssemblyModel
+        The reward; plan other part sets with it by
+        :func:`thirdhand.relational.assembly.plan_with_reward`.
     """
     from thirdhand.relational.assembly import learn_assembly
     from thirdhand.relational.domains.plans import trajectory_from_plan

@@ -8,7 +8,7 @@ every item, in the items' order, whatever ran them:
 - ``scheduler="local"``: a Dask ``LocalCluster`` of ``jobs`` single-threaded
   worker processes (``jobs=1``: one per core);
 - ``scheduler="tcp://HOST:PORT"``: an existing Dask cluster (``dask scheduler``
-  and ``dask worker`` processes; see ``docs/cluster.md``). The workers must run
+  and ``dask worker`` processes; see ``docs/how-to/cluster.md``). The workers must run
   the same thirdhand and Python packages.
 
 ``fn`` must be a module-level function and every unit must be seeded by its own
@@ -108,7 +108,7 @@ def _client(address: str, jobs: int, option: str) -> tuple[Any, Any]:
         raise OptionError(
             f"{option} {address}: no Dask scheduler answers there "
             f"({exc.strerror or type(exc).__name__}); start one with 'dask scheduler' "
-            "and workers with 'dask worker ADDRESS' (docs/cluster.md)"
+            "and workers with 'dask worker ADDRESS' (docs/how-to/cluster.md)"
         ) from None
     url = address if "://" in address else f"tcp://{address}"
     try:  # then Dask's own handshake, bounded: Client() alone waits forever on a silent peer
@@ -207,7 +207,7 @@ def dask_processes(
     """A ``dask scheduler`` and ``workers`` single-threaded ``dask worker`` processes.
 
     Started on 127.0.0.1 with ``python -m dask`` (no dashboard, no nanny), as
-    ``docs/cluster.md`` tells a user to start them; stopped (terminated, killed
+    ``docs/how-to/cluster.md`` tells a user to start them; stopped (terminated, killed
     after 30 s) when the block ends, however it ends.
 
     Parameters

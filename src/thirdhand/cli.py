@@ -388,7 +388,7 @@ def convert(
     ``convert RUN.json out.mcap`` writes an executed run (``execute --record``)
     as a ROS 2 bag; ``convert TASK out.xml`` the plan as a BehaviorTree.CPP v4
     tree; ``convert TASK out.pddl`` a PDDL problem and its domain
-    (``out.domain.pddl``); see docs/robot.md.
+    (``out.domain.pddl``); see docs/how-to/robot.md.
     """
     from thirdhand import io
 

@@ -55,7 +55,7 @@ SchedulerOption = Annotated[
     str | None,
     typer.Option(
         help="Run the units as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or 'local' "
-        "(a local cluster of --jobs workers; docs/cluster.md; needs the dask extra)."
+        "(a local cluster of --jobs workers; docs/how-to/cluster.md; needs the dask extra)."
     ),
 ]
 

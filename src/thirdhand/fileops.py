@@ -188,7 +188,7 @@ def check_output(
 ) -> Path:
     """Check that ``path`` may be written; raise :class:`OutputError` if not.
 
-    The one output-path policy of every command (see ``docs/reliability.md``):
+    The one output-path policy of every command (see ``docs/reference/reliability.md``):
     the shape of the path (:func:`check_path_shape`), never one of the inputs,
     never a device, FIFO or socket, never a folder where a file is meant, and an
     existing output only with ``force``, which moves aside only a regular file

@@ -40,7 +40,7 @@ DEFAULT_WINDOW = 7
 #: 21-sample estimates read 1.2-2.8 times the 7-sample one (white noise: 1), as
 #: white noise plus a part correlated over 2 samples at 2-3 times its level does,
 #: whose per-sample error is 2.2-3.1 times the estimate. Chosen on the synthetic
-#: sweep (``docs/constraints.md``): 1.5 and 2 tie on the broad mix of conditions
+#: sweep (``research/notes/constraints.md``): 1.5 and 2 tie on the broad mix of conditions
 #: (96.6 %), 2 is the better of them on noise coloured like the real tracks'
 #: (91.3 % against 88.1 %).
 FLOOR_FACTOR = 2.0
@@ -64,7 +64,7 @@ MAX_ROT_NOISE = math.radians(10.0)
 CEILING_FACTOR = 2.0
 #: Smallest position ceiling, metres: room for the systematic error of a tracker
 #: whose white noise is tiny (a robot's kinematic calibration, a mocap volume's).
-#: Chosen on the synthetic sweep's calibration seeds (``docs/constraints.md``):
+#: Chosen on the synthetic sweep's calibration seeds (``research/notes/constraints.md``):
 #: 5, 7.5, 10 and 15 mm give the same accuracy (93.0-93.1 %), 10 mm by one track;
 #: the old 2.5 cm (92.0 %) lets a prismatic or revolute fit absorb a free part's
 #: wander as 2-4 cm of "noise" (free, position-only: 79 % against 88 %).

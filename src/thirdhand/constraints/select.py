@@ -45,7 +45,7 @@ DEFAULT_MODELS: tuple[str, ...] = ("fixed", "prismatic", "revolute", "cylindrica
 
 
 #: Calibration of the confidence (``research/scripts/constraint_sweep.py``, tables in
-#: ``docs/constraints.md``): the temperature that BIC differences are divided by
+#: ``research/notes/constraints.md``): the temperature that BIC differences are divided by
 #: before they become probabilities, the share of a uniform guess mixed in, and the
 #: factor on the weight of a type passed over (:func:`type_probabilities`). Real
 #: errors are not white and the BIC's evidence grows with the number of samples as
@@ -68,7 +68,7 @@ MIN_TURN_FLOORS = 5.0
 #: ... and at least this turn, radians: a tracker's systematic orientation error
 #: (a tag's viewing angle, a camera's distortion) changes by a few degrees along a
 #: stroke, which reads as a wide, slight turn. Chosen on the synthetic sweep's
-#: calibration seeds (``docs/constraints.md``): 5-9° give the same accuracy, 7° by a
+#: calibration seeds (``research/notes/constraints.md``): 5-9° give the same accuracy, 7° by a
 #: track; without it 96.6 % becomes 95.5 % (a stroke under a pose-dependent error of
 #: 4 times the white level: 97 % against 91 % right). Absolute, not in units of the
 #: rotation noise: a precise tracker (a robot's encoders) may still carry a degree of
@@ -82,15 +82,15 @@ MIN_TURN = math.radians(7.0)
 #: standard errors of its bow (:func:`unphysical_turn`) is a straight stroke that the
 #: tracker bent (a sliding cabinet door's 59 cm stroke bowed by 2 cm reads as a
 #: 1.9 m radius), not a hinge. The leave-one-mechanism-out table of
-#: ``docs/constraints.md`` (``research/scripts/constraint_lomo.py``) re-fits it per held-out
-#: mechanism.
+#: ``research/notes/constraints.md`` (``research/scripts/constraint_lomo.py``) re-fits
+#: it per held-out mechanism.
 MAX_HINGE_RADIUS = 1.0
 #: How a note of :func:`unphysical_turn` says the arc is flatter than any hinge's.
 HINGE_NOTE = "flatter than a hinge"
 #: A constrained fit whose position noise is at least this fraction of its ceiling
 #: and which calls smooth samples outliers (:func:`saturated_joint`) is no joint of
 #: the track. Chosen on the synthetic sweep's calibration seeds
-#: (``docs/constraints.md``): 0.6, 0.7, 0.8, 0.9 and 0.999 (the ceiling itself)
+#: (``research/notes/constraints.md``): 0.6, 0.7, 0.8, 0.9 and 0.999 (the ceiling itself)
 #: leave 54, 41, 38, 39 and 40 of 2,075 tracks wrong; 0.8 the fewest.
 NEAR_CEILING = 0.8
 #: A joint with more parameters is chosen over a simpler joint only on positive
@@ -100,7 +100,7 @@ NEAR_CEILING = 0.8
 #: not tuned: on the synthetic sweep's calibration seeds margins of 0, 2, 4, 6.32, 10
 #: and 15 leave 37, 28, 29, 26, 24 and 22 of 2,074 tracks wrong where the motion is at
 #: least 5x the noise, and 146, 142, 145, 144, 148 and 153 of all 2,340
-#: (``docs/constraints.md``). Slowly varying error (time drift, a pose-dependent error)
+#: (``research/notes/constraints.md``). Slowly varying error (time drift, a pose-dependent error)
 #: gives a still part a stroke, a stroke a turn, a turn a slide, that wins by 0-5 BIC
 #: units: the effective sample count leaves a few samples, where the BIC's penalty per
 #: parameter (``log n_eff``, 2 for 8 samples) is no stronger than the AIC's.

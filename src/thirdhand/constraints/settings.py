@@ -15,7 +15,7 @@ class FitSettings(Settings):
     """The noise model and the candidate joint models of a fit.
 
     The default, the noise estimated from the track, is right on more real tracks
-    than either floor (``docs/constraints.md``).
+    than either floor (``research/notes/constraints.md``).
     """
 
     noise: Literal["auto", "mocap", "camera"] = Field(

@@ -148,7 +148,7 @@ class JointFit:
         weights ``exp(-ΔBIC / (2 T))`` at the temperature ``T`` of
         :data:`~thirdhand.constraints.select.CONFIDENCE_TEMPERATURE`, mixed with a
         uniform share :data:`~thirdhand.constraints.select.CONFIDENCE_FLOOR`, both
-        calibrated on synthetic tracks (see ``docs/constraints.md``). In [0, 1].
+        calibrated on synthetic tracks (see ``research/notes/constraints.md``). In [0, 1].
     scores : dict of str to float
         BIC of every model compared (lower is better).
     noise_pos, noise_rot : float

@@ -118,7 +118,7 @@ def random_joint_track(
         [-1, 1] the position along it: a parabola whose sagitta is ``rail_bow``
         of the chord. On the real prismatic tracks of ``../shared/data`` the
         quadratic part of the path bows by 0.1-3 % of the chord (median 1.2 %;
-        ``docs/constraints.md``).
+        ``research/notes/constraints.md``).
     """
     s = np.linspace(0.0, 1.0, n)
     prog = 0.5 - 0.5 * np.cos(np.pi * s)

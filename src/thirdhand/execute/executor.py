@@ -81,7 +81,8 @@ from thirdhand.task.model import TaskFile, TaskStep
 #: How :meth:`Executor.for_task` stands the base (``ExecutionOptions.placement``).
 PLACEMENTS = ("auto", "geometry", "reach")
 
-#: ``start_grasps`` used when the automatic placement falls back to reach (docs/execution.md).
+#: ``start_grasps`` used when the automatic placement falls back to reach
+#: (research/notes/execution.md).
 AUTO_START_GRASPS = 4
 
 

@@ -1,6 +1,6 @@
 """Settings of ``thirdhand execute`` (``[execute]`` of ``--config``).
 
-The defaults are the ones ``docs/execution.md`` measures best: goals sampled
+The defaults are the ones ``research/notes/execution.md`` measures best: goals sampled
 inside the free DOFs, the base placed by geometry unless a part reaches no goal
 there (then by reach), the regrasp on.
 """

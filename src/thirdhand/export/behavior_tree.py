@@ -28,7 +28,7 @@ Port values are strings; numbers are separated by ``;`` (BehaviorTree.CPP's
 The ``TreeNodesModel`` declares every custom node and its ports (with
 descriptions), so Groot2 shows the tree and BehaviorTree.CPP can check the
 subtree's ports. The robot side implements ``Pick``, ``MoveAlongConstraint``
-and ``Place`` (see ``docs/robot.md``).
+and ``Place`` (see ``docs/how-to/robot.md``).
 """
 
 from __future__ import annotations

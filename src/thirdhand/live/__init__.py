@@ -6,5 +6,5 @@ replay), :mod:`~thirdhand.live.features` and :mod:`~thirdhand.live.filter`
 the plan's constraints hold now), :mod:`~thirdhand.live.tracker` (plan
 progress), :mod:`~thirdhand.live.loop` (one update per frame, latency),
 :mod:`~thirdhand.live.assist` (the simulated robot fetching the next part) and
-:mod:`~thirdhand.live.cli` (``thirdhand live``). See ``docs/live.md``.
+:mod:`~thirdhand.live.cli` (``thirdhand live``). See ``docs/explanation/live.md``.
 """

@@ -3,7 +3,7 @@
 Replays the recording at its real rate (``--speed``), runs the live loop on
 every frame and prints each plan step as it is recognised (or undone), each
 dropped stream, and the per-frame latency at the end; ``--json OUT`` writes the
-report (``docs/live.md``).
+report (``docs/explanation/live.md``).
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def live_command(
         Path | None,
         typer.Option(
             help="Write the run as OUT.parquet (the stream, the robot's tool) and OUT.json "
-            "(the arm's joints, the recognised steps, the assists); see docs/live.md."
+            "(the arm's joints, the recognised steps, the assists); see docs/explanation/live.md."
         ),
     ] = None,
     force: Annotated[

@@ -183,7 +183,7 @@ def alignment_dict(a: Alignment) -> dict[str, Any]:
 
 #: Median position residual (m) of a shared body above which two recordings are
 #: not of one session: sensor noise is millimetres, and a shared body tracked at
-#: points a few centimetres apart in the two systems (docs/merge.md) stays below.
+#: points a few centimetres apart in the two systems (docs/how-to/merge.md) stays below.
 MAX_SESSION_RESIDUAL_M = 0.05
 
 

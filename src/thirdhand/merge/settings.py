@@ -14,7 +14,7 @@ class MergeSettings(Settings):
     smooth: bool = Field(
         False,
         description="Fit the clock last on smoothed tracks (noisy, slow, evenly sampled "
-        "trackers; docs/merge.md).",
+        "trackers; docs/how-to/merge.md).",
     )
     rate: float | None = Field(
         None, gt=0.0, le=100000.0, description="Output rate, Hz (default: the highest)."

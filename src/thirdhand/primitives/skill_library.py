@@ -47,7 +47,8 @@ MAX_SKILLS = 100
 
 @dataclass(frozen=True)
 class SkillParserOptions:
-    """Settings of the skill parser; the defaults are the best measured (docs/primitives.md).
+    """Settings of the skill parser; the defaults are the best measured
+    (research/notes/primitives.md).
 
     Attributes
     ----------

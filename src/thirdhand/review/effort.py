@@ -5,7 +5,7 @@ the correction GUI (``click``, ``movex``/``y``/``z``, ``rotx``/``y``/``z``,
 ``parent``, ``reordering``, ``kfviews``); :class:`EffortLog` counts the same ones
 (plus ``range``, ``confirm`` and ``primitive``, a moved key point of a learned
 motion) and :func:`changed_parameters` the parameters that differ between two
-tasks, in the report's unit (see ``docs/review.md``).
+tasks, in the report's unit (see ``research/notes/review.md``).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ Entry point: :func:`segment_demonstration`, with the model shipped in
 latent steps per second with the report's four features over a 0.25 s, a 0.5 s
 and a 0.1 s window, the pair's mean distance and its bounding-box contact
 distance (see :mod:`thirdhand.segment.design`, :mod:`thirdhand.segment.contact`,
-``research/scripts/train_default_segmenter.py`` and ``docs/segmentation_results.md``).
+``research/scripts/train_default_segmenter.py`` and ``research/notes/segmentation_results.md``).
 ``research/segment_diagnose.py`` (in the repository) breaks errors down (boundary shifts, missed
 and extra intervals) and audits labels against the kinematics.
 """

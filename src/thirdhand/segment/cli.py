@@ -381,7 +381,7 @@ def batch(
         str | None,
         typer.Option(
             help="Segment as Dask tasks: tcp://HOST:PORT of a 'dask scheduler', or 'local' "
-            "(a local cluster of --jobs workers; docs/cluster.md; needs the dask extra)."
+            "(a local cluster of --jobs workers; docs/how-to/cluster.md; needs the dask extra)."
         ),
     ] = None,
     force: Annotated[

@@ -2,7 +2,7 @@
 
 Their tables of ``--config`` (``[segment.train]``, ``[segment.evaluate]``,
 ``[segment.calibrate]``); the defaults are the ones the shipped model was
-trained with (``docs/segmentation_results.md``).
+trained with (``research/notes/segmentation_results.md``).
 """
 
 from __future__ import annotations

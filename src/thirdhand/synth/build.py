@@ -69,15 +69,12 @@ def make_scene(
         How much the hands move when they wait and when they hold a part
         (:class:`~thirdhand.synth.human.HumanModel`); default: the synthetic
         human's usual sway and wobble (a waiting hand is never still).
-    duration : float, optional
-        Seconds to fill with repeated assembly/disassembly cycles; the recording is
-        cut there.
-    cycles : int, optional
-        Number of assemblies (disassemblies in between); default 1.
-    head : bool, optional
-        Also track each person's head (bodies ``head``, ``p2_head``).
-    pointing : int, optional
-        Open with that many pointing gestures (one cycle only; ground truth in
+    **scene_options
+        ``duration`` (float): seconds to fill with repeated assembly/disassembly
+        cycles; the recording is cut there. ``cycles`` (int): number of assemblies
+        (disassemblies in between); default 1. ``head`` (bool): also track each
+        person's head (bodies ``head``, ``p2_head``). ``pointing`` (int): open with
+        that many pointing gestures (one cycle only; ground truth in
         ``meta["pointing"]``, see :mod:`thirdhand.synth.pointing`).
 
     Returns

@@ -1,6 +1,6 @@
 """A motion-capture sensor model: sampling rate, noise, occlusion gaps, quaternion signs.
 
-Two kinds of loss, both measured on real recordings (``docs/segmentation_results.md``,
+Two kinds of loss, both measured on real recordings (``research/notes/segmentation_results.md``,
 "Realistic sensor"): *occlusions* of one body (Poisson gaps of ``gap_min`` to
 ``gap_max`` seconds: an AR tag turned away for seconds) and *dropouts* of a whole
 hub (a Polhemus G4 hub serves the sensors of one hand or of the objects; its

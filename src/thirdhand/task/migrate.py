@@ -1,6 +1,6 @@
 """Reading task files of earlier schemas: ``thirdhand.task/1`` → ``thirdhand.task/2``.
 
-``thirdhand.task/2`` (thirdhand 0.x, session 30) changed three things:
+``thirdhand.task/2`` changed three things:
 
 1. **Typed stage blocks.** In ``/1`` every block of ``stages`` was free-form; in
    ``/2`` the blocks thirdhand writes (``constraints``, ``plan``, ``primitives``,
