@@ -51,6 +51,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from thirdhand.arrays import BoolArray, FloatArray
+from thirdhand.live.arm_world import ArmWorlds
 from thirdhand.live.base_place import (
     away_from_person,
     base_distance,
@@ -281,21 +282,23 @@ class RobotAssist:
         self._handled: set[str] = set()
         #: Parts the arm could not fetch, by name.
         self._failed: dict[str, FailedFetch] = {}
-        self._scene: Any = None
-        self._plan_scene: Any = None
-        self._attached = False
+        #: The arm and its worlds at every place the base has stood or been checked at.
+        self._arm = ArmWorlds(
+            self.options.robot,
+            self.names,
+            self.parts,
+            self.fingers,
+            self._box,
+            table_z=self.table_z,
+            hand_size_m=self.options.hand_size_m,
+            clearance_m=PLAN_CLEARANCE_M,
+        )
         self._carried = -1
         self._carried_pose: Pose = (np.zeros(3), np.zeros(4))
-        self._robot: Any = None
-        self._base = np.zeros(3)
         self._handover: Pose | None = None
-        #: The track the base moves along (None: a fixed base), the station it stands at,
-        #: and the arm and both worlds at every place it has stood or been checked at
-        #: (key: its x, y in millimetres).
+        #: The track the base moves along (None: a fixed base) and the station it stands at.
         self._base_track: BaseTrack | None = None
         self._station = 0.0
-        self._places: dict[tuple[int, int], tuple[Any, Any, Any]] = {}
-        self._place: tuple[int, int] | None = None
         #: The assist whose base is driving (it drives on when the assist has ended) and
         #: when the base is free again (stream clock): the next fetch waits for it.
         self._driving: Assist | None = None
@@ -316,14 +319,14 @@ class RobotAssist:
     @property
     def robot(self) -> Robot | None:
         """The simulated arm, placed once the assembly's root was first tracked (else None)."""
-        robot: Robot | None = self._robot
+        robot: Robot | None = self._arm.robot
         return robot
 
     @property
     def base(self) -> FloatArray:
         """Where the arm's base is now, shape (3,), world metres (during a drive: the last
         point of its route passed)."""
-        return np.asarray(self._base, dtype=np.float64).copy()
+        return np.asarray(self._arm.base, dtype=np.float64).copy()
 
     @property
     def handover(self) -> Pose | None:
@@ -339,7 +342,7 @@ class RobotAssist:
     def plan_scene(self) -> CollisionScene | None:
         """The world the arm plans in where its base is now: the tracked bodies grown by
         :data:`PLAN_CLEARANCE_M` on every side (None until the arm is set up)."""
-        scene: CollisionScene | None = self._plan_scene
+        scene: CollisionScene | None = self._arm.planned
         return scene
 
     @property
@@ -373,7 +376,7 @@ class RobotAssist:
                 return self._clear_at(base, pos, quat, valid, facing=-turned)
 
             _, away = first_fixed_place(fixed_places(root, away, near, self.table_z), clear)
-        self.initial_base = self._base.copy()
+        self.initial_base = self._arm.base.copy()
         self._root0 = root.copy()
         self._handover = handover_pose(root, away, self.reach_m, opt.handover_m)
 
@@ -395,7 +398,7 @@ class RobotAssist:
         """Stand at ``base`` (:meth:`_stand`); whether the arm at home touches nothing there
         in the world planned in."""
         self._stand(base, pos, quat, valid, facing)
-        return bool(self._plan_scene.is_valid(self._robot.home))
+        return self._arm.home_clear()
 
     def _stand(
         self,
@@ -405,75 +408,22 @@ class RobotAssist:
         valid: BoolArray,
         facing: FloatArray | None = None,
     ) -> None:
-        """Make the arm and both worlds those of the base standing at ``base`` (3,), world.
+        """Make the arm and both worlds those of the base standing at ``base`` (3,), world
+        (:meth:`ArmWorlds.stand`); ``facing`` (2,): the base's horizontal x axis (default:
+        towards the assembly, along the track's)."""
 
-        ``facing`` (2,): the base's horizontal x axis (default: towards the assembly,
-        along the track's). An arm and its worlds are built once per place and kept;
-        the tracked bodies are moved to ``pos``, ``quat`` (where ``valid``) when the base
-        changes place.
-        """
-        from thirdhand.execute.robot import Robot
-
-        key = (round(1e3 * float(base[0])), round(1e3 * float(base[1])))
-        if key == self._place:
-            return
-        self._place = key
-        if key in self._places:
-            self._robot, self._scene, self._plan_scene = self._places[key]
-            self._base = np.asarray(base, dtype=np.float64).copy()
-            self._track(pos, quat, valid, skip=-1)
-            return
-        if facing is None:
-            assert self._base_track is not None
-            base_q = self._base_track.quat
-        else:
+        def base_quat() -> FloatArray:
+            if facing is None:
+                assert self._base_track is not None
+                return self._base_track.quat
             yaw = math.atan2(float(facing[1]), float(facing[0]))
-            base_q = np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
-        self._robot = Robot.load(self.options.robot, base_pose=(base, base_q))
-        self._base = np.asarray(base, dtype=np.float64).copy()
-        self._build_scene(pos, quat)
-        self._places[key] = (self._robot, self._scene, self._plan_scene)
+            return np.array([0.0, 0.0, math.sin(yaw / 2), math.cos(yaw / 2)])
 
-    def _build_scene(self, pos: FloatArray, quat: FloatArray) -> None:
-        """The world checked (the tracked boxes) and the one planned in (the same boxes
-        grown by :data:`PLAN_CLEARANCE_M` on every side, so that a path grazing a part
-        does not collide with it at its next, noisy, tracked pose)."""
-        from thirdhand.execute.scene import CollisionScene
-
-        grow = 2.0 * PLAN_CLEARANCE_M
-        scenes = []
-        for extra in (0.0, grow):
-            scene = CollisionScene(self._robot)
-            centre = (float(self._base[0]), float(self._base[1]))
-            scene.add_table(height=self.table_z, center=centre)
-            ident = np.array([0.0, 0.0, 0.0, 1.0])
-            for i in self.parts:
-                c, size = self._box(i)
-                p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
-                q = quat[i] if np.all(np.isfinite(quat[i])) else ident
-                scene.add_object(self.names[i], (p, q), size=size + extra, box_center=c)
-            s = self.options.hand_size_m + extra
-            for i in self.fingers:
-                p = pos[i] if np.all(np.isfinite(pos[i])) else np.array([0.0, 0.0, -10.0])
-                scene.add_box(self.names[i], (p, ident), (s, s, s))
-            scenes.append(scene)
-        self._scene, self._plan_scene = scenes
-        self._attached = False
+        self._arm.stand(base, base_quat, pos, quat, valid)
 
     def _box(self, i: int) -> tuple[FloatArray, FloatArray]:
         """Box centre (in the part frame) and sides of the part of row ``i``, metres."""
         return part_box(self.boxes.get(i), self.options.part_size_m)
-
-    def _track(self, pos: FloatArray, quat: FloatArray, valid: BoolArray, skip: int) -> None:
-        """Move every tracked body of both worlds to its pose now (the last one when not seen)."""
-        ident = np.array([0.0, 0.0, 0.0, 1.0])
-        for scene in (self._scene, self._plan_scene):
-            for i in self.parts:
-                if i != skip and valid[i]:
-                    scene.set_object_pose(self.names[i], (pos[i], quat[i]))
-            for i in self.fingers:
-                if valid[i]:
-                    scene.set_object_pose(self.names[i], (pos[i], ident))
 
     # ----------------------------------------------------------------- loop
     def update(
@@ -503,7 +453,7 @@ class RobotAssist:
                 self._release()
                 self.active = None
                 return
-        if self._robot is None:
+        if self._arm.robot is None:
             if not valid[self.root]:
                 return
             args = (pos.copy(), quat.copy(), valid.copy())
@@ -530,7 +480,7 @@ class RobotAssist:
             return
         if self.options.wait_for_person and not person_started(held, tracker):
             return  # the person starts the first step with a part of their own
-        here = standing(self._base_track, self._station, self._base)
+        here = standing(self._base_track, self._station, self._arm.base)
         choice = next_fetch(
             tracker,
             self.names,
@@ -564,7 +514,7 @@ class RobotAssist:
             return
         self._stand(d.base_route[route_index(d.base_times, t)], pos, quat, valid)
         d.checked += 1
-        self._count(d, self._robot.home)
+        self._count(d, self._arm.robot.home)
 
     def _end(
         self, a: Assist, t: float, held: set[str], used: set[str], tracker: PlanTracker
@@ -632,7 +582,7 @@ class RobotAssist:
         self.assists.append(a)
         self.active = a
         w0 = time.perf_counter()
-        self._track(pos, quat, valid, skip=-1)
+        self._arm.track(pos, quat, valid, skip=-1)
         self._carried = part
         self._carried_pose = (pos[part].copy(), quat[part].copy())
         args = (a, t, part, pos.copy(), quat.copy(), valid.copy(), w0, tuple(mounting))
@@ -663,7 +613,7 @@ class RobotAssist:
         can be done is kept, and the base drives there (``a.base_route``) before the arm
         moves.
         """
-        here = standing(self._base_track, self._station, self._base)
+        here = standing(self._base_track, self._station, self._arm.base)
         drives = [(self._station, np.zeros((0, 3)))]
         if self._base_track is not None:
             self._stand(here, pos, quat, valid)
@@ -673,7 +623,7 @@ class RobotAssist:
         for station, route in drives:
             if len(route):
                 self._stand(route[-1], pos, quat, valid)
-            scene = self._plan_scene
+            scene = self._arm.planned
             for ghost, (row, where, turn) in zip(ghosts, mounting, strict=True):
                 c, size = self._box(row)
                 scene.add_object(ghost, (where, turn), size=size + grow, box_center=c)
@@ -700,7 +650,7 @@ class RobotAssist:
         stands, checked in the world planned in; leaves the base where it was."""
         track = self._base_track
         assert track is not None
-        here = self._base.copy()
+        here = self._arm.base.copy()
         try:
             clear = self._clear_check(pos, quat, valid)
             return fetch_drives(track, self._station, here, pos[part][:2], clear)
@@ -723,12 +673,12 @@ class RobotAssist:
         :func:`~thirdhand.live.schedule.schedule_fetch`."""
         opt = self.options
         name = self.names[part]
-        self._plan_scene.allow(name, "gripper")
-        self._scene.allow(name, "gripper")
+        self._arm.planned.allow(name, "gripper")
+        self._arm.checked.allow(name, "gripper")
         assert self._handover is not None
         plan = plan_fetch(
-            self._robot,
-            self._plan_scene,
+            self._arm.robot,
+            self._arm.planned,
             name=name,
             part_pose=(pos[part], quat[part]),
             box=self._box(part),
@@ -773,36 +723,30 @@ class RobotAssist:
         name = self.names[self._carried]
         # During the straight lift the part may still touch what it rested on.
         lifting = k == a.grasp_index
+        checked = self._arm.checked
         for o in a.resting:
             if lifting:
-                self._scene.allow(name, o)
+                checked.allow(name, o)
             else:
-                self._scene.disallow(name, o)
-        if carrying and not self._attached:
-            self._scene.set_object_pose(name, self._carried_pose)
-            self._scene.attach(name, a.path[a.grasp_index])
-            self._attached = True
-        self._track(pos, quat, valid, skip=self._carried)
+                checked.disallow(name, o)
+        if carrying and not self._arm.attached:
+            self._arm.attach(name, self._carried_pose, a.path[a.grasp_index])
+        self._arm.track(pos, quat, valid, skip=self._carried)
         a.checked += 1
         self._count(a, q)
 
     def _count(self, a: Assist, q: FloatArray) -> None:
         """Count ``q`` in ``a`` if it is in collision in the world checked, with what it hit."""
-        if not self._scene.is_valid(q):
+        checked = self._arm.checked
+        if not checked.is_valid(q):
             a.collisions += 1
-            for pair in self._scene.collisions(q):
+            for pair in checked.collisions(q):
                 key = " - ".join(pair)
                 a.hits[key] = a.hits.get(key, 0) + 1
 
     def _release(self) -> None:
         """The person took a part: the arm lets go (the part leaves the simulated world)."""
-        if self._attached:
-            name = self.names[self._carried]
-            self._scene.detach(name, self._robot.home)
-            gone = (np.array([0.0, 0.0, -10.0]), np.array([0, 0, 0, 1.0]))
-            self._scene.set_object_pose(name, gone)
-            self._plan_scene.set_object_pose(name, gone)
-            self._attached = False
+        self._arm.release(self.names[self._carried])
 
 
 __all__ = ["PLAN_CLEARANCE_M", "Assist", "AssistOptions", "RobotAssist"]
