@@ -1,18 +1,23 @@
-"""The robot assist's grasp frame (the planning itself is the execution stage's, tested there)."""
+"""The robot assist's decisions (which part, when, from where, the grasp, the lift, the
+hand-over) and the arm that acts on them (the planning itself is the execution stage's,
+tested there)."""
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 import pytest
 
 from thirdhand import se3
-from thirdhand.live.assist import _down_quat
+from thirdhand.live.handover import down_quat
 from thirdhand.live.state import Slot
+from thirdhand.live.tracker import PlanTracker
 
 
 @pytest.mark.parametrize("direction", [(1.0, 0.0), (0.0, -2.0), (-1.0, 1.0), (0.0, 0.0)])
 def test_down_grasp_points_down_along_the_part(direction: tuple[float, float]) -> None:
-    q = _down_quat(np.array(direction))
+    q = down_quat(np.array(direction))
     assert np.linalg.norm(q) == pytest.approx(1.0)
     z = se3.quat_rotate(q, np.array([0.0, 0.0, 1.0]))
     x = se3.quat_rotate(q, np.array([1.0, 0.0, 0.0]))
@@ -23,10 +28,10 @@ def test_down_grasp_points_down_along_the_part(direction: tuple[float, float]) -
 
 
 def test_handover_tries_turn_about_the_vertical_and_rise() -> None:
-    from thirdhand.live.assist import HANDOVER_RAISE_M, _handover_targets
+    from thirdhand.live.handover import HANDOVER_RAISE_M, handover_targets
 
-    pos, quat = np.array([0.1, 0.2, 1.1]), _down_quat(np.array([1.0, 0.0]))
-    targets = _handover_targets((pos, quat))
+    pos, quat = np.array([0.1, 0.2, 1.1]), down_quat(np.array([1.0, 0.0]))
+    targets = handover_targets((pos, quat))
     assert len(targets) == 8
     np.testing.assert_array_equal(targets[0][0], pos)
     np.testing.assert_allclose(targets[0][1], quat, atol=1e-12)
@@ -43,16 +48,18 @@ def test_handover_tries_turn_about_the_vertical_and_rise() -> None:
 def test_grasps_of_a_flat_part_come_from_above_and_the_first_is_kept() -> None:
     """A board lying tilted by 10°: every grasp approaches from above (cosine with straight
     down > 0.7), each tried again 1 cm less deep; the given top-down grasp first."""
-    from thirdhand.live.assist import DOWN_COS, MAX_GRASPS, SHALLOWER_M, RobotAssist
+    from thirdhand.live.grasp import DOWN_COS, MAX_GRASPS, SHALLOWER_M, grasp_targets, part_box
+    from thirdhand.segment.contact import body_box
 
     meta = {
         "geometry": {"board": {"bbox_min_m": [-0.2, -0.2, -0.015], "bbox_max_m": [0.2, 0.2, 0.015]}}
     }
-    assist = RobotAssist(["board"], ["part"], meta, "board")
+    centre, size = part_box(body_box(meta, "board"), 0.05)
+    np.testing.assert_allclose(size, [0.4, 0.4, 0.03], atol=1e-12)
     pos = np.array([[0.3, 0.1, 0.77]])
     quat = se3.quat_from_rotvec(np.array([[np.radians(10.0), 0.0, 0.0]]))
-    first = (pos[0], _down_quat(np.array([1.0, 0.0])))
-    targets = assist._grasp_targets(0, pos, quat, first)
+    first = (pos[0], down_quat(np.array([1.0, 0.0])))
+    targets = grasp_targets(centre, size, pos[0], quat[0], first)
     assert targets[0] is first and 2 < len(targets) <= MAX_GRASPS + 1
     for k, (p, q) in enumerate(targets[1:]):
         z = se3.quat_rotate(q, [0.0, 0.0, 1.0])
@@ -74,8 +81,9 @@ def test_a_real_time_stream_plans_in_the_background_a_fast_replay_in_line(
     takes the planning time); every plan has finished when the run returns."""
     import threading
 
+    import thirdhand.live.assist
     from test_live_loop import cut, task_from_labels
-    from thirdhand.live.assist import AssistOptions, RobotAssist
+    from thirdhand.live.assist import AssistOptions
     from thirdhand.live.loop import LiveLoop, LiveOptions
     from thirdhand.live.source import ReplaySource
     from thirdhand.synth import make_scene
@@ -83,13 +91,13 @@ def test_a_real_time_stream_plans_in_the_background_a_fast_replay_in_line(
     task = task_from_labels(make_scene("chair", seed=31))
     demo = cut(make_scene("chair", seed=32), 8.0)
     threads: list[str] = []
-    plan = RobotAssist._plan
+    plan = thirdhand.live.assist.plan_fetch
 
-    def spy(self: RobotAssist, *args: object) -> None:
+    def spy(*args: Any, **kwargs: Any) -> Any:
         threads.append(threading.current_thread().name)
-        plan(self, *args)  # type: ignore[arg-type]
+        return plan(*args, **kwargs)
 
-    monkeypatch.setattr(RobotAssist, "_plan", spy)
+    monkeypatch.setattr(thirdhand.live.assist, "plan_fetch", spy)
 
     class RealTime:
         """The replay's frames, presented as a real-time source (speed 1, no waiting)."""
@@ -108,7 +116,7 @@ def test_a_real_time_stream_plans_in_the_background_a_fast_replay_in_line(
         loop = LiveLoop(task, demo.bodies, demo.meta, options=LiveOptions(assist=AssistOptions()))
         report = loop.run(source)  # type: ignore[arg-type]
         assert threads and set(threads) == {where}
-        assert loop.assist is not None and loop.assist._planner is None
+        assert loop.assist is not None and not loop.assist.planning
         # every assist planned to its end: a schedule or a reason
         for a in report.assists:
             assert a["outcome"] in ("moving", "ready", "late", "unreachable", "no path"), a
@@ -116,19 +124,23 @@ def test_a_real_time_stream_plans_in_the_background_a_fast_replay_in_line(
 
 
 def test_an_error_in_the_background_is_raised_in_the_loops_thread() -> None:
-    from thirdhand.live.assist import RobotAssist
+    """The arm is set up in the background on a real-time stream: an arm that cannot be
+    loaded fails there, and the error is raised by :meth:`RobotAssist.finish`, once."""
+    from thirdhand.errors import ThirdhandError
+    from thirdhand.live.assist import AssistOptions, RobotAssist
 
     box = {"bbox_min_m": [-0.1, -0.1, -0.01], "bbox_max_m": [0.1, 0.1, 0.01]}
     meta = {"geometry": {"board": box}}
-    assist = RobotAssist(["board"], ["part"], meta, "board")
-
-    def fail() -> None:
-        raise RuntimeError("the planner broke")
-
-    assist._in_background(fail, (), "test")
-    with pytest.raises(RuntimeError, match="the planner broke"):
+    assist = RobotAssist(["board"], ["part"], meta, "board", AssistOptions(robot="no arm"))
+    assert assist.background
+    pos, quat = np.array([[0.0, 0.0, 0.76]]), np.array([[0.0, 0.0, 0.0, 1.0]])
+    tracker = PlanTracker([], [], ["board"])
+    assist.update(0.0, pos, quat, np.ones(1, dtype=bool), tracker, {})
+    assert assist.planning  # the set-up runs in its own thread
+    with pytest.raises(ThirdhandError, match="unknown robot 'no arm'"):
         assist.finish()
     assist.finish()  # raised once, then clear
+    assert not assist.planning and assist.robot is None
 
 
 def test_the_assembly_reach_composes_the_plan_poses_from_the_root() -> None:
@@ -180,14 +192,15 @@ def test_the_hand_over_and_the_base_stand_beyond_the_assembly_reach() -> None:
     root = np.array([0.1, 0.2, 0.8])
     pos = np.array([root, root + np.array([0.0, -0.4, 0.1])])  # the person's hand on -y
     quat = np.tile([0.0, 0.0, 0.0, 1.0], (2, 1))
-    assist._setup(pos, quat, np.ones(2, dtype=bool))
-    assert assist._handover is not None
-    hp = assist._handover[0]
+    assist.setup(pos, quat, np.ones(2, dtype=bool))
+    assert assist.handover is not None
+    hp = assist.handover[0]
     away = (hp - root)[:2] / np.linalg.norm((hp - root)[:2])
     assert away @ [0.0, 1.0] > 0.0  # on the far side from the person
     assert np.linalg.norm((hp - root)[:2]) == pytest.approx(0.48 + opt.handover_m[0], abs=1e-9)
     assert hp[2] == pytest.approx(root[2] + opt.handover_m[2])
-    base = assist._base
+    base = assist.base
+    np.testing.assert_array_equal(base, assist.initial_base)
     reach = np.linalg.norm((base - root)[:2])
     assert reach == pytest.approx(0.48 + opt.handover_m[0] + opt.base_beyond_m, abs=1e-9) or (
         reach == pytest.approx(0.48 + opt.handover_m[0] + opt.base_beyond_m + 0.1, abs=1e-9)
@@ -197,18 +210,20 @@ def test_the_hand_over_and_the_base_stand_beyond_the_assembly_reach() -> None:
 
 
 def test_a_part_the_arm_could_not_fetch_is_tried_again_once_it_or_what_was_near_moved() -> None:
-    from thirdhand.live.assist import RETRY_AFTER_S, RETRY_MOVED_M, RobotAssist
+    from thirdhand.live.fetch import RETRY_AFTER_S, RETRY_MOVED_M, failed_fetch, may_retry
 
     # rows: seat, leg1 (failed), leg2 (lying against it), a finger beside it, a far finger
-    names = ["seat", "leg1", "leg2", "rh_index", "lh_index"]
-    kinds = ["part", "part", "part", "finger", "finger"]
-    assist = RobotAssist(names, kinds, {}, "seat")
     here = np.array([0.4, 0.1, 0.8])
     beside, hand = here + np.array([0.09, 0.0, 0.0]), here + np.array([0.0, 0.2, 0.0])
     pos = np.array([[0.0, 0.0, 0.8], here, beside, hand, [2.0, 0.0, 0.0]])
     valid = np.ones(5, dtype=bool)
-    assert assist._may_retry(1, 0.0, pos, valid)
-    assist._failed["leg1"] = (10.0, here.copy(), {2: pos[2].copy(), 3: pos[3].copy()})
+    assert may_retry(None, 1, 0.0, pos, valid)
+    # what was near leg1 when it failed: leg2 and the finger beside it (the seat is 0.41 m off)
+    failed = failed_fetch(10.0, here.copy(), pos, valid, range(5), 1)
+    assert failed.when_s == 10.0 and sorted(failed.near) == [2, 3]
+    np.testing.assert_array_equal(failed.where, here)
+    np.testing.assert_array_equal(failed.near[2], pos[2])
+    np.testing.assert_array_equal(failed.near[3], pos[3])
     step = np.array([0.0, RETRY_MOVED_M, 0.0])
     later = 10.0 + RETRY_AFTER_S
 
@@ -217,17 +232,17 @@ def test_a_part_the_arm_could_not_fetch_is_tried_again_once_it_or_what_was_near_
         out[row] += by * step
         return out
 
-    assert not assist._may_retry(1, later, pos, valid)  # nothing moved
-    assert not assist._may_retry(1, later, moved(1, 0.9), valid)
-    assert assist._may_retry(1, later, moved(1, 1.1), valid)  # the part itself
-    assert assist._may_retry(1, later, moved(3, 1.1), valid)  # the hand beside it
-    assert assist._may_retry(1, later, moved(2, 1.1), valid)  # the part against it
-    assert not assist._may_retry(1, later, moved(4, 10.0), valid)  # a hand far away
-    assert not assist._may_retry(1, later - 0.01, moved(1, 1.1), valid)  # too soon
+    assert not may_retry(failed, 1, later, pos, valid)  # nothing moved
+    assert not may_retry(failed, 1, later, moved(1, 0.9), valid)
+    assert may_retry(failed, 1, later, moved(1, 1.1), valid)  # the part itself
+    assert may_retry(failed, 1, later, moved(3, 1.1), valid)  # the hand beside it
+    assert may_retry(failed, 1, later, moved(2, 1.1), valid)  # the part against it
+    assert not may_retry(failed, 1, later, moved(4, 10.0), valid)  # a hand far away
+    assert not may_retry(failed, 1, later - 0.01, moved(1, 1.1), valid)  # too soon
     lost = valid.copy()
     lost[3] = False
-    assert not assist._may_retry(1, later, moved(3, 1.1), lost)  # a hand not seen now
-    assert assist._may_retry(0, later, pos, valid)  # the seat never failed
+    assert not may_retry(failed, 1, later, moved(3, 1.1), lost)  # a hand not seen now
+    assert may_retry(None, 0, later, pos, valid)  # the seat never failed
 
 
 @pytest.mark.parametrize("higher", [True, False])
@@ -252,21 +267,22 @@ def test_a_part_lying_against_another_is_lifted_clear_of_it(
     pos = np.array([[0.0, 0.0, 0.76], [0.3, 0.15, 0.79], [0.52, 0.22, 0.79], [0.0, -0.5, 0.9]])
     quat = np.tile(ident, (4, 1))
     valid = np.ones(4, dtype=bool)
-    assist._setup(pos, quat, valid)
+    assist.setup(pos, quat, valid)
     if not higher:
-        monkeypatch.setattr("thirdhand.live.assist.LIFT_STEPS", (1,))
-    assist._start(0.0, 0, 1, pos, quat, valid)
+        monkeypatch.setattr("thirdhand.live.grasp.LIFT_STEPS", (1,))
+    assist.start_fetch(0.0, 0, 1, pos, quat, valid)
     a = assist.active
     assert a is not None
     if not higher:
         assert (a.outcome, a.status) == ("unreachable", "no clear lift")
         return
     assert a.ready_s is not None and a.outcome == "moving", a.status
-    assert assist._resting == ("table", "leg2")
-    lift = a.path[assist._grasp_index + 1]  # the planned path goes on from the lift
+    assert a.resting == ("table", "leg2")
+    lift = a.path[a.grasp_index + 1]  # the planned path goes on from the lift
     assert lift is not None
-    scene = assist._plan_scene
-    grasp = a.path[assist._grasp_index]
+    scene = assist.plan_scene
+    assert scene is not None
+    grasp = a.path[a.grasp_index]
     scene.attach("leg1", grasp)
     try:
         assert scene.collisions(lift) == []  # clear of leg2 and the table, nothing allowed
@@ -282,8 +298,8 @@ def test_the_part_being_mounted_is_planned_around_at_every_free_slot() -> None:
     progress and a hand holds leg2, the arm plans around leg2's box at each slot not done
     (world poses worked out by hand); not around leg1, held but already mounted; around
     nothing with no step in progress or the seat not tracked."""
-    from thirdhand.live.assist import RobotAssist
-    from thirdhand.live.tracker import PlanTracker, RecognisedStep
+    from thirdhand.live.fetch import mounting_poses
+    from thirdhand.live.tracker import RecognisedStep
 
     ident = np.array([0.0, 0.0, 0.0, 1.0])
     flip = np.array([1.0, 0.0, 0.0, 0.0])  # 180° about x
@@ -293,7 +309,7 @@ def test_the_part_being_mounted_is_planned_around_at_every_free_slot() -> None:
                     np.zeros(3), ident, np.zeros((6, 2)), [(0, 1), (0, 2), (0, 3)])  # fmt: skip
 
     names = ["seat", "leg1", "leg2", "leg3", "rh_index"]
-    assist = RobotAssist(names, ["part"] * 4 + ["finger"], {}, "seat")
+    parts = [0, 1, 2, 3]
     tracker = PlanTracker([slot(0, 0.1), slot(1, -0.1), slot(2, 0.0)], [[], [], []], names)
     tracker.done[2] = RecognisedStep(2, "c2", "seating", "leg1", 1.0, 0.5, True)
     yaw = np.array([0.0, 0.0, np.sin(np.pi / 4), np.cos(np.pi / 4)])
@@ -302,9 +318,13 @@ def test_the_part_being_mounted_is_planned_around_at_every_free_slot() -> None:
     quat = np.array([yaw, ident, ident, ident, ident])
     valid = np.ones(5, dtype=bool)
     held = {"seat", "leg1", "leg2"}
-    assert assist._mounting_poses(tracker, held, pos, quat, valid) == []  # none in progress
+
+    def poses(held: set[str], valid: np.ndarray) -> list:
+        return mounting_poses(tracker, names, parts, held=held, pos=pos, quat=quat, valid=valid)
+
+    assert poses(held, valid) == []  # none in progress
     tracker.current = 0
-    got = assist._mounting_poses(tracker, held, pos, quat, valid)
+    got = poses(held, valid)
     assert [row for row, _, _ in got] == [2, 2]
     # Rz(90°) (x, y) -> (-y, x); Rz(90°)·Rx(180°): x -> y, y -> x, z -> -z
     np.testing.assert_allclose(got[0][1], [0.3 - 0.1, 0.2 + 0.1, 0.76 - 0.05], atol=1e-12)
@@ -314,8 +334,8 @@ def test_the_part_being_mounted_is_planned_around_at_every_free_slot() -> None:
         np.testing.assert_allclose(se3.quat_rotate(turn, [0.0, 0.0, 1.0]), [0, 0, -1], atol=1e-12)
     lost = valid.copy()
     lost[0] = False
-    assert assist._mounting_poses(tracker, held, pos, quat, lost) == []
-    assert assist._mounting_poses(tracker, {"leg1"}, pos, quat, valid) == []  # mounted
+    assert poses(held, lost) == []
+    assert poses({"leg1"}, valid) == []  # mounted
 
 
 def test_the_base_drives_round_a_board_on_its_track_to_a_part_out_of_reach() -> None:
@@ -327,6 +347,11 @@ def test_the_base_drives_round_a_board_on_its_track_to_a_part_out_of_reach() -> 
     round the board to a station near the leg and has it at the hand-over. The arm at home
     touches nothing at any point of the drive, checked in the world as tracked."""
     from thirdhand.live.assist import AssistOptions, RobotAssist
+
+    def slot(step: int) -> Slot:
+        ident = np.array([0.0, 0.0, 0.0, 1.0])
+        return Slot(step, f"c{step}", "seat", "leg", np.zeros(3), ident, np.zeros(3), ident,
+                    np.zeros((6, 2)), [(0, 1)])  # fmt: skip
 
     leg = {"bbox_min_m": [-0.14, -0.04, -0.04], "bbox_max_m": [0.14, 0.04, 0.04]}
     seat = {"bbox_min_m": [-0.15, -0.15, -0.01], "bbox_max_m": [0.15, 0.15, 0.01]}
@@ -342,7 +367,7 @@ def test_the_base_drives_round_a_board_on_its_track_to_a_part_out_of_reach() -> 
         opt = AssistOptions(base_track_m=track_m)
         assist = RobotAssist(names, kinds, meta, "seat", opt, reach_m=0.3)
         assist.background = False
-        assist._setup(pos, quat, valid)
+        assist.setup(pos, quat, valid)
         start = assist.initial_base.copy()
         if track_m:
             assert abs(start[0]) > 0.2  # beside the board, not on it
@@ -350,7 +375,7 @@ def test_the_base_drives_round_a_board_on_its_track_to_a_part_out_of_reach() -> 
         # the leg on the far side of the board from where the base stands
         pos[1, 0] = -np.sign(start[0]) * 0.8
         assert np.linalg.norm(pos[1, :2] - start[:2]) > 1.1
-        assist._start(1.0, 0, 1, pos, quat, valid)
+        assist.start_fetch(1.0, 0, 1, pos, quat, valid)
         a = assist.active
         assert a is not None
         outcomes[track_m] = a.outcome
@@ -368,15 +393,16 @@ def test_the_base_drives_round_a_board_on_its_track_to_a_part_out_of_reach() -> 
         assert a.base_times[-1] - a.base_times[0] == pytest.approx(drive / opt.base_speed)
         assert a.to_dict()["base_travel_m"] == pytest.approx(drive, abs=1e-3)
         # the drive as the live loop checks it: every point, the world as tracked; the arm's
-        # own motion waits for its end
-        assert assist._driving is a
+        # own motion waits for its end (the leg's step still needs it: the assist goes on)
+        assert assist.driving is a
+        tracker = PlanTracker([slot(0)], [[]], names)
         for t in a.base_times[:-1]:
-            assist._check(a, float(t) + 1e-9, pos, quat, valid)
-            assist._drive(float(t) + 1e-9, pos, quat, valid)
+            assist.update(float(t) + 1e-9, pos, quat, valid, tracker, {})
+        assert assist.active is a and a.end_s is None
         assert a.checked == len(route) - 1 and a.collisions == 0
-        assist._drive(float(a.base_times[-1]), pos, quat, valid)
-        assert assist._driving is None
-        np.testing.assert_allclose(assist._base, route[-1], atol=1e-12)
+        assist.update(float(a.base_times[-1]), pos, quat, valid, tracker, {})
+        assert assist.driving is None
+        np.testing.assert_allclose(assist.base, route[-1], atol=1e-12)
     assert outcomes[0.0] == "unreachable"
 
 
@@ -386,20 +412,25 @@ def test_the_part_is_held_farthest_from_the_sphere_the_person_sweeps_first() -> 
     from the root towards the arm (+y) and 0.35 m up. The board's nearest corner is, from
     the root: turned 90° and raised 15 cm, 0.74 m; turned 90°, 0.65 m; along +y (yaw 0 or
     180°) raised, 0.54 m; along +y, 0.40 m (inside the sphere). Tried in that order."""
-    from thirdhand.live.assist import RobotAssist, _handover_targets
+    from thirdhand.live.assist import RobotAssist
+    from thirdhand.live.grasp import part_box
+    from thirdhand.live.handover import handover_targets, targets_farthest_first
+    from thirdhand.segment.contact import body_box
 
     board = {"bbox_min_m": [-0.3, -0.05, -0.015], "bbox_max_m": [0.3, 0.05, 0.015]}
     names, kinds = ["board", "seat", "rh_index"], ["part", "part", "finger"]
     assist = RobotAssist(names, kinds, {"geometry": {"board": board}}, "seat", reach_m=0.45)
     pos = np.array([[0.5, 0.0, 0.775], [0.0, 0.0, 0.76], [0.0, -0.4, 0.9]])
     quat = np.tile([0.0, 0.0, 0.0, 1.0], (3, 1))
-    assist._setup(pos, quat, np.ones(3, dtype=bool))
-    assert assist._handover is not None
-    np.testing.assert_allclose(assist._handover[0], [0.0, 0.52, 1.11], atol=1e-9)
+    assist.setup(pos, quat, np.ones(3, dtype=bool))
+    handover = assist.handover
+    assert handover is not None
+    np.testing.assert_allclose(handover[0], [0.0, 0.52, 1.11], atol=1e-9)
     # the part's frame in the tool's: x along the tool's x, z against the tool's (down)
     held = np.diag([1.0, -1.0, -1.0, 1.0])
-    got = assist._held_clear(0, held)
-    want = _handover_targets(assist._handover)
+    centre, size = part_box(body_box({"geometry": {"board": board}}, "board"), 0.05)
+    got = targets_farthest_first(handover, centre, size, held, pos[1])  # about the seat
+    want = handover_targets(handover)
     order = [
         next(k for k, w in enumerate(want) if np.allclose(w[0], g[0]) and np.allclose(w[1], g[1]))
         for g in got

@@ -20,8 +20,9 @@ from typing import Any
 import numpy as np
 
 from thirdhand.demonstration import BodyInfo
-from thirdhand.live.assist import AssistOptions, RobotAssist, assembly_reach
+from thirdhand.live.assist import AssistOptions, RobotAssist
 from thirdhand.live.filter import SMOOTHER_LAG, OnlinePhases
+from thirdhand.live.handover import assembly_reach
 from thirdhand.live.source import Frame, FrameSource
 from thirdhand.live.state import (
     ConstraintState,
