@@ -166,3 +166,30 @@ def test_links_rest_on_the_table_when_no_joint_lifts_them_and_they_stand_on_it()
     fixed = np.array([True, True, True, False, True])
     got = resting_links(bottom, fixed, 0.75, 0.05)
     np.testing.assert_array_equal(got, [True, True, False, False, False])
+
+
+def test_a_scene_checks_the_pairs_its_allowances_leave() -> None:
+    """The scene's checker builds its table from the scene: a box meets every link until the
+    gripper is allowed to touch it, then every link but the hand's; disallowing brings the
+    same table back."""
+    from thirdhand.execute import CollisionScene, Robot
+
+    panda = Robot.load("panda", base_pose=([0.0, 0.0, 0.75], [0, 0, 0, 1]))
+    scene = CollisionScene(panda)
+    scene.add_box("box", ([0.5, 0.0, 1.0], [0, 0, 0, 1]), (0.05, 0.05, 0.05))
+    links = [link.name for link in scene.checks.bodies.links]
+    box = len(links)
+
+    def met_by_box() -> list[str]:
+        table = scene.checks.pair_table()
+        return [links[a] for a, b in zip(table.first, table.second, strict=True) if b == box]
+
+    assert met_by_box() == links
+    before = scene.checks.pair_table()
+    scene.allow(GRIPPER, "box")
+    hand = set(panda.gripper_links)
+    assert met_by_box() == [n for n in links if n not in hand] and hand & set(links)
+    scene.disallow(GRIPPER, "box")
+    assert scene.checks.pair_table() is before
+    gm, _ = scene.to_pinocchio()
+    assert len(gm.collisionPairs) == len(before)
