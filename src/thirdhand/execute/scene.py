@@ -18,7 +18,7 @@ support this for triangle meshes, so the table top is lowered by ``tolerance``:
 a mesh part resting on it then clears it. Mesh parts meant to touch each other
 (a leg seated in the seat) must be allowed as a pair while they touch.
 
-This module builds the world, as a :class:`~thirdhand.execute.collision_check.SceneBodies`
+This module builds the world, as a :class:`~thirdhand.execute.scene_bodies.SceneBodies`
 snapshot replaced on every change; which pairs are checked with which margins is
 decided in :mod:`thirdhand.execute.pair_table`, and the checks of configurations
 and paths are made by :class:`~thirdhand.execute.collision_check.SceneChecks`
@@ -38,15 +38,10 @@ from numpy.typing import ArrayLike
 from thirdhand.arrays import BoolArray, FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute import meshes
-from thirdhand.execute.collision_check import (
-    Body,
-    SceneBodies,
-    SceneChecks,
-    touching_links,
-    world_aabb,
-)
+from thirdhand.execute.collision_check import SceneChecks, world_aabb
 from thirdhand.execute.pair_table import GRIPPER, ROBOT
 from thirdhand.execute.robot import PoseLike, Robot, pose_matrix
+from thirdhand.execute.scene_bodies import Body, SceneBodies, touching_links
 
 __all__ = ["GRIPPER", "ROBOT", "CollisionScene", "SceneError", "robot_bodies"]
 
