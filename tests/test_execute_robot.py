@@ -221,12 +221,12 @@ def test_interpolation_bounds_point_motion(panda: Robot) -> None:
     for k in range(len(qs)):
         assert np.any(np.all(dense == qs[k], axis=1))
     # Brute force: corners of every link's box never move more than the bound.
-    bodies = scene._bodies()
+    bodies = scene.checks.bodies.bodies
     centers = np.array([b.center for b in bodies])
     halves = np.array([b.half for b in bodies])
     signs = np.array(np.meshgrid([-1, 1], [-1, 1], [-1, 1])).reshape(3, -1).T
     corners = centers[:, None] + signs[None] * halves[:, None]  # (B, 8, 3)
-    t = scene._transforms(dense)
+    t = scene.checks.transforms(dense)
     pts = np.einsum("nbij,bkj->nbki", t[..., :3, :3], corners) + t[:, :, None, :3, 3]
     step = np.linalg.norm(np.diff(pts, axis=0), axis=-1).max()
     assert step <= 0.01 + 1e-9

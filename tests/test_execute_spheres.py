@@ -14,6 +14,7 @@ from thirdhand.execute import sphere_check as sc
 from thirdhand.execute.collision_check import geometry_cover
 from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.execute.spheres import cover_geometry, mesh_triangles, transform_cover
+from thirdhand.se3 import matrix_to_pose
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +138,7 @@ def _world(robot: Robot, table_z: float, x0: float) -> CollisionScene:
     t_tube = np.array(
         [[0, 0, 1, x0 + 0.4], [0, 1, 0, -0.25], [-1, 0, 0, table_z + 0.04], [0, 0, 0, 1.0]]
     )
-    scene._add("tube", _ring_mesh(), t_tube)
+    scene.add_geometry("tube", _ring_mesh(), matrix_to_pose(t_tube))
     scene.add_object("held", ([x0 + 0.5, 0.0, table_z + 0.3], [0, 0, 0, 1]), size=(0.04, 0.04, 0.2))
     q = robot.ik(([x0 + 0.5, 0.0, table_z + 0.3], [1.0, 0, 0, 0]), seed=0)
     assert q is not None
@@ -158,9 +159,9 @@ def test_spheres_never_say_free_where_coal_says_collision(name, table_z, x0, req
     # spheres as the broad phase: the same verdicts as the bounding boxes
     np.testing.assert_array_equal(scene.valid_mask(qs[:3000]), exact[:3000])
     # with a security margin too (the clearance of path checks)
-    wide = scene._pair_margins(0.005)
-    flags = scene.sphere_flags(qs[:500], wide)
-    exact_wide = scene._check(qs[:500], wide, False, exact=True)
+    wide = scene.checks.pair_margins(0.005)
+    flags = scene.checks.sphere_flags(qs[:500], wide)
+    exact_wide = scene.checks.valid_mask(qs[:500], margins=wide, exact=True)
     assert not np.any(~flags.any(axis=1) & ~exact_wide)
 
 
@@ -194,7 +195,7 @@ def test_path_levels_give_the_dense_verdict_and_stay_sound(panda: Robot) -> None
     scene = _world(panda, 0.75, 0.0)
     rng = np.random.default_rng(11)
     step = 0.01
-    margins = scene._pair_margins(step / 2.0)
+    margins = scene.checks.pair_margins(step / 2.0)
     q0 = panda.random_q(rng, 400)
     counts = {"dense free": 0, "cleared": 0, "fewer tests": 0}
     for qa in q0:
@@ -224,8 +225,8 @@ def test_fixed_links_and_pairs_are_decided_once(panda: Robot) -> None:
     scene.add_table(height=0.75)
     # a block 1 cm from link1's bottom sphere: close at every angle of joint 1
     scene.add_box("block", ([0.105, 0.0, 0.80], [0, 0, 0, 1]), (0.01, 0.05, 0.05))
-    world = scene._sphere_world()
-    names = [b.name for b in scene._bodies()]
+    world = scene.checks.sphere_world()
+    names = [b.name for b in scene.checks.bodies.bodies]
     link1 = [k for k, n in enumerate(names) if n == "panda_link1"]
     assert all(world.frame[k] == -1 for k in link1)
     qs = panda.random_q(np.random.default_rng(5), 300)
@@ -239,9 +240,10 @@ def test_a_fixed_pair_within_the_clearance_does_not_block_the_path_check(panda: 
     scene.add_table(height=0.75)
     # a block 3 mm from link1's bottom sphere (1 cm in the test above)
     scene.add_box("block", ([0.098, 0.0, 0.80], [0, 0, 0, 1]), (0.01, 0.05, 0.05))
-    _, _, fixed_idx, dists = scene._sphere_pairs()
-    first, second = scene._active_pairs()
-    names = [b.name for b in scene._bodies()]
+    _, _, fixed_idx, dists = scene.checks.sphere_pairs()
+    table = scene.checks.pair_table()
+    first, second = table.first, table.second
+    names = [b.name for b in scene.checks.bodies.bodies]
     near = [
         d for p, d in zip(fixed_idx, dists, strict=True)
         if {names[first[p]], names[second[p]]} == {"panda_link1", "block"}
@@ -274,19 +276,19 @@ def test_allowing_and_disallowing_a_pair_brings_back_its_checks(panda: Robot) ->
     scene = world()
     qs = panda.random_q(np.random.default_rng(13), 400)
     base = scene.valid_mask(qs)
-    split = scene._sphere_pairs()
+    split = scene.checks.sphere_pairs()
     scene.allow("gripper", "held")
     allowed = scene.valid_mask(qs)
     assert np.any(allowed & ~base)  # not vacuous: the gripper meets the part somewhere
     scene.disallow("gripper", "held")
-    assert scene._sphere_pairs() is split
+    assert scene.checks.sphere_pairs() is split
     np.testing.assert_array_equal(scene.valid_mask(qs), base)
     scene.allow("gripper", "held")
     np.testing.assert_array_equal(scene.valid_mask(qs), allowed)
     scene.disallow("gripper", "held")
     # a moved object: new distances, new verdicts, the same as a scene built that way
     scene.set_object_pose("held", ([0.3, -0.3, 1.0], [0, 0, 0, 1]))
-    assert scene._sphere_pairs() is not split
+    assert scene.checks.sphere_pairs() is not split
     fresh = world()
     fresh.set_object_pose("held", ([0.3, -0.3, 1.0], [0, 0, 0, 1]))
     moved = scene.valid_mask(qs)
@@ -301,7 +303,7 @@ def test_compiled_interpolation_is_the_reference_one(panda: Robot) -> None:
     the exact one accepts, and never a path leaving the joint limits."""
     scene = CollisionScene(panda)
     scene.add_table(height=0.75)
-    lever = scene.motion_bound()
+    lever = scene.checks.motion_bound()
     rng = np.random.default_rng(9)
     for n in (2, 3, 5):
         qs = panda.random_q(rng, n)
@@ -332,8 +334,8 @@ def test_block_pruning_flags_exactly_what_the_pairs_flag(panda: Robot) -> None:
     import dataclasses
 
     scene = _world(panda, 0.75, 0.0)
-    world = scene._sphere_world()
-    idx, blocks, _, _ = scene._sphere_pairs()
+    world = scene.checks.sphere_world()
+    idx, blocks, _, _ = scene.checks.sphere_pairs()
     assert np.any(blocks.blocks[:, 4] == 1)  # a link's side of the fingers is pruned
     assert np.any(blocks.cluster_frame <= -2)  # the table is tested as a box
     plain = dataclasses.replace(
@@ -342,10 +344,10 @@ def test_block_pruning_flags_exactly_what_the_pairs_flag(panda: Robot) -> None:
         cluster_frame=np.where(blocks.cluster_frame <= -2, -1, blocks.cluster_frame),
         scratch=tuple(a.copy() for a in blocks.scratch),
     )
-    chain = scene._chain_arrays()
+    chain = scene.checks.chain_arrays()
     qs = panda.random_q(np.random.default_rng(11), 3000)
     for margin in (0.0, 0.01):
-        m = scene._pair_margins(margin)[idx]
+        m = scene.checks.pair_margins(margin)[idx]
         pruned = sc.flags(world, chain, qs, blocks, m)
         np.testing.assert_array_equal(pruned, sc.flags(world, chain, qs, plain, m))
         assert pruned.any() and not pruned.all()
@@ -391,9 +393,9 @@ def test_batched_kernel_flags_what_every_sphere_pair_flags(panda: Robot) -> None
     their margin, counted with no hierarchy; a batch that does not fill its last lanes, and
     each configuration alone, give the same flags; its forward kinematics is the scalar one."""
     scene = _world(panda, 0.75, 0.0)
-    world = scene._sphere_world()
-    idx, blocks, _, _ = scene._sphere_pairs()
-    chain = scene._chain_arrays()
+    world = scene.checks.sphere_world()
+    idx, blocks, _, _ = scene.checks.sphere_pairs()
+    chain = scene.checks.chain_arrays()
     qs = panda.random_q(np.random.default_rng(5), 2 * sc.LANES + 5)
     t = sc.joint_transforms_nb(qs, chain.placements, chain.axes, chain.parents)
     tl = np.empty((panda.dof + 1, 12, sc.LANES))
@@ -404,7 +406,7 @@ def test_batched_kernel_flags_what_every_sphere_pair_flags(panda: Robot) -> None
             np.testing.assert_allclose(
                 tl[: panda.dof, :, lane].reshape(-1, 3, 4), t[i, :, :3], atol=1e-12, rtol=0
             )
-    m = scene._pair_margins(0.01)[idx]
+    m = scene.checks.pair_margins(0.01)[idx]
     flags = sc.flags(world, chain, qs, blocks, m)
     assert flags.any() and not flags.all()
     for i, q in enumerate(qs):

@@ -26,6 +26,12 @@ the world frame, metres and radians)::
     scene.check_path(qs, *, max_step_m=0.01, max_step_rad=0.02, clearance=True) -> bool
     scene.sphere_free_mask(qs) -> (n,) bool;  scene.path_free_spheres(qs) -> bool  # conservative
     scene.interpolate(qs, ...) -> dense qs;  scene.n_checks;  scene.reset_counter()
+    scene.checks -> SceneChecks                   # the checker the scene delegates to:
+    checks.pair_table() -> PairTable;  checks.pair_margins(clearance=0.0) -> (P,)
+    checks.sphere_flags(qs, margins=None) -> (n, P);  checks.valid_mask(qs, *, margins=None)
+
+    pair_table.pair_table(PairWorld, tolerance) -> PairTable   # pure: which pairs, which margins
+    pair_table.pair_margins(table, clearance);  pair_table.path_margin_levels(...)
 
     plan_motion(robot, scene, q_start, q_goal | goal_set (k, dof), *, planner="rrtconnect",
                 time_limit=5.0, seed=0, simplify=True) -> PlanResult

@@ -1,22 +1,26 @@
-"""Checking configurations and paths of a collision world: pairs, margins, batched checks.
+"""Checking configurations and paths of a collision world: batched checks over a pair table.
 
-The checking half of :class:`~thirdhand.execute.scene.CollisionScene` (which
-builds the world: table, boxes, parts, attach and detach). A configuration is
-checked in two phases, batched over many configurations at once: world-frame
-bounding boxes of every body (robot links from
-:class:`~thirdhand.execute.kinematics.Chain`, numpy) over a fixed list of active
-pairs, then coal's exact narrow phase on the pairs whose boxes overlap,
-stopping at the first contact. Paths are interpolated so that no point of the
-robot or the grasped part moves more than a given distance between two checks,
-and checked coarse to fine. Poses are homogeneous (4, 4) matrices in the
-world frame, metres; configurations are radians.
+:class:`SceneChecks` checks the bodies of one
+:class:`~thirdhand.execute.scene_bodies.SceneBodies` snapshot,
+which :class:`~thirdhand.execute.scene.CollisionScene` (table, boxes, parts,
+attach and detach) hands it on every change. Which pairs are checked and with
+which margins is decided by the pure functions of
+:mod:`~thirdhand.execute.pair_table`; the checker keeps the coal requests, the
+sphere covers and the caches. A configuration is checked in two phases, batched
+over many configurations at once: world-frame bounding boxes of every body
+(robot links from :class:`~thirdhand.execute.kinematics.Chain`, numpy) or the
+sphere covers over the pair table, then coal's exact narrow phase on the pairs
+they cannot clear, stopping at the first contact. Paths are interpolated so that
+no point of the robot or the grasped part moves more than a given distance
+between two checks, and checked coarse to fine. Poses are homogeneous (4, 4)
+matrices in the world frame, metres; configurations are radians.
 """
 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import dataclass, field
 from functools import lru_cache
+from typing import NamedTuple
 
 import coal
 import numba
@@ -24,42 +28,66 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from thirdhand.arrays import BoolArray, FloatArray, IndexArray
+from thirdhand.execute import pair_table as pt
 from thirdhand.execute import sphere_check as sc
+from thirdhand.execute.kinematics import Chain
+from thirdhand.execute.pair_table import GRIPPER, PATH_REACH, ROBOT
 from thirdhand.execute.robot import Robot
+from thirdhand.execute.scene_bodies import (
+    Body,
+    SceneBodies,
+    coal_transform,
+    fixed_link_frame,
+    touching_links,
+)
 from thirdhand.execute.spheres import SphereCover, cover_geometry, transform_cover
 
-GRIPPER = "gripper"
-ROBOT = "robot"
-
-#: Reach of the path kernel's margin levels, configurations on either side (see
-#: :meth:`SceneChecks._path_levels`); a longer stretch is split before it is tested.
-PATH_REACH = np.concatenate([[0], 2 ** np.arange(13)]).astype(np.int64)
-
-#: What :meth:`SceneChecks._invalidate` keeps per allowed set: the active pairs, their
-#: split for the kernels, the margins and the path kernel's margin levels.
-PairState = tuple[
-    tuple[IndexArray, IndexArray],
-    tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray] | None,
-    dict[float, FloatArray],
-    dict[float, tuple[FloatArray, FloatArray, IndexArray] | None],
+__all__ = [
+    "GRIPPER",
+    "PATH_REACH",
+    "ROBOT",
+    "Body",
+    "SceneBodies",
+    "SceneChecks",
+    "SpherePairs",
+    "coal_transform",
+    "fixed_link_frame",
+    "geometry_cover",
+    "touching_links",
+    "warm_up",
+    "world_aabb",
 ]
 
 
-@dataclass
-class Body:
-    """A body of the world: a coal geometry, where it is, and its local bounding box."""
+class SpherePairs(NamedTuple):
+    """The pair table split for the sphere kernels.
 
-    name: str
-    geometry: coal.CollisionGeometry
-    transform: FloatArray  # T_world_body (objects) or T_joint_geom (robot links), (4, 4)
-    center: FloatArray  # local AABB centre (3,)
-    half: FloatArray  # local AABB half extents (3,)
-    offset: FloatArray = field(default_factory=lambda: np.eye(4))  # T_part_geometry
+    Attributes
+    ----------
+    moving : ndarray of intp, shape (M,)
+        Pairs (indices into the table) whose bodies move relative to each other.
+    blocks : sphere_check.PairBlocks
+        Those pairs arranged for the kernels.
+    fixed : ndarray of intp, shape (F,)
+        Pairs of two bodies that keep their distance at every configuration.
+    fixed_dist : ndarray, shape (F,)
+        coal's exact distance of each fixed pair, metres.
+    """
+
+    moving: IndexArray
+    blocks: sc.PairBlocks
+    fixed: IndexArray
+    fixed_dist: FloatArray
 
 
-def coal_transform(t: FloatArray) -> coal.Transform3s:
-    """coal transform of a homogeneous matrix (4, 4)."""
-    return coal.Transform3s(np.ascontiguousarray(t[:3, :3]), np.ascontiguousarray(t[:3, 3]))
+class PairState(NamedTuple):
+    """What the checker keeps per allowed set: the pair table, its split for the kernels,
+    the margins by clearance and the path kernel's margin levels by step."""
+
+    table: pt.PairTable
+    spheres: SpherePairs | None
+    margins: dict[float, FloatArray]
+    path_levels: dict[float, tuple[FloatArray, FloatArray, IndexArray] | None]
 
 
 _COVERS: dict[int, tuple[coal.CollisionGeometry, SphereCover]] = {}
@@ -148,123 +176,118 @@ def world_aabb(
 
 
 class SceneChecks:
-    """Pairs, margins and the batched checks of a collision world (see the module notes).
+    """The batched checks of a collision world (see the module notes).
 
-    The attributes are set by :class:`~thirdhand.execute.scene.CollisionScene`.
+    Checks the bodies of one :class:`SceneBodies` snapshot at a time, replaced by
+    :meth:`update`; keeps coal's requests, the sphere covers and the caches of the
+    pair table and its margins.
+
+    Parameters
+    ----------
+    robot : Robot
+    bodies : SceneBodies
+        The world to check.
+    tolerance : float
+        Penetration depth, metres, below which two primitive shapes only touch.
+    spheres : bool
+        Use the sphere layer as the broad phase and for path checks (see
+        :class:`~thirdhand.execute.scene.CollisionScene`).
+
+    Attributes
+    ----------
+    n_checks : int
+        Configurations checked so far; reset with :meth:`reset_counter`.
+    n_narrow : int
+        Exact (coal) pair tests so far.
     """
 
-    robot: Robot
-    tolerance: float
-    use_spheres: bool
-    n_checks: int
-    n_narrow: int
-    _requests: dict[float, coal.CollisionRequest]
-    _result: coal.CollisionResult
-    _links: list[Body]
-    _link_joint: IndexArray
-    _link_names: list[str]
-    _self_pairs: list[tuple[int, int]]
-    _objects: dict[str, Body]
-    _attached: Body | None
-    _t_tool_attached: FloatArray
-    _touch_links: set[str]
-    _allowed: set[frozenset[str]]
-    _pairs: tuple[IndexArray, IndexArray] | None
-    _lever: FloatArray | None
-    _moving: IndexArray
-    _sworld: sc.SphereWorld | None
-    _spairs: tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray] | None
-    _fixed: list[FloatArray | None]
-    _fixed_dist: dict[tuple[int, int], float]
-    _margin_cache: dict[float, FloatArray]
-    _path_margin_cache: dict[float, tuple[FloatArray, FloatArray, IndexArray] | None]
-    _chain_cache: tuple[object, sc.ChainArrays] | None
-    _pairs_key: frozenset[frozenset[str]]
-    _pair_states: dict[frozenset[frozenset[str]], PairState]
+    def __init__(
+        self, robot: Robot, bodies: SceneBodies, *, tolerance: float = 1e-3, spheres: bool = True
+    ) -> None:
+        self.robot = robot
+        self.tolerance = float(tolerance)
+        self.use_spheres = bool(spheres)
+        self.n_checks = 0
+        self.n_narrow = 0
+        self._bodies = bodies
+        self._requests: dict[float, coal.CollisionRequest] = {}
+        self._result = coal.CollisionResult()
+        self._chain_cache: tuple[Chain, sc.ChainArrays] | None = None
+        self._lever: FloatArray | None = None
+        self._sworld: sc.SphereWorld | None = None
+        self._fixed: list[FloatArray | None] = []
+        self._fixed_dist: dict[tuple[int, int], float] = {}
+        self._table: pt.PairTable | None = None
+        self._table_key: frozenset[frozenset[str]] = frozenset()
+        self._spairs: SpherePairs | None = None
+        self._margins: dict[float, FloatArray] = {}
+        self._levels: dict[float, tuple[FloatArray, FloatArray, IndexArray] | None] = {}
+        self._pair_states: dict[frozenset[frozenset[str]], PairState] = {}
+
+    @property
+    def bodies(self) -> SceneBodies:
+        """The world being checked."""
+        return self._bodies
+
+    def update(self, bodies: SceneBodies, *, moved: bool = True, posed: bool = True) -> None:
+        """Check ``bodies`` from now on, forgetting what the change made stale.
+
+        Parameters
+        ----------
+        bodies : SceneBodies
+            The world after the change.
+        moved : bool
+            A body was added, removed, grasped or released: everything is recomputed
+            (the lever arms and sphere covers too).
+        posed : bool
+            A free object moved: the pair tables and sphere covers are recomputed
+            (the fixed pairs' distances changed).
+
+        Without either (a pair allowed or disallowed), the pair table, margins and
+        kernel split of the allowed set left are kept, and those of the set now in
+        force come back if it was seen before: step search allows and disallows a
+        gripper at its part hundreds of times per step.
+        """
+        self._bodies = bodies
+        kept = None
+        if moved or posed:
+            self._pair_states = {}
+            self._sworld = None
+        else:
+            if self._table is not None:
+                self._pair_states[self._table_key] = PairState(
+                    self._table, self._spairs, self._margins, self._levels
+                )
+            kept = self._pair_states.get(bodies.allowed)
+        if kept is not None:
+            self._table, self._spairs, self._margins, self._levels = kept
+            self._table_key = bodies.allowed
+        else:
+            self._table = None
+            self._spairs = None
+            self._margins = {}
+            self._levels = {}
+        if moved:
+            self._lever = None
 
     # -- pairs ------------------------------------------------------------------------
 
-    def _invalidate(self, *, bodies: bool = True, poses: bool = True) -> None:
-        """Forget the cached pairs and margins (and, with ``bodies``, lever arms and spheres).
+    def pair_table(self) -> pt.PairTable:
+        """The checked pairs and their contact margins (:func:`.pair_table.pair_table`),
+        cached till the world changes."""
+        if self._table is None:
+            self._table_key = self._bodies.allowed
+            self._table = pt.pair_table(self._bodies.pair_world(), self.tolerance)
+        return self._table
 
-        Without ``bodies`` and ``poses`` (a pair allowed or disallowed: ``_allowed`` already
-        changed) the pairs, margins and kernel split of the allowed set left are kept, and
-        those of the set now in force come back if it was seen before: step search allows
-        and disallows a gripper at its part hundreds of times per step. ``poses`` (an object
-        moved) drops them all (their fixed distances changed).
-        """
-        kept = None
-        if bodies or poses:
-            self._pair_states = {}
-        else:
-            if self._pairs is not None:
-                self._pair_states[self._pairs_key] = (
-                    self._pairs, self._spairs, self._margin_cache, self._path_margin_cache
-                )  # fmt: skip
-            kept = self._pair_states.get(frozenset(self._allowed))
-        if kept is not None:
-            self._pairs, self._spairs, self._margin_cache, self._path_margin_cache = kept
-            self._pairs_key = frozenset(self._allowed)
-        else:
-            self._pairs = None
-            self._spairs = None
-            self._margin_cache = {}
-            self._path_margin_cache = {}
-        if bodies:
-            self._lever = None
-            self._sworld = None
-
-    def _is_allowed(self, a: str, b: str, a_is_link: bool) -> bool:
-        al = self._allowed
-        if frozenset((a, b)) in al:
-            return True
-        if a_is_link:
-            if frozenset((ROBOT, b)) in al:
-                return True
-            if a in self.robot.gripper_links and frozenset((GRIPPER, b)) in al:
-                return True
-        return False
-
-    def _active_pairs(self) -> tuple[IndexArray, IndexArray]:
-        """Body index pairs: links 0..G-1, objects G..G+E-1, grasped part G+E."""
-        if self._pairs is not None:
-            return self._pairs
-        self._pairs_key = frozenset(self._allowed)
-        names = self._link_names
-        n_links = len(names)
-        objs = list(self._objects.values())
-        first: list[int] = []
-        second: list[int] = []
-        for i, j in self._self_pairs:
-            if frozenset((names[i], names[j])) not in self._allowed:
-                first.append(i)
-                second.append(j)
-        for k, obj in enumerate(objs):
-            for i in range(n_links):
-                if not self._is_allowed(names[i], obj.name, True):
-                    first.append(i)
-                    second.append(n_links + k)
-        if self._attached is not None:
-            a_idx = n_links + len(objs)
-            a_name = self._attached.name
-            for k, obj in enumerate(objs):
-                if frozenset((a_name, obj.name)) not in self._allowed:
-                    first.append(a_idx)
-                    second.append(n_links + k)
-            exempt = set(self.robot.gripper_links) | self._touch_links
-            for i in range(n_links):
-                if names[i] not in exempt and not self._is_allowed(names[i], a_name, True):
-                    first.append(a_idx)
-                    second.append(i)
-        self._pairs = (np.array(first, dtype=np.intp), np.array(second, dtype=np.intp))
-        return self._pairs
-
-    def _margin(self, a: Body, b: Body) -> float:
-        """Contact margin of a pair: ``-tolerance``, or 0 with a mesh (coal's limitation)."""
-        mesh = isinstance(a.geometry, coal.BVHModelBase) or isinstance(
-            b.geometry, coal.BVHModelBase
-        )
-        return 0.0 if mesh else -self.tolerance
+    def pair_margins(self, clearance: float = 0.0) -> FloatArray:
+        """Security margin of every checked pair, metres, shape (P,) (cached till the world
+        changes): :func:`.pair_table.pair_margins` of the table."""
+        key = float(max(clearance, 0.0))
+        cached = self._margins.get(key)
+        if cached is None:
+            cached = self._margins[key] = pt.pair_margins(self.pair_table(), key)
+        return cached
 
     def _request(self, margin: float) -> coal.CollisionRequest:
         req = self._requests.get(margin)
@@ -280,81 +303,27 @@ class SceneChecks:
         reqs = [self._request(float(v)) for v in values]
         return [reqs[k] for k in inverse.reshape(-1)]
 
-    def _pair_margins(self, clearance: float = 0.0) -> FloatArray:
-        """Security margin of every active pair, metres, shape (P,) (cached till the world changes).
+    # -- spheres ----------------------------------------------------------------------
 
-        Without clearance, the contact margin. With it, pairs with one moving body
-        need ``clearance`` and pairs of two moving bodies twice that.
-        """
-        key = float(max(clearance, 0.0))
-        cached = self._margin_cache.get(key)
-        if cached is None:
-            cached = self._margin_cache[key] = self._compute_margins(key)
-        return cached
-
-    def _compute_margins(self, clearance: float) -> FloatArray:
-        first, second = self._active_pairs()
-        bodies = self._bodies()
-        base = np.array(
-            [self._margin(bodies[a], bodies[b]) for a, b in zip(first, second, strict=True)]
-        )
-        if clearance <= 0.0:
-            return base
-        n_moving = self._pair_moving()
-        return np.where(n_moving > 0, clearance * n_moving, base)
-
-    def _pair_moving(self) -> IndexArray:
-        """How many of each active pair's two bodies the arm moves (0, 1 or 2), shape (P,)."""
-        first, second = self._active_pairs()
-        moving = np.zeros(len(self._bodies()), dtype=bool)
-        moving[: len(self._links)] = self._link_joint >= 0
-        if self._attached is not None:
-            moving[-1] = True
-        return moving[first].astype(np.intp) + moving[second].astype(np.intp)
-
-    def _fixed_frame(self, k: int) -> FloatArray | None:
-        """World transform of link ``k`` if no joint moves it as a set, else None.
-
-        A link on the first joint whose geometry is symmetric about that joint's
-        axis (a sphere centred on it, a cylinder or capsule along it) occupies the
-        same space at every angle: Panda's ``panda_link1``.
-        """
-        j = int(self._link_joint[k])
-        link = self._links[k]
-        if j < 0:
-            return link.transform
-        chain = self.robot.chain
-        if chain.parents[j] >= 0:
-            return None
-        axis = chain.axes[j]
-        on_axis = bool(np.linalg.norm(np.cross(axis, link.transform[:3, 3])) < 1e-9)
-        geom = link.geometry
-        if isinstance(geom, coal.Sphere):
-            symmetric = on_axis
-        elif isinstance(geom, (coal.Cylinder, coal.Capsule)):
-            symmetric = on_axis and abs(abs(float(axis @ link.transform[:3, 2])) - 1.0) < 1e-12
-        else:
-            symmetric = False
-        return chain.placements[j] @ link.transform if symmetric else None
-
-    def _sphere_world(self) -> sc.SphereWorld:
-        """Sphere covers of every body, each in the frame that moves it (cached, see the module)."""
+    def sphere_world(self) -> sc.SphereWorld:
+        """Sphere covers of every body, each in the frame that moves it (cached till a body
+        is added, removed or moved)."""
         if self._sworld is not None:
             return self._sworld
-        bodies = self._bodies()
-        n_links = len(self._links)
+        state = self._bodies
+        n_links = len(state.links)
         covers: list[SphereCover | None] = []
         frames: list[int] = []
         boxes: dict[int, tuple[FloatArray, FloatArray]] = {}
         fixed: list[FloatArray | None] = []
-        for k, body in enumerate(bodies):
+        for k, body in enumerate(state.bodies):
             if k < n_links:
-                t_fixed = self._fixed_frame(k)
-                frame, t = (-1, t_fixed) if t_fixed is not None else (
-                    int(self._link_joint[k]), body.transform)  # fmt: skip
-            elif self._attached is body:
-                frame = self.robot._tool_joint
-                t = self.robot._t_joint_tool @ body.transform
+                joint = int(state.link_joint[k])
+                t_fixed = fixed_link_frame(body, joint, self.robot.chain)
+                frame, t = (-1, t_fixed) if t_fixed is not None else (joint, body.transform)
+            elif state.attached is body:
+                frame = self.robot.tool_joint
+                t = self.robot.t_joint_tool @ body.transform
             else:
                 frame, t = -1, body.transform
             frames.append(frame)
@@ -369,7 +338,8 @@ class SceneChecks:
         self._fixed_dist = {}
         return self._sworld
 
-    def _chain_arrays(self) -> sc.ChainArrays:
+    def chain_arrays(self) -> sc.ChainArrays:
+        """The robot's chain as the sphere kernels take it."""
         cached = self._chain_cache
         if cached is None or cached[0] is not self.robot.chain:
             chain = self.robot.chain
@@ -377,65 +347,21 @@ class SceneChecks:
             cached = self._chain_cache = (chain, arrays)
         return cached[1]
 
-    def _path_levels(
-        self, max_step_m: float, margins: FloatArray | None = None
-    ) -> tuple[FloatArray, FloatArray, IndexArray] | None:
-        """The path kernel's margin levels (see :func:`.sphere_check.path_flagged`) for a path
-        interpolated at ``max_step_m``, or None when two fixed bodies are within their contact
-        margin.
+    def sphere_pairs(self) -> SpherePairs:
+        """The pair table split for the kernels: moving pairs, and fixed ones (distance known).
 
-        Level 0 is ``margins`` (P,), by default the path clearance (half a step per moving
-        body, cached till the world changes); level l stands for the ``PATH_REACH[l]``
-        configurations on either side: it adds that many steps per moving body.
-        """
-        key = float(max_step_m)
-        if margins is None and key in self._path_margin_cache:
-            return self._path_margin_cache[key]
-        base = self._pair_margins(max_step_m / 2.0) if margins is None else margins
-        idx, pairs, fixed_idx, dists = self._sphere_pairs()
-        levels = None
-        # fixed pairs do not move relative to each other: their distance is known, and
-        # only their contact margin applies (no clearance)
-        if not np.any(dists <= np.maximum(self._pair_margins()[fixed_idx], 0.0) + 1e-6):
-            n_moving = self._pair_moving()[idx]
-            m = np.maximum(base[idx], 0.0)[None] + (PATH_REACH * max_step_m)[:, None] * n_moving
-            levels = (*sc.sorted_margins(pairs, m), PATH_REACH)
-        if margins is None:
-            self._path_margin_cache[key] = levels
-        return levels
-
-    def _path_first_flagged(
-        self, dense: FloatArray, max_step_m: float, margins: FloatArray | None = None
-    ) -> int:
-        """A configuration of ``dense`` (interpolated at ``max_step_m``) the spheres flag at
-        ``margins`` (default: the path clearance), or -1 if they clear all; -2 when two
-        fixed bodies touch (nothing is cleared). Counts the tests in :attr:`n_checks`."""
-        levels = self._path_levels(max_step_m, margins)
-        if levels is None:
-            return -2
-        _, pairs, _, _ = self._sphere_pairs()
-        first, tests = sc.path_flagged(
-            self._sphere_world(), self._chain_arrays(), dense, pairs, levels
-        )
-        self.n_checks += tests
-        return first
-
-    def _sphere_pairs(self) -> tuple[IndexArray, sc.PairBlocks, IndexArray, FloatArray]:
-        """Active pairs split for the kernels: moving ones, and fixed ones (distance known).
-
-        Returns the indices of the pairs with a moving body and their blocks for the
-        kernels, the indices of the pairs of two fixed bodies and coal's exact distance
-        of each (computed once: it does not depend on the configuration).
+        Two bodies no joint moves, or moved by the same joint (a grasped part and its
+        hand's links), keep their distance at every configuration: coal's exact distance
+        is computed once. Cached till the world changes.
         """
         if self._spairs is not None:
             return self._spairs
-        world = self._sphere_world()
-        first, second = self._active_pairs()
-        # two bodies no joint moves, or moved by the same joint (a grasped part and its
-        # hand's links): their distance does not depend on the configuration
+        world = self.sphere_world()
+        table = self.pair_table()
+        first, second = table.first, table.second
         moving = world.frame[first] != world.frame[second]
         fixed_idx = np.flatnonzero(~moving)
-        bodies = self._bodies()
+        bodies = self._bodies.bodies
         dists = np.empty(len(fixed_idx))
         req = coal.DistanceRequest()
         t_home: FloatArray | None = None
@@ -447,7 +373,7 @@ class SceneChecks:
                     ta, tb = self._fixed[a], self._fixed[b]
                 else:
                     if t_home is None:
-                        t_home = self._transforms(self.robot.home[None])[0]
+                        t_home = self.transforms(self.robot.home[None])[0]
                     ta, tb = t_home[a], t_home[b]
                 assert ta is not None and tb is not None
                 res = coal.DistanceResult()
@@ -457,11 +383,55 @@ class SceneChecks:
             dists[n] = d
         idx = np.flatnonzero(moving)
         blocks = sc.pair_blocks(world, np.column_stack([first[idx], second[idx]]))
-        self._spairs = (idx, blocks, fixed_idx, dists)
+        self._spairs = SpherePairs(idx, blocks, fixed_idx, dists)
         return self._spairs
 
+    def _path_levels(
+        self, max_step_m: float, margins: FloatArray | None = None
+    ) -> tuple[FloatArray, FloatArray, IndexArray] | None:
+        """The path kernel's margin levels (see :func:`.sphere_check.path_flagged`) for a path
+        interpolated at ``max_step_m``, or None when two fixed bodies are within their contact
+        margin.
+
+        Level 0 is ``margins`` (P,), by default the path clearance (half a step per moving
+        body, cached till the world changes); the others are
+        :func:`.pair_table.path_margin_levels`.
+        """
+        key = float(max_step_m)
+        if margins is None and key in self._levels:
+            return self._levels[key]
+        base = self.pair_margins(max_step_m / 2.0) if margins is None else margins
+        table = self.pair_table()
+        split = self.sphere_pairs()
+        levels = None
+        # fixed pairs do not move relative to each other: their distance is known, and
+        # only their contact margin applies (no clearance)
+        if not pt.fixed_pairs_touch(split.fixed_dist, table.contact[split.fixed]):
+            m = pt.path_margin_levels(
+                base[split.moving], table.n_moving[split.moving], max_step_m, PATH_REACH
+            )
+            levels = (*sc.sorted_margins(split.blocks, m), PATH_REACH)
+        if margins is None:
+            self._levels[key] = levels
+        return levels
+
+    def _path_first_flagged(
+        self, dense: FloatArray, max_step_m: float, margins: FloatArray | None = None
+    ) -> int:
+        """A configuration of ``dense`` (interpolated at ``max_step_m``) the spheres flag at
+        ``margins`` (default: the path clearance), or -1 if they clear all; -2 when two
+        fixed bodies touch (nothing is cleared). Counts the tests in :attr:`n_checks`."""
+        levels = self._path_levels(max_step_m, margins)
+        if levels is None:
+            return -2
+        first, tests = sc.path_flagged(
+            self.sphere_world(), self.chain_arrays(), dense, self.sphere_pairs().blocks, levels
+        )
+        self.n_checks += tests
+        return first
+
     def sphere_flags(self, qs: ArrayLike, margins: FloatArray | None = None) -> BoolArray:
-        """Active pairs the sphere covers cannot clear, per configuration, shape (n, P).
+        """Checked pairs the sphere covers cannot clear, per configuration, shape (n, P).
 
         Unflagged pairs are certainly free in coal's exact check (the covers are
         conservative, :mod:`~thirdhand.execute.spheres`); ``margins`` (P,) default
@@ -469,12 +439,14 @@ class SceneChecks:
         their exact distance, computed once.
         """
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
-        m = self._pair_margins() if margins is None else margins
-        world = self._sphere_world()
-        idx, pairs, fixed_idx, dists = self._sphere_pairs()
+        m = self.pair_margins() if margins is None else margins
+        world = self.sphere_world()
+        split = self.sphere_pairs()
         out = np.zeros((qa.shape[0], len(m)), dtype=bool)
-        out[:, idx] = sc.flags(world, self._chain_arrays(), qa, pairs, m[idx])
-        out[:, fixed_idx] = (dists <= np.maximum(m[fixed_idx], 0.0) + 1e-6)[None]
+        out[:, split.moving] = sc.flags(
+            world, self.chain_arrays(), qa, split.blocks, m[split.moving]
+        )
+        out[:, split.fixed] = pt.fixed_pair_flags(split.fixed_dist, m[split.fixed])[None]
         return out
 
     def sphere_free_mask(self, qs: ArrayLike, margins: FloatArray | None = None) -> BoolArray:
@@ -484,12 +456,12 @@ class SceneChecks:
         where it finds one. Joint limits are not checked.
         """
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
-        m = self._pair_margins() if margins is None else margins
-        world = self._sphere_world()
-        idx, pairs, fixed_idx, dists = self._sphere_pairs()
-        if np.any(dists <= np.maximum(m[fixed_idx], 0.0) + 1e-6):
+        m = self.pair_margins() if margins is None else margins
+        world = self.sphere_world()
+        split = self.sphere_pairs()
+        if pt.fixed_pairs_touch(split.fixed_dist, m[split.fixed]):
             return np.zeros(qa.shape[0], dtype=bool)
-        return sc.free(world, self._chain_arrays(), qa, pairs, m[idx])
+        return sc.free(world, self.chain_arrays(), qa, split.blocks, m[split.moving])
 
     def path_free_spheres(
         self, qs: ArrayLike, *, max_step_m: float = 0.01, max_step_rad: float = 0.02
@@ -510,36 +482,37 @@ class SceneChecks:
             return False
         return self._path_first_flagged(dense, max_step_m) == -1
 
-    def _bodies(self) -> list[Body]:
-        bodies = self._links + list(self._objects.values())
-        if self._attached is not None:
-            bodies.append(self._attached)
-        return bodies
-
-    def _transforms(self, qs: FloatArray) -> FloatArray:
-        """World transforms of all bodies, shape (n, B, 4, 4)."""
-        n = qs.shape[0]
-        bodies = self._bodies()
-        out = np.empty((n, len(bodies), 4, 4))
-        tj = self.robot.chain.joint_transforms(qs)
-        n_links = len(self._links)
-        local = np.array([b.transform for b in self._links])
-        static = self._link_joint < 0
-        out[:, :n_links] = local[None]
-        mv = ~static
-        out[:, :n_links][:, mv] = tj[:, self._link_joint[mv]] @ local[mv]
-        k = n_links
-        for obj in self._objects.values():
-            out[:, k] = obj.transform
-            k += 1
-        if self._attached is not None:
-            out[:, k] = self.robot.tool_transforms(qs) @ self._attached.transform
-        return out
-
     # -- checking ---------------------------------------------------------------------
 
+    def transforms(self, qs: ArrayLike) -> FloatArray:
+        """World transforms of every body (links, objects, grasped part) at ``qs`` (n, dof),
+        shape (n, B, 4, 4)."""
+        qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
+        n = qa.shape[0]
+        state = self._bodies
+        out = np.empty((n, len(state.bodies), 4, 4))
+        tj = self.robot.chain.joint_transforms(qa)
+        n_links = len(state.links)
+        local = state.link_local
+        static = state.link_joint < 0
+        out[:, :n_links] = local[None]
+        mv = ~static
+        out[:, :n_links][:, mv] = tj[:, state.link_joint[mv]] @ local[mv]
+        k = n_links
+        for obj in state.objects:
+            out[:, k] = obj.transform
+            k += 1
+        if state.attached is not None:
+            out[:, k] = self.robot.tool_transforms(qa) @ state.attached.transform
+        return out
+
     def valid_mask(
-        self, qs: ArrayLike, *, stop_at_first: bool = False, exact: bool = False
+        self,
+        qs: ArrayLike,
+        *,
+        stop_at_first: bool = False,
+        exact: bool = False,
+        margins: FloatArray | None = None,
     ) -> BoolArray:
         """Collision-free and within-limits flag of many configurations.
 
@@ -554,33 +527,19 @@ class SceneChecks:
             Leave the sphere covers out: every pair whose bounding boxes overlap goes
             to coal (the independent check of executed paths). The verdicts are the
             same either way; only the time differs.
+        margins : ndarray, shape (P,), optional
+            Security margin per checked pair, metres (:meth:`pair_margins`); by
+            default the contact margins.
 
         Returns
         -------
         ndarray of bool, shape (n,)
         """
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
-        return self._check(qa, self._pair_margins(), stop_at_first, exact=exact)
-
-    def _candidates(self, qa: FloatArray, margins: FloatArray, exact: bool) -> BoolArray:
-        """Pairs coal must decide per configuration (n, P): sphere flags, or overlapping boxes."""
-        if not exact and self.use_spheres:
-            return self.sphere_flags(qa, margins)
-        first, second = self._active_pairs()
-        bodies = self._bodies()
-        centers = np.array([b.center for b in bodies])
-        halves = np.array([b.half for b in bodies])
-        c, h = world_aabb(self._transforms(qa), centers[None], halves[None])
-        reach = h[:, first] + h[:, second] + np.maximum(margins, 0.0)[None, :, None] + 1e-9
-        return np.all(np.abs(c[:, first] - c[:, second]) <= reach, axis=2)
-
-    def _check(
-        self, qa: FloatArray, margins: FloatArray, stop_at_first: bool, *, exact: bool = False
-    ) -> BoolArray:
-        """:meth:`valid_mask` with a security margin per active pair."""
+        m = self.pair_margins() if margins is None else margins
         n = qa.shape[0]
         ok = np.all((qa >= self.robot.lower - 1e-9) & (qa <= self.robot.upper + 1e-9), axis=1)
-        overlap = self._candidates(qa, margins, exact)
+        overlap = self._candidates(qa, m, exact)
         flagged = np.any(overlap, axis=1)
         if not np.any(flagged & ok):  # no pair for coal: limits decide
             if stop_at_first and not np.all(ok):
@@ -590,13 +549,14 @@ class SceneChecks:
             else:
                 self.n_checks += n
             return ok
-        first, second = self._active_pairs()
-        bodies = self._bodies()
+        table = self.pair_table()
+        first, second = table.first, table.second
+        bodies = self._bodies.bodies
         rows = np.flatnonzero(flagged)
-        t_rows = self._transforms(qa[rows])
+        t_rows = self.transforms(qa[rows])
         row_of = np.full(n, -1, dtype=np.intp)
         row_of[rows] = np.arange(len(rows))
-        requests = self._requests_of(margins)
+        requests = self._requests_of(m)
         for i in range(n):
             if not ok[i]:
                 self.n_checks += 1
@@ -629,26 +589,36 @@ class SceneChecks:
                 break
         return ok
 
-    def is_valid(self, q: ArrayLike) -> bool:
-        """True if ``q`` (dof,) is within the joint limits and collision-free."""
-        return bool(self.valid_mask(self.robot.check_q(q)[None])[0])
+    def _candidates(self, qa: FloatArray, margins: FloatArray, exact: bool) -> BoolArray:
+        """Pairs coal must decide per configuration (n, P): sphere flags, or overlapping boxes."""
+        if not exact and self.use_spheres:
+            return self.sphere_flags(qa, margins)
+        table = self.pair_table()
+        first, second = table.first, table.second
+        bodies = self._bodies.bodies
+        centers = np.array([b.center for b in bodies])
+        halves = np.array([b.half for b in bodies])
+        c, h = world_aabb(self.transforms(qa), centers[None], halves[None])
+        reach = h[:, first] + h[:, second] + np.maximum(margins, 0.0)[None, :, None] + 1e-9
+        return np.all(np.abs(c[:, first] - c[:, second]) <= reach, axis=2)
 
     def collisions(self, q: ArrayLike) -> list[tuple[str, str]]:
         """Every colliding pair of body (link or object) names at ``q`` (dof,), for diagnostics."""
-        first, second = self._active_pairs()
-        bodies = self._bodies()
-        hits = self._pair_hits(self.robot.check_q(q), self._pair_margins())
+        table = self.pair_table()
+        bodies = self._bodies.bodies
+        hits = self.pair_hits(self.robot.check_q(q), self.pair_margins())
         out: list[tuple[str, str]] = []
         for p in np.flatnonzero(hits):
-            pair = (bodies[first[p]].name, bodies[second[p]].name)
+            pair = (bodies[table.first[p]].name, bodies[table.second[p]].name)
             if pair not in out:
                 out.append(pair)
         return out
 
-    def _pair_hits(self, q: FloatArray, margins: FloatArray) -> NDArray[np.bool_]:
-        """Which active pairs collide at ``q`` (dof,) under ``margins`` (P,)."""
-        first, second = self._active_pairs()
-        bodies = self._bodies()
+    def pair_hits(self, q: FloatArray, margins: FloatArray) -> BoolArray:
+        """Which checked pairs collide at ``q`` (dof,) under ``margins`` (P,), shape (P,)."""
+        table = self.pair_table()
+        first, second = table.first, table.second
+        bodies = self._bodies.bodies
         if self.use_spheres:
             candidates = self.sphere_flags(q[None], margins)[0]
         else:
@@ -656,7 +626,7 @@ class SceneChecks:
         hits = np.zeros(len(first), dtype=bool)
         if not np.any(candidates):
             return hits
-        t = self._transforms(q[None])[0]
+        t = self.transforms(q[None])[0]
         for p in np.flatnonzero(candidates):
             a, b = int(first[p]), int(second[p])
             self._result.clear()
@@ -687,19 +657,20 @@ class SceneChecks:
         if self._lever is not None:
             return self._lever
         q = self.robot.home[None]
-        tj = self.robot.chain.joint_transforms(q)[0]
-        bodies = self._bodies()
-        t = self._transforms(q)[0]
+        chain = self.robot.chain
+        tj = chain.joint_transforms(q)[0]
+        state = self._bodies
+        t = self.transforms(q)[0]
         radius = np.zeros(self.robot.dof)
-        n_links = len(self._links)
-        for k, body in enumerate(bodies):
+        n_links = len(state.links)
+        for k, body in enumerate(state.bodies):
             if k < n_links:
-                j = int(self._link_joint[k])
+                j = int(state.link_joint[k])
                 if j < 0:
                     continue
-                moved = self.robot.chain.ancestors(j)
-            elif self._attached is body:
-                moved = self.robot.chain.ancestors(self.robot._tool_joint)
+                moved = chain.ancestors(j)
+            elif state.attached is body:
+                moved = chain.ancestors(self.robot.tool_joint)
             else:
                 continue
             c, h = world_aabb(t[k], body.center, body.half)
@@ -759,7 +730,7 @@ class SceneChecks:
         must keep that distance to the world (twice it between two moving bodies).
         Pairs that are closer than that at the first or the last waypoint — a
         grasped part leaving the table, a hand at its grasp — are checked at
-        their contact tolerance instead.
+        their contact tolerance instead (:func:`.pair_table.near_end_margins`).
 
         Parameters
         ----------
@@ -774,14 +745,14 @@ class SceneChecks:
             Configurations checked per batch.
         """
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.robot.dof)
-        margins = self._pair_margins()
+        margins = self.pair_margins()
         if clearance and len(qa) > 1:
-            wide = self._pair_margins(max_step_m / 2.0)
+            wide = self.pair_margins(max_step_m / 2.0)
             if not self.use_spheres or np.any(self.sphere_flags(qa[[0, -1]], wide)):
-                if not np.all(self._check(qa[[0, -1]], margins, False)):
+                if not np.all(self.valid_mask(qa[[0, -1]], margins=margins)):
                     return False
-                near = self._pair_hits(qa[0], wide) | self._pair_hits(qa[-1], wide)
-                margins = np.where(near, margins, wide)
+                near = self.pair_hits(qa[0], wide) | self.pair_hits(qa[-1], wide)
+                margins = pt.near_end_margins(margins, wide, near)
             else:  # the spheres clear both ends with room to spare: no pair is near
                 margins = wide
         dense = self.interpolate(qa, max_step_m=max_step_m, max_step_rad=max_step_rad)
@@ -793,12 +764,19 @@ class SceneChecks:
             if first == -1:
                 return True
             # coal decides first where the spheres flagged: a colliding path is rejected there
-            if first >= 0 and not self._check(dense[first : first + 1], margins, True)[0]:
+            if (
+                first >= 0
+                and not self.valid_mask(
+                    dense[first : first + 1], stop_at_first=True, margins=margins
+                )[0]
+            ):
                 return False
         # coarse to fine (bit-reversed order): a colliding stretch is hit after few checks
         dense = dense[_coarse_to_fine(dense.shape[0])]
         for k in range(0, dense.shape[0], chunk):
-            if not np.all(self._check(dense[k : k + chunk], margins, True)):
+            if not np.all(
+                self.valid_mask(dense[k : k + chunk], stop_at_first=True, margins=margins)
+            ):
                 return False
         return True
 

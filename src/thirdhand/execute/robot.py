@@ -203,6 +203,12 @@ class Robot:
         rad/s².
     tool_frame : str
         Name of the grasp frame.
+    tool_frame_id : int
+        Its pinocchio frame index.
+    tool_joint : int
+        Joint (0-based) the grasp frame is attached to.
+    t_joint_tool : ndarray, shape (4, 4)
+        Grasp frame in that joint's frame, metres.
     gripper_links : tuple of str
         Links an attached part is allowed to touch.
     base_pose : tuple of ndarray
@@ -235,9 +241,9 @@ class Robot:
         self.chain = Chain.from_model(model)
         fid = model.getFrameId(spec.tool_frame)
         frame = model.frames[fid]
-        self._tool_fid = fid
-        self._tool_joint = int(frame.parentJoint) - 1
-        self._t_joint_tool = np.array(frame.placement.homogeneous, dtype=np.float64)
+        self.tool_frame_id = fid
+        self.tool_joint = int(frame.parentJoint) - 1
+        self.t_joint_tool = np.array(frame.placement.homogeneous, dtype=np.float64)
 
     @classmethod
     def load(
@@ -358,7 +364,7 @@ class Robot:
         """``T_world_tool`` of many configurations (n, dof), shape (n, 4, 4)."""
         qa = np.asarray(qs, dtype=np.float64).reshape(-1, self.dof)
         tj = self.chain.joint_transforms(qa)
-        return np.asarray(tj[:, self._tool_joint] @ self._t_joint_tool, dtype=np.float64)
+        return np.asarray(tj[:, self.tool_joint] @ self.t_joint_tool, dtype=np.float64)
 
     def frame_pose(self, q: ArrayLike, frame: str) -> tuple[FloatArray, FloatArray]:
         """Pose of any model frame (a link name) in the world, through pinocchio.
@@ -440,8 +446,8 @@ class Robot:
         starts = np.vstack([q0[None], self.random_q(rng, n_restarts)])
         q, ok = solve_ik(
             self.chain,
-            self._tool_joint,
-            self._t_joint_tool,
+            self.tool_joint,
+            self.t_joint_tool,
             pose_matrix(target),
             starts,
             self.lower,
@@ -475,8 +481,8 @@ class Robot:
         """
         return solve_ik(
             self.chain,
-            self._tool_joint,
-            self._t_joint_tool,
+            self.tool_joint,
+            self.t_joint_tool,
             np.asarray(targets, dtype=np.float64),
             np.asarray(q_seeds, dtype=np.float64),
             self.lower,
