@@ -60,7 +60,7 @@ def instrument() -> None:
     """Wrap the timed functions (module attributes are looked up at call time)."""
     from thirdhand.execute import collision_check, kinematics, planner, robot, step_search
 
-    for name in ("valid_mask", "check_path", "collisions", "path_free_spheres", "_pair_hits"):
+    for name in ("valid_mask", "check_path", "collisions", "path_free_spheres", "pair_hits"):
         if hasattr(collision_check.SceneChecks, name):
             _wrap(collision_check.SceneChecks, name, "check")
     _wrap(kinematics, "solve_ik", "ik")

@@ -14,7 +14,7 @@ from thirdhand.execute import sphere_check as sc
 from thirdhand.execute.collision_check import geometry_cover
 from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.execute.spheres import cover_geometry, mesh_triangles, transform_cover
-from thirdhand.se3 import matrix_to_pose
+from thirdhand.se3 import pose_from_matrix
 
 
 @pytest.fixture(scope="module")
@@ -138,7 +138,7 @@ def _world(robot: Robot, table_z: float, x0: float) -> CollisionScene:
     t_tube = np.array(
         [[0, 0, 1, x0 + 0.4], [0, 1, 0, -0.25], [-1, 0, 0, table_z + 0.04], [0, 0, 0, 1.0]]
     )
-    scene.add_geometry("tube", _ring_mesh(), matrix_to_pose(t_tube))
+    scene.add_geometry("tube", _ring_mesh(), pose_from_matrix(t_tube))
     scene.add_object("held", ([x0 + 0.5, 0.0, table_z + 0.3], [0, 0, 0, 1]), size=(0.04, 0.04, 0.2))
     q = robot.ik(([x0 + 0.5, 0.0, table_z + 0.3], [1.0, 0, 0, 0]), seed=0)
     assert q is not None
