@@ -97,10 +97,6 @@ def _kinds_hint(demos: Sequence[Demonstration], paths: Sequence[Path]) -> Iterat
 def _load(path: Path) -> Demonstration:
     from thirdhand import io
 
-    if path.is_dir() and sorted(path.glob("*.bag")) and not (path / "metadata.yaml").exists():
-        from thirdhand.io import rosbag
-
-        return rosbag.read(sorted(path.glob("*.bag")))
     return io.load(path)
 
 
