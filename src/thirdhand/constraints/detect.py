@@ -56,7 +56,13 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.constraints.detect_dofs import _joint_start, _min_joint_motion
 from thirdhand.constraints.detect_parents import _assign_parents
-from thirdhand.constraints.detect_runs import _further_poses, _merge_same_pose, _Run, _supported
+from thirdhand.constraints.detect_runs import (
+    _further_poses,
+    _merge_same_pose,
+    _Run,
+    _supported,
+    first_seen,
+)
 from thirdhand.constraints.detect_steps import (
     _last_valid_pose,
     _path_length,
@@ -161,7 +167,9 @@ def detect_constraints(
             if _supported(tracks, k, lo, hi, opt):
                 conf = float(np.nanmean(post[lo:hi]))
                 start = _joint_start(rel_p[k], rel_q[k], lo, hi, params) if joint else None
-                lo_j = lo if start is None else start
+                # made at the latest when first seen made (hidden steps before it carry
+                # the chain's state, not evidence)
+                lo_j = first_seen(rel_p[k], rel_q[k], lo, hi) if start is None else start
                 candidates.append(_Run(float(edges[lo_j]), k, lo_j, hi, conf, joint, held))
     candidates.sort(key=lambda c: (c.start, c.k))
     motion = {n: _path_length(*world[n]) for n in names}
