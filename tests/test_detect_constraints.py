@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 
@@ -75,6 +76,17 @@ def test_one_part_is_rejected() -> None:
         detect_constraints(demo, parts=["seating"])
     with pytest.raises(ConstraintFitError, match="no body 'stool'"):
         detect_constraints(demo, parts=["seating", "stool"])
+    # a position-only track (an articulation log) says why it holds no part
+    track = _insertion_with_hidden_tag((0.0, 0.0)).select(["leg"])
+    bodies = [dataclasses.replace(b, oriented=False) for b in track.bodies]
+    flat = type(track)(track.t, bodies, {"leg": track.pos("leg")}, {"leg": track.quat("leg")}, None)
+    with pytest.raises(ConstraintFitError) as info:
+        detect_constraints(flat)
+    assert str(info.value) == (
+        "constraint detection needs at least two parts, got 0; the recording's bodies: "
+        "leg (part, position only); one track of an articulated object: "
+        "`thirdhand constraints fit`"
+    )
 
 
 def test_hmm_params_defaults_are_independent() -> None:

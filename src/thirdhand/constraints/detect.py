@@ -124,9 +124,12 @@ def detect_constraints(
                 f"no body {n!r} in the recording; bodies are {', '.join(demo.body_names)}"
             )
     if len(names) < 2:
-        raise ConstraintFitError(
-            f"constraint detection needs at least two parts, got {len(names)} ({', '.join(names)})"
-        )
+        got = f"got {len(names)}" + (f" ({', '.join(names)})" if names else "")
+        if parts is None:
+            got += f"; the recording's bodies: {_describe_bodies(demo)}"
+            if len(demo.body_names) == 1:
+                got += "; one track of an articulated object: `thirdhand constraints fit`"
+        raise ConstraintFitError(f"constraint detection needs at least two parts, {got}")
     if phases is not None and len(phases.edges) >= 2:
         edges = np.asarray(phases.edges, dtype=np.float64)
     else:
@@ -188,6 +191,16 @@ def detect_constraints(
         root=root,
         params=params,
     )
+
+
+def _describe_bodies(demo: Demonstration, most: int = 6) -> str:
+    """``"001 (part, position only), lh (hand)"``: the bodies and why they are not parts."""
+    out = []
+    for b in demo.bodies[:most]:
+        what = b.kind if b.oriented else f"{b.kind}, position only"
+        out.append(f"{b.name} ({what})")
+    more = len(demo.bodies) - most
+    return ", ".join(out) + (f" and {more} more" if more > 0 else "") if out else "none"
 
 
 def _default_parts(demo: Demonstration) -> list[str]:
