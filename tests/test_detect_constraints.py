@@ -315,3 +315,13 @@ def test_two_parts_lying_still_with_a_hidden_stretch_are_not_a_constraint() -> N
         {b: demo.valid(b) for b in demo.body_names},
     )
     assert detect_constraints(still).instances == []
+
+
+def test_a_constraint_whose_tag_is_hidden_to_the_end_is_kept_to_the_end() -> None:
+    # The leg's tag is lost 2 s after the insertion and never seen again: the
+    # constraint holds to the end of the recording (the chain carries it).
+    demo = _insertion_with_hidden_tag((22.0, 40.0))
+    det = detect_constraints(demo)
+    assert [(i.parent, i.child, i.type) for i in det.instances] == [("table", "leg", "fixed")]
+    assert det.instances[0].end is None
+    assert 19.0 <= det.instances[0].start <= 20.1
