@@ -195,6 +195,36 @@ def test_niekum_parts_read_as_one_recording(shared_data: Path) -> None:
     np.testing.assert_allclose(whole.t[-parts[3].n_frames :], parts[3].t + last / NS, atol=1e-9)
 
 
+def test_a_folder_of_bag_parts_is_one_recording_for_every_command(
+    shared_data: Path, tmp_path: Path
+) -> None:
+    from thirdhand import io
+    from thirdhand.cli import main
+
+    folder = shared_data / IKEA
+    assert io.detect(folder) == "rosbag"
+    whole = io.load(folder)
+    paths = [folder / f"part{i}.bag" for i in range(1, 5)]
+    np.testing.assert_array_equal(whole.t, rosbag.read(paths).t)
+    assert main(["info", str(folder)]) == 0
+    assert main(["convert", str(folder), str(tmp_path / "ikea.parquet")]) == 0
+    back = io.load(tmp_path / "ikea.parquet")
+    assert back.body_names == whole.body_names
+    np.testing.assert_array_equal(back.t, whole.t)
+
+
+def test_folder_of_bag_parts_read_in_name_order(tmp_path: Path, rng: np.random.Generator) -> None:
+    from thirdhand.io import detect, load
+
+    demo = synthetic_demo(rng)
+    (tmp_path / "parts").mkdir()
+    rosbag.write(demo, tmp_path / "parts" / "part1.bag")
+    (tmp_path / "parts" / "readme.txt").write_text("one recording in parts\n")
+    assert rosbag.sniff(tmp_path / "parts")
+    assert detect(tmp_path / "parts") == "rosbag"
+    assert_same(demo, load(tmp_path / "parts"))
+
+
 # ------------------------------------------------------------ round trips
 @pytest.mark.parametrize(
     ("name", "options"),

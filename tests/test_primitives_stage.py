@@ -181,3 +181,42 @@ def test_segment_of_two_samples_is_a_clear_error(chair: list) -> None:
     )
     with pytest.raises(PrimitiveError, match=r"constraint c9 .* at least 3 tracked samples.*got 2"):
         constraint_segments(demo, events=[early])
+
+
+def test_a_constraint_made_at_the_start_is_skipped_with_its_reason(chair: list) -> None:
+    # A constraint detected as made at the second frame (the parts were together
+    # from the start, or the child was hidden until then) has one or two tracked
+    # samples of approach: the stage learns the others and says why it left it out.
+    demo = chair[0]
+    evs = sorted(demo.labels.constraints, key=lambda e: e.time)
+    early = type(evs[0])(
+        time=float(demo.t[1]),
+        parent=evs[0].parent,
+        child=evs[-1].child,
+        type="fixed",
+        symbol="c9",
+    )
+    # and one whose child was hidden for its whole approach (an occluded AR tag)
+    hidden = evs[1]
+    valid = {b: demo.valid(b).copy() for b in demo.body_names}
+    valid[hidden.child][(demo.t > evs[0].time + 1e-9) & (demo.t < hidden.time - 1e-9)] = False
+    occluded = type(demo)(
+        demo.t,
+        demo.bodies,
+        {b: demo.pos(b) for b in demo.body_names},
+        {b: demo.quat(b) for b in demo.body_names},
+        valid,
+        labels=demo.labels,
+        meta=demo.meta,
+    )
+    block = primitives_stage([occluded], events=[[early, *evs]], names=["chair0"])
+    assert set(block.constraints) == {e.symbol for e in evs} - {hidden.symbol}
+    assert len(block.skipped) == 2
+    first, second = block.skipped
+    assert first.startswith(f"chair0: constraint c9 {early.parent}->{early.child} at ")
+    assert first.endswith("got 2 (no approach motion to learn from)")
+    assert f"constraint {hidden.symbol} " in second
+    assert "\n" not in first + second
+    # round trip through the task-file model keeps the reasons
+    again = type(block).model_validate(block.model_dump(by_alias=True))
+    assert again.skipped == block.skipped

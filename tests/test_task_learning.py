@@ -72,6 +72,33 @@ def test_reward_targets() -> None:
     # unnumbered parts of distinct names are not varied
     boards = ["/toolbox/side_front", "/toolbox/side_left"]
     assert reward_targets(boards) == {"as demonstrated": boards}
+    # digits that are identities (AR tags: a table and its leg), not counts, are not varied
+    tags = ["ar_0", "ar_13"]
+    assert reward_targets(tags) == {"as demonstrated": tags}
+    # a variant of fewer than two parts is not an assembly
+    assert reward_targets(["leg1", "leg2"]) == {
+        "as demonstrated": ["leg1", "leg2"],
+        "3 leg": ["leg1", "leg2", "leg3"],
+    }
+
+
+def test_a_one_step_plan_of_two_objects_has_a_finite_reward() -> None:
+    from thirdhand.learn.stages import learn_task_reward
+
+    from thirdhand.plan.assembly import AssemblyPlan, PlanAction
+    from thirdhand.relational.assembly import plan_with_reward
+    from thirdhand.relational.logic import RelationalError
+
+    plan = AssemblyPlan([PlanAction("ar_0", "ar_13", "c1")], "ar_0", 1)
+    result = learn_task_reward(plan)
+    assert list(result.plans) == ["as demonstrated"]
+    got = result.plans["as demonstrated"]
+    assert got.steps == ["action(ar_0,ar_13,c)"]
+    assert 0.0 < got.perf <= 1.0
+    assert result.block().plans["as demonstrated"].perf == got.perf
+    # a part set of one object has nothing to assemble: said, not a NaN
+    with pytest.raises(RelationalError, match="at least two parts"):
+        plan_with_reward(result.model, ["ar_1"])
 
 
 def test_skipped_stages_say_why(bench) -> None:

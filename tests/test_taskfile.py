@@ -493,7 +493,12 @@ def test_vocabularies_match_the_core_types() -> None:
 
 
 def test_non_finite_value_is_never_written(tmp_path: Path) -> None:
-    task = TaskFile.model_validate({**full_task(), "future": float("nan")})
+    # An unknown field is held to the same rule as the known ones ...
+    with pytest.raises(ValueError, match=r"future\.scores\[1\]: not a finite number"):
+        TaskFile.model_validate({**full_task(), "future": {"scores": [1.0, float("inf")]}})
+    # ... and one set after validation is still refused when written.
+    task = TaskFile.model_validate(full_task())
+    task.future = float("nan")  # type: ignore[attr-defined]
     with pytest.raises(TaskFileError, match="cannot write task: Out of range float"):
         save_task(task, tmp_path / "t.json")
     assert not (tmp_path / "t.json").exists()
@@ -632,3 +637,18 @@ def test_a_block_built_in_code_writes_what_was_set_and_what_differs_from_default
     assert doc == {"plan": {"n_demos": 1}, "review": {"confirmed": {"c1": ["rz"]}}}
     with pytest.raises(ValueError, match="typed block"):
         stages.set_other("plan", {})
+
+
+def test_a_stage_that_builds_a_block_with_nan_ends_in_one_line() -> None:
+    from thirdhand.task.stages import RewardPlanRecord
+
+    with pytest.raises(TaskFileError) as info:
+        RewardPlanRecord(parts=["a", "b"], complete=True, perf=float("nan"), steps=[])
+    assert str(info.value) == (
+        "RewardPlanRecord: perf: nan is not a finite number (a task file holds no NaN or infinity)"
+    )
+    # a model built in code keeps pydantic's strictness for nested values
+    with pytest.raises(TaskFileError, match=r"RewardBlock: plans\.x\.perf: inf is not a finite"):
+        from thirdhand.task.stages import RewardBlock
+
+        RewardBlock(plans={"x": {"parts": [], "complete": True, "perf": float("inf"), "steps": []}})

@@ -56,7 +56,13 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.constraints.detect_dofs import _joint_start, _min_joint_motion
 from thirdhand.constraints.detect_parents import _assign_parents
-from thirdhand.constraints.detect_runs import _further_poses, _merge_same_pose, _Run, _supported
+from thirdhand.constraints.detect_runs import (
+    _further_poses,
+    _merge_same_pose,
+    _Run,
+    _supported,
+    first_seen,
+)
 from thirdhand.constraints.detect_steps import (
     _last_valid_pose,
     _path_length,
@@ -118,9 +124,12 @@ def detect_constraints(
                 f"no body {n!r} in the recording; bodies are {', '.join(demo.body_names)}"
             )
     if len(names) < 2:
-        raise ConstraintFitError(
-            f"constraint detection needs at least two parts, got {len(names)} ({', '.join(names)})"
-        )
+        got = f"got {len(names)}" + (f" ({', '.join(names)})" if names else "")
+        if parts is None:
+            got += f"; the recording's bodies: {_describe_bodies(demo)}"
+            if len(demo.body_names) == 1:
+                got += "; one track of an articulated object: `thirdhand constraints fit`"
+        raise ConstraintFitError(f"constraint detection needs at least two parts, {got}")
     if phases is not None and len(phases.edges) >= 2:
         edges = np.asarray(phases.edges, dtype=np.float64)
     else:
@@ -161,7 +170,9 @@ def detect_constraints(
             if _supported(tracks, k, lo, hi, opt):
                 conf = float(np.nanmean(post[lo:hi]))
                 start = _joint_start(rel_p[k], rel_q[k], lo, hi, params) if joint else None
-                lo_j = lo if start is None else start
+                # made at the latest when first seen made (hidden steps before it carry
+                # the chain's state, not evidence)
+                lo_j = first_seen(rel_p[k], rel_q[k], lo, hi) if start is None else start
                 candidates.append(_Run(float(edges[lo_j]), k, lo_j, hi, conf, joint, held))
     candidates.sort(key=lambda c: (c.start, c.k))
     motion = {n: _path_length(*world[n]) for n in names}
@@ -180,6 +191,16 @@ def detect_constraints(
         root=root,
         params=params,
     )
+
+
+def _describe_bodies(demo: Demonstration, most: int = 6) -> str:
+    """``"001 (part, position only), lh (hand)"``: the bodies and why they are not parts."""
+    out = []
+    for b in demo.bodies[:most]:
+        what = b.kind if b.oriented else f"{b.kind}, position only"
+        out.append(f"{b.name} ({what})")
+    more = len(demo.bodies) - most
+    return ", ".join(out) + (f" and {more} more" if more > 0 else "") if out else "none"
 
 
 def _default_parts(demo: Demonstration) -> list[str]:

@@ -164,6 +164,29 @@ class _Run:
     held: BoolArray
 
 
+def first_seen(p: FloatArray, q: FloatArray, lo: int, hi: int) -> int:
+    """First step in ``[lo, hi)`` where the pair's relative pose is known; ``lo`` if none."""
+    ok = np.all(np.isfinite(p[lo:hi]), axis=1) & np.all(np.isfinite(q[lo:hi]), axis=1)
+    seen = np.flatnonzero(ok)
+    return lo + int(seen[0]) if seen.size else lo
+
+
+def _approach_start(p: FloatArray, q: FloatArray, lo: int, w: int) -> int:
+    """First step of the approach window before step ``lo``: ``w`` steps in which the pair was seen.
+
+    Steps where either part was not tracked (``p`` or ``q`` not finite) do not
+    count: the window reaches back over them. A part is hidden exactly when it
+    is being put in place (a hand over an AR tag during an insertion), so a
+    window of wall-clock time would often hold no observation of the approach
+    at all. On a fully tracked pair it is the ``w`` steps before ``lo``.
+    """
+    ok = np.all(np.isfinite(p[:lo]), axis=1) & np.all(np.isfinite(q[:lo]), axis=1)
+    seen = np.flatnonzero(ok)
+    if seen.size < w:
+        return 0
+    return int(min(lo - w, seen[-w]))
+
+
 def _supported(tracks: PairTracks, k: int, lo: int, hi: int, opt: DetectOptions) -> bool:
     """Whether pair ``k``'s constrained run ``[lo, hi)`` has co-motion or approach evidence."""
     a, b = tracks.pairs[k]
@@ -173,10 +196,12 @@ def _supported(tracks: PairTracks, k: int, lo: int, hi: int, opt: DetectOptions)
         if dp > opt.co_motion[0] or dr > opt.co_motion[1]:
             return True
     w = max(1, round(opt.approach_window / tracks.step))
-    before = max(0, lo - w)
+    before = _approach_start(rel_p[k], rel_q[k], lo, w)
     if before == lo:
         return False
-    dp, dr = _motion(rel_p[k], rel_q[k], before, lo + 1)
+    # up to the first step the pair is seen in the run (the chain carries the state
+    # back over steps where a part was hidden, so ``lo`` itself may be unseen)
+    dp, dr = _motion(rel_p[k], rel_q[k], before, first_seen(rel_p[k], rel_q[k], lo, hi) + 1)
     if not (dp > opt.approach_motion[0] or dr > opt.approach_motion[1]):
         return False
     pa = rel_p[k, lo:hi]

@@ -196,7 +196,8 @@ class DetectOptions:
         Relative motion in the ``approach_window`` before a run that counts as an
         approach, metres and radians.
     approach_window : float
-        Seconds before a run's start searched for relative motion.
+        Seconds before a run's start searched for relative motion; seconds of
+        observation: steps where a part was not tracked do not count.
     contact_distance : float
         Largest distance between the origins of two parts an approach may join, metres.
     approach_radius : float

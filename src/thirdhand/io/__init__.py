@@ -104,7 +104,8 @@ def load(
     ----------
     path : path-like
         A file (``.parquet``, Motive ``.csv``, ``.c3d``, ROS 1 ``.bag``, articulation
-        ``.txt``/``.log``) or a folder (ROS 2 bag, 3rdHand ``poses.dat`` folder).
+        ``.txt``/``.log``) or a folder (ROS 2 bag, ROS 1 ``.bag`` parts of one recording, 3rdHand
+        ``poses.dat`` folder).
     format : str, optional
         Skip detection and use this format.
     **options

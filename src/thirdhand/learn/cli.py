@@ -94,7 +94,8 @@ def learn_command(
     one ``thirdhand: error:`` line. Settings (``[learn]`` of ``--config``): which stages
     run, the skill library's size, the plan's vote, the segmentation model.
     """
-    from thirdhand.learn.recordings import check_one_task, read_recording
+    from thirdhand import io
+    from thirdhand.learn.recordings import check_one_task
     from thirdhand.learn.run import learn_task
     from thirdhand.learn.settings import LearnSettings
     from thirdhand.task.meshes import anchor_meshes
@@ -122,7 +123,7 @@ def learn_command(
         from thirdhand.primitives.skill_library import read_skill_library
 
         skill_library = read_skill_library(library_path)
-    loaded = [read_recording(p) for p in demos]
+    loaded = [io.load(p) for p in demos]
     for path, d in zip(demos, loaded, strict=True):
         options.body_pairs(len(d), str(path))
     check_one_task(loaded, demos)

@@ -101,15 +101,3 @@ def check_one_task(demos: Sequence[Demonstration], paths: Sequence[Path]) -> Non
             f"the recordings show different tasks: no part is shared between {desc}; "
             "learn each task from its own recordings"
         )
-
-
-def read_recording(path: Path) -> Demonstration:
-    """One recording, any format :mod:`thirdhand.io` reads; a folder of ROS 1 ``.bag``
-    parts is one recording."""
-    from thirdhand import io
-
-    if path.is_dir() and sorted(path.glob("*.bag")) and not (path / "metadata.yaml").exists():
-        from thirdhand.io import rosbag
-
-        return rosbag.read(sorted(path.glob("*.bag")))
-    return io.load(path)

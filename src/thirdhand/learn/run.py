@@ -189,6 +189,8 @@ def learn_task(
         block = fit_task_primitives(learned, skills=skills, seed=seed, skill_library=skill_library)
         if block is None:
             skipped.append("primitives: no constraint was learned")
+        else:
+            skipped.extend(f"primitives: {why}" for why in block.skipped)
 
     # 4. Relational reward.
     result = None

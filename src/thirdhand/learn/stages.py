@@ -11,7 +11,6 @@
 
 from __future__ import annotations
 
-import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -111,7 +110,8 @@ def reward_targets(parts: Sequence[str]) -> dict[str, list[str]]:
     """Part sets to plan for with a reward learned on ``parts``.
 
     The demonstrated set itself, and for every part type present more than once
-    (``leg1``…``leg4``), the set with one part of that type fewer and one more.
+    (``leg1``…``leg4``, :func:`~thirdhand.relational.domains.plans.counted_parts`), the set
+    with one part of that type fewer and one more, when it keeps at least two parts.
 
     Parameters
     ----------
@@ -123,19 +123,14 @@ def reward_targets(parts: Sequence[str]) -> dict[str, list[str]]:
     dict of str to list of str
         Label (``"as demonstrated"``, ``"3 leg"``…) to part names.
     """
-    from thirdhand.relational.domains.plans import type_of
+    from thirdhand.relational.domains.plans import counted_parts, type_of
 
-    by_type: dict[str, list[str]] = {}
-    for p in parts:
-        by_type.setdefault(type_of(p), []).append(p)
     targets = {"as demonstrated": list(parts)}
-    for t, names in by_type.items():
-        n = len(names)
-        if n < 2 or not all(re.fullmatch(rf"{re.escape(t)}\d+", x, re.I) for x in names):
-            continue
+    for t, names in counted_parts(parts).items():
         others = [p for p in parts if type_of(p) != t]
-        for m in (n - 1, n + 1):
-            targets[f"{m} {t}"] = others + _numbered(t, m)
+        for m in (len(names) - 1, len(names) + 1):
+            if len(others) + m >= 2:  # one part alone is not an assembly
+                targets[f"{m} {t}"] = others + _numbered(t, m)
     return targets
 
 

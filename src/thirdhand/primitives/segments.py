@@ -83,6 +83,62 @@ def motion_start(
     return float(tt[k])
 
 
+def split_segments(
+    demo: Demonstration,
+    *,
+    keyframe_times: Sequence[float] | None = None,
+    events: Sequence[ConstraintEvent] | None = None,
+    speed: float = 0.02,
+    min_samples: int = 3,
+) -> tuple[list[ConstraintSegment], list[str]]:
+    """One segment per constraint event, and why the events without one have none.
+
+    A constraint made before its child was tracked moving towards it (made at
+    the very start of the recording, or while a tag was hidden) has fewer than
+    ``min_samples`` valid samples of approach: there is no motion to learn from,
+    so it is left out with a one-line reason instead of ending the stage.
+    Parameters as :func:`constraint_segments`.
+
+    Returns
+    -------
+    segments : list of ConstraintSegment, in event order
+    skipped : list of str
+        One line per event left out: the constraint, the interval and the count.
+
+    Raises
+    ------
+    PrimitiveError
+        If there is no constraint event.
+    """
+    evs = [e for e in (demo.labels.constraints if events is None else events) if not e.removed]
+    if not evs:
+        raise PrimitiveError("constraint segments: the demonstration has no constraint event")
+    evs.sort(key=lambda e: e.time)
+    keys = sorted(e.time for e in evs) if keyframe_times is None else sorted(keyframe_times)
+    source = str(demo.meta.get("source", "demo"))
+    out = []
+    skipped = []
+    for ev in evs:
+        before = [k for k in keys if k < ev.time - 1e-9]
+        t_prev = before[-1] if before else float(demo.t[0])
+        t_start = motion_start(demo, ev.child, t_prev, ev.time, speed=speed)
+        pos, quat, valid = demo.relative_pose(ev.parent, ev.child)
+        sel = (demo.t >= t_start) & (demo.t <= ev.time + 1e-9)
+        ok = sel & valid
+        name = f"constraint {ev.symbol or ''} {ev.parent}->{ev.child} at {ev.time:.3f} s"
+        if ok.sum() < min_samples:
+            skipped.append(
+                f"{source}: {name}: expected at least {min_samples} tracked samples in "
+                f"[{t_start:.3f}, {ev.time:.3f}] s, got {int(ok.sum())} (no approach motion "
+                "to learn from)"
+            )
+            continue
+        out.append(
+            ConstraintSegment(ev, demo.t[ok], pos[ok], quat[ok], source, int(sel.sum() - ok.sum()))
+        )
+    return out, skipped
+
+
 def constraint_segments(
     demo: Demonstration,
     *,
@@ -115,31 +171,14 @@ def constraint_segments(
     ------
     PrimitiveError
         If there is no constraint event, or a segment has fewer than
-        ``min_samples`` valid samples (naming the constraint and the interval).
+        ``min_samples`` valid samples (naming the constraint and the interval);
+        :func:`split_segments` leaves such a segment out instead.
     """
-    evs = [e for e in (demo.labels.constraints if events is None else events) if not e.removed]
-    if not evs:
-        raise PrimitiveError("constraint segments: the demonstration has no constraint event")
-    evs.sort(key=lambda e: e.time)
-    keys = sorted(e.time for e in evs) if keyframe_times is None else sorted(keyframe_times)
-    source = str(demo.meta.get("source", "demo"))
-    out = []
-    for ev in evs:
-        before = [k for k in keys if k < ev.time - 1e-9]
-        t_prev = before[-1] if before else float(demo.t[0])
-        t_start = motion_start(demo, ev.child, t_prev, ev.time, speed=speed)
-        pos, quat, valid = demo.relative_pose(ev.parent, ev.child)
-        sel = (demo.t >= t_start) & (demo.t <= ev.time + 1e-9)
-        ok = sel & valid
-        name = f"constraint {ev.symbol or ''} {ev.parent}->{ev.child} at {ev.time:.3f} s"
-        if ok.sum() < min_samples:
-            raise PrimitiveError(
-                f"{source}: {name}: expected at least {min_samples} tracked samples in "
-                f"[{t_start:.3f}, {ev.time:.3f}] s, got {int(ok.sum())}"
-            )
-        out.append(
-            ConstraintSegment(ev, demo.t[ok], pos[ok], quat[ok], source, int(sel.sum() - ok.sum()))
-        )
+    out, skipped = split_segments(
+        demo, keyframe_times=keyframe_times, events=events, speed=speed, min_samples=min_samples
+    )
+    if skipped:
+        raise PrimitiveError(skipped[0].removesuffix(" (no approach motion to learn from)"))
     return out
 
 

@@ -21,7 +21,7 @@ from thirdhand.primitives.align import average
 from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.promp import ProMP
 from thirdhand.primitives.quaternion_dmp import PoseDMP
-from thirdhand.primitives.segments import ConstraintSegment, constraint_segments, group_segments
+from thirdhand.primitives.segments import ConstraintSegment, group_segments, split_segments
 from thirdhand.primitives.serialize import pose_dmp_to_dict, promp_to_dict
 
 if TYPE_CHECKING:
@@ -234,7 +234,10 @@ def primitives_stage(
     -------
     PrimitivesBlock
         A :class:`~thirdhand.task.stages.PrimitiveRecord` per constraint key
-        (:meth:`ConstraintPrimitive.record`), and the skill library when asked for.
+        (:meth:`ConstraintPrimitive.record`), and the skill library when asked for
+        (and there is a motion to learn it from). A constraint with no tracked
+        approach motion (made at the very start, or while a tag was hidden) has no
+        primitive: ``skipped`` says why, one line each.
     """
     from thirdhand.task.stages import PrimitivesBlock
 
@@ -249,24 +252,29 @@ def primitives_stage(
             f"primitives stage: {len(events)} event lists for {len(demos)} demonstrations"
         )
     segs: list[ConstraintSegment] = []
+    skipped: list[str] = []
     for i, d in enumerate(demos):
         kf = None if keyframe_times is None else keyframe_times[i]
         ev = None if events is None else events[i]
-        found = constraint_segments(d, keyframe_times=kf, events=ev)
+        found, short = split_segments(d, keyframe_times=kf, events=ev)
         if names is not None:
             found = [replace(sg, source=names[i]) for sg in found]
+            short = [f"{names[i]}: {m.split(': ', 1)[1]}" for m in short]
         segs.extend(found)
+        skipped.extend(short)
     out: dict[str, Any] = {
         "schema": SCHEMA,
         "frame": "child pose in the parent part's frame",
         "constraints": {},
     }
+    if skipped:
+        out["skipped"] = skipped
     for key, group in group_segments(segs).items():
         prim = fit_constraint_primitive(
             group, n_weights=n_weights, promp_weights=promp_weights, align=align
         )
         out["constraints"][key] = prim.to_dict()
-    if skills is not None or skill_library is not None:
+    if segs and (skills is not None or skill_library is not None):
         from thirdhand.primitives.explain import explain_constraint_motions
 
         explained = explain_constraint_motions(

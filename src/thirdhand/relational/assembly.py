@@ -155,7 +155,19 @@ class RewardPlan:
 def plan_with_reward(
     model: AssemblyModel, parts: Sequence[str], *, max_steps: int = 100
 ) -> RewardPlan:
-    """Plan with the learned reward: value iteration over the objects ``parts``."""
+    """Plan with the learned reward: value iteration over the objects ``parts``.
+
+    Raises
+    ------
+    RelationalError
+        If ``parts`` holds fewer than two parts (nothing to attach, so no plan
+        to measure), or no sampled state can reach the assembled goal (perf
+        undefined).
+    """
+    if len(set(parts)) < 2:
+        raise RelationalError(
+            f"reward: a part set needs at least two parts to assemble, got {list(parts)}"
+        )
     mdp, s = model.plans.ground(parts)
     reward = model.rcsi.reward_of(mdp)
     _, q = value_iteration(mdp, reward, GAMMA)
@@ -170,9 +182,10 @@ def plan_with_reward(
         s = int(mdp.pair_next[p])
     truth = assembled_reward(mdp)
     states = mdp.sample_states(1000, np.random.default_rng(0))
-    return RewardPlan(
-        list(parts),
-        [str(a) for a in steps],
-        bool(truth[mdp.ptr[s]] > 0),
-        perf_of_reward(mdp, reward, truth, GAMMA, states),
-    )
+    perf = perf_of_reward(mdp, reward, truth, GAMMA, states)
+    if not np.isfinite(perf):
+        raise RelationalError(
+            f"reward: no state of the part set {list(parts)} can reach the assembled goal "
+            "(perf undefined)"
+        )
+    return RewardPlan(list(parts), [str(a) for a in steps], bool(truth[mdp.ptr[s]] > 0), perf)

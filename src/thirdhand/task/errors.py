@@ -40,6 +40,9 @@ def flatten_errors(exc: ValidationError) -> list[str]:
             msg = str(ctx["error"])
         else:
             msg = err["msg"]
+        if err["type"] == "finite_number":
+            got = err.get("input")
+            msg = f"{got!r} is not a finite number (a task file holds no NaN or infinity)"
         if err["type"] == "missing":
             msg = "required field is missing"
         if err["type"] == "json_invalid":

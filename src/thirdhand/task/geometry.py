@@ -8,9 +8,16 @@ trip through an older one, except :class:`FreeDofs`, whose six names are fixed.
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from contextvars import ContextVar
+from typing import Annotated, Any, Self
 
-from pydantic import AfterValidator, BaseModel, ConfigDict
+from pydantic import (
+    AfterValidator,
+    BaseModel,
+    ConfigDict,
+    ValidationError,
+    model_validator,
+)
 
 from thirdhand.arrays import FloatArray
 
@@ -27,12 +34,90 @@ QUAT_EXACT_TOL = 1e-6
 QUAT_NORM_TOL = 1e-2
 
 
+def non_finite_path(value: Any, where: str = "") -> str | None:
+    """Where in ``value`` (nested lists and dicts) the first NaN or infinity is, else None.
+
+    ``where`` prefixes the returned path (``"extra.scores[2]"``).
+    """
+    if isinstance(value, float):
+        return None if math.isfinite(value) else where or "value"
+    if isinstance(value, dict):
+        for k, v in value.items():
+            found = non_finite_path(v, f"{where}.{k}" if where else str(k))
+            if found is not None:
+                return found
+    if isinstance(value, list | tuple):
+        for i, v in enumerate(value):
+            found = non_finite_path(v, f"{where}[{i}]")
+            if found is not None:
+                return found
+    return None
+
+
+#: True while a task-file model is being validated (models built inside it raise pydantic's
+#: own error, which the outer validation places).
+_VALIDATING: ContextVar[bool] = ContextVar("_VALIDATING", default=False)
+
+
 class TaskModel(BaseModel):
-    """Base of every task-file model: unknown fields kept, no NaN or infinity."""
+    """Base of every task-file model: unknown fields kept, no NaN or infinity.
+
+    Built in code (``Model(field=...)``, as the stages of ``learn`` build their
+    blocks), an invalid value raises :class:`~thirdhand.errors.TaskFileError` on one
+    line naming the model and the field, so that a stage that computed a NaN
+    ends the command with a message, not a traceback. Unknown fields are held
+    to the same rule: no NaN or infinity anywhere in them.
+    """
 
     model_config = ConfigDict(
         extra="allow", allow_inf_nan=False, populate_by_name=True, ser_json_inf_nan="constants"
     )
+
+    def __init__(self, /, **data: Any) -> None:
+        if _VALIDATING.get():
+            # Built inside another model's validation: its error keeps its location there.
+            super().__init__(**data)
+            return
+        token = _VALIDATING.set(True)
+        try:
+            super().__init__(**data)
+        except ValidationError as exc:
+            from thirdhand.errors import TaskFileError
+            from thirdhand.task.errors import first_error
+
+            raise TaskFileError(f"{type(self).__name__}: {first_error(exc)}") from None
+        finally:
+            _VALIDATING.reset(token)
+
+    # Nested models are still validated by pydantic's core (strict JSON mode kept), not
+    # through this ``__init__``: it only wraps a model built in code.
+    __init__.__pydantic_base_init__ = True  # type: ignore[attr-defined]
+
+    @classmethod
+    def model_validate(cls, obj: Any, *args: Any, **kwargs: Any) -> Self:
+        """Validate ``obj``; pydantic's ``ValidationError`` on failure (its callers place it)."""
+        token = _VALIDATING.set(True)
+        try:
+            return super().model_validate(obj, *args, **kwargs)
+        finally:
+            _VALIDATING.reset(token)
+
+    @classmethod
+    def model_validate_json(cls, json_data: Any, *args: Any, **kwargs: Any) -> Self:
+        """Validate a JSON document; pydantic's ``ValidationError`` on failure."""
+        token = _VALIDATING.set(True)
+        try:
+            return super().model_validate_json(json_data, *args, **kwargs)
+        finally:
+            _VALIDATING.reset(token)
+
+    @model_validator(mode="after")
+    def _finite_extras(self) -> TaskModel:
+        for key, value in (self.model_extra or {}).items():
+            found = non_finite_path(value, key)
+            if found is not None:
+                raise ValueError(f"{found}: not a finite number (NaN or infinity)")
+        return self
 
 
 def _unit_quat(q: tuple[float, float, float, float]) -> tuple[float, float, float, float]:

@@ -439,12 +439,16 @@ class PrimitivesBlock(Block):
     constraints : dict of str to PrimitiveRecord
         Keyed by the constraint's symbol.
     skill_library : SkillLibraryRecord or None
+    skipped : list of str
+        One line per constraint that has no primitive, saying why (no tracked
+        approach motion to learn from).
     """
 
     schema_: str = Field(default="thirdhand.primitives/1", alias="schema")
     frame: str = "child pose in the parent part's frame"
     constraints: dict[str, PrimitiveRecord] = Field(default_factory=dict)
     skill_library: SkillLibraryRecord | None = Field(default=None, exclude_if=lambda v: v is None)
+    skipped: list[str] = Field(default_factory=list, exclude_if=lambda v: not v)
 
     @model_validator(mode="after")
     def _check_skills(self) -> PrimitivesBlock:

@@ -3,9 +3,10 @@
 Reading (through the pure-Python ``rosbags`` package; no ROS installation needed)
 -------------------------------------------------------------------------------
 Sources: a ROS 1 ``.bag`` file (or a list of them, e.g. one recording split in
-parts), a ROS 2 bag folder (``metadata.yaml`` plus ``.db3`` or ``.mcap`` files),
-or a lone ``.mcap`` / ``.db3`` file. Message definitions embedded in the bag
-(ROS 1 connections always carry them) are registered, so custom types decode.
+parts, or a folder of such parts, read in name order), a ROS 2 bag folder
+(``metadata.yaml`` plus ``.db3`` or ``.mcap`` files), or a lone ``.mcap`` /
+``.db3`` file. Message definitions embedded in the bag (ROS 1 connections
+always carry them) are registered, so custom types decode.
 
 Every topic is classified by the *structure* of its message type, not its name:
 

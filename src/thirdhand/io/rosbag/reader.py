@@ -17,10 +17,26 @@ from thirdhand.io.rosbag.collect import _collect, _one_line
 from thirdhand.io.rosbag.constants import _NS, _ROS2_SUFFIXES, DEFAULT_MERGE_TOLERANCE, PathLike
 
 
+def bag_parts(folder: Path) -> list[Path]:
+    """The ROS 1 ``.bag`` files directly in ``folder``, sorted by name; empty for a ROS 2 bag.
+
+    A folder of ``.bag`` parts (one recording split in several files, e.g.
+    ``part1.bag`` … ``part4.bag``) is read as one recording; a folder with a
+    ``metadata.yaml`` is a ROS 2 bag instead.
+    """
+    p = Path(folder)
+    if not p.is_dir() or (p / "metadata.yaml").exists():
+        return []
+    return sorted(f for f in p.iterdir() if f.suffix.lower() == ".bag" and f.is_file())
+
+
 def sniff(path: Path) -> bool:
-    """A ``.bag``, ``.mcap`` or ``.db3`` file, or a folder with ``metadata.yaml`` and such files."""
+    """A ``.bag``, ``.mcap`` or ``.db3`` file, a ROS 2 bag folder (``metadata.yaml`` and such
+    files) or a folder of ROS 1 ``.bag`` parts."""
     p = Path(path)
     if p.is_dir():
+        if bag_parts(p):
+            return True
         return (p / "metadata.yaml").is_file() and any(
             any(s.lower() in _ROS2_SUFFIXES for s in f.suffixes) for f in p.iterdir()
         )
@@ -29,7 +45,8 @@ def sniff(path: Path) -> bool:
 
 def _as_paths(path: PathLike | Sequence[PathLike]) -> list[Path]:
     if isinstance(path, str | os.PathLike):
-        return [Path(path)]
+        parts = bag_parts(Path(path))
+        return parts if parts else [Path(path)]
     paths = [Path(p) for p in path]
     if not paths:
         raise FormatError("<no path>", "no bag given")
@@ -73,8 +90,9 @@ def read(
     Parameters
     ----------
     path : path-like or sequence of path-like
-        A ROS 1 ``.bag`` file (or several, read as one recording), a ROS 2 bag
-        folder, or a lone ``.mcap`` / ``.db3`` file.
+        A ROS 1 ``.bag`` file (or several, read as one recording, or a folder
+        of them, read in name order), a ROS 2 bag folder, or a lone ``.mcap`` /
+        ``.db3`` file.
     topics : sequence of str, optional
         Read only these topics; ``/tf`` brings ``/tf_static`` with it. Default:
         every topic that carries poses.

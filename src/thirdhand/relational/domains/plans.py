@@ -54,6 +54,39 @@ def type_of(name: str) -> str:
     return "t_" + t if t in SPECIAL or t in ("wait", "action") else t
 
 
+def counted_parts(parts: Sequence[str]) -> dict[str, list[str]]:
+    """The part types whose instances are counted: named ``<type>1`` … ``<type>n``, n ≥ 2.
+
+    Only such parts are interchangeable copies whose number can vary (``leg1`` …
+    ``leg4``); trailing digits that are identities (AR tags ``ar_0`` and ``ar_13``,
+    a table and its leg) do not count parts.
+
+    Parameters
+    ----------
+    parts : sequence of str
+        Part names.
+
+    Returns
+    -------
+    dict of str to list of str
+        Type to its part names, in the order of ``parts``.
+    """
+    by_type: dict[str, list[str]] = {}
+    for p in parts:
+        by_type.setdefault(type_of(p), []).append(p)
+    out: dict[str, list[str]] = {}
+    for t, names in by_type.items():
+        numbers = []
+        for name in names:
+            m = re.fullmatch(rf"{re.escape(t)}(\d+)", name, re.I)
+            if m is None:
+                break
+            numbers.append(int(m.group(1)))
+        if len(numbers) == len(names) >= 2 and sorted(numbers) == list(range(1, len(names) + 1)):
+            out[t] = names
+    return out
+
+
 @dataclass(frozen=True)
 class PlanModel:
     """The types seen in demonstrations: rules (parent, child, symbol type) and child types."""
