@@ -84,7 +84,6 @@ def test_reward_targets() -> None:
 
 def test_a_one_step_plan_of_two_objects_has_a_finite_reward() -> None:
     from thirdhand.learn.stages import learn_task_reward
-
     from thirdhand.plan.assembly import AssemblyPlan, PlanAction
     from thirdhand.relational.assembly import plan_with_reward
     from thirdhand.relational.logic import RelationalError
