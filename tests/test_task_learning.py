@@ -83,7 +83,7 @@ def test_reward_targets() -> None:
 
 
 def test_a_one_step_plan_of_two_objects_has_a_finite_reward() -> None:
-    from thirdhand.learn.stages import learn_task_reward
+    from thirdhand.learn.stages import learn_task_reward, reward_block
     from thirdhand.plan.assembly import AssemblyPlan, PlanAction
     from thirdhand.relational.assembly import plan_with_reward
     from thirdhand.relational.logic import RelationalError
@@ -94,7 +94,7 @@ def test_a_one_step_plan_of_two_objects_has_a_finite_reward() -> None:
     got = result.plans["as demonstrated"]
     assert got.steps == ["action(ar_0,ar_13,c)"]
     assert 0.0 < got.perf <= 1.0
-    assert result.block().plans["as demonstrated"].perf == got.perf
+    assert reward_block(result).plans["as demonstrated"].perf == got.perf
     # a part set of one object has nothing to assemble: said, not a NaN
     with pytest.raises(RelationalError, match="at least two parts"):
         plan_with_reward(result.model, ["ar_1"])
