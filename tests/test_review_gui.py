@@ -384,9 +384,9 @@ def test_select_part_colours_it_and_its_parent(review: Review) -> None:
     review.wait_for(lambda: app.view.selected == "seating", "selection of seating")
     assert (
         selected_parent(app.task, app.view) is None
-        and dict(app.scene.parts.colours)["seating"] == SELECTED_RGB
+        and app.scene.parts.colours["seating"] == SELECTED_RGB
     )
-    assert PARENT_RGB not in dict(app.scene.parts.colours).values()
+    assert PARENT_RGB not in app.scene.parts.colours.values()
     review.page.get_by_text("(no parent)").wait_for(timeout=TIMEOUT_MS)
 
 
@@ -403,7 +403,7 @@ def test_canvas_click_selects_the_part_under_the_pointer(review: Review) -> None
     review.wait_for(lambda: app.view.selected is not None, "a click on the canvas")
     review.shot("canvas-click")
     assert app.view.selected == name
-    assert dict(app.scene.parts.colours)[name] == SELECTED_RGB
+    assert app.scene.parts.colours[name] == SELECTED_RGB
     # Context action: with leg1 selected, a shift-click on leg3 makes it leg1's parent.
     review.choose("Object", "leg1")
     review.wait_for(lambda: app.view.selected == "leg1", "selection of leg1")
@@ -412,7 +412,7 @@ def test_canvas_click_selects_the_part_under_the_pointer(review: Review) -> None
     review.page.mouse.click(x, y)
     review.page.keyboard.up("Shift")
     review.wait_for(lambda: constraint_of(app.task, "leg1").parent == name, "the new parent")
-    assert dict(app.scene.parts.colours)[name] == PARENT_RGB and app.view.selected == "leg1"
+    assert app.scene.parts.colours[name] == PARENT_RGB and app.view.selected == "leg1"
     assert app.session.effort.counts()["leg1"]["parent"] == 1
 
 
@@ -514,7 +514,7 @@ def test_timeline_plays_and_colours_parts_by_hand(review: Review) -> None:
     # A time when the right hand holds leg2: the part moves there and turns right-hand red.
     iv = next(i for i in app.demos[0].labels.interactions if i.a == "rh_index" and i.b == "leg2")
     app.motion.set_time(0.5 * (iv.start + iv.end))
-    assert dict(app.scene.parts.colours)["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
+    assert app.scene.parts.colours["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
     time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
     review.shot("playback")
     # ... and once it is screwed in, it sits elsewhere than at the start.
@@ -547,7 +547,7 @@ def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
     review.button("Change parent").click()
     review.wait_for(lambda: constraint_of(app.task, "leg1").parent == "leg2", "the parent change")
     review.wait_for(
-        lambda: dict(app.scene.parts.colours)["leg2"] == PARENT_RGB, "the new parent's colour"
+        lambda: app.scene.parts.colours["leg2"] == PARENT_RGB, "the new parent's colour"
     )
     page.locator("#th-parent", has_text="leg2").wait_for(timeout=TIMEOUT_MS)
     review.choose("Object", "leg2")
@@ -638,11 +638,8 @@ def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, ch
     first = app.task.constraint_by_id(queue[0].constraint)
     assert page.locator("#th-question").inner_text() == queue[0].text
     # The question's object is selected (orange, its parent blue) and animated.
-    assert (
-        app.view.selected == first.child
-        and dict(app.scene.parts.colours)[first.child] == SELECTED_RGB
-    )
-    assert dict(app.scene.parts.colours)[first.parent] == PARENT_RGB
+    assert app.view.selected == first.child and app.scene.parts.colours[first.child] == SELECTED_RGB
+    assert app.scene.parts.colours[first.parent] == PARENT_RGB
     review.shot("learned-clarification")
     review.button("No, wrong").click()
     review.wait_for(lambda: app.clarifier.round.index == 1, "the second question")
@@ -727,7 +724,7 @@ def test_chair_task_transferred_to_the_bench(open_review: Any, chair: Any) -> No
         assert bench.objects_by_name()["seating"].mesh == "bench_sitting.stl"
     review.choose("Object", "leg1")
     review.wait_for(lambda: app.view.selected == "leg1", "selection of leg1")
-    assert dict(app.scene.parts.colours)["seating"] == PARENT_RGB
+    assert app.scene.parts.colours["seating"] == PARENT_RGB
     time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
     review.shot("bench-transferred")
 
@@ -1013,8 +1010,8 @@ def test_execution_replay_moves_the_held_part(open_review: Any, chair: Any, tmp_
     assert tool is not None
     np.testing.assert_allclose(tool[0], record.pos("leg2")[k] + TOOL_OFFSET, atol=1e-6)
     assert (
-        dict(app.scene.parts.colours)["leg2"] == ROBOT_RGB
-        and dict(app.scene.parts.colours)["leg3"] != ROBOT_RGB
+        app.scene.parts.colours["leg2"] == ROBOT_RGB
+        and app.scene.parts.colours["leg3"] != ROBOT_RGB
     )
     time.sleep(1.0)  # software WebGL: let the frame render before the screenshot
     review.shot("execution-replay")
@@ -1081,6 +1078,6 @@ def test_a_real_execution_record_replays(
     tool = app.motion.tool_pose(TOOL_BODY)
     assert tool is not None
     np.testing.assert_allclose(tool[0], record.pos(TOOL_BODY)[k], atol=1e-6)
-    assert dict(app.scene.parts.colours)[child] == ROBOT_RGB
+    assert app.scene.parts.colours[child] == ROBOT_RGB
     time.sleep(1.0)  # software WebGL: let the frame render before the screenshot
     review.shot("execution-replay-real")

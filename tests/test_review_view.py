@@ -85,7 +85,9 @@ def test_selection_and_its_constraint(chair: TaskFile) -> None:
 
 def test_steps_shown_chosen_and_moved(chair: TaskFile) -> None:
     n = len(chair.plan)
-    view = choose_step(chair, ReviewView(), 2)
+    chosen = choose_step(chair, ReviewView(mode="playback"), 2)
+    assert (chosen.step, chosen.chosen_step, chosen.mode) == (None, 2, "playback")
+    view = show_step(chair, chosen, 2)
     assert (view.step, view.chosen_step, view.mode) == (2, 2, "task")
     assert show_step(chair, view, None).step is None
     with pytest.raises(ThirdhandError, match=f"no plan step {n + 1}; the plan has {n}"):

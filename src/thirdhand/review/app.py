@@ -399,7 +399,7 @@ class ReviewApp:
     def choose_step(self, index: int) -> None:
         """Choose plan step ``index`` (a timeline marker) and show its keyframe."""
         with self.lock:
-            self.view = replace(choose_step(self.task, self.view, index), step=self.view.step)
+            self.view = choose_step(self.task, self.view, index)
             self.show_step(index)
 
     def show_step(self, index: int | None) -> None:

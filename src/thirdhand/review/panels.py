@@ -15,6 +15,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
+from pathlib import Path
 from typing import Any, Protocol
 
 import viser
@@ -199,7 +200,7 @@ class PanelHost(Protocol):
 
     def redo(self) -> None: ...
 
-    def save(self, *, force: bool = False) -> Any: ...
+    def save(self, *, force: bool = False) -> Path | None: ...
 
     def reload(self, *, force: bool = False) -> bool: ...
 
@@ -550,13 +551,12 @@ class Panels:
 
     def _submit_values(self) -> None:
         host = self.host
-        c = require_constraint(host.task, host.view)
         texts = {n: h.value for n, h in self.values.items()}
         changed = changed_texts(texts, self._shown)
         if not changed:
             host.notify("no value changed")
             return
-        for edit, operation in value_edits(c, changed):
+        for edit, operation in value_edits(require_constraint(host.task, host.view), changed):
             host.apply(edit, operation=operation)
 
     def _nudged(self) -> None:
@@ -568,12 +568,13 @@ class Panels:
 
     def _submit_key_point(self) -> None:
         host = self.host
-        path = require_motion_path(host.task, host.view)
         texts = {n: h.value for n, h in self.key_values.items()}
-        changed = changed_texts(texts, {n: self._shown.get(f"key {n}", "") for n in "xyz"})
+        shown = {n: self._shown[f"key {n}"] for n in "xyz" if f"key {n}" in self._shown}
+        changed = changed_texts(texts, shown)
         if not changed:
             host.notify("no key point value changed")
             return
+        path = require_motion_path(host.task, host.view)
         host.apply(key_point_edit(path, host.view.key_point, changed), operation="primitive")
 
     # ---------------------------------------------------------------- dialogs

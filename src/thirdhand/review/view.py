@@ -126,11 +126,12 @@ def show_step(task: TaskFile, view: ReviewView, index: int | None) -> ReviewView
 
 
 def choose_step(task: TaskFile, view: ReviewView, index: int) -> ReviewView:
-    """Choose plan step ``index`` (a timeline marker) and show its keyframe."""
+    """Choose plan step ``index`` (a timeline marker): what Move acts on. The app then
+    shows its keyframe (:func:`show_step`)."""
     n = len(task.plan)
     if not 0 <= index < n:
         raise ThirdhandError(f"no plan step {index + 1}; the plan has {n}")
-    return show_step(task, replace(view, chosen_step=index), index)
+    return replace(view, chosen_step=index)
 
 
 def step_target(task: TaskFile, index: int, delta: int) -> int:
