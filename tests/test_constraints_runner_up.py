@@ -13,7 +13,7 @@ from thirdhand.constraints.select import fit_constraint
 from thirdhand.learn.run import learn_task
 from thirdhand.review.clarify import clarification_queue
 from thirdhand.review.edits import Confirm, apply_edit
-from thirdhand.review.panels import _constraint_html
+from thirdhand.review.panel_html import constraint_html
 from thirdhand.synth import SensorModel, make_scene
 from thirdhand.task.constraint import RunnerUp
 from thirdhand.taskfile import dump_task, parse_task
@@ -57,7 +57,7 @@ def test_a_learned_drawer_carries_its_runner_up_to_the_task_and_the_review() -> 
     again = parse_task(dump_task(task))
     assert again.constraints[0].runner_up == c.runner_up
     # the review panel names it with its geometry
-    page = _constraint_html(c)
+    page = constraint_html(c)
     assert "runner-up" in page and c.runner_up.type in page
     # the clarification score counts it: wrong if it holds as the other type
     (q,) = [q for q in clarification_queue(task) if q.dof is None]
@@ -65,7 +65,7 @@ def test_a_learned_drawer_carries_its_runner_up_to_the_task_and_the_review() -> 
     assert f"or {c.runner_up.type}" in q.text
     # a person's decision drops it
     done = apply_edit(task, Confirm(c.id))
-    assert done.constraints[0].runner_up is None and "runner-up" not in _constraint_html(
+    assert done.constraints[0].runner_up is None and "runner-up" not in constraint_html(
         done.constraints[0]
     )
 

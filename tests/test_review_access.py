@@ -22,6 +22,8 @@ from thirdhand.review.access import (
     token_of_path,
     token_url,
 )
+from thirdhand.review.app import app_url
+from thirdhand.review.view import selected_constraint
 from thirdhand.synth import make_scene
 from thirdhand.synth.task import truth_task
 from thirdhand.taskfile import save_task
@@ -102,7 +104,7 @@ def test_without_the_token_nothing_is_sent_and_nothing_accepted(public_app: Any)
             with pytest.raises(ConnectionClosed):
                 ws.send(b"\x00")
     assert app.gate.refused == 3 and not app.gate.admitted
-    assert not app.session.dirty and app.editor is None
+    assert not app.session.dirty and app.tabs.editor is None
     with connect(
         f"{base}/{app.gate.token}",
         subprotocols=[_subprotocol()],  # type: ignore[list-item]
@@ -126,22 +128,27 @@ def test_only_the_printed_url_edits(public_app: Any) -> None:
             stranger = browser.new_page(viewport={"width": 1280, "height": 900})
             stranger.goto(f"http://127.0.0.1:{app.port}/")
             page = browser.new_page(viewport={"width": 1280, "height": 900})
-            page.goto(app.url_for("127.0.0.1"))
+            page.goto(app_url("127.0.0.1", app.port, app.gate))
             page.get_by_role("button", name="Save", exact=True).wait_for(timeout=TIMEOUT_MS)
             review = Review(app, page, app.task_path)
             review.choose("Object", "leg2")
-            review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+            review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
             review.type_value("x", "12 cm")
             review.button("Apply values").click()
-            review.wait_for(lambda: app.constraint.pos[0] == 0.12, "the edit of the token's tab")
+            review.wait_for(
+                lambda: selected_constraint(app.task, app.view).pos[0] == 0.12,
+                "the edit of the token's tab",
+            )
             # The stranger's page has tried (and been refused) at least once meanwhile;
             # viser's client keeps reconnecting, each attempt refused.
             review.wait_for(lambda: app.gate.refused >= 1, "the stranger refused")
             assert stranger.get_by_role("button", name="Save", exact=True).count() == 0
             assert stranger.get_by_text("thirdhand review").count() == 0
             admitted = set(app.gate.admitted)
-            assert all(app.may_edit(c) for c in admitted)
-            assert not any(app.may_edit(c) for c in range(max(admitted) + 5) if c not in admitted)
+            assert all(app.tabs.may_edit(c) for c in admitted)
+            assert not any(
+                app.tabs.may_edit(c) for c in range(max(admitted) + 5) if c not in admitted
+            )
             stranger.screenshot(path=str(_artifact("access-refused.png")))
             review.shot("access-token-edits")
         finally:

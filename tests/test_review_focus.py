@@ -185,23 +185,26 @@ def test_app_round_starts_with_the_focus_and_says_why(
     app = ReviewApp(path, demos=[pointing_chair], port=0, light_rendering=True)
     app.start()
     try:
-        q = app.start_clarification()
-        assert app.focus is not None and app.focus.object == "leg3"
+        q = app.clarifier.start()
+        assert app.clarifier.round.focus is not None and app.clarifier.round.focus.object == "leg3"
         assert q is not None and q.focused
         assert app.task.constraint_by_id(q.constraint).child == "leg3"
-        assert app.selected == "leg3"
+        assert app.view.selected == "leg3"
         assert 'id="th-focus"' in app.panels.question.content
         assert "you pointed at leg3" in app.panels.question.content
-        while app.question is not None and app.question.focused:
-            app.answer(True)
-        assert app.question_index == 7  # the constraint and its six DOFs
+        while app.clarifier.question is not None and app.clarifier.question.focused:
+            app.clarifier.answer(True)
+        assert app.clarifier.round.index == 7  # the constraint and its six DOFs
         assert "th-focus" not in app.panels.question.content
         assert 'id="th-question"' in app.panels.question.content
         # without events, the recording's gestures: the seat was pointed at last
         save_task(truth_task(pointing_chair), path)
         app.reload(force=True)
-        app.start_clarification()
-        assert app.focus is not None and app.focus.source == "recording"
+        app.clarifier.start()
+        assert (
+            app.clarifier.round.focus is not None
+            and app.clarifier.round.focus.source == "recording"
+        )
         assert "you pointed at seating" in app.panels.question.content
     finally:
         app.motion.halt()
@@ -232,9 +235,9 @@ def test_browser_shows_why_the_round_starts_there(
             page.get_by_role("button", name="Start clarification", exact=True).click(timeout=20_000)
             page.locator("#th-focus").wait_for(timeout=20_000)
             assert page.locator("#th-focus").inner_text() == "you pointed at leg3"
-            _wait(lambda: app.question is not None)
-            assert app.question is not None and app.question.focused
-            assert app.selected == "leg3"
+            _wait(lambda: app.clarifier.question is not None)
+            assert app.clarifier.question is not None and app.clarifier.question.focused
+            assert app.view.selected == "leg3"
             browser.close()
     finally:
         app.motion.halt()

@@ -37,6 +37,7 @@ from thirdhand.review.scene3d import (
     wxyz,
     xyzw,
 )
+from thirdhand.review.view import constraint_of, selected_constraint, selected_parent
 from thirdhand.synth import make_scene
 from thirdhand.synth.task import truth_task
 from thirdhand.task.meshes import box_triangles
@@ -175,28 +176,28 @@ def test_gizmo_correction_applies_the_dragged_pose(chair: Any, tmp_path: Path) -
     app.start()
     try:
         app.select("leg2")
-        c = app.constraint
+        c = selected_constraint(app.task, app.view)
         assert c is not None and c.frame.is_identity
         app.set_gizmo_edits(True)
-        assert app.gizmo.handle is not None
+        assert app.scene.gizmo.handle is not None
         # Dragged 2 cm along the constraint frame's x axis and released.
         moved = SimpleNamespace(position=(0.02, 0.0, 0.0), wxyz=(1.0, 0.0, 0.0, 0.0))
-        app.gizmo.on_event(SimpleNamespace(target=moved, phase="update"))
+        app.scene.gizmo.on_event(SimpleNamespace(target=moved, phase="update"))
         assert app.task.constraint_by_id(c.id).pos == c.pos  # a drag previews only
-        app.gizmo.on_event(SimpleNamespace(target=moved, phase="end"))
+        app.scene.gizmo.on_event(SimpleNamespace(target=moved, phase="end"))
         new = app.task.constraint_by_id(c.id)
         expected = np.asarray(c.pos) + quat_rotate(c.quat, [0.02, 0.0, 0.0])
         np.testing.assert_allclose(new.pos, expected, atol=1e-9)
         np.testing.assert_allclose(np.abs(np.dot(new.quat, c.quat)), 1.0, atol=1e-9)
         assert app.session.effort.counts()["leg2"]["movex"] == 1
         # A tab that only views (another tab edits) drags and releases: nothing changes.
-        app.editor, before = 1, app.task.constraint_by_id(c.id)
+        app.tabs.editor, before = 1, app.task.constraint_by_id(c.id)
         viewer = SimpleNamespace(target=moved, phase="end", client_id=2)
-        app.gizmo.on_event(SimpleNamespace(target=moved, phase="update", client_id=2))
-        app.gizmo.on_event(viewer)
+        app.scene.gizmo.on_event(SimpleNamespace(target=moved, phase="update", client_id=2))
+        app.scene.gizmo.on_event(viewer)
         assert app.task.constraint_by_id(c.id) == before
         assert app.session.effort.counts()["leg2"]["movex"] == 1
-        app.gizmo.on_event(SimpleNamespace(target=moved, phase="end", client_id=1))
+        app.scene.gizmo.on_event(SimpleNamespace(target=moved, phase="end", client_id=1))
         assert app.task.constraint_by_id(c.id) != before  # the editing tab's drag applies
     finally:
         app.stop()
@@ -217,7 +218,7 @@ def test_second_recording_without_labels_is_segmented(chair: Any, tmp_path: Path
         assert app.motion.demo_index == 1 and app.motion.time == pytest.approx(part.t[0])
         assert app.panels.time.max == pytest.approx(part.t[-1])
         np.testing.assert_allclose(
-            app.parts.frames["leg3"].position,
+            app.scene.parts.frames["leg3"].position,
             app.motion.timelines[1].poses_at(part.t[0])["leg3"][0],
         )
         # Jumping to a keyframe moves the playback clock to its time.
@@ -361,9 +362,9 @@ def rgb_css(rgb: tuple[int, int, int]) -> str:
 def test_select_part_colours_it_and_its_parent(review: Review) -> None:
     app = review.app
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    assert app.parent == "seating"
-    colours = app.colours()
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    assert selected_parent(app.task, app.view) == "seating"
+    colours = dict(app.scene.parts.colours)
     assert colours["leg2"] == SELECTED_RGB and colours["seating"] == PARENT_RGB
     assert all(colours[n] not in (SELECTED_RGB, PARENT_RGB) for n in ("leg1", "leg3", "back"))
     sel, par = review.page.locator("#th-selected"), review.page.locator("#th-parent")
@@ -373,14 +374,19 @@ def test_select_part_colours_it_and_its_parent(review: Review) -> None:
     assert review.colour_of("th-parent") == rgb_css(PARENT_RGB)
     assert app.session.effort.counts()["leg2"]["click"] == 1
     # The free rotation of the leg (a full joint about its axis) is drawn.
-    assert [g.dof for g in app.glyphs.glyphs] == ["rx"] and app.glyphs.glyphs[0].kind == "full"
+    assert [g.dof for g in app.scene.glyphs.glyphs] == ["rx"] and app.scene.glyphs.glyphs[
+        0
+    ].kind == "full"
     time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
     review.shot("select-leg2")
     # The seating has no parent: only it is orange, and the GUI says so.
     review.choose("Object", "seating")
-    review.wait_for(lambda: app.selected == "seating", "selection of seating")
-    assert app.parent is None and app.colours()["seating"] == SELECTED_RGB
-    assert PARENT_RGB not in app.colours().values()
+    review.wait_for(lambda: app.view.selected == "seating", "selection of seating")
+    assert (
+        selected_parent(app.task, app.view) is None
+        and app.scene.parts.colours["seating"] == SELECTED_RGB
+    )
+    assert PARENT_RGB not in app.scene.parts.colours.values()
     review.page.get_by_text("(no parent)").wait_for(timeout=TIMEOUT_MS)
 
 
@@ -392,21 +398,21 @@ def test_canvas_click_selects_the_part_under_the_pointer(review: Review) -> None
     review.wait_for(lambda: client.camera.update_timestamp > 0, "the camera state")
     time.sleep(1.5)  # the camera settles at the pose set on connection
     name = "leg3"
-    x, y = project(client.camera, app.parts.world_centroid(name), review.page.viewport_size)
+    x, y = project(client.camera, app.scene.parts.world_centroid(name), review.page.viewport_size)
     review.page.mouse.click(x, y)
-    review.wait_for(lambda: app.selected is not None, "a click on the canvas")
+    review.wait_for(lambda: app.view.selected is not None, "a click on the canvas")
     review.shot("canvas-click")
-    assert app.selected == name
-    assert app.colours()[name] == SELECTED_RGB
+    assert app.view.selected == name
+    assert app.scene.parts.colours[name] == SELECTED_RGB
     # Context action: with leg1 selected, a shift-click on leg3 makes it leg1's parent.
     review.choose("Object", "leg1")
-    review.wait_for(lambda: app.selected == "leg1", "selection of leg1")
-    x, y = project(client.camera, app.parts.world_centroid(name), review.page.viewport_size)
+    review.wait_for(lambda: app.view.selected == "leg1", "selection of leg1")
+    x, y = project(client.camera, app.scene.parts.world_centroid(name), review.page.viewport_size)
     review.page.keyboard.down("Shift")
     review.page.mouse.click(x, y)
     review.page.keyboard.up("Shift")
-    review.wait_for(lambda: app.constraint_of("leg1").parent == name, "the new parent")
-    assert app.colours()[name] == PARENT_RGB and app.selected == "leg1"
+    review.wait_for(lambda: constraint_of(app.task, "leg1").parent == name, "the new parent")
+    assert app.scene.parts.colours[name] == PARENT_RGB and app.view.selected == "leg1"
     assert app.session.effort.counts()["leg1"]["parent"] == 1
 
 
@@ -425,8 +431,8 @@ def project(camera: Any, point: np.ndarray, viewport: dict[str, int]) -> tuple[f
 def test_typed_value_is_saved_in_the_file(review: Review) -> None:
     app = review.app
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    cid = app.constraint.id
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    cid = selected_constraint(app.task, app.view).id
     review.type_value("x", "12 cm")
     review.button("Apply values").click()
     review.wait_for(lambda: app.task.constraint_by_id(cid).pos[0] == pytest.approx(0.12), "edit")
@@ -465,7 +471,7 @@ def test_typed_value_is_saved_in_the_file(review: Review) -> None:
     review.wait_for(
         lambda: app.task.constraint_by_id(cid).free_dofs.rx == pytest.approx(quarter), "range"
     )
-    assert [g.kind for g in app.glyphs.glyphs] == ["limited"]
+    assert [g.kind for g in app.scene.glyphs.glyphs] == ["limited"]
     review.shot("range-set")
 
 
@@ -481,7 +487,7 @@ def test_reordered_keyframe_is_saved(review: Review) -> None:
     review.wait_for(lambda: [s.child for s in app.task.plan] == expected, "reordering")
     review.page.locator("#th-plan li").first.filter(has_text=before[1]).wait_for()
     review.button("Show keyframe").click()
-    review.wait_for(lambda: app.step == 0, "keyframe view")
+    review.wait_for(lambda: app.view.step == 0, "keyframe view")
     review.button("Save").click()
     review.wait_for(lambda: not app.session.dirty, "save")
     saved = json.loads(review.path.read_text())
@@ -508,25 +514,25 @@ def test_timeline_plays_and_colours_parts_by_hand(review: Review) -> None:
     # A time when the right hand holds leg2: the part moves there and turns right-hand red.
     iv = next(i for i in app.demos[0].labels.interactions if i.a == "rh_index" and i.b == "leg2")
     app.motion.set_time(0.5 * (iv.start + iv.end))
-    assert app.colours()["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
+    assert app.scene.parts.colours["leg2"] in (HAND_RGB["right"], HAND_RGB["both"])
     time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
     review.shot("playback")
     # ... and once it is screwed in, it sits elsewhere than at the start.
     app.motion.set_time(tl.start)
-    before = np.array(app.parts.frames["leg2"].position, copy=True)
-    app.motion.set_time(app.task.constraint_by_id(app.constraint_of("leg2").id).time + 1.0)
-    after = np.array(app.parts.frames["leg2"].position, copy=True)
+    before = np.array(app.scene.parts.frames["leg2"].position, copy=True)
+    app.motion.set_time(app.task.constraint_by_id(constraint_of(app.task, "leg2").id).time + 1.0)
+    after = np.array(app.scene.parts.frames["leg2"].position, copy=True)
     assert np.linalg.norm(after - before) > 0.05
     review.button("Show task").click()
-    review.wait_for(lambda: app.mode == "task", "back to the task view")
+    review.wait_for(lambda: app.view.mode == "task", "back to the task view")
 
 
 @pytest.mark.slow
 def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
     app, page = review.app, review.page
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    cid = app.constraint.id
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    cid = selected_constraint(app.task, app.view).id
     x0 = app.task.constraint_by_id(cid).pos[0]
     # An invalid number: refused, the message shown, nothing changed.
     review.type_value("x", "12 parsecs")
@@ -536,24 +542,28 @@ def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
     assert app.task.constraint_by_id(cid).pos[0] == x0 and not app.session.dirty
     # A parent change is fine (leg1 hangs from leg2), the reverse would close a cycle.
     review.choose("Object", "leg1")
-    review.wait_for(lambda: app.selected == "leg1", "selection of leg1")
+    review.wait_for(lambda: app.view.selected == "leg1", "selection of leg1")
     review.choose("New parent", "leg2")
     review.button("Change parent").click()
-    review.wait_for(lambda: app.constraint_of("leg1").parent == "leg2", "the parent change")
-    review.wait_for(lambda: app.colours()["leg2"] == PARENT_RGB, "the new parent's colour")
+    review.wait_for(lambda: constraint_of(app.task, "leg1").parent == "leg2", "the parent change")
+    review.wait_for(
+        lambda: app.scene.parts.colours["leg2"] == PARENT_RGB, "the new parent's colour"
+    )
     page.locator("#th-parent", has_text="leg2").wait_for(timeout=TIMEOUT_MS)
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
     review.choose("New parent", "leg1")
     review.button("Change parent").click()
     page.locator("#th-message", has_text="cycle").wait_for(timeout=TIMEOUT_MS)
-    assert app.constraint_of("leg2").parent == "seating"
-    assert app.constraint_of("leg1").parent == "leg2"  # the earlier edit is kept
+    assert constraint_of(app.task, "leg2").parent == "seating"
+    assert constraint_of(app.task, "leg1").parent == "leg2"  # the earlier edit is kept
     review.shot("refused-cycle")
     # A concurrent edit: the file changed on disk since it was loaded.
     review.type_value("y", "3 cm")
     review.button("Apply values").click()
-    review.wait_for(lambda: app.constraint.pos[1] == pytest.approx(0.03), "the edit")
+    review.wait_for(
+        lambda: selected_constraint(app.task, app.view).pos[1] == pytest.approx(0.03), "the edit"
+    )
     theirs = load_task(review.path)
     theirs.stages.set_other("other", {"by": "someone else"})
     save_task(theirs, review.path)
@@ -588,8 +598,8 @@ def test_refusals_are_visible_and_lose_nothing(review: Review) -> None:
 def test_dof_animation_and_clarification_round(review: Review) -> None:
     app, page = review.app, review.page
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    frame = app.parts.frames["leg2"]
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    frame = app.scene.parts.frames["leg2"]
     rest = np.array(frame.position, copy=True)
     review.button("Animate DOFs").click()
     # The six DOFs one after another, tx first (locked: a small swing shows its axis).
@@ -599,14 +609,14 @@ def test_dof_animation_and_clarification_round(review: Review) -> None:
     review.shot("animate-dofs")
     # A locked DOF is told apart in the label (item 7); the part keeps the selection colour.
     review.wait_for(lambda: app.motion.animating is None, "the end of the animation", 30.0)
-    assert app.parts.colours["leg2"] == SELECTED_RGB
+    assert app.scene.parts.colours["leg2"] == SELECTED_RGB
     pytest.importorskip("thirdhand.review.clarify")
     review.button("Start clarification").click()
     page.locator("#th-question").wait_for(timeout=TIMEOUT_MS)
-    first = app.question
+    first = app.clarifier.question
     assert first is not None
     review.button("Yes, right").click()
-    review.wait_for(lambda: app.question is not first, "the next question")
+    review.wait_for(lambda: app.clarifier.question is not first, "the next question")
     c = app.task.constraint_by_id(first.constraint)
     assert c.confidence == 1.0
     assert sum(o.get("confirm", 0) for o in app.session.effort.counts().values()) == 1
@@ -623,22 +633,22 @@ def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, ch
     queue = clarification_queue(app.task)
     review.button("Start clarification").click()
     page.locator("#th-question").wait_for(timeout=TIMEOUT_MS)
-    review.wait_for(lambda: app.question is not None, "the first question")
-    assert [q.constraint for q in app.questions] == [q.constraint for q in queue]
+    review.wait_for(lambda: app.clarifier.question is not None, "the first question")
+    assert [q.constraint for q in app.clarifier.round.questions] == [q.constraint for q in queue]
     first = app.task.constraint_by_id(queue[0].constraint)
     assert page.locator("#th-question").inner_text() == queue[0].text
     # The question's object is selected (orange, its parent blue) and animated.
-    assert app.selected == first.child and app.colours()[first.child] == SELECTED_RGB
-    assert app.colours()[first.parent] == PARENT_RGB
+    assert app.view.selected == first.child and app.scene.parts.colours[first.child] == SELECTED_RGB
+    assert app.scene.parts.colours[first.parent] == PARENT_RGB
     review.shot("learned-clarification")
     review.button("No, wrong").click()
-    review.wait_for(lambda: app.question_index == 1, "the second question")
+    review.wait_for(lambda: app.clarifier.round.index == 1, "the second question")
     assert not app.session.dirty  # "no" changes nothing; the person corrects next
     # A leg is revolute about its x axis: the gizmo turns about x only, within the range.
     leg = next(c for c in app.task.constraints if c.type == "revolute")
     review.choose("Object", leg.child)
-    review.wait_for(lambda: app.selected == leg.child, "selection of the leg")
-    gizmo = app.gizmo.handle
+    review.wait_for(lambda: app.view.selected == leg.child, "selection of the leg")
+    gizmo = app.scene.gizmo.handle
     free = [i for i, (lo, hi) in enumerate(leg.free_dofs.ranges()) if lo != hi]
     assert free == [3]
     assert tuple(gizmo.active_axes) == (True, False, False)
@@ -646,9 +656,9 @@ def test_learned_task_clarification_order_and_limited_gizmo(open_review: Any, ch
     assert gizmo.rotation_limits[0] == pytest.approx(leg.free_dofs.rx)
     # Ticking "Gizmo edits pose" frees every axis for a correction.
     page.get_by_label("Gizmo edits pose", exact=True).check()
-    review.wait_for(lambda: app.gizmo.edits, "the gizmo mode")
-    assert tuple(app.gizmo.handle.active_axes) == (True, True, True)
-    assert not app.gizmo.handle.disable_axes
+    review.wait_for(lambda: app.scene.gizmo.edits, "the gizmo mode")
+    assert tuple(app.scene.gizmo.handle.active_axes) == (True, True, True)
+    assert not app.scene.gizmo.handle.disable_axes
 
 
 @pytest.mark.slow
@@ -709,12 +719,12 @@ def test_chair_task_transferred_to_the_bench(open_review: Any, chair: Any) -> No
     review = open_review(bench, "bench.task.json")
     app = review.app
     parts = [o.name for o in bench.objects if o.kind == "part"]
-    assert app.parts.names == parts and "back" not in parts
+    assert app.scene.parts.names == parts and "back" not in parts
     if MESHES.is_dir():
         assert bench.objects_by_name()["seating"].mesh == "bench_sitting.stl"
     review.choose("Object", "leg1")
-    review.wait_for(lambda: app.selected == "leg1", "selection of leg1")
-    assert app.colours()["seating"] == PARENT_RGB
+    review.wait_for(lambda: app.view.selected == "leg1", "selection of leg1")
+    assert app.scene.parts.colours["seating"] == PARENT_RGB
     time.sleep(1.0)  # software WebGL: let the colours render before the screenshot
     review.shot("bench-transferred")
 
@@ -729,7 +739,7 @@ def test_up_and_down_keep_the_chosen_step(review: Review) -> None:
     before = [s.child for s in app.task.plan]
     page.get_by_label("Step", exact=True).click()
     page.get_by_role("option").nth(3).click()  # step 4
-    review.wait_for(lambda: app.chosen_step == 3, "step 4 chosen")
+    review.wait_for(lambda: app.view.chosen_step == 3, "step 4 chosen")
     review.button("Up").click()
     review.wait_for(lambda: [s.child for s in app.task.plan][2] == before[3], "the first Up")
     review.wait_for(lambda: app.panels.step.value.startswith("3."), "the list to follow the step")
@@ -754,13 +764,15 @@ def test_a_success_replaces_the_stale_error(review: Review) -> None:
     """Bug 2: after a refused 'abc', a good value still showed the error in red."""
     app, page = review.app, review.page
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
     review.type_value("x", "abc")
     review.button("Apply values").click()
     page.locator("#th-message", has_text="abc").wait_for(timeout=TIMEOUT_MS)
     review.type_value("x", "11 cm")
     review.button("Apply values").click()
-    review.wait_for(lambda: app.constraint.pos[0] == pytest.approx(0.11), "the edit")
+    review.wait_for(
+        lambda: selected_constraint(app.task, app.view).pos[0] == pytest.approx(0.11), "the edit"
+    )
     message = page.locator("#th-message")
     message.filter(has_text="applied").wait_for(timeout=TIMEOUT_MS)
     assert "abc" not in message.inner_text() and "11.00 cm" in message.inner_text()
@@ -772,12 +784,12 @@ def test_an_implausible_value_is_refused(review: Review) -> None:
     """Bug 3: '1e9 m' for y was accepted and the part vanished."""
     app, page = review.app, review.page
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    y0 = app.constraint.pos[1]
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    y0 = selected_constraint(app.task, app.view).pos[1]
     review.type_value("y", "1e9 m")
     review.button("Apply values").click()
     page.locator("#th-message", has_text="not plausible").wait_for(timeout=TIMEOUT_MS)
-    assert app.constraint.pos[1] == y0 and not app.session.dirty
+    assert selected_constraint(app.task, app.view).pos[1] == y0 and not app.session.dirty
 
 
 @pytest.mark.slow
@@ -785,17 +797,19 @@ def test_playback_hides_the_task_glyphs(review: Review) -> None:
     """Bug 5: the selected part's DOF circle stayed at its task pose during playback."""
     app = review.app
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    review.wait_for(lambda: len(app.glyphs.glyphs) > 0, "the DOF glyph")
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    review.wait_for(lambda: len(app.scene.glyphs.glyphs) > 0, "the DOF glyph")
     slider = app.panels.time
     app.attempt(app.motion.set_time, (slider.min + slider.max) / 2)
-    review.wait_for(lambda: app.mode == "playback", "playback")
-    assert app.glyphs.glyphs == [] and app.gizmo.handle is None
+    review.wait_for(lambda: app.view.mode == "playback", "playback")
+    assert app.scene.glyphs.glyphs == [] and app.scene.gizmo.handle is None
     review.button("Play").click()
     review.wait_for(lambda: app.motion.playing, "playing")
-    assert app.glyphs.glyphs == []
+    assert app.scene.glyphs.glyphs == []
     review.button("Show task").click()
-    review.wait_for(lambda: app.mode == "task" and len(app.glyphs.glyphs) > 0, "the task view")
+    review.wait_for(
+        lambda: app.view.mode == "task" and len(app.scene.glyphs.glyphs) > 0, "the task view"
+    )
 
 
 def test_floor_is_under_every_part_corner(chair: Any) -> None:
@@ -827,13 +841,15 @@ def test_missing_mesh_is_said_and_the_floor_drawn(open_review: Any, chair: Any) 
     leg.mesh = "no_such_leg.stl"
     review = open_review(task)
     app = review.app
-    assert app.parts.missing_meshes == {"leg1": "no_such_leg.stl"}
+    assert app.scene.parts.missing_meshes == {"leg1": "no_such_leg.stl"}
     review.page.locator("#th-message", has_text="no_such_leg.stl (leg1)").wait_for(
         timeout=TIMEOUT_MS
     )
     from thirdhand.review.scene3d import floor_height
 
-    assert app.grid is not None and app.grid.position[2] == pytest.approx(floor_height(task))
+    assert app.scene.grid is not None and app.scene.grid.position[2] == pytest.approx(
+        floor_height(task)
+    )
 
 
 @pytest.mark.slow
@@ -841,9 +857,9 @@ def test_a_second_tab_only_views(review: Review, chromium_browser: Any) -> None:
     """Bug 6: tab B's typing and Apply changed tab A's un-applied value; now one editor."""
     app = review.app
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    cid = app.constraint.id
-    x0 = app.constraint.pos[0]
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    cid = selected_constraint(app.task, app.view).id
+    x0 = selected_constraint(app.task, app.view).pos[0]
     review.type_value("x", "12 cm")  # tab A types, does not apply yet
     page_b = chromium_browser.new_page(viewport={"width": 1280, "height": 900})
     try:
@@ -859,7 +875,10 @@ def test_a_second_tab_only_views(review: Review, chromium_browser: Any) -> None:
         assert app.task.constraint_by_id(cid).pos[0] == x0 and not app.session.dirty
         tab_b.shot("second-tab-read-only")
         review.button("Apply values").click()
-        review.wait_for(lambda: app.constraint.pos[0] == pytest.approx(0.12), "A's edit")
+        review.wait_for(
+            lambda: selected_constraint(app.task, app.view).pos[0] == pytest.approx(0.12),
+            "A's edit",
+        )
         # Tab A closes: tab B edits now.
         review.page.close()
         page_b.get_by_text("You can edit now").wait_for(timeout=TIMEOUT_MS)
@@ -886,7 +905,7 @@ def test_plan_timeline_reorders_within_the_partial_order(open_review: Any, chair
     page.locator("#th-tl-4", has_text="after 4").wait_for(timeout=TIMEOUT_MS)
     # Marker 4 chooses leg1's step and shows its keyframe; the marker turns orange.
     review.button("4").click()
-    review.wait_for(lambda: app.chosen_step == 3 and app.step == 3, "step 4 chosen")
+    review.wait_for(lambda: app.view.chosen_step == 3 and app.view.step == 3, "step 4 chosen")
     page.locator("#th-tl-chosen", has_text="4. leg1").wait_for(timeout=TIMEOUT_MS)
     assert app.panels.step.value.startswith("4.")  # the Keyframes list follows
     # The legs are interchangeable: leg1 moves first.
@@ -902,17 +921,21 @@ def test_plan_timeline_reorders_within_the_partial_order(open_review: Any, chair
     assert app.task.plan[4].after == [0]  # the back still follows leg1, now step 1
     page.locator("#th-tl-4", has_text="after 1").wait_for(timeout=TIMEOUT_MS)
     # The keyframes as marks on the playback slider, numbered in the new plan order.
-    from thirdhand.review.panels import keyframe_marks
+    from thirdhand.review.panel_html import keyframe_marks
 
     marks = sorted((round(s.time, 2), str(i + 1)) for i, s in enumerate(app.task.plan))
-    assert keyframe_marks(app) == marks and marks[3] == (round(app.task.plan[0].time, 2), "1")
+    shown = app.motion.timelines[app.motion.demo_index]
+    assert keyframe_marks(app.task, shown, None) == marks and marks[3] == (
+        round(app.task.plan[0].time, 2),
+        "1",
+    )
     labels = page.locator(".mantine-Slider-markLabel")
     review.wait_for(lambda: labels.all_inner_texts() == [m[1] for m in marks], "the slider marks")
     time.sleep(1.0)  # software WebGL: let the keyframe render before the screenshot
     review.shot("plan-timeline")
     # The back before leg1: refused, the reason shown, nothing changed.
     review.button("5").click()
-    review.wait_for(lambda: app.chosen_step == 4, "step 5 chosen")
+    review.wait_for(lambda: app.view.chosen_step == 4, "step 5 chosen")
     review.button("Move step").click()
     refusal = "step 5 (back on seating) must follow step 1 (leg1 on seating)"
     page.locator("#th-message", has_text=refusal).wait_for(timeout=TIMEOUT_MS)
@@ -964,7 +987,7 @@ def test_execution_replay_moves_the_held_part(open_review: Any, chair: Any, tmp_
     review.wait_for(lambda: app.motion.time > 0.5, "time advancing")
     review.button("Pause").click()
     review.wait_for(lambda: not app.motion.playing, "pause")
-    leg2 = app.parts.frames["leg2"]
+    leg2 = app.scene.parts.frames["leg2"]
     goal = np.asarray(world_poses(task)["leg2"].pos)
     slider = page.get_by_role("slider")
     # Home / End on the slider: the carry's start and its end (the leg at its goal).
@@ -986,7 +1009,10 @@ def test_execution_replay_moves_the_held_part(open_review: Any, chair: Any, tmp_
     tool = app.motion.tool_pose("robot_tool")
     assert tool is not None
     np.testing.assert_allclose(tool[0], record.pos("leg2")[k] + TOOL_OFFSET, atol=1e-6)
-    assert app.colours()["leg2"] == ROBOT_RGB and app.colours()["leg3"] != ROBOT_RGB
+    assert (
+        app.scene.parts.colours["leg2"] == ROBOT_RGB
+        and app.scene.parts.colours["leg3"] != ROBOT_RGB
+    )
     time.sleep(1.0)  # software WebGL: let the frame render before the screenshot
     review.shot("execution-replay")
     # The person's recording is still there, on the same slider.
@@ -1024,14 +1050,21 @@ def test_a_real_execution_record_replays(
     review = open_review(task, "first.task.json", replays=[run])
     app, page = review.app, review.page
     page.locator("#th-replay", has_text="assembled (1 step)").wait_for(timeout=TIMEOUT_MS)
-    from thirdhand.review.panels import keyframe_marks
+    from thirdhand.review.app import replay_at
+    from thirdhand.review.panel_html import keyframe_marks
 
-    assert keyframe_marks(app) == [(0.0, "1")]  # the run began step 1 at once
+    replay = replay_at(app.replays, app.demos, app.motion)
+    assert replay is not None
+    shown = app.motion.timelines[app.motion.demo_index]
+    # the run began step 1 at once
+    assert keyframe_marks(app.task, shown, replay.step_starts()) == [(0.0, "1")]
     slider = page.get_by_role("slider")
     slider.focus()
     page.keyboard.press("End")
     review.wait_for(lambda: app.motion.time == pytest.approx(record.t[-1], abs=0.01), "the end")
-    np.testing.assert_allclose(app.parts.frames[child].position, record.pos(child)[-1], atol=1e-6)
+    np.testing.assert_allclose(
+        app.scene.parts.frames[child].position, record.pos(child)[-1], atol=1e-6
+    )
     # Half-way through the carry on the slider's track: the leg where the record has it.
     box = page.locator(".mantine-Slider-track").bounding_box()
     assert box is not None
@@ -1039,10 +1072,12 @@ def test_a_real_execution_record_replays(
     page.mouse.click(box["x"] + frac * box["width"], box["y"] + 0.5 * box["height"])
     review.wait_for(lambda: start < app.motion.time < end, "mid-carry")
     k = int(np.searchsorted(record.t, app.motion.time, side="right")) - 1
-    np.testing.assert_allclose(app.parts.frames[child].position, record.pos(child)[k], atol=1e-6)
+    np.testing.assert_allclose(
+        app.scene.parts.frames[child].position, record.pos(child)[k], atol=1e-6
+    )
     tool = app.motion.tool_pose(TOOL_BODY)
     assert tool is not None
     np.testing.assert_allclose(tool[0], record.pos(TOOL_BODY)[k], atol=1e-6)
-    assert app.colours()[child] == ROBOT_RGB
+    assert app.scene.parts.colours[child] == ROBOT_RGB
     time.sleep(1.0)  # software WebGL: let the frame render before the screenshot
     review.shot("execution-replay-real")

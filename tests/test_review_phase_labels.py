@@ -177,12 +177,14 @@ def test_phases_labelled_in_the_browser(chair: Any, tmp_path: Path) -> None:
                 review = Review(app, page, path)
                 page.get_by_text("Label phases", exact=True).click()
                 review.button("Start labelling").click()
-                review.wait_for(lambda: app.labelling is not None, "the segmentation", 300.0)
-                s = app.labelling
+                review.wait_for(
+                    lambda: app.labeller.labelling is not None, "the segmentation", 300.0
+                )
+                s = app.labeller.labelling
                 assert s is not None
                 first = s.question
                 assert first is not None and first.score == max(q.score for q in s.questions)
-                assert app.label_pair == (first.a, first.b)
+                assert app.labeller.cursor.pair == (first.a, first.b)
                 assert app.motion.time == pytest.approx(max(first.start, part.t[0]))
                 page.locator("#th-band-q").wait_for(timeout=TIMEOUT_MS)
                 page.get_by_text(first.text()).wait_for(timeout=TIMEOUT_MS)
@@ -198,10 +200,14 @@ def test_phases_labelled_in_the_browser(chair: Any, tmp_path: Path) -> None:
                 # Mark by hand: 22-23 s of the same pair is not an interaction.
                 app.motion.set_time(22.0)
                 review.button("From here").click()
-                review.wait_for(lambda: app.label_from == pytest.approx(22.0), "the mark")
+                review.wait_for(
+                    lambda: app.labeller.cursor.mark_from == pytest.approx(22.0), "the mark"
+                )
                 app.motion.set_time(23.0)
                 review.button("not").click()
-                review.wait_for(lambda: app.label_from is None, "the marked interval")
+                review.wait_for(
+                    lambda: app.labeller.cursor.mark_from is None, "the marked interval"
+                )
                 assert not any(a < 22.9 and b > 22.1 for a, b in s.labelled[pair])
                 review.button("Save labels").click()
                 saved = tmp_path / "chair.task.phases.kvg"
@@ -251,10 +257,10 @@ def test_start_labelling_segments_outside_the_app_lock(
     monkeypatch.setattr(thirdhand.segment, "segment_demonstration", watched)
     app.start()
     try:
-        app.attempt_long(app.start_labelling)
+        app.attempt_long(app.labeller.start)
         assert free == [True]
-        assert app.labelling is not None
-        q = app.labelling.question  # the first question is shown, as before
-        assert q is not None and app.label_pair == (q.a, q.b)
+        assert app.labeller.labelling is not None
+        q = app.labeller.labelling.question  # the first question is shown, as before
+        assert q is not None and app.labeller.cursor.pair == (q.a, q.b)
     finally:
         app.stop()

@@ -38,6 +38,7 @@ from thirdhand.review.primitive_edit import (
     sample,
 )
 from thirdhand.review.session import ReviewSession
+from thirdhand.review.view import motion_path, primitive_key
 from thirdhand.synth.task import truth_task
 from thirdhand.task.model import TaskFile
 from thirdhand.taskfile import load_task, save_task
@@ -203,23 +204,23 @@ def test_motion_key_point_moved_in_the_browser(open_review: Any, task: TaskFile)
     review = open_review(task)
     app = review.app
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    key = app.primitive_key()
-    assert key is not None and app.motion_view.shown == (key, 0)
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    key = primitive_key(app.task, app.view)
+    assert key is not None and app.scene.motion_view.shown == (key, 0)
     review.page.locator("#th-motion").get_by_text("key point", exact=False).count()
     review.choose("Key point", "2")
-    review.wait_for(lambda: app.key_point == 1, "key point 2 chosen")
-    assert app.motion_view.shown == (key, 1)
+    review.wait_for(lambda: app.view.key_point == 1, "key point 2 chosen")
+    assert app.scene.motion_view.shown == (key, 1)
     before = primitive_path(task.stages.primitives, key)
     z = before.key_points[1][2] + 0.05
     _type(review, "z", f"{100.0 * z:.2f} cm")
     review.button("Move key point").click()
     review.wait_for(lambda: app.session.dirty, "the key point moved")
-    after = app.motion_path()
+    after = motion_path(app.task, app.view)
     assert after is not None
     target = before.key_points[1] + [0.0, 0.0, z - before.key_points[1][2]]
     assert np.linalg.norm(after.key_points[1] - target) < 1e-3 + 5e-5  # + the typed rounding
-    np.testing.assert_allclose(app.motion_view.key_points, after.key_points)
+    np.testing.assert_allclose(app.scene.motion_view.key_points, after.key_points)
     review.page.get_by_text("1 key point move(s)").wait_for(timeout=TIMEOUT_MS)
     review.page.locator("#th-message").get_by_text("key point 2 at").wait_for(timeout=TIMEOUT_MS)
     time.sleep(1.0)  # software WebGL: let the path render before the screenshot
@@ -245,8 +246,8 @@ def test_dragging_the_key_point_handle_moves_it(task: TaskFile, tmp_path: Path) 
     app.start()
     try:
         app.select("leg2")
-        key = app.primitive_key()
-        view = app.motion_view
+        key = primitive_key(app.task, app.view)
+        view = app.scene.motion_view
         assert key is not None and view is not None and view.handle is not None
         before = primitive_path(task.stages.primitives, key)
         np.testing.assert_allclose(view.handle.position, before.key_points[0])
@@ -260,12 +261,12 @@ def test_dragging_the_key_point_handle_moves_it(task: TaskFile, tmp_path: Path) 
 
         drag("update", None)  # a drag previews nothing and changes nothing
         assert not app.session.dirty
-        app.editor = 7  # another tab edits: this one's release is refused
+        app.tabs.editor = 7  # another tab edits: this one's release is refused
         drag("end", 8)
         assert not app.session.dirty and "only views" in app.message
         np.testing.assert_allclose(view.handle.position, before.key_points[2])
         drag("end", 7)
-        after = app.motion_path()
+        after = motion_path(app.task, app.view)
         assert after is not None and np.linalg.norm(after.key_points[2] - target) < TOL_M
         assert app.session.effort.counts()["leg2"]["primitive"] == 1
         np.testing.assert_allclose(view.handle.position, after.key_points[2])

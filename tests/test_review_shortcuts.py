@@ -19,9 +19,10 @@ from tests.test_review_gui import (  # noqa: F401  (fixtures)
     open_review,
     review,
 )
-from thirdhand.review.panels import fmt_value
+from thirdhand.review.panel_html import fmt_value
 from thirdhand.review.scene3d import framed_view
 from thirdhand.review.shortcuts import SHORTCUTS, shortcuts_html
+from thirdhand.review.view import selected_constraint
 from thirdhand.taskfile import load_task
 
 
@@ -51,27 +52,33 @@ def test_ctrl_z_undoes_the_edit_not_the_text(review: Review) -> None:  # noqa: F
     runs (x back, the field shows it), Ctrl+Y redoes, Ctrl+S saves, F frames leg2."""
     app, page = review.app, review.page
     review.choose("Object", "leg2")
-    review.wait_for(lambda: app.selected == "leg2", "selection of leg2")
-    x0 = app.constraint.pos[0]
+    review.wait_for(lambda: app.view.selected == "leg2", "selection of leg2")
+    x0 = selected_constraint(app.task, app.view).pos[0]
     review.type_value("x", "12 cm")
     review.button("Apply values").click()
-    review.wait_for(lambda: app.constraint.pos[0] == pytest.approx(0.12), "the edit")
+    review.wait_for(
+        lambda: selected_constraint(app.task, app.view).pos[0] == pytest.approx(0.12), "the edit"
+    )
     field = review.text_input("x")
     field.click()
     page.keyboard.press("Control+z")
-    review.wait_for(lambda: app.constraint.pos[0] == x0, "the app's undo")
+    review.wait_for(lambda: selected_constraint(app.task, app.view).pos[0] == x0, "the app's undo")
     shown = fmt_value("x", x0)
     review.wait_for(lambda: field.input_value() == shown, f"the field to show {shown}")
     assert app.panels.values["x"].value == shown  # the server never got a garbled text
     page.keyboard.press("Control+y")
-    review.wait_for(lambda: app.constraint.pos[0] == pytest.approx(0.12), "the redo")
+    review.wait_for(
+        lambda: selected_constraint(app.task, app.view).pos[0] == pytest.approx(0.12), "the redo"
+    )
     page.keyboard.press("Control+s")
     review.wait_for(lambda: not app.session.dirty, "the save")
-    assert load_task(review.path).constraint_by_id(app.constraint.id).pos[0] == pytest.approx(0.12)
+    assert load_task(review.path).constraint_by_id(selected_constraint(app.task, app.view).id).pos[
+        0
+    ] == pytest.approx(0.12)
     page.locator("#th-selected").click()  # the focus leaves the fields (F types there)
     page.keyboard.press("f")
     client = next(iter(app.server.get_clients().values()))
-    centre = app.parts.world_centroid("leg2")
+    centre = app.scene.parts.world_centroid("leg2")
     review.wait_for(
         lambda: np.linalg.norm(np.asarray(client.camera.look_at) - centre) < 1e-3,
         "the camera on leg2",

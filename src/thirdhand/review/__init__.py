@@ -11,6 +11,16 @@ Everything here is plain functions and small classes on the task model
 - :mod:`~thirdhand.review.clarify`: questions ordered by the system's uncertainty.
 - :mod:`~thirdhand.review.dofs`: world poses, DOF animations and classes.
 - :mod:`~thirdhand.review.transfer`: a task mapped onto another object set.
+- :mod:`~thirdhand.review.view`: what is shown (selection, keyframe, chosen step).
+- :mod:`~thirdhand.review.corrections`: the widgets' input as edits.
+- :mod:`~thirdhand.review.rounds`: the clarification and phase-labelling rounds.
+- :mod:`~thirdhand.review.dialogs`: what is asked and told, and when.
+- :mod:`~thirdhand.review.panel_html`: the panel's HTML.
+
+The GUI's shells keep only handles, threads and caches: the app
+(``review.app``), its panel (``review.panels``), its 3D view
+(``review.task_scene``), its tabs (``review.tabs``), its playback
+(``review.motion``) and its question rounds (``review.questioning``).
 """
 
 from thirdhand.review.clarify import Question, clarification_queue

@@ -7,67 +7,72 @@
     ...
     app.stop()
 
-The app is a thin layer over the model layer: every correction is an edit of
-:mod:`thirdhand.review.edits` applied through a
+The app is a thin shell over pure functions: what is shown is a
+:class:`~thirdhand.review.view.ReviewView` changed by the functions of
+:mod:`thirdhand.review.view`; every correction is an edit of
+:mod:`thirdhand.review.edits` (built from the widgets' input by
+:mod:`thirdhand.review.corrections`) applied through a
 :class:`~thirdhand.review.session.ReviewSession` (undo/redo, effort log, save
-with conflict check). The methods of :class:`ReviewApp` (:meth:`select`,
-:meth:`apply`, :meth:`set_values`, :meth:`move_step`, :meth:`save`...) are
-what the widgets call; tests call them too. The widgets themselves are built
-in :mod:`thirdhand.review.panels`.
+with conflict check); the dialogs are :mod:`thirdhand.review.dialogs`. The app
+keeps the server, the scene's handles (:class:`~thirdhand.review.task_scene.TaskScene`),
+the tabs (:class:`~thirdhand.review.tabs.EditorTabs`), the playback
+(:class:`~thirdhand.review.motion.Motion`) and the question rounds
+(:mod:`thirdhand.review.questioning`); its methods (:meth:`select`,
+:meth:`apply`, :meth:`show_step`, :meth:`save`...) are what the widgets of
+:mod:`thirdhand.review.panels` call.
 """
 
 from __future__ import annotations
 
 import os
 import threading
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import viser
 
 from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
-from thirdhand.review import dofs as dofs_mod
 from thirdhand.review.access import AccessGate, is_loopback, new_token, shown_host, token_url
-from thirdhand.review.clarify import Question, clarification_queue
-from thirdhand.review.edits import (
-    Confirm,
-    Edit,
-    MoveStep,
-    SetParent,
-    SetPose,
-    SetPoseValue,
-    SetPrimitivePoint,
-    describe_edit,
-    parse_number,
-    pose_values,
-)
-from thirdhand.review.effort import ACTIONS, VALUE_OPERATION
-from thirdhand.review.focus import Focus, find_focus
-from thirdhand.review.gizmo import DofGizmo, GizmoMove, dominant_operation, moved_child
+from thirdhand.review.corrections import dragged_key_point, gizmo_edit, gizmo_pose, reparent_edit
+from thirdhand.review.dialogs import conflict_message, conflict_path, message_notice
+from thirdhand.review.edits import Edit, MoveStep, describe_edit
+from thirdhand.review.effort import ACTIONS
+from thirdhand.review.gizmo import GizmoMove
 from thirdhand.review.motion import Motion, MotionEvents
-from thirdhand.review.phase_labels import PhaseLabelling, PhaseQuestion
-from thirdhand.review.primitive_edit import PrimitivePath, key_for, primitive_path
-from thirdhand.review.primitive_view import PrimitiveView
-from thirdhand.review.scene3d import (
-    DofGlyphView,
-    PartsView,
-    floor_height,
-    framed_view,
-    front_view,
-    selection_colours,
-)
+from thirdhand.review.panels import Panels, PanelSetup, PanelState
+from thirdhand.review.questioning import Clarifier, Labeller
 from thirdhand.review.session import ConflictError, ReviewSession
-from thirdhand.se3 import pose_compose, pose_invert
-from thirdhand.task.constraint import Constraint
+from thirdhand.review.tabs import EditorTabs, tell
+from thirdhand.review.task_scene import TaskScene
+from thirdhand.review.view import (
+    ReviewView,
+    after_reload,
+    after_step_move,
+    check_step_move,
+    choose_key_point,
+    choose_step,
+    clamp_key_point,
+    constraint_of,
+    drop_unknown,
+    motion_path,
+    primitive_key,
+    require_constraint,
+    select,
+    selected_constraint,
+    show_step,
+    shown_poses,
+)
 from thirdhand.task.geometry import DOF_NAMES
 from thirdhand.taskfile import TaskFile, save_task
 
 if TYPE_CHECKING:
     from thirdhand.review.replay import Replay
+
+Vec3 = tuple[float, float, float]
 
 
 class ReviewApp:
@@ -102,19 +107,23 @@ class ReviewApp:
     Attributes
     ----------
     session : ReviewSession
-    selected : str or None
-        The selected object.
-    step : int or None
-        The keyframe shown (index into the plan), None for the assembled task.
-    mode : {"task", "playback"}
-        What the 3D view shows: the task at its constraint poses, or a recording.
+    view : ReviewView
+        What is shown: the selected object, the keyframe, the chosen step, the mode
+        (``"task"`` or ``"playback"``), the key point.
+    gate : AccessGate or None
+        Who may connect (None: anyone who reaches a loopback address).
+    tabs : EditorTabs
+        The tabs and the one that edits.
+    scene : TaskScene or None
+        The 3D view's handles (after :meth:`start`).
+    panels : Panels or None
+        The control panel (after :meth:`start`).
     motion : Motion
         Animation and playback (its ``time``, ``playing``, ``animating``...).
-    questions : list of Question
-        The clarification round (least confident first); ``question_index`` the current one.
-    focus : Focus or None
-        The object the person pointed at or looked at (task's perception events,
-        else the recording's pointing gestures): the round starts with it.
+    clarifier : Clarifier
+        The clarification round (the object in focus, then least confident first).
+    labeller : Labeller
+        Phase labelling of the recording shown.
     message : str
         The last message shown to the user (errors start with ``"Error: "``).
     conflict : Path or None
@@ -137,7 +146,6 @@ class ReviewApp:
         self.task_path = Path(task_path)
         if token is None and not is_loopback(host):
             token = new_token()
-        #: Who may connect (None: anyone who reaches a loopback address).
         self.gate = AccessGate(token) if token is not None else None
         self.host, self.requested_port = host, port
         self.meshes = [Path(m) for m in meshes]
@@ -150,40 +158,26 @@ class ReviewApp:
 
             self.replays = [load_replay(r, self.session.task, self.task_path) for r in replays]
         self.lock = threading.RLock()
-        self.selected: str | None = None
-        self.step: int | None = None
-        #: The plan step chosen in the Step list (it follows Up/Down), None: the first.
-        self.chosen_step: int | None = None
-        self.mode = "task"
+        self.view = ReviewView()
         self.message = f"Loaded {self.task_path.name}"
-        self.questions: list[Question] = []
-        self.question_index = 0
-        self.focus: Focus | None = None
         self.conflict: Path | None = None
         self.quit_requested = threading.Event()
         self.server: viser.ViserServer | None = None
-        self.parts: PartsView | None = None
-        self.grid: viser.GridHandle | None = None
-        #: The tab that may edit (viser client id): the first to connect; the others
-        #: only view, and are told so, until it closes.
-        self.editor: int | None = None
-        self.glyphs: DofGlyphView | None = None
-        self.gizmo: DofGizmo | None = None
-        #: Phase labelling for calibration (None until started), the pair whose band is
-        #: shown and where a marked interval starts (s).
-        self.labelling: PhaseLabelling | None = None
-        self.label_pair: tuple[str, str] | None = None
-        self.label_from: float | None = None
-        self.motion_view: PrimitiveView | None = None
-        #: The learned motion's key point the Motion panel moves (0-based).
-        self.key_point = 0
-        self.panels: Any = None
-        self.motion = Motion(self, [*self.demos, *(r.demo for r in self.replays)], segment=segment)
+        self.tabs = EditorTabs(self.gate, self.lock)
+        self.scene: TaskScene | None = None
+        self.panels: Panels | None = None
+        self.clarifier = Clarifier(self)
+        self.labeller = Labeller(self)
+        self.motion = Motion(
+            self.lock, [*self.demos, *(r.demo for r in self.replays)], segment=segment
+        )
         if self.replays:  # the run first: it is what --replay asked to see
             self.motion.demo_index = len(self.demos)
             self.motion.time = self.motion.timelines[len(self.demos)].start
             self.message = "; ".join(r.summary() for r in self.replays)
-        self.motion.events = MotionEvents(playback_entered=self._enter_playback)
+        self.motion.events = MotionEvents(
+            playback_entered=self._enter_playback, animation_ended=self.refresh
+        )
 
     # ------------------------------------------------------------------ lifecycle
     @property
@@ -199,56 +193,60 @@ class ReviewApp:
     @property
     def url(self) -> str:
         """Address of the web app; beyond loopback it carries the access token."""
-        return self.url_for(shown_host(self.host))
-
-    def url_for(self, host: str) -> str:
-        """Address of the web app reached as ``host`` (with the token when one is asked)."""
-        if self.gate is None:
-            return f"http://{host}:{self.port}/"
-        return token_url(host, self.port, self.gate.token)
+        return app_url(shown_host(self.host), self.port, self.gate)
 
     def start(self) -> str:
         """Start the server (background threads), build the scene and panels; return the URL."""
-        from thirdhand.review.panels import Panels
-
-        self.server = viser.ViserServer(host=self.host, port=self.requested_port, verbose=False)
+        server = viser.ViserServer(host=self.host, port=self.requested_port, verbose=False)
+        self.server = server
         if self.gate is not None:
-            self.gate.install(self.server)
-        self.server.scene.set_up_direction("+z")
+            self.gate.install(server)
+        server.scene.set_up_direction("+z")
         if self.light_rendering:
-            self.server.scene.configure_environment_map(None)
-            self.server.scene.configure_default_lights(True, cast_shadow=False)
-            self.server.scene.add_light_hemisphere(
+            server.scene.configure_environment_map(None)
+            server.scene.configure_default_lights(True, cast_shadow=False)
+            server.scene.add_light_hemisphere(
                 "/light", sky_color=(255, 255, 255), ground_color=(120, 120, 130), intensity=1.2
             )
-        self.parts = PartsView(self.server.scene, self.task, self.task_path, self.meshes)
-        self.grid = self.server.scene.add_grid(
-            "/floor",
-            width=2.0,
-            height=2.0,
-            cell_size=0.1,
-            section_size=0.5,
-            position=(0.0, 0.0, floor_height(self.task)),
+        scene = TaskScene(
+            server.scene,
+            self.task,
+            self.task_path,
+            self.meshes,
+            on_click=self._clicked,
+            on_gizmo=self.gizmo_moved,
+            on_key_point=self._key_point_dragged,
         )
-        self.parts.on_click(self._clicked)
-        self.glyphs = DofGlyphView(self.server.scene)
-        self.gizmo = DofGizmo(self.server.scene, self.gizmo_moved)
-        self.motion_view = PrimitiveView(self.server.scene, on_drag=self._key_point_dragged)
-        self.panels = Panels(self)
+        self.scene = scene
+        self.motion.attach(server.scene, scene.parts)
+        setup = PanelSetup(
+            task_name=self.task_path.name,
+            names=tuple(scene.parts.names),
+            timelines=tuple(self.motion.timelines),
+            has_person_demos=bool(self.demos),
+            message=self.message,
+            state=self._panel_state(),
+        )
+        self.panels = panels = Panels(server.gui, setup, self)
         self.motion.events = MotionEvents(
             playback_entered=self._enter_playback,
-            time_shown=self.panels.show_time,
-            playing_changed=self.panels.show_playing,
-            demo_changed=self.panels.show_demo,
-            animating=self.panels.show_animation,
+            time_shown=panels.show_time,
+            playing_changed=panels.show_playing,
+            demo_changed=lambda: panels.show_demo(self._panel_state()),
+            animating=panels.show_animation,
+            animation_ended=self.refresh,
         )
-        self.server.on_client_connect(self._client_connected)
-        self.server.on_client_disconnect(self._client_disconnected)
+        server.on_client_connect(
+            lambda c: self.tabs.connected(
+                c, lambda: camera_pose(self.scene, replay_at(self.replays, self.demos, self.motion))
+            )
+        )
+        server.on_client_disconnect(lambda c: self.tabs.disconnected(c, server))
         with self.lock:
             self.refresh()
             said = [r.summary() for r in self.replays]
-            if self.parts.missing_meshes:
-                listed = ", ".join(f"{m} ({n})" for n, m in self.parts.missing_meshes.items())
+            if scene.parts.missing_meshes:
+                listed = ", ".join(f"{m} ({n})" for n, m in scene.parts.missing_meshes.items())
                 said.append(
                     f"mesh files the task records not found, drawn as boxes: {listed} "
                     f"(looked beside {self.task_path.name}, in --meshes folders and along "
@@ -261,105 +259,10 @@ class ReviewApp:
     def stop(self) -> None:
         """Stop animations, playback and the server."""
         self.motion.halt()
+        self.motion.attach(None, None)
         if self.server is not None:
             self.server.stop()
             self.server = None
-
-    def _client_connected(self, client: viser.ClientHandle) -> None:
-        if self.gate is not None and not self.gate.allowed(client.client_id):
-            return
-        position, look_at = self.camera_pose()
-        client.camera.position = position
-        client.camera.look_at = look_at
-        with self.lock:
-            if self.editor is None:
-                self.editor = client.client_id
-                return
-        client.add_notification(
-            "Read-only",
-            "Another tab is editing this task; this one only shows it (one editor at a time).",
-            color="yellow",
-            auto_close_seconds=None,
-        )
-
-    def _client_disconnected(self, client: viser.ClientHandle) -> None:
-        """The editing tab closed: the oldest other tab edits now, and is told so."""
-        server = self.server  # stop() may clear it meanwhile
-        if server is None:
-            return
-        with self.lock:
-            if client.client_id != self.editor:
-                return
-            clients = server.get_clients()
-            others = sorted(
-                c
-                for c in clients
-                if c != client.client_id and (self.gate is None or self.gate.allowed(c))
-            )
-            self.editor = others[0] if others else None
-            heir = clients.get(self.editor) if self.editor is not None else None
-        if heir is not None:
-            heir.add_notification(
-                "You can edit now", "The editing tab closed.", color="green", auto_close_seconds=6.0
-            )
-
-    def may_edit(self, client_id: int | None) -> bool:
-        """Whether the tab ``client_id`` may change the task (None: the server itself).
-
-        A client without the access token never may; of the others, the editing tab.
-        """
-        if client_id is None:
-            return True
-        if self.gate is not None and not self.gate.allowed(client_id):
-            return False
-        return self.editor is None or client_id == self.editor
-
-    def replay_shown(self) -> Replay | None:
-        """The execution record played back now (None: a recording of the person)."""
-        k = self.motion.demo_index - len(self.demos)
-        return self.replays[k] if 0 <= k < len(self.replays) else None
-
-    def camera_pose(self) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
-        """Initial camera position and target (:func:`scene3d.front_view`; an execution
-        replay shown: everything it moves, :func:`replay.replay_view`), world frame, m."""
-        replay = self.replay_shown()
-        if replay is not None:
-            from thirdhand.review.replay import replay_view
-
-            return replay_view(replay.demo)
-        parts = self.parts
-        if parts is None:
-            return (1.0, -1.0, 1.0), (0.0, 0.0, 0.0)
-        centroids = np.array([parts.world_centroid(n) for n in parts.names]).reshape(-1, 3)
-        return front_view(centroids, max(parts.extent.values(), default=0.3))
-
-    # ------------------------------------------------------------------ derived state
-    def constraint_of(self, child: str | None) -> Constraint | None:
-        """The constraint whose child is ``child`` (None if none)."""
-        if child is None:
-            return None
-        return next((c for c in self.task.constraints if c.child == child), None)
-
-    @property
-    def constraint(self) -> Constraint | None:
-        """The selected object's constraint."""
-        return self.constraint_of(self.selected)
-
-    @property
-    def parent(self) -> str | None:
-        """The selected object's parent."""
-        c = self.constraint
-        return None if c is None else c.parent
-
-    def colours(self) -> dict[str, tuple[int, int, int]]:
-        """Every drawn object's colour as the scene shows it now."""
-        return dict(self.parts.colours) if self.parts is not None else {}
-
-    def world_poses(self) -> dict[str, Any]:
-        """Every object's world pose at the keyframe shown (:func:`dofs.world_poses`)."""
-        if not self.task.plan:
-            return {}
-        return dofs_mod.world_poses(self.task, self.step)
 
     # ------------------------------------------------------------------ messages
     def notify(self, text: str, *, error: bool = False) -> None:
@@ -369,12 +272,7 @@ class ReviewApp:
             self.panels.show_message(self.message, error=error)
         if self.server is not None:
             for client in self.server.get_clients().values():
-                client.add_notification(
-                    "Refused" if error else "Review",
-                    text,
-                    color="red" if error else "blue",
-                    auto_close_seconds=None if error else 4.0,
-                )
+                tell(client, message_notice(text, error=error))
 
     def say(self, text: str) -> None:
         """Show ``text`` in the status line (replacing an earlier error), no notification."""
@@ -382,7 +280,7 @@ class ReviewApp:
         if self.panels is not None:
             self.panels.show_message(text, error=False)
 
-    def attempt(self, fn: Any, *args: Any, **kwargs: Any) -> None:
+    def attempt(self, fn: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
         """Run an action for a widget: a refused one shows its message and changes nothing."""
         try:
             with self.lock:
@@ -390,9 +288,9 @@ class ReviewApp:
         except ThirdhandError as exc:
             self.notify(str(exc), error=True)
 
-    def attempt_long(self, fn: Any, *args: Any) -> None:
+    def attempt_long(self, fn: Callable[..., Any], *args: Any) -> None:
         """:meth:`attempt` for a long action that takes the app's lock only around its
-        quick parts (:meth:`start_labelling`), so other tabs and panels are not blocked."""
+        quick parts (:meth:`Labeller.start`), so other tabs and panels are not blocked."""
         try:
             fn(*args)
         except ThirdhandError as exc:
@@ -403,35 +301,33 @@ class ReviewApp:
         """Select an object: it turns orange, its parent blue; its values fill the editors."""
         with self.lock:
             self.motion.halt()
-            if name is not None and self.parts is not None and name not in self.parts.frames:
-                raise ThirdhandError(f"unknown object {name!r}")
-            self.selected = name
+            if self.scene is not None:
+                self.view = select(self.view, name, self.scene.parts.frames)
+            else:
+                self.view = replace(self.view, selected=name, mode="task")
             if name is not None and operation is not None:
                 self.session.effort.record(operation, name)
-            self.mode = "task"
             self.refresh()
 
     def _clicked(self, name: str, modifier: str | None = None) -> None:
         """A click in the 3D view: select; shift: make it the selection's parent;
         ctrl/cmd: animate its DOFs (the report's context-menu actions)."""
         if modifier == "shift":
-            self.attempt(self._reparent_selected, name)
+            self.attempt(
+                lambda: self.apply(reparent_edit(self.view.selected, name), operation="parent")
+            )
         elif modifier == "cmd/ctrl":
-            self.attempt(self._animate_object, name)
+
+            def animate() -> None:
+                c = constraint_of(self.task, name)
+                if c is None:
+                    raise ThirdhandError(f"{name} has no constraint to animate")
+                self.select(name)
+                self.animate_dofs(c.id)
+
+            self.attempt(animate)
         else:
             self.attempt(self.select, name)
-
-    def _reparent_selected(self, parent: str) -> None:
-        if self.selected is None:
-            raise ThirdhandError("select the child first, then shift-click its new parent")
-        self.apply(SetParent(self.selected, parent), operation="parent")
-
-    def _animate_object(self, name: str) -> None:
-        c = self.constraint_of(name)
-        if c is None:
-            raise ThirdhandError(f"{name} has no constraint to animate")
-        self.select(name)
-        self.animate_dofs(c.id)
 
     def apply(self, edit: Edit, *, operation: str | None = None) -> None:
         """Apply one edit through the session (undoable, logged); refresh the views.
@@ -447,97 +343,23 @@ class ReviewApp:
             self.say(f"applied: {describe_edit(edit)}")
             self.refresh()
 
-    def set_values(self, texts: dict[str, str]) -> None:
-        """Typed pose values of the selected constraint: ``{"x": "12 cm", "yaw": "90 deg"}``.
-
-        A bare number is read in the unit shown (cm, deg). Every value is parsed
-        before any is applied, so one bad value changes nothing.
-        """
-        with self.lock:
-            c = self.constraint
-            if c is None:
-                raise ThirdhandError("select an object with a constraint first")
-            values = {
-                name: parse_number(text, unit="cm" if name in ("x", "y", "z") else "deg")
-                for name, text in texts.items()
-            }
-            for name, value in values.items():
-                self.apply(SetPoseValue(c.id, name, value), operation=VALUE_OPERATION[name])
-
-    def nudge(self, name: str, delta: float) -> None:
-        """Rough adjustment: add ``delta`` (m or rad) to a pose value of the selected constraint."""
-        with self.lock:
-            c = self.constraint
-            if c is None:
-                raise ThirdhandError("select an object with a constraint first")
-            current = pose_values(c)[name]
-            self.apply(SetPoseValue(c.id, name, current + delta), operation=VALUE_OPERATION[name])
-
-    def primitive_key(self) -> str | None:
-        """The key of the selected constraint's learned motion (None: it has none)."""
-        c = self.constraint
-        if c is None:
-            return None
-        return key_for(self.task.stages.primitives, c.parent, c.child)
-
-    def motion_path(self) -> PrimitivePath | None:
-        """The selected constraint's learned motion as a path with key points (parent frame)."""
-        key = self.primitive_key()
-        return None if key is None else primitive_path(self.task.stages.primitives, key)
-
     def choose_key_point(self, index: int) -> None:
         """Choose the key point (0-based) the Motion panel moves."""
         with self.lock:
-            path = self.motion_path()
-            if path is None:
-                raise ThirdhandError("select a part whose constraint has a learned motion first")
-            n = len(path.key_times)
-            if not 0 <= index < n:
-                raise ThirdhandError(f"no key point {index + 1}; the motion has {n}")
-            self.key_point = index
+            self.view = choose_key_point(self.task, self.view, index)
             self.refresh()
-
-    def move_key_point(self, texts: dict[str, str]) -> None:
-        """Move the chosen key point of the selected motion: ``{"x": "12 cm", ...}``.
-
-        Parent frame; a bare number is in cm; a value not given stays. The motion
-        is refitted and saved in the task's primitives block (undoable, counted as
-        ``primitive`` in the effort log).
-        """
-        with self.lock:
-            path = self.motion_path()
-            if path is None:
-                raise ThirdhandError("select a part whose constraint has a learned motion first")
-            point = [float(v) for v in path.key_points[self.key_point]]
-            for k, name in enumerate("xyz"):
-                text = texts.get(name, "").strip()
-                if text:
-                    point[k] = parse_number(text, unit="cm")
-            edit = SetPrimitivePoint(path.key, self.key_point, (point[0], point[1], point[2]))
-            self.apply(edit, operation="primitive")
-
-    def frame_selection(self, client: viser.ClientHandle) -> None:
-        """Point ``client``'s camera at the selected part, from the direction it looks now."""
-        with self.lock:
-            if self.selected is None or self.parts is None:
-                raise ThirdhandError("select a part to frame first")
-            centre = self.parts.world_centroid(self.selected)
-            size = self.parts.extent.get(self.selected, 0.1)
-        eye, target = framed_view(client.camera.position, client.camera.look_at, centre, size)
-        client.camera.position = eye
-        client.camera.look_at = target
 
     def _key_point_dragged(self, index: int, point: FloatArray, client_id: int | None) -> None:
         """The key point's handle was released at ``point`` (m, parent frame)."""
-        if not self.may_edit(client_id):
+        if not self.tabs.may_edit(client_id):
             self.notify("this tab only views: the key point stays", error=True)
             with self.lock:
                 self.refresh()  # the handle goes back
             return
-        key = self.primitive_key()
+        key = primitive_key(self.task, self.view)
         if key is None:
             return
-        edit = SetPrimitivePoint(key, index, (float(point[0]), float(point[1]), float(point[2])))
+        edit = dragged_key_point(key, index, point)
         self.attempt(self.apply, edit, operation="primitive")
 
     def undo(self) -> None:
@@ -556,27 +378,10 @@ class ReviewApp:
             self.session.redo()
             self.refresh()
 
-    def move_step(self, index: int, delta: int) -> None:
-        """Move plan step ``index`` up (``delta`` -1) or down (+1); the chosen and shown step
-        follow it.
-
-        Raises
-        ------
-        ThirdhandError
-            The step is already first (up) or last (down), or the move contradicts the
-            plan's partial order.
-        """
-        with self.lock:
-            new = index + delta
-            n = len(self.task.plan)
-            if not 0 <= new < n:
-                where = "first" if delta < 0 else "last"
-                raise ThirdhandError(f"step {index + 1} is already the {where} of {n}")
-            self.move_step_to(index, new)
-
     def move_step_to(self, index: int, new_index: int) -> None:
-        """Move plan step ``index`` to position ``new_index`` (0-based; the plan timeline's
-        Move); the chosen and shown step follow it. An undoable edit like the others.
+        """Move plan step ``index`` to position ``new_index`` (0-based: the Up and Down
+        buttons, the plan timeline's Move); the chosen and shown step follow it. An
+        undoable edit like the others.
 
         Raises
         ------
@@ -586,35 +391,22 @@ class ReviewApp:
             (:func:`~thirdhand.review.edits.order_conflict`); nothing changes.
         """
         with self.lock:
-            n = len(self.task.plan)
-            for what, v in (("step", index), ("position", new_index)):
-                if not 0 <= v < n:
-                    raise ThirdhandError(f"no {what} {v + 1}: the plan has {n} steps")
-            if index == new_index:
-                raise ThirdhandError(f"step {index + 1} is already at position {new_index + 1}")
+            check_step_move(self.task, index, new_index)
             self.apply(MoveStep(index, new_index, keep_order=True), operation="reordering")
-            if self.step == index:
-                self.step = new_index
-            self.chosen_step = new_index
+            self.view = after_step_move(self.view, index, new_index)
             self.refresh()
 
     def choose_step(self, index: int) -> None:
         """Choose plan step ``index`` (a timeline marker) and show its keyframe."""
         with self.lock:
-            n = len(self.task.plan)
-            if not 0 <= index < n:
-                raise ThirdhandError(f"no plan step {index + 1}; the plan has {n}")
-            self.chosen_step = index
+            self.view = choose_step(self.task, self.view, index)
             self.show_step(index)
 
     def show_step(self, index: int | None) -> None:
         """Show the keyframe of plan step ``index`` (None: the assembled task)."""
         with self.lock:
             self.motion.halt()
-            if index is not None and not 0 <= index < len(self.task.plan):
-                raise ThirdhandError(f"no plan step {index}; the plan has {len(self.task.plan)}")
-            self.step = index
-            self.mode = "task"
+            self.view = show_step(self.task, self.view, index)
             if index is not None:
                 self.session.effort.record("kfviews", ACTIONS)
                 t = self.task.plan[index].time
@@ -625,38 +417,32 @@ class ReviewApp:
                         self.panels.show_time(self.motion.time)
             self.refresh()
 
-    def save(self) -> Path | None:
-        """Save the task (atomic, previous version kept); on a conflict keep the edits aside."""
+    def save(self, *, force: bool = False) -> Path | None:
+        """Save the task (atomic, previous version kept); on a conflict keep the edits aside
+        and offer to overwrite. ``force``: save over a file that changed on disk (its
+        other version is kept as ``.bak``)."""
         with self.lock:
             try:
-                path = self.session.save()
+                path = self.session.save(force=force)
             except ConflictError:
-                side = self.task_path.with_name(self.task_path.stem + ".unsaved.json")
+                side = conflict_path(self.task_path)
                 task = self.task.model_copy(deep=True)
                 effort = self.session.effort.to_stage(self.session.changed_parameters())
                 task.stages.ensure_review().effort = effort
                 save_task(task, side)
                 self.conflict = side
-                self.notify(
-                    f"{self.task_path.name} changed on disk since it was loaded: not saved. "
-                    f"Your edits are kept here and in {side.name}",
-                    error=True,
-                )
+                self.notify(conflict_message(self.task_path.name, side.name), error=True)
                 if self.panels is not None:
-                    self.panels.ask_overwrite(side)
+                    self.panels.ask_overwrite(self.task_path.name, side.name)
                 return None
-            self.notify(f"Saved {path.name}")
-            self.refresh()
-            return path
-
-    def overwrite(self) -> Path:
-        """Save over a file that changed on disk (its other version is kept as ``.bak``)."""
-        with self.lock:
-            path = self.session.save(force=True)
-            self.conflict = None
-            self.notify(
-                f"Saved {path.name} over the changed file (the other version is {path.name}.bak)"
-            )
+            if force:
+                self.conflict = None
+                self.notify(
+                    f"Saved {path.name} over the changed file "
+                    f"(the other version is {path.name}.bak)"
+                )
+            else:
+                self.notify(f"Saved {path.name}")
             self.refresh()
             return path
 
@@ -667,8 +453,7 @@ class ReviewApp:
                 return False
             self.motion.halt()
             self.session = ReviewSession.open(self.task_path)
-            if self.step is not None and self.step >= len(self.task.plan):
-                self.step = None
+            self.view = after_reload(self.task, self.view)
             self.notify(f"Reloaded {self.task_path.name}")
             self.refresh()
             return True
@@ -680,136 +465,6 @@ class ReviewApp:
         self.quit_requested.set()
         return True
 
-    # ------------------------------------------------------------------ clarification
-    def start_clarification(self) -> Question | None:
-        """Build the question queue (the object in focus, then least confident first); ask."""
-        with self.lock:
-            i = self.motion.demo_index
-            demo = self.demos[i if i < len(self.demos) else 0] if self.demos else None
-            self.focus = find_focus(self.task, demo)
-            focus = self.focus.object if self.focus is not None else None
-            self.questions = clarification_queue(self.task, focus=focus)
-            self.question_index = 0
-            return self._ask()
-
-    @property
-    def question(self) -> Question | None:
-        """The question being asked, None when the round is over."""
-        if 0 <= self.question_index < len(self.questions):
-            return self.questions[self.question_index]
-        return None
-
-    def _ask(self) -> Question | None:
-        q = self.question
-        if q is None:
-            self.notify("Clarification done: every question answered")
-            self.refresh()
-            return None
-        c = self.task.constraint_by_id(q.constraint)
-        self.selected = c.child
-        self.refresh()
-        self.animate_dofs(c.id, [q.dof] if q.dof is not None else list(DOF_NAMES))
-        return q
-
-    def answer(self, yes: bool) -> Question | None:
-        """Answer the current question: yes confirms it; no leaves it for a correction.
-
-        Returns the next question (None when the round is over).
-        """
-        with self.lock:
-            q = self.question
-            if q is None:
-                raise ThirdhandError("no question to answer; start the clarification round")
-            if yes:
-                self.apply(Confirm(q.constraint, q.dof), operation="confirm")
-            else:
-                self.notify(f"Correct {q.constraint} in the Correct panel, then go on")
-            self.question_index += 1
-            return self._ask()
-
-    # ------------------------------------------------------------------ phase labelling
-    def start_labelling(self) -> PhaseQuestion | None:
-        """Segment the recording shown and ask about its most uncertain intervals first.
-
-        The segmentation (tens of seconds on a long recording) runs outside the
-        app's lock, so the other panels and tabs stay responsive meanwhile.
-        """
-        with self.lock:
-            i = self.motion.demo_index
-            if i >= len(self.demos):
-                raise ThirdhandError("phases are labelled on a recording of the person (--demo)")
-            demo = self.demos[i]
-            self.say("labelling: segmenting the recording…")
-        from thirdhand.segment import segment_demonstration
-
-        labelling = PhaseLabelling.from_segmentation(demo, segment_demonstration(demo))
-        with self.lock:
-            self.labelling = labelling
-            self.label_pair = self.labelling.pairs[0]
-            self.label_from = None
-            return self._ask_phase()
-
-    def _labelling(self) -> PhaseLabelling:
-        if self.labelling is None:
-            raise ThirdhandError("start labelling first")
-        return self.labelling
-
-    def _ask_phase(self) -> PhaseQuestion | None:
-        q = self._labelling().question
-        if q is None:
-            self.notify("Labelling: every uncertain interval answered")
-        else:
-            self.label_pair = (q.a, q.b)
-            self.motion.set_time(q.start)
-        self.refresh()
-        return q
-
-    def answer_phase(self, yes: bool) -> PhaseQuestion | None:
-        """Answer the phase question: its interval is (``yes``) or is not an interaction."""
-        with self.lock:
-            self._labelling().answer(yes)
-            return self._ask_phase()
-
-    def choose_label_pair(self, pair: tuple[str, str]) -> None:
-        """Show the band of ``pair`` (its marginal and labels)."""
-        with self.lock:
-            if pair not in self._labelling().pairs:
-                raise ThirdhandError(f"no pair {pair[0]} - {pair[1]} to label")
-            self.label_pair = pair
-            self.refresh()
-
-    def mark_from_here(self) -> None:
-        """The marked interval starts at the playback time."""
-        with self.lock:
-            self._labelling()
-            self.label_from = self.motion.time
-            self.say(f"labelling: from {self.label_from:.2f} s; play on, then mark to here")
-            self.refresh()
-
-    def mark_to_here(self, value: bool) -> None:
-        """Mark the shown pair interacting (``value``) or not from the mark to the playback time."""
-        with self.lock:
-            labelling = self._labelling()
-            if self.label_from is None or self.label_pair is None:
-                raise ThirdhandError("mark where the interval starts first (From here)")
-            a, b = sorted((self.label_from, self.motion.time))
-            labelling.mark(self.label_pair, a, b, value)
-            what = "interacting" if value else "not interacting"
-            self.say(
-                f"labelling: {self.label_pair[0]} - {self.label_pair[1]} {what} {a:.2f}-{b:.2f} s"
-            )
-            self.label_from = None
-            self.refresh()
-
-    def save_phase_labels(self) -> Path:
-        """Write the labels next to the task (``STEM.phases.kvg``; the previous one kept as
-        a numbered backup): ``thirdhand segment train/calibrate --labels`` reads it."""
-        with self.lock:
-            path = self.task_path.with_name(f"{self.task_path.stem}.phases.kvg")
-            out = self._labelling().write(path, force=True)
-            self.notify(f"Saved the phase labels in {out.name}")
-            return out
-
     # ------------------------------------------------------------------ animation & playback
     def animate_dofs(
         self, constraint_id: str | None = None, dofs: Iterable[str] = DOF_NAMES
@@ -817,88 +472,68 @@ class ReviewApp:
         """Animate a constraint's DOFs one after another (default: the selected one, all six)."""
         with self.lock:
             c = (
-                self.constraint
+                require_constraint(self.task, self.view)
                 if constraint_id is None
                 else self.task.constraint_by_id(constraint_id)
             )
-            if c is None:
-                raise ThirdhandError("select an object with a constraint first")
-            self.motion.animate(c, list(dofs))
+            parent = shown_poses(self.task, self.view).get(c.parent)
+            self.motion.animate(c, list(dofs), parent)
 
     def _enter_playback(self) -> None:
         """The view shows the recording: the task's DOF glyphs and gizmo go away."""
-        self.mode = "playback"
-        if self.motion_view is not None:
-            self.motion_view.clear()
-        if self.glyphs is not None:
-            self.glyphs.clear()
-        if self.gizmo is not None:
-            self.gizmo.hide()
+        self.view = replace(self.view, mode="playback")
+        if self.scene is not None:
+            self.scene.hide_task_marks()
 
     def show_task(self) -> None:
         """Leave playback: parts back at their constraint poses."""
         with self.lock:
             self.motion.halt()
-            self.mode = "task"
+            self.view = replace(self.view, mode="task")
             self.refresh()
 
     # ------------------------------------------------------------------ scene
     def refresh(self) -> None:
         """Redraw the scene and the panels from the current state."""
-        if self.selected is not None and self.parts is not None:
-            if self.selected not in self.parts.frames:
-                self.selected = None
-        if self.mode == "playback" and self.motion.timelines:
+        scene = self.scene
+        if scene is not None:
+            self.view = drop_unknown(self.view, scene.parts.frames)
+        path = motion_path(self.task, self.view)
+        if path is not None:
+            self.view = clamp_key_point(self.view, path)
+        if self.view.mode == "playback" and self.motion.timelines:
             self.motion.place()
-            if self.motion_view is not None:
-                self.motion_view.clear()
-            if self.glyphs is not None:
-                self.glyphs.clear()
-            if self.gizmo is not None:
-                self.gizmo.hide()
+            if scene is not None:
+                scene.hide_task_marks()
         else:
             self.motion.hide_fingers()
-            self._place_parts()
+            if scene is not None:
+                scene.show(self.task, self.view, path)
         if self.panels is not None:
-            self.panels.refresh()
+            self.panels.refresh(self._panel_state())
 
-    def _place_parts(self) -> None:
-        if self.parts is None or self.glyphs is None or self.gizmo is None:
-            return
-        poses = self.world_poses()
-        self.parts.set_poses({n: (p.pos, p.quat) for n, p in poses.items()})
-        self.parts.set_colours(selection_colours(self.parts.names, self.selected, self.parent))
-        c = self.constraint
-        child = poses.get(c.child) if c is not None else None
-        if c is None or child is None:
-            self.glyphs.clear()
-            self.gizmo.hide()
-            if self.motion_view is not None:
-                self.motion_view.clear()
-            return
-        self._show_motion(c, poses)
-        ap, aq = pose_compose(child.pos, child.quat, c.frame.pos, c.frame.quat)
-        ranges = c.free_dof_array()
-        classes = [
-            dofs_mod.classify_dof(lo, hi, d) for d, (lo, hi) in zip(DOF_NAMES, ranges, strict=True)
-        ]
-        size = self.parts.extent.get(c.child, 0.1)
-        self.glyphs.show(ap, aq, ranges, classes, size=size)
-        self.gizmo.show(c, classes, size)
-
-    def _show_motion(self, c: Constraint, poses: dict[str, Any]) -> None:
-        """Draw the constraint's learned motion at its parent's pose (or nothing)."""
-        view = self.motion_view
-        if view is None:
-            return
-        path = self.motion_path()
-        parent = poses.get(c.parent)
-        if path is None or parent is None:
-            view.clear()
-            return
-        self.key_point = min(self.key_point, len(path.key_times) - 1)
-        size = self.parts.extent.get(c.child, 0.1) if self.parts is not None else 0.1
-        view.show(path, parent.pos, parent.quat, chosen=self.key_point, size=size)
+    def _panel_state(self) -> PanelState:
+        """What the panels show, as one snapshot."""
+        motion = self.motion
+        replay = replay_at(self.replays, self.demos, motion)
+        timeline = motion.timelines[motion.demo_index] if motion.timelines else None
+        return PanelState(
+            task=self.task,
+            view=self.view,
+            dirty=self.session.dirty,
+            can_undo=self.session.history.can_undo,
+            can_redo=self.session.history.can_redo,
+            effort=self.session.effort,
+            animating=motion.animating,
+            clarification=self.clarifier.round,
+            labelling=self.labeller.labelling,
+            cursor=self.labeller.cursor,
+            demo_index=motion.demo_index,
+            timeline=timeline,
+            contact_source=motion.contacts[motion.demo_index].source if timeline else "",
+            replay_summary=replay.summary() if replay is not None else None,
+            replay_starts=replay.step_starts() if replay is not None else None,
+        )
 
     # ------------------------------------------------------------------ gizmo
     def gizmo_moved(self, move: GizmoMove) -> None:
@@ -906,40 +541,59 @@ class ReviewApp:
 
         A tab that only views moves nothing: its drag is undone when released.
         """
-        if not self.may_edit(move.client_id):
+        if not self.tabs.may_edit(move.client_id):
             if move.phase == "end":
                 self.notify("this tab only views: the part stays", error=True)
                 with self.lock:
                     self.refresh()  # the gizmo goes back
             return
         with self.lock:
-            c = self.constraint
-            poses = self.world_poses()
-            if c is None or self.parts is None or c.child not in poses or c.parent not in poses:
+            c = selected_constraint(self.task, self.view)
+            poses = shown_poses(self.task, self.view)
+            scene = self.scene
+            if c is None or scene is None or c.child not in poses or c.parent not in poses:
                 return
-            p, q = moved_child(poses[c.child], c.frame, move.pos, move.quat)
-            self.parts.set_pose(c.child, p, q)
-            if move.phase != "end" or self.gizmo is None or not self.gizmo.edits:
+            p, q = gizmo_pose(poses[c.child], c, move)
+            scene.parts.set_pose(c.child, p, q)
+            if move.phase != "end" or not scene.gizmo.edits:
                 return
-            parent = poses[c.parent]
-            lp, lq = pose_compose(*pose_invert(parent.pos, parent.quat), p, q)
-        edit = SetPose(c.id, _vec3(lp), _quat4(lq))
-        self.attempt(self.apply, edit, operation=dominant_operation(move.pos, move.quat))
+            edit, operation = gizmo_edit(c, poses[c.parent], p, q, move)
+        self.attempt(self.apply, edit, operation=operation)
 
     def set_gizmo_edits(self, edits: bool) -> None:
         """False: the gizmo explores the free DOFs; True: it corrects the pose on release."""
         with self.lock:
-            if self.gizmo is not None:
-                self.gizmo.edits = edits
+            if self.scene is not None:
+                self.scene.gizmo.edits = edits
             self.refresh()
 
 
-def _vec3(v: FloatArray) -> tuple[float, float, float]:
-    return (float(v[0]), float(v[1]), float(v[2]))
+def app_url(host: str, port: int, gate: AccessGate | None) -> str:
+    """Address of the web app reached as ``host`` on ``port`` (with the token ``gate``
+    asks, if any)."""
+    if gate is None:
+        return f"http://{host}:{port}/"
+    return token_url(host, port, gate.token)
 
 
-def _quat4(v: FloatArray) -> tuple[float, float, float, float]:
-    return (float(v[0]), float(v[1]), float(v[2]), float(v[3]))
+def replay_at(
+    replays: Sequence[Replay], demos: Sequence[Demonstration], motion: Motion
+) -> Replay | None:
+    """The execution record played back now (None: a recording of the person)."""
+    k = motion.demo_index - len(demos)
+    return replays[k] if 0 <= k < len(replays) else None
+
+
+def camera_pose(scene: TaskScene | None, replay: Replay | None) -> tuple[Vec3, Vec3]:
+    """Initial camera position and target (:meth:`TaskScene.camera_pose`; an execution
+    replay shown: everything it moves, :func:`replay.replay_view`), world frame, m."""
+    if replay is not None:
+        from thirdhand.review.replay import replay_view
+
+        return replay_view(replay.demo)
+    if scene is None:
+        return (1.0, -1.0, 1.0), (0.0, 0.0, 0.0)
+    return scene.camera_pose()
 
 
 def _load_demo(d: Demonstration | str | os.PathLike[str]) -> Demonstration:
@@ -950,4 +604,4 @@ def _load_demo(d: Demonstration | str | os.PathLike[str]) -> Demonstration:
     return io.load(Path(d))
 
 
-__all__ = ["ReviewApp"]
+__all__ = ["ReviewApp", "app_url", "camera_pose", "replay_at"]

@@ -11,7 +11,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 import viser
@@ -21,13 +21,9 @@ from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.review import dofs as dofs_mod
 from thirdhand.review.playback import HandContacts, Timeline, hand_contacts, playback_colours
-from thirdhand.review.scene3d import FINGER_RGB
+from thirdhand.review.scene3d import FINGER_RGB, PartsView
 from thirdhand.se3 import pose_compose
 from thirdhand.task.constraint import Constraint
-
-if TYPE_CHECKING:
-    from thirdhand.review.app import ReviewApp
-
 
 #: Seconds per DOF of an animation, and its frame rate (Hz).
 ANIMATION_SECONDS = 1.2
@@ -69,6 +65,8 @@ class MotionEvents:
         Another recording is played back.
     animating : callable (Constraint, str or None)
         The DOF being animated (None: the animation is over).
+    animation_ended : callable ()
+        An animation ran to its end; called holding the owner's lock (the view is redrawn).
     """
 
     playback_entered: Callable[[], None] = _ignore
@@ -76,14 +74,19 @@ class MotionEvents:
     playing_changed: Callable[[bool], None] = _ignore
     demo_changed: Callable[[], None] = _ignore
     animating: Callable[[Constraint, str | None], None] = _ignore
+    animation_ended: Callable[[], None] = _ignore
 
 
 class Motion:
-    """Animation and playback of a :class:`~thirdhand.review.app.ReviewApp`.
+    """Animation and playback in the review's 3D view.
+
+    It draws on the scene given to :meth:`attach` and reports through
+    :attr:`events`; it knows no app and no panel.
 
     Parameters
     ----------
-    app : ReviewApp
+    lock : threading.RLock
+        The owner's lock: a worker takes it around each frame it draws.
     demos : sequence of Demonstration
         Recordings to play back.
     segment : bool
@@ -102,8 +105,12 @@ class Motion:
         The DOF being animated.
     """
 
-    def __init__(self, app: ReviewApp, demos: Sequence[Demonstration], *, segment: bool) -> None:
-        self.app = app
+    def __init__(
+        self, lock: threading.RLock, demos: Sequence[Demonstration], *, segment: bool
+    ) -> None:
+        self.lock = lock
+        self._scene: viser.SceneApi | None = None
+        self._parts: PartsView | None = None
         self.timelines = [Timeline(d) for d in demos]
         self.contacts: list[HandContacts] = [_contacts(d, segment=segment) for d in demos]
         self.demo_index = 0
@@ -116,6 +123,11 @@ class Motion:
         self._stop = threading.Event()
         #: Set by the owner: Motion reports through these, it drives no panel.
         self.events = MotionEvents()
+
+    def attach(self, scene: viser.SceneApi | None, parts: PartsView | None) -> None:
+        """Draw on ``scene`` (fingers, tool frames) and move ``parts`` (None: nowhere, the
+        server stopped)."""
+        self._scene, self._parts = scene, parts
 
     # ---------------------------------------------------------------- workers
     def _start(self, target: Callable[[threading.Event], None]) -> None:
@@ -136,8 +148,8 @@ class Motion:
             self.events.playing_changed(False)
 
     def _acquire_unless(self, stop: threading.Event) -> bool:
-        """Take the app lock for a worker, unless it is told to stop meanwhile."""
-        lock = self.app.lock
+        """Take the owner's lock for a worker, unless it is told to stop meanwhile."""
+        lock = self.lock
         while not stop.is_set():
             if lock.acquire(timeout=0.05):
                 if not stop.is_set():
@@ -146,15 +158,17 @@ class Motion:
         return False
 
     # ---------------------------------------------------------------- animation
-    def animate(self, c: Constraint, dofs: Sequence[str]) -> None:
-        """Move ``c``'s child along each DOF in turn (:func:`dofs.dof_animation`)."""
+    def animate(self, c: Constraint, dofs: Sequence[str], parent: Any) -> None:
+        """Move ``c``'s child along each DOF in turn (:func:`dofs.dof_animation`) from its
+        parent's world pose ``parent`` (``.pos`` m, ``.quat`` x y z w; None: nothing moves)."""
         order = list(dofs)
-        self._start(lambda stop: self._animation(c, order, stop))
+        self._start(lambda stop: self._animation(c, order, parent, stop))
 
-    def _animation(self, c: Constraint, order: list[str], stop: threading.Event) -> None:
-        app = self.app
-        parent = app.world_poses().get(c.parent)
-        if parent is None or app.parts is None:
+    def _animation(
+        self, c: Constraint, order: list[str], parent: Any, stop: threading.Event
+    ) -> None:
+        parts = self._parts
+        if parent is None or parts is None:
             return
         n = max(2, int(ANIMATION_SECONDS * ANIMATION_RATE))
         for dof in order:
@@ -165,15 +179,15 @@ class Motion:
                     return
                 local = dofs_mod.dof_animation(c, dof, k / n)
                 p, q = pose_compose(parent.pos, parent.quat, local.pos, local.quat)
-                app.parts.set_pose(c.child, p, q)
+                parts.set_pose(c.child, p, q)
                 stop.wait(1.0 / ANIMATION_RATE)
         self.animating = None
         self.events.animating(c, None)
         if self._acquire_unless(stop):
             try:
-                app.refresh()
+                self.events.animation_ended()
             finally:
-                app.lock.release()
+                self.lock.release()
 
     # ---------------------------------------------------------------- playback
     def _timeline(self) -> Timeline:
@@ -183,7 +197,7 @@ class Motion:
 
     def set_time(self, time_s: float) -> None:
         """Show the recording at ``time_s`` seconds (clamped), parts coloured by hand."""
-        with self.app.lock:
+        with self.lock:
             tl = self._timeline()
             self.time = float(min(max(time_s, tl.start), tl.end))
             self.events.playback_entered()
@@ -192,7 +206,7 @@ class Motion:
 
     def set_demo(self, index: int) -> None:
         """Play back recording ``index`` from its start."""
-        with self.app.lock:
+        with self.lock:
             if not 0 <= index < len(self.timelines):
                 raise ThirdhandError(f"no recording {index}; {len(self.timelines)} loaded")
             self.halt()
@@ -202,7 +216,7 @@ class Motion:
 
     def play(self, playing: bool = True, *, speed: float = 1.0) -> None:
         """Start (or pause) playback from the current time, ``speed`` x real time."""
-        with self.app.lock:
+        with self.lock:
             if not playing:
                 self.halt()
                 return
@@ -226,44 +240,41 @@ class Motion:
                 self.place()
                 self.events.time_shown(self.time)
             finally:
-                self.app.lock.release()
+                self.lock.release()
 
     def place(self) -> None:
         """Put parts and fingers where the recording has them at :attr:`time`."""
-        app = self.app
-        if app.parts is None or app.server is None:
+        parts, scene = self._parts, self._scene
+        if parts is None or scene is None:
             return
         tl = self._timeline()
         poses = tl.poses_at(self.time)
-        app.parts.set_poses({n: pq for n, pq in poses.items() if n in app.parts.frames})
-        colours = playback_colours(self.contacts[self.demo_index], app.parts.names, self.time)
-        app.parts.set_colours(colours)
+        parts.set_poses({n: pq for n, pq in poses.items() if n in parts.frames})
+        colours = playback_colours(self.contacts[self.demo_index], parts.names, self.time)
+        parts.set_colours(colours)
         kinds = {b.name: b.kind for b in tl.demo.bodies}
         for name, tool in self._tools.items():  # another recording's tool frame
             if name not in poses:
                 tool.visible = False
         for n in tl.names:
-            if n in app.parts.frames or n not in poses:
+            if n in parts.frames or n not in poses:
                 continue
             if kinds.get(n) == "tool":  # an execution replay's tool frame: axes
                 self._show_tool(n, *poses[n])
                 continue
             h = self._fingers.get(n)
             if h is None:
-                h = app.server.scene.add_icosphere(
-                    f"/fingers/{n}", radius=FINGER_RADIUS, color=FINGER_RGB
-                )
+                h = scene.add_icosphere(f"/fingers/{n}", radius=FINGER_RADIUS, color=FINGER_RGB)
                 self._fingers[n] = h
             h.visible = True
             x, y, z = (float(v) for v in poses[n][0])
             h.position = (x, y, z)
 
     def _show_tool(self, name: str, pos: FloatArray, quat: FloatArray) -> None:
-        app = self.app
-        assert app.server is not None
+        assert self._scene is not None
         h = self._tools.get(name)
         if h is None:
-            h = app.server.scene.add_frame(
+            h = self._scene.add_frame(
                 f"/tools/{name}", axes_length=TOOL_AXES, axes_radius=0.1 * TOOL_AXES
             )
             self._tools[name] = h
