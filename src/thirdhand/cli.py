@@ -9,9 +9,7 @@ from __future__ import annotations
 import signal
 import sys
 
-
-class Terminated(BaseException):
-    """Raised in the main thread on SIGTERM, so ``finally`` blocks (servers, temporaries) run."""
+from thirdhand.errors import Terminated
 
 
 def _interrupted_at_start_up(signum: int, frame: object) -> None:

@@ -76,6 +76,7 @@ REGISTRY: dict[str, str] = {
     "constraints.fit": "thirdhand.constraints.settings:FitSettings",
     "execute": "thirdhand.execute.settings:ExecuteSettings",
     "learn": "thirdhand.learn.settings:LearnSettings",
+    "live": "thirdhand.live.settings:LiveSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",
     "synth": "thirdhand.synth.settings:SynthSettings",
     "primitives.fit": "thirdhand.primitives.settings:FitSettings",

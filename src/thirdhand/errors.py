@@ -70,3 +70,7 @@ class OutputError(ThirdhandError, OSError):
 
 class OptionError(ThirdhandError, ValueError):
     """A command-line option or a function argument is out of its range."""
+
+
+class Terminated(BaseException):
+    """Raised in the main thread on SIGTERM, so ``finally`` blocks (servers, temporaries) run."""

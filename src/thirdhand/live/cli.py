@@ -15,7 +15,8 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from thirdhand.errors import ThirdhandError
+from thirdhand.config import ConfigOption
+from thirdhand.errors import Terminated, ThirdhandError
 
 
 def live_command(
@@ -30,10 +31,6 @@ def live_command(
     ] = 1.0,
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the report (steps, latency, assists).")
-    ] = None,
-    segment_model: Annotated[
-        str | None,
-        typer.Option(help="Segmentation model JSON or built-in name (default: the shipped one)."),
     ] = None,
     assist: Annotated[
         bool,
@@ -52,21 +49,31 @@ def live_command(
         bool,
         typer.Option(help="Replace existing --json/--record files (kept as numbered .bak)."),
     ] = False,
+    config: ConfigOption = None,
 ) -> None:
-    """Follow a person through a task's plan, live: the step they are in, done, and next."""
+    """Follow a person through a task's plan, live: the step they are in, done, and next.
+
+    Ctrl-C (or SIGTERM) stops the stream: the report of what was seen so far is
+    printed and written (``--json``, ``--record``, marked ``interrupted``), then the
+    command exits with 130 (143). Settings (``[live]`` of ``--config``): the
+    segmentation model and the assist's arm, base and timing.
+    """
     from thirdhand import io
+    from thirdhand.config import load_settings
     from thirdhand.fileops import check_output, write_text
-    from thirdhand.live.assist import AssistOptions
     from thirdhand.live.loop import LiveLoop, LiveOptions
-    from thirdhand.live.mcap_source import being_written
+    from thirdhand.live.mcap_source import McapSource, being_written
+    from thirdhand.live.settings import LiveSettings
     from thirdhand.live.source import FrameLog, FrameSource, ReplaySource, check_speed
     from thirdhand.live.state import StateEvent
     from thirdhand.segment.model import resolve_model
     from thirdhand.task.store import load_task
 
     check_speed(speed)
+    cfg = load_settings(config, "live", LiveSettings)
+    inputs = [recording, task, *([config] if config else [])]
     if json_out is not None:
-        check_output(json_out, force=force, inputs=[recording, task])
+        check_output(json_out, force=force, inputs=inputs)
     if record is not None:
         from thirdhand.execute.record import record_paths
 
@@ -74,28 +81,28 @@ def live_command(
         if json_out is not None and json_out.resolve() in {p.resolve() for p in targets}:
             raise ThirdhandError(f"--record {record}: would write over --json {json_out}")
         for target in targets:
-            check_output(target, force=force, inputs=[recording, task])
+            check_output(target, force=force, inputs=inputs)
     t = load_task(task)
-    model = resolve_model(segment_model)
+    model = resolve_model(cfg.segment_model)
     source: FrameSource
+    mcap: McapSource | None = None
     if being_written(recording):  # a recorder is appending to it: follow it as it grows
-        from thirdhand.live.mcap_source import McapSource
-
         if speed != 1.0:
             raise ThirdhandError(
                 f"--speed: {recording} is being written; it is followed as it grows "
                 "(leave --speed out)"
             )
-        source = log = FrameLog(McapSource(recording))
+        mcap = McapSource(recording, idle_s=cfg.follow_idle_s)
+        source = log = FrameLog(mcap)
         t0 = 0.0
     else:
         log = None
         demo = io.load(recording)
         source = ReplaySource(demo, speed)
         t0 = float(demo.t[0])
-    opts = LiveOptions(assist=AssistOptions() if assist else None)
+    opts = LiveOptions(assist=cfg.assist_options() if assist else None)
     loop = LiveLoop(t, source.bodies, source.meta, model, opts, source_name=str(recording))
-    console = Console(highlight=False, stderr=False)
+    console = Console(highlight=False, stderr=False, soft_wrap=True)
 
     def show(now: float, events: list[StateEvent]) -> None:
         for e in events:
@@ -105,7 +112,18 @@ def live_command(
                 f"({e.parent} <- {e.child})"
             )
 
-    report = loop.run(source, on_events=show)
+    interrupted: BaseException | None = None
+    try:
+        report = loop.run(source, on_events=show)
+    except (KeyboardInterrupt, Terminated) as stop:
+        # The loop closed its report where the stream stopped: say it, write it.
+        interrupted, report = stop, loop.report
+        console.print(f"interrupted: the report covers the stream up to {report.t1 - t0:.2f} s")
+    if mcap is not None and mcap.unclosed:
+        console.print(
+            f"{recording}: the stream ended without the file's closing record (its recorder "
+            "stopped); followed to the last complete message"
+        )
     for a, b in report.dropped:
         console.print(f"dropped stream: no frame from {a - t0:.2f} s to {b - t0:.2f} s")
     doc = report.to_dict()
@@ -127,7 +145,8 @@ def live_command(
         doc["recording"] = str(recording)
         doc["task"] = str(task)
         doc["speed"] = speed
-        write_text(json_out, json.dumps(doc, indent=1) + "\n")
+        doc["interrupted"] = interrupted is not None
+        write_text(json_out, json.dumps(doc, indent=1, allow_nan=False) + "\n")
         console.print(f"wrote {json_out}")
     if record is not None:
         from thirdhand.live.record import write_live_record
@@ -135,3 +154,5 @@ def live_command(
         streamed = log.demonstration() if log is not None else demo
         replay, traj = write_live_record(streamed, report, loop.assist, record)
         console.print(f"wrote {replay} and {traj}")
+    if interrupted is not None:
+        raise interrupted

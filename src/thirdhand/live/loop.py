@@ -366,6 +366,21 @@ class LiveLoop:
         rep: LiveReport,
     ) -> None:
         """The frame loop of :meth:`run`."""
+        try:
+            self._frames(source, on_events, rep)
+        finally:
+            # Also when the stream is interrupted: the report ends where it stopped.
+            self.phases.flush()
+            if self.assist is not None:
+                self.assist.finish()
+                rep.assists = [a.to_dict() for a in self.assist.assists]
+
+    def _frames(
+        self,
+        source: FrameSource,
+        on_events: Callable[[float, list[StateEvent]], None] | None,
+        rep: LiveReport,
+    ) -> None:
         clock, cpu = time.perf_counter, time.thread_time
         for frame in source:
             w0, c0 = clock(), cpu()
@@ -384,10 +399,6 @@ class LiveLoop:
                     frame.t, frame.pos, frame.quat, frame.valid, self.tracker, self.holding
                 )
                 rep.assist_time.append(clock() - a0)
-        self.phases.flush()
-        if self.assist is not None:
-            self.assist.finish()
-            rep.assists = [a.to_dict() for a in self.assist.assists]
 
 
 __all__ = ["DROP_S", "LiveLoop", "LiveOptions", "LiveReport", "check_bodies"]

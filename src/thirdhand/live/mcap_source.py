@@ -158,6 +158,9 @@ class McapSource:
         self._origin: int | None = None
         self._pending: list[tuple[str, int, bytes]] = []
         self.late_messages = 0
+        #: Whether the stream ended without the file's closing record (the writer
+        #: stopped mid-record, or never closed the file).
+        self.unclosed = False
         doc = self._meta_message() if bodies is None or meta is None else None
         if bodies is None:
             if doc is None:
@@ -182,11 +185,23 @@ class McapSource:
 
     def _messages(self) -> Iterator[tuple[str, int, bytes]]:
         """``(topic, log_time_ns, data)`` of every message, as the file grows."""
+        import struct
+
+        from mcap.exceptions import McapError
         from mcap.records import Channel, Message, Schema
 
         while self._pending:
             yield self._pending.pop(0)
-        for rec in self._records:
+        while True:
+            try:
+                rec = next(self._records)
+            except StopIteration:
+                return
+            except (McapError, struct.error, EOFError, ValueError):
+                # The writer stopped mid-record and never closed the file (a crash,
+                # a cut recording): the stream ends at its last complete message.
+                self.unclosed = True
+                return
             if isinstance(rec, Schema):
                 self._schemas[rec.id] = rec.name
             elif isinstance(rec, Channel):

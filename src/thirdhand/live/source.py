@@ -120,18 +120,23 @@ class FrameLog:
         )
 
 
+#: Slowest and fastest replay (times real time) other than 0, as fast as possible:
+#: a hundred times slower turns a minute of recording into 100 minutes.
+MIN_SPEED, MAX_SPEED = 0.01, 1000.0
+
+
 def check_speed(speed: float) -> float:
-    """A replay speed: finite and ≥ 0 (0: as fast as possible).
+    """A replay speed: 0 (as fast as possible) or within [MIN_SPEED, MAX_SPEED].
 
     Raises
     ------
     OptionError
         One line naming the value.
     """
-    if not np.isfinite(speed) or speed < 0:
+    if not (speed == 0 or MIN_SPEED <= speed <= MAX_SPEED):  # NaN fails both
         raise OptionError(
-            f"--speed must be a finite number >= 0 (1: real time, 0: as fast as possible), "
-            f"got {speed}"
+            f"--speed must be 0 (as fast as possible) or between {MIN_SPEED:g} and "
+            f"{MAX_SPEED:g} (1: real time), got {speed}"
         )
     return float(speed)
 
