@@ -39,7 +39,7 @@ from typer.core import TyperCommand, TyperGroup  # noqa: E402
 from thirdhand import __version__, options  # noqa: E402
 from thirdhand.config import ConfigOption, load_settings  # noqa: E402
 from thirdhand.errors import ThirdhandError  # noqa: E402
-from thirdhand.fileops import check_output  # noqa: E402
+from thirdhand.fileops import check_output, check_outputs  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -430,8 +430,9 @@ def _convert_robot(source: Path, target: Path, *, force: bool) -> None:
     from thirdhand.taskfile import load_task
 
     outputs = [target, domain_path(target)] if suffix == ".pddl" else [target]
-    for o in outputs:
-        check_output(o, force=force, inputs=[source])
+    check_outputs(
+        list(zip(("TARGET", "its domain"), outputs, strict=False)), force=force, inputs=[source]
+    )
     if not target.parent.is_dir():
         _fail(f"{target}: the folder {target.parent} does not exist")
     task = load_task(source)

@@ -179,6 +179,55 @@ def check_distinct_inputs(paths: Iterable[PathLike], *, what: str = "input") -> 
         seen.append(p)
 
 
+def check_outputs(
+    outputs: Iterable[tuple[str, PathLike | None]],
+    *,
+    force: bool = False,
+    inputs: Iterable[PathLike | None] = (),
+    option: str = "--force",
+) -> list[Path]:
+    """Check every output of one command: each against the others, then :func:`check_output`.
+
+    The one policy of a command that writes several files (``merge -o --report``,
+    ``primitives library -o --plot``): two outputs naming the same file (the
+    same spelling, ``./x``, a link to it, the same inode) would leave only the
+    last one written, so they are refused before anything is read; then each
+    output is checked against every input.
+
+    Parameters
+    ----------
+    outputs : iterable of (str, path-like or None)
+        Each output with the option that names it (``("--report", path)``); None
+        (an output not asked for) is skipped.
+    force, option
+        As for :func:`check_output`.
+    inputs : iterable of path-like or None
+        The command's inputs (None skipped).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The outputs given, in order.
+
+    Raises
+    ------
+    OutputError
+        Naming both options and the file, in one line.
+    """
+    named = [(name, Path(p)) for name, p in outputs if p is not None]
+    for i, (name, p) in enumerate(named):
+        for other, q in named[:i]:
+            if _same(p, q):
+                raise OutputError(
+                    f"{name} {p} and {other} {q} name the same file; one would replace the "
+                    "other: give each output its own file"
+                )
+    ins = [Path(p) for p in inputs if p is not None]
+    for _name, p in named:
+        check_output(p, force=force, inputs=ins, option=option)
+    return [p for _name, p in named]
+
+
 def check_output(
     path: PathLike,
     *,
@@ -593,6 +642,7 @@ __all__ = [
     "backup_existing",
     "check_distinct_inputs",
     "check_output",
+    "check_outputs",
     "check_path_shape",
     "forget_checked_outputs",
     "next_backup",

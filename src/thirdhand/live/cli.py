@@ -55,7 +55,7 @@ def live_command(
 ) -> None:
     """Follow a person through a task's plan, live: the step they are in, done, and next."""
     from thirdhand import io
-    from thirdhand.fileops import check_output, write_text
+    from thirdhand.fileops import check_outputs, write_text
     from thirdhand.live.assist import AssistOptions
     from thirdhand.live.loop import LiveLoop, LiveOptions
     from thirdhand.live.mcap_source import being_written
@@ -65,16 +65,12 @@ def live_command(
     from thirdhand.task.store import load_task
 
     check_speed(speed)
-    if json_out is not None:
-        check_output(json_out, force=force, inputs=[recording, task])
+    outputs: list[tuple[str, Path | None]] = [("--json", json_out)]
     if record is not None:
         from thirdhand.execute.record import record_paths
 
-        targets = record_paths(record)
-        if json_out is not None and json_out.resolve() in {p.resolve() for p in targets}:
-            raise ThirdhandError(f"--record {record}: would write over --json {json_out}")
-        for target in targets:
-            check_output(target, force=force, inputs=[recording, task])
+        outputs += [("--record", p) for p in record_paths(record)]
+    check_outputs(outputs, force=force, inputs=[recording, task])
     t = load_task(task)
     model = resolve_model(segment_model)
     source: FrameSource

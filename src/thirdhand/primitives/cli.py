@@ -20,7 +20,7 @@ from rich.console import Console
 from thirdhand import options
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import FormatError, ThirdhandError
-from thirdhand.fileops import atomic_output, check_output, write_bytes
+from thirdhand.fileops import atomic_output, check_output, check_outputs, write_bytes
 
 app = typer.Typer(
     help="Motor primitives: DMPs and ProMPs per constraint, primitive libraries.",
@@ -244,9 +244,7 @@ def library(
             raise ThirdhandError("--library and -o save and load the hsmm parser's library only")
         if lib_in is not None and skills is not None:
             raise ThirdhandError("--skills is fixed by the --library given; leave it out")
-        for o in (plot, output):
-            if o is not None:
-                check_output(o, force=force, inputs=[*tracks, *([lib_in] if lib_in else [])])
+        check_outputs([("-o", output), ("--plot", plot)], force=force, inputs=[*tracks, lib_in])
         if plot is not None and plot.suffix.lower() not in (".png", ".pdf", ".svg"):
             raise ThirdhandError(
                 f"--plot {plot}: a figure is written as .png, .pdf or .svg; "
