@@ -180,13 +180,6 @@ def test_a_run_with_a_key_twice_or_nan_is_refused(tmp_path: Path) -> None:
         READERS["run"](p)
 
 
-def test_a_library_with_nan_literals_is_refused(tmp_path: Path) -> None:
-    p = tmp_path / "lib.json"
-    p.write_text('{"rate_hz": NaN}')
-    with pytest.raises(FormatError, match="NaN is not a JSON number"):
-        READERS["skill library"](p)
-
-
 def test_size_limits_by_kind(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """A file over its kind's limit is refused before it is read (sparse: no disk used)."""
     import thirdhand.io.stl as stl

@@ -184,6 +184,11 @@ def _client(address: str, jobs: int, option: str) -> tuple[Any, Any]:
             f"({exc.strerror or type(exc).__name__}); start one with 'dask scheduler' "
             "and workers with 'dask worker ADDRESS' (docs/cluster.md)"
         ) from None
+    if problem is not None and problem.startswith("no Dask handshake"):
+        raise OptionError(
+            f"{option} {address}: no Dask scheduler answers there within "
+            f"{CONNECT_TIMEOUT_S:g} s ({problem})"
+        )
     if problem is not None:
         raise OptionError(f"{option} {address}: not a Dask scheduler: {problem}")
     url = address if "://" in address else f"tcp://{address}"

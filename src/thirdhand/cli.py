@@ -378,6 +378,14 @@ def convert(
             "TASK source), a phases file (segment --json) or a run (execute --record OUT.json).",
         ),
     ] = None,
+    lossy: Annotated[
+        bool,
+        typer.Option(
+            "--lossy",
+            help="Write even when the target format cannot carry all the recording holds "
+            "(meta, exact label times, body kinds); what is lost is printed.",
+        ),
+    ] = False,
 ) -> None:
     """Convert a recording between formats, or export a task or a run to a robot or a viewer.
 
@@ -388,6 +396,12 @@ def convert(
     as a ROS 2 bag; ``convert TASK out.xml`` the plan as a BehaviorTree.CPP v4
     tree; ``convert TASK out.pddl`` a PDDL problem and its domain
     (``out.domain.pddl``); see docs/robot.md.
+
+    A recording is read back from what would be written before it replaces
+    anything: a format that cannot carry the recording exactly (its meta, label
+    times to the nanosecond, body kinds, poses to the format's precision) is
+    refused with what it would lose, unless ``--lossy``; one that thirdhand
+    cannot read back is always refused.
     """
     from thirdhand import io
 
@@ -396,6 +410,8 @@ def convert(
         _convert_rrd(source, target, force=force, **_classify_extras(with_ or []))
         return
     given = ["--with"] if with_ else []
+    if lossy and (suffix in (".rrd", ".xml", ".pddl") or source.suffix.lower() == ".json"):
+        _fail("--lossy: only for converting a recording to another recording format")
     if suffix in (".xml", ".pddl") or (suffix == ".mcap" and source.suffix.lower() == ".json"):
         if given or to is not None:
             _fail(f"{', '.join(given + ['--to'] * (to is not None))}: not for a {suffix} target")
@@ -406,8 +422,47 @@ def convert(
     check_output(target, force=force, inputs=[source])
     recording = io.load(source)
     check_output(target, force=force, inputs=[source])
-    io.save(recording, target, format=to)
+    lost = _save_checked(recording, target, fmt=to, lossy=lossy)
     out.print(f"wrote {target}: {recording}")
+    if lost:
+        out.print(f"not carried by the format (--lossy): {'; '.join(lost)}")
+
+
+def _save_checked(recording: Any, target: Path, *, fmt: str | None, lossy: bool) -> list[str]:
+    """Write ``recording`` to ``target`` only once it reads back (and, unless ``lossy``, equal).
+
+    Returns what the written file does not carry (empty unless ``lossy``).
+    """
+    from thirdhand import io
+    from thirdhand.errors import FormatError
+    from thirdhand.fileops import atomic_output
+    from thirdhand.io.roundtrip import losses
+
+    lost: list[str] = []
+
+    def verify(built: Path) -> None:
+        try:
+            back = io.load(built)
+        except ThirdhandError as exc:
+            text = " ".join(str(exc).replace(str(built), str(target)).split())
+            raise FormatError(
+                target,
+                f"thirdhand could not read back what it would write ({text}); nothing was written",
+            ) from None
+        lost[:] = losses(recording, back)
+        if lost and not lossy:
+            raise FormatError(
+                target,
+                f"the {fmt or io.detect(built)} format cannot carry {'; '.join(lost)}: nothing "
+                "was written (pass --lossy to write it without them, or choose .parquet)",
+            )
+
+    with atomic_output(target, verify=verify) as tmp:
+        try:
+            io.save(recording, tmp, format=fmt)
+        except FormatError as exc:  # name the target, not the temporary path
+            raise FormatError(target, exc.message.replace(str(tmp), str(target))) from None
+    return lost
 
 
 def _convert_robot(source: Path, target: Path, *, force: bool) -> None:

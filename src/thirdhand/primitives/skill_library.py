@@ -356,7 +356,7 @@ def read_skill_library(path: Path) -> SkillLibrary:
     """
     from thirdhand.readlimits import MAX_DOCUMENT_BYTES, read_json
 
-    doc = read_json(path, what="skill library or task file", limit=MAX_DOCUMENT_BYTES, strict=True)
+    doc = read_json(path, what="skill library or task file", limit=MAX_DOCUMENT_BYTES)
     if isinstance(doc, dict) and str(doc.get("schema", "")).startswith("thirdhand.task/"):
         from thirdhand.taskfile import load_task
 
