@@ -15,14 +15,18 @@ class Terminated(BaseException):
 
 
 def _interrupted_at_start_up(signum: int, frame: object) -> None:
-    sys.stderr.write("thirdhand: error: interrupted\n")
+    word = "terminated" if signum == signal.SIGTERM else "interrupted"
+    sys.stderr.write(f"thirdhand: error: {word}; no output was written\n")
     sys.stderr.flush()
-    raise SystemExit(130)
+    raise SystemExit(143 if signum == signal.SIGTERM else 130)
 
 
-# Ctrl-C while the (heavy) imports below run: one line, exit 130, no traceback.
+# Ctrl-C or SIGTERM while the (heavy) imports below run: one line, exit 130 or 143.
 if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
     signal.signal(signal.SIGINT, _interrupted_at_start_up)
+if __name__ == "__main__" or (sys.argv[:1] and sys.argv[0].endswith(("thirdhand", "__main__.py"))):
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _interrupted_at_start_up)
 
 import json  # noqa: E402
 import math  # noqa: E402
@@ -39,7 +43,7 @@ from typer.core import TyperCommand, TyperGroup  # noqa: E402
 from thirdhand import __version__, options  # noqa: E402
 from thirdhand.config import ConfigOption, load_settings  # noqa: E402
 from thirdhand.errors import ThirdhandError  # noqa: E402
-from thirdhand.fileops import check_output, check_outputs  # noqa: E402
+from thirdhand.fileops import check_output, check_outputs, interrupted_message  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -649,6 +653,8 @@ def config_command(
 # main) keeps Python's own Ctrl-C behaviour.
 if signal.getsignal(signal.SIGINT) is _interrupted_at_start_up:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+if signal.getsignal(signal.SIGTERM) is _interrupted_at_start_up:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _on_sigterm(signum: int, frame: object) -> None:
@@ -686,6 +692,9 @@ def main(argv: list[str] | None = None) -> int:
     exit status 130 or 143, temporary files removed and servers stopped by the
     ``finally`` blocks on the way out.
     """
+    from thirdhand.fileops import forget_checked_outputs
+
+    forget_checked_outputs()
     previous: dict[signal.Signals, Any] = {}
     for sig, handler in (
         (signal.SIGINT, signal.default_int_handler),
@@ -705,24 +714,23 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(_one_line(exc))
         return 1
     except KeyboardInterrupt:
-        sys.stderr.write("thirdhand: error: interrupted\n")
+        sys.stderr.write(_one_line(interrupted_message("interrupted")))
         return 130
     except Terminated:
-        sys.stderr.write("thirdhand: error: terminated\n")
+        sys.stderr.write(_one_line(interrupted_message("terminated")))
         return 143
     except Exception as exc:
         if not _is_usage_error(exc):
             raise
         return _usage_error(exc)
     finally:
-        from thirdhand.fileops import forget_checked_outputs
-
+        done_when_interrupted = interrupted_message("interrupted")
         forget_checked_outputs()
         for signum, old in previous.items():
             signal.signal(signum, old)
     if isinstance(code, int) and code == 130:
         # typer turns Ctrl-C inside a command into exit status 130; say why in one line.
-        sys.stderr.write("thirdhand: error: interrupted\n")
+        sys.stderr.write(_one_line(done_when_interrupted))
     return code if isinstance(code, int) else 0
 
 

@@ -88,6 +88,11 @@ FILE_SUFFIXES = frozenset(
 #: rename must then create them exclusively (a concurrent writer that got there
 #: first keeps its file; neither is moved to a backup).
 _NEW_OUTPUTS: set[str] = set()
+#: Outputs completed (renamed into place) since the command started, in order.
+_COMPLETED: list[str] = []
+#: How many :func:`atomic_output` blocks are open (an output written inside
+#: another's temporary folder is a part of that one, not an output of its own).
+_OPEN: list[int] = [0]
 
 
 def _key(p: Path) -> str:
@@ -556,6 +561,7 @@ def atomic_output(
         raise OutputError(_message(p, exc)) from None
     built = tmp_dir / p.name
     done = False
+    _OPEN[0] += 1
     try:
         try:
             yield built
@@ -566,11 +572,14 @@ def atomic_output(
                 verify(built)
             _replace(built, p, backup=backup, exclusive=exclusive)
             done = True
+            if _OPEN[0] == 1:
+                _COMPLETED.append(os.fspath(p))
         except OutputError:
             raise
         except OSError as exc:
             raise OutputError(_message(p, exc)) from None
     finally:
+        _OPEN[0] -= 1
         shutil.rmtree(tmp_dir, ignore_errors=True)
         if not done:  # a failed write leaves no trace, not even the folders made for it
             _remove_empty(created)
@@ -631,8 +640,27 @@ def atomic_write_bytes(path: PathLike, data: bytes, *, backup: bool = True) -> N
 
 
 def forget_checked_outputs() -> None:
-    """Forget the outputs :func:`check_output` found missing (the end of a command)."""
+    """Forget the outputs found missing and those completed (a command ends)."""
     _NEW_OUTPUTS.clear()
+    _COMPLETED.clear()
+
+
+def completed_outputs() -> list[str]:
+    """The outputs :func:`atomic_output` put in place, complete, since the command started."""
+    return list(_COMPLETED)
+
+
+def interrupted_message(what: str = "interrupted") -> str:
+    """One line for a command stopped by a signal: which outputs it left, complete, if any.
+
+    Every output is written to a temporary path and renamed in one step, so an
+    output is either complete or absent; the line says which.
+    """
+    done = completed_outputs()
+    if not done:
+        return f"{what}; no output was written"
+    shown = ", ".join(done) if len(done) <= 3 else f"{', '.join(done[:3])} and {len(done) - 3} more"
+    return f"{what} after {shown} was written complete; nothing else was written"
 
 
 __all__ = [
@@ -644,7 +672,9 @@ __all__ = [
     "check_output",
     "check_outputs",
     "check_path_shape",
+    "completed_outputs",
     "forget_checked_outputs",
+    "interrupted_message",
     "next_backup",
     "thirdhand_folder",
     "write_bytes",
