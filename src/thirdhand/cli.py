@@ -529,7 +529,9 @@ def _classify_extras(paths: list[Path]) -> dict[str, Path | None]:
             def error(message: str, path: Path = path) -> FormatError:
                 return FormatError(path, message)
 
-            doc = loads_json(read_text_input(path, what="JSON file", error=error), error=error)
+            doc = loads_json(
+                read_text_input(path, what="JSON file", error=error), error=error, strict=True
+            )
             tag = str(doc.get("schema") or doc.get("format") or "") if isinstance(doc, dict) else ""
             if tag.startswith("thirdhand.task/"):
                 kind = "task"

@@ -158,11 +158,17 @@ def _read_tracks(path: Path, body: str | None) -> list[Any]:
             for s in streams
         ]
     if suffix in (".csv", ".txt", ".npy"):
-        from thirdhand.readlimits import check_regular
+        import io as _io
 
-        check_regular(path, what="track file")
+        from thirdhand.readlimits import MAX_RECORDING_BYTES, read_input
+
+        raw = read_input(path, what="track file", limit=MAX_RECORDING_BYTES)
         try:
-            arr = np.load(path) if suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
+            arr = (
+                np.load(_io.BytesIO(raw), allow_pickle=False)
+                if suffix == ".npy"
+                else np.loadtxt(_io.StringIO(raw.decode("utf-8")), delimiter=",", ndmin=2)
+            )
         except (OSError, ValueError) as exc:
             raise FormatError(
                 path, f"expected numeric columns t x y z [qx qy qz qw]: {exc}"
