@@ -74,6 +74,8 @@ ANNOTATIONS = "ann_kvg.kvg"
 #: and its labels at their exact times (``ann_kvg.kvg`` holds them on frames).
 EXTRA = "thirdhand.json"
 EXTRA_FORMAT = "thirdhand.mlr-extra/1"
+#: Meta keys :func:`read` sets to describe the folder read (the tracker's repair of it).
+_FOLDER_KEYS = frozenset({"format", "source", "labels_source", "mlr"})
 ELAN = "elan.eaf"
 
 #: The top-level ``meta.kvg`` entry thirdhand writes (``writer = "thirdhand"``).
@@ -598,7 +600,8 @@ def _extra_text(demo: Demonstration, annotations: str | None) -> str | None:
     import json
 
     doc: dict[str, Any] = {"format": EXTRA_FORMAT}
-    meta = {k: v for k, v in (demo.meta or {}).items() if k not in ("format", "source")}
+    # The keys the reader sets to describe the folder it reads are not carried.
+    meta = {k: v for k, v in (demo.meta or {}).items() if k not in _FOLDER_KEYS}
     try:
         text = json.dumps(meta, allow_nan=False)
         if meta and json.loads(text) == meta:

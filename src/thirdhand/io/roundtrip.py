@@ -23,8 +23,9 @@ TIME_TOL_S = 1e-9
 POS_TOL_M = 1e-6
 #: Unit-quaternion distance ``1 - |q1·q2|`` allowed (float32 storage: ~1e-7).
 QUAT_TOL = 1e-6
-#: Meta keys a reader sets to describe the file it read, not the recording.
-FILE_KEYS = frozenset({"source", "format", "format_version", "ros_version"})
+#: Meta keys a reader sets to describe the file it read, not the recording (an MLR
+#: folder's tracker repair, ``mlr``, is of that folder).
+FILE_KEYS = frozenset({"source", "format", "format_version", "ros_version", "labels_source", "mlr"})
 
 
 def _json(value: Any) -> Any:
