@@ -126,7 +126,7 @@ def test_without_the_assist_the_record_is_the_stream_and_its_steps(
     rc, _, err = call(capsys, "live", str(files["rec"]), "--task", str(files["task"]),
                       "--speed", "0", "--record", str(files["dir"] / "same"),
                       "--json", str(files["dir"] / "same.json"))  # fmt: skip
-    assert rc == 1 and "would write over --json" in err and err.count("\n") == 1
+    assert rc == 1 and "name the same file" in err and err.count("\n") == 1
 
 
 def test_the_record_opens_in_rerun_with_the_steps_on_the_stream_clock(

@@ -476,7 +476,7 @@ def test_ctrl_c_during_start_up_is_one_line() -> None:
         preexec_fn=_default_sigint,
     )
     assert proc.returncode == 130, proc.stderr
-    assert one_error_line(proc.stderr) == "thirdhand: error: interrupted"
+    assert one_error_line(proc.stderr) == "thirdhand: error: interrupted; no output was written"
 
 
 def test_importing_the_cli_leaves_ctrl_c_alone() -> None:
@@ -495,7 +495,10 @@ def test_importing_the_cli_leaves_ctrl_c_alone() -> None:
 @pytest.mark.slow
 @pytest.mark.parametrize(
     ("sig", "code", "word"),
-    [(signal.SIGINT, 0, None), (signal.SIGTERM, 143, "thirdhand: error: terminated")],
+    [
+        (signal.SIGINT, 0, None),
+        (signal.SIGTERM, 143, "thirdhand: error: terminated; no output was written"),
+    ],
 )
 def test_review_stops_on_signals_even_when_sigint_was_ignored(
     task_path: Path, sig: int, code: int, word: str | None

@@ -176,3 +176,113 @@ def test_one_opencv_distribution() -> None:
     assert {n for n in named if n.startswith("opencv")} == {"opencv-contrib-python"}
     providers = importlib.metadata.packages_distributions().get("cv2", [])
     assert len(set(providers)) <= 1, providers
+
+
+#: Calls that read a file's bytes without the reading policy of :mod:`thirdhand.readlimits`.
+RAW_READS = {
+    "open",
+    "read_text",
+    "read_bytes",
+    "load",
+    "loads",
+    "loadtxt",
+    "genfromtxt",
+    "fromfile",
+    "read_table",
+    "read_csv",
+    "ParquetFile",
+}
+#: The policy: a function that reads raw checks the path first with one of these.
+POLICY = {"check_regular", "read_input", "read_text_input", "open_input", "read_json"}
+#: Raw reads that are not a user's input, each with why.
+RAW_READ_EXEMPT = {
+    "fileops.py": "outputs only: backups of a file being replaced, locks and syncs of folders",
+    "io/c3d/writer.py": "reads back the temporary file it just wrote",
+    "io/motive/block.py": "reads the data block of the file motive.header._read_header opened "
+    "through open_input",
+    "segment/model.py:builtin_model": "a model file shipped inside the package",
+    "batch.py:dask_processes": "the scheduler file of the scheduler it started, in its own "
+    "temporary folder",
+    "perception/_deps.py:quiet_native_stderr": "opens /dev/null to silence native libraries",
+    "live/mcap_source.py": "follows an MCAP file while its recorder appends to it, after "
+    "being_written found it a regular file",
+}
+
+
+def _call_name(node: ast.Call) -> str | None:
+    f = node.func
+    if isinstance(f, ast.Name):
+        return f.id
+    if isinstance(f, ast.Attribute):
+        return f.attr
+    return None
+
+
+def _writes(node: ast.Call) -> bool:
+    """An ``open`` for writing (a mode with w, a or x), not a read."""
+    modes = [a for a in node.args[1:2]] + [k.value for k in node.keywords if k.arg == "mode"]
+    return any(
+        isinstance(m, ast.Constant) and isinstance(m.value, str) and set(m.value) & set("wax")
+        for m in modes
+    )
+
+
+def _raw_reads(fn: ast.AST) -> list[int]:
+    lines = []
+    for node in ast.walk(fn):
+        if not isinstance(node, ast.Call):
+            continue
+        name = _call_name(node)
+        if name not in RAW_READS or (name == "open" and _writes(node)):
+            continue
+        base = node.func.value if isinstance(node.func, ast.Attribute) else None
+        if name == "open" and isinstance(base, ast.Name) and base.id[:1].isupper():
+            continue  # a class's own ``open`` (ReviewSession.open), not a file read
+        if name in ("load", "loads"):
+            # json.load(s)/np.load/yaml.load/tomllib.loads of bytes already read are parsers;
+            # a file object or path handed to them is a raw read.
+            base = node.func.value if isinstance(node.func, ast.Attribute) else None
+            if not (isinstance(base, ast.Name) and base.id in ("np", "numpy")) and name != "load":
+                continue
+            if isinstance(base, ast.Name) and base.id in ("yaml", "tomllib", "pickle"):
+                continue
+            if name == "load" and not (isinstance(base, ast.Name) and base.id in ("np", "json")):
+                continue
+        if name in ("read_text", "read_bytes") and not isinstance(node.func, ast.Attribute):
+            continue
+        lines.append(node.lineno)
+    return lines
+
+
+def test_every_reader_goes_through_the_reading_policy() -> None:
+    """A function that opens or reads a file first checks it (regular, bounded, interruptible).
+
+    A private helper (``_name``) may read a path its public caller checked: its
+    module must then call the policy.
+    """
+    offenders = []
+    for path, tree in _modules():
+        rel = path.relative_to(PACKAGE).as_posix()
+        if rel == "readlimits.py" or rel in RAW_READ_EXEMPT:
+            continue
+        in_module = {_call_name(c) for c in ast.walk(tree) if isinstance(c, ast.Call)}
+        for fn in ast.walk(tree):
+            if not isinstance(fn, ast.FunctionDef | ast.AsyncFunctionDef):
+                continue
+            raw = [
+                n
+                for n in _raw_reads(fn)
+                if not any(
+                    n in range(inner.lineno, (inner.end_lineno or inner.lineno) + 1)
+                    for inner in ast.walk(fn)
+                    if inner is not fn and isinstance(inner, ast.FunctionDef)
+                )
+            ]
+            if not raw or f"{rel}:{fn.name}" in RAW_READ_EXEMPT:
+                continue
+            called = {_call_name(c) for c in ast.walk(fn) if isinstance(c, ast.Call)}
+            if fn.name.startswith("_") and in_module & POLICY:
+                continue
+            if not called & POLICY:
+                offenders.append(f"{rel}:{raw[0]} ({fn.name})")
+    assert offenders == []

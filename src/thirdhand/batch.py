@@ -33,6 +33,7 @@ import multiprocessing
 import os
 import signal
 import socket
+import struct
 import subprocess
 import sys
 import tempfile
@@ -50,6 +51,9 @@ R = TypeVar("R")
 
 #: Seconds to wait for a scheduler to accept a connection before giving up.
 CONNECT_TIMEOUT_S = 5.0
+#: Largest first message (Dask's handshake) read from a scheduler, bytes: a real one
+#: is a few hundred bytes; a peer announcing more is not a Dask scheduler.
+HANDSHAKE_MAX_BYTES = 2**16
 
 
 class BatchError(ThirdhandError, RuntimeError):
@@ -80,6 +84,76 @@ def check_scheduler(address: str, option: str = "--scheduler") -> tuple[str, int
     return parts.hostname, port
 
 
+def _recv_exactly(sock: socket.socket, n: int) -> bytes:
+    """``n`` bytes from ``sock`` (its timeout applies to each receive); short: ``OSError``."""
+    got = bytearray()
+    while len(got) < n:
+        chunk = sock.recv(n - len(got))
+        if not chunk:
+            raise ConnectionError("the peer closed the connection")
+        got += chunk
+    return bytes(got)
+
+
+def check_handshake(message: bytes, *, limit: int = HANDSHAKE_MAX_BYTES) -> str | None:
+    """What is wrong with the first bytes a Dask scheduler sends, or None.
+
+    A Dask TCP message is a little-endian uint64 ``size``, then ``size`` bytes:
+    a uint64 frame count and one uint64 length per frame, then the frames. Only
+    the header is judged here (``message`` holds its first 8 bytes, or more).
+    """
+    if len(message) < 8:
+        return "fewer than 8 bytes"
+    (size,) = struct.unpack_from("<Q", message)
+    if not 16 <= size <= limit:
+        return f"its first message announces {size} bytes (a Dask handshake is 16 to {limit})"
+    if len(message) >= 16:
+        (n_frames,) = struct.unpack_from("<Q", message, 8)
+        if not 1 <= n_frames <= 64 or 8 + 8 * n_frames > size:
+            return f"its first message announces {n_frames} frames"
+        if len(message) >= 16 + 8 * n_frames:
+            lengths = struct.unpack_from(f"<{n_frames}Q", message, 16)
+            if 8 + 8 * n_frames + sum(lengths) > limit:
+                return f"its first message's frames hold {sum(lengths)} bytes"
+    return None
+
+
+def probe_scheduler(host: str, port: int, *, timeout: float = CONNECT_TIMEOUT_S) -> str | None:
+    """Connect to ``host:port`` and judge the peer's first message; None for a Dask scheduler.
+
+    Every receive waits at most ``timeout`` seconds and at most
+    :data:`HANDSHAKE_MAX_BYTES` are read, so a silent peer or one that streams
+    bytes cannot hang the command or size an allocation.
+
+    Returns
+    -------
+    str or None
+        Why the peer is not a Dask scheduler, in a few words.
+
+    Raises
+    ------
+    OSError
+        The connection was refused or could not be made within ``timeout``.
+    """
+    with socket.create_connection((host, port), timeout=timeout) as sock:
+        sock.settimeout(timeout)
+        try:
+            head = _recv_exactly(sock, 16)
+            problem = check_handshake(head)
+            if problem is None:
+                (size,) = struct.unpack_from("<Q", head)
+                (n_frames,) = struct.unpack_from("<Q", head, 8)
+                lengths = _recv_exactly(sock, 8 * n_frames)
+                problem = check_handshake(head + lengths)
+                if problem is None:
+                    _recv_exactly(sock, size - 8 - 8 * n_frames)
+        except TimeoutError:
+            return f"no Dask handshake within {timeout:g} s"
+        except ConnectionError as exc:
+            return f"no Dask handshake ({exc})"
+    return problem
+
+
 async def _handshake(url: str) -> None:
     """Open and close one Dask comm to ``url`` (raises on a refused, silent or foreign peer)."""
     from distributed.comm import connect
@@ -102,14 +176,21 @@ def _client(address: str, jobs: int, option: str) -> tuple[Any, Any]:
         )
         return Client(cluster), cluster
     host, port = target
-    try:  # a plain TCP probe first: a refused or silent port fails fast, never hangs
-        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S).close()
+    try:  # a bounded probe first: a refused, silent or foreign peer fails fast, never hangs
+        problem = probe_scheduler(host, port)
     except OSError as exc:
         raise OptionError(
             f"{option} {address}: no Dask scheduler answers there "
             f"({exc.strerror or type(exc).__name__}); start one with 'dask scheduler' "
             "and workers with 'dask worker ADDRESS' (docs/how-to/cluster.md)"
         ) from None
+    if problem is not None and problem.startswith("no Dask handshake"):
+        raise OptionError(
+            f"{option} {address}: no Dask scheduler answers there within "
+            f"{CONNECT_TIMEOUT_S:g} s ({problem})"
+        )
+    if problem is not None:
+        raise OptionError(f"{option} {address}: not a Dask scheduler: {problem}")
     url = address if "://" in address else f"tcp://{address}"
     try:  # then Dask's own handshake, bounded: Client() alone waits forever on a silent peer
         asyncio.run(asyncio.wait_for(_handshake(url), 2 * CONNECT_TIMEOUT_S))

@@ -13,14 +13,18 @@ from thirdhand.errors import Terminated
 
 
 def _interrupted_at_start_up(signum: int, frame: object) -> None:
-    sys.stderr.write("thirdhand: error: interrupted\n")
+    word = "terminated" if signum == signal.SIGTERM else "interrupted"
+    sys.stderr.write(f"thirdhand: error: {word}; no output was written\n")
     sys.stderr.flush()
-    raise SystemExit(130)
+    raise SystemExit(143 if signum == signal.SIGTERM else 130)
 
 
-# Ctrl-C while the (heavy) imports below run: one line, exit 130, no traceback.
+# Ctrl-C or SIGTERM while the (heavy) imports below run: one line, exit 130 or 143.
 if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
     signal.signal(signal.SIGINT, _interrupted_at_start_up)
+if __name__ == "__main__" or (sys.argv[:1] and sys.argv[0].endswith(("thirdhand", "__main__.py"))):
+    if signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _interrupted_at_start_up)
 
 import json  # noqa: E402
 import math  # noqa: E402
@@ -38,7 +42,7 @@ from thirdhand import options  # noqa: E402
 from thirdhand._version import __version__  # noqa: E402
 from thirdhand.config import ConfigOption, load_settings  # noqa: E402
 from thirdhand.errors import ThirdhandError  # noqa: E402
-from thirdhand.fileops import check_output  # noqa: E402
+from thirdhand.fileops import check_output, check_outputs, interrupted_message  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -377,6 +381,14 @@ def convert(
             "TASK source), a phases file (segment --json) or a run (execute --record OUT.json).",
         ),
     ] = None,
+    lossy: Annotated[
+        bool,
+        typer.Option(
+            "--lossy",
+            help="Write even when the target format cannot carry all the recording holds "
+            "(meta, exact label times, body kinds); what is lost is printed.",
+        ),
+    ] = False,
 ) -> None:
     """Convert a recording between formats, or export a task or a run to a robot or a viewer.
 
@@ -387,6 +399,12 @@ def convert(
     as a ROS 2 bag; ``convert TASK out.xml`` the plan as a BehaviorTree.CPP v4
     tree; ``convert TASK out.pddl`` a PDDL problem and its domain
     (``out.domain.pddl``); see docs/how-to/robot.md.
+
+    A recording is read back from what would be written before it replaces
+    anything: a format that cannot carry the recording exactly (its meta, label
+    times to the nanosecond, body kinds, poses to the format's precision) is
+    refused with what it would lose, unless ``--lossy``; one that thirdhand
+    cannot read back is always refused.
     """
     from thirdhand import io
 
@@ -395,6 +413,8 @@ def convert(
         _convert_rrd(source, target, force=force, **_classify_extras(with_ or []))
         return
     given = ["--with"] if with_ else []
+    if lossy and (suffix in (".rrd", ".xml", ".pddl") or source.suffix.lower() == ".json"):
+        _fail("--lossy: only for converting a recording to another recording format")
     if suffix in (".xml", ".pddl") or (suffix == ".mcap" and source.suffix.lower() == ".json"):
         if given or to is not None:
             _fail(f"{', '.join(given + ['--to'] * (to is not None))}: not for a {suffix} target")
@@ -405,8 +425,47 @@ def convert(
     check_output(target, force=force, inputs=[source])
     recording = io.load(source)
     check_output(target, force=force, inputs=[source])
-    io.save(recording, target, format=to)
+    lost = _save_checked(recording, target, fmt=to, lossy=lossy)
     out.print(f"wrote {target}: {recording}")
+    if lost:
+        out.print(f"not carried by the format (--lossy): {'; '.join(lost)}")
+
+
+def _save_checked(recording: Any, target: Path, *, fmt: str | None, lossy: bool) -> list[str]:
+    """Write ``recording`` to ``target`` only once it reads back (and, unless ``lossy``, equal).
+
+    Returns what the written file does not carry (empty unless ``lossy``).
+    """
+    from thirdhand import io
+    from thirdhand.errors import FormatError
+    from thirdhand.fileops import atomic_output
+    from thirdhand.io.roundtrip import losses
+
+    lost: list[str] = []
+
+    def verify(built: Path) -> None:
+        try:
+            back = io.load(built)
+        except ThirdhandError as exc:
+            text = " ".join(str(exc).replace(str(built), str(target)).split())
+            raise FormatError(
+                target,
+                f"thirdhand could not read back what it would write ({text}); nothing was written",
+            ) from None
+        lost[:] = losses(recording, back)
+        if lost and not lossy:
+            raise FormatError(
+                target,
+                f"the {fmt or io.detect(built)} format cannot carry {'; '.join(lost)}: nothing "
+                "was written (pass --lossy to write it without them, or choose .parquet)",
+            )
+
+    with atomic_output(target, verify=verify) as tmp:
+        try:
+            io.save(recording, tmp, format=fmt)
+        except FormatError as exc:  # name the target, not the temporary path
+            raise FormatError(target, exc.message.replace(str(tmp), str(target))) from None
+    return lost
 
 
 def _convert_robot(source: Path, target: Path, *, force: bool) -> None:
@@ -429,8 +488,9 @@ def _convert_robot(source: Path, target: Path, *, force: bool) -> None:
     from thirdhand.taskfile import load_task
 
     outputs = [target, domain_path(target)] if suffix == ".pddl" else [target]
-    for o in outputs:
-        check_output(o, force=force, inputs=[source])
+    check_outputs(
+        list(zip(("TARGET", "its domain"), outputs, strict=False)), force=force, inputs=[source]
+    )
     if not target.parent.is_dir():
         _fail(f"{target}: the folder {target.parent} does not exist")
     task = load_task(source)
@@ -468,7 +528,9 @@ def _classify_extras(paths: list[Path]) -> dict[str, Path | None]:
             def error(message: str, path: Path = path) -> FormatError:
                 return FormatError(path, message)
 
-            doc = loads_json(read_text_input(path, what="JSON file", error=error), error=error)
+            doc = loads_json(
+                read_text_input(path, what="JSON file", error=error), error=error, strict=True
+            )
             tag = str(doc.get("schema") or doc.get("format") or "") if isinstance(doc, dict) else ""
             if tag.startswith("thirdhand.task/"):
                 kind = "task"
@@ -592,6 +654,8 @@ def config_command(
 # main) keeps Python's own Ctrl-C behaviour.
 if signal.getsignal(signal.SIGINT) is _interrupted_at_start_up:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+if signal.getsignal(signal.SIGTERM) is _interrupted_at_start_up:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _on_sigterm(signum: int, frame: object) -> None:
@@ -629,6 +693,9 @@ def main(argv: list[str] | None = None) -> int:
     exit status 130 or 143, temporary files removed and servers stopped by the
     ``finally`` blocks on the way out.
     """
+    from thirdhand.fileops import forget_checked_outputs
+
+    forget_checked_outputs()
     previous: dict[signal.Signals, Any] = {}
     for sig, handler in (
         (signal.SIGINT, signal.default_int_handler),
@@ -648,24 +715,23 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(_one_line(exc))
         return 1
     except KeyboardInterrupt:
-        sys.stderr.write("thirdhand: error: interrupted\n")
+        sys.stderr.write(_one_line(interrupted_message("interrupted")))
         return 130
     except Terminated:
-        sys.stderr.write("thirdhand: error: terminated\n")
+        sys.stderr.write(_one_line(interrupted_message("terminated")))
         return 143
     except Exception as exc:
         if not _is_usage_error(exc):
             raise
         return _usage_error(exc)
     finally:
-        from thirdhand.fileops import forget_checked_outputs
-
+        done_when_interrupted = interrupted_message("interrupted")
         forget_checked_outputs()
         for signum, old in previous.items():
             signal.signal(signum, old)
     if isinstance(code, int) and code == 130:
         # typer turns Ctrl-C inside a command into exit status 130; say why in one line.
-        sys.stderr.write("thirdhand: error: interrupted\n")
+        sys.stderr.write(_one_line(done_when_interrupted))
     return code if isinstance(code, int) else 0
 
 

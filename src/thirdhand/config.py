@@ -28,12 +28,13 @@ from typing import TYPE_CHECKING, Annotated, Any, TypeVar
 import typer
 
 from thirdhand.errors import OptionError
+from thirdhand.readlimits import MAX_CONFIG_BYTES as _MAX_CONFIG_BYTES
 
 if TYPE_CHECKING:
     from thirdhand.settings import Settings
 
 #: Largest configuration file read (bytes): a settings file is a few hundred bytes.
-MAX_CONFIG_BYTES = 1 << 20
+MAX_CONFIG_BYTES = _MAX_CONFIG_BYTES
 
 
 S = TypeVar("S", bound="Settings")
@@ -108,39 +109,71 @@ def read_config(path: Path) -> dict[str, Any]:
     OptionError
         Not a regular file, too large, unreadable or not a table of tables.
     """
+    from thirdhand.readlimits import check_regular, loads_json, read_input
+
     where = f"--config {path}"
-    if not path.is_file():
-        raise OptionError(f"{where}: not a file")
-    size = path.stat().st_size
-    if size > MAX_CONFIG_BYTES:
-        raise OptionError(f"{where}: {size} bytes; a settings file is at most {MAX_CONFIG_BYTES}")
-    with path.open("rb") as fh:
-        raw = fh.read(MAX_CONFIG_BYTES + 1)
+
+    def error(message: str) -> OptionError:
+        return OptionError(f"{where}: {message}")
+
+    check_regular(path, what="settings file", error=error)
     suffix = path.suffix.lower()
+    if suffix not in (".toml", ".yaml", ".yml", ".json"):
+        raise error("expected a .toml, .yaml, .yml or .json file")
+    raw = read_input(path, what="settings file", limit=MAX_CONFIG_BYTES, error=error)
     try:
-        if suffix == ".toml":
-            import tomllib
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise error(f"not UTF-8 text (byte {exc.start})") from None
+    if suffix == ".json":
+        data: Any = loads_json(text, error=error, strict=True)
+    else:
+        try:
+            if suffix == ".toml":
+                import tomllib
 
-            data: Any = tomllib.loads(raw.decode("utf-8"))
-        elif suffix in (".yaml", ".yml"):
-            import yaml
-
-            data = yaml.safe_load(raw.decode("utf-8"))
-        elif suffix == ".json":
-            data = json.loads(raw.decode("utf-8"))
-        else:
-            raise OptionError(f"{where}: expected a .toml, .yaml, .yml or .json file")
-    except OptionError:
-        raise
-    except RecursionError:
-        raise OptionError(f"{where}: nested too deeply") from None
-    except Exception as exc:  # the parsers' own errors (line and column in the message)
-        raise OptionError(f"{where}: {' '.join(str(exc).split())}") from None
+                # TOML itself refuses a key defined twice ("Cannot overwrite a value").
+                data = tomllib.loads(text)
+            else:
+                data = _load_yaml(text)
+        except OptionError:
+            raise
+        except RecursionError:
+            raise error("nested too deeply") from None
+        except Exception as exc:  # the parsers' own errors (line and column in the message)
+            raise error(" ".join(str(exc).split())) from None
     if data is None:
         data = {}
     if not isinstance(data, dict):
         raise OptionError(f"{where}: expected tables of settings, one per command")
     return data
+
+
+def _load_yaml(text: str) -> Any:
+    """YAML with every mapping's keys unique (PyYAML keeps the last of a repeated key)."""
+    import yaml
+
+    class _UniqueKeyLoader(yaml.SafeLoader):
+        pass
+
+    def mapping(loader: yaml.SafeLoader, node: yaml.MappingNode) -> dict[Any, Any]:
+        loader.flatten_mapping(node)
+        seen: dict[Any, Any] = {}
+        for key_node, value_node in node.value:
+            key = loader.construct_object(key_node, deep=True)
+            if key in seen:
+                raise ValueError(
+                    f"line {key_node.start_mark.line + 1}: the key {key!r} is given twice "
+                    "in one table"
+                )
+            seen[key] = loader.construct_object(value_node, deep=True)
+        return seen
+
+    _UniqueKeyLoader.add_constructor(
+        yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
+        mapping,
+    )
+    return yaml.load(text, Loader=_UniqueKeyLoader)
 
 
 def load_settings(path: Path | None, command: str, cls: type[S]) -> S:

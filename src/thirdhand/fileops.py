@@ -88,6 +88,11 @@ FILE_SUFFIXES = frozenset(
 #: rename must then create them exclusively (a concurrent writer that got there
 #: first keeps its file; neither is moved to a backup).
 _NEW_OUTPUTS: set[str] = set()
+#: Outputs completed (renamed into place) since the command started, in order.
+_COMPLETED: list[str] = []
+#: How many :func:`atomic_output` blocks are open (an output written inside
+#: another's temporary folder is a part of that one, not an output of its own).
+_OPEN: list[int] = [0]
 
 
 def _key(p: Path) -> str:
@@ -177,6 +182,55 @@ def check_distinct_inputs(paths: Iterable[PathLike], *, what: str = "input") -> 
                     f"give each {what} once"
                 )
         seen.append(p)
+
+
+def check_outputs(
+    outputs: Iterable[tuple[str, PathLike | None]],
+    *,
+    force: bool = False,
+    inputs: Iterable[PathLike | None] = (),
+    option: str = "--force",
+) -> list[Path]:
+    """Check every output of one command: each against the others, then :func:`check_output`.
+
+    The one policy of a command that writes several files (``merge -o --report``,
+    ``primitives library -o --plot``): two outputs naming the same file (the
+    same spelling, ``./x``, a link to it, the same inode) would leave only the
+    last one written, so they are refused before anything is read; then each
+    output is checked against every input.
+
+    Parameters
+    ----------
+    outputs : iterable of (str, path-like or None)
+        Each output with the option that names it (``("--report", path)``); None
+        (an output not asked for) is skipped.
+    force, option
+        As for :func:`check_output`.
+    inputs : iterable of path-like or None
+        The command's inputs (None skipped).
+
+    Returns
+    -------
+    list of pathlib.Path
+        The outputs given, in order.
+
+    Raises
+    ------
+    OutputError
+        Naming both options and the file, in one line.
+    """
+    named = [(name, Path(p)) for name, p in outputs if p is not None]
+    for i, (name, p) in enumerate(named):
+        for other, q in named[:i]:
+            if _same(p, q):
+                raise OutputError(
+                    f"{name} {p} and {other} {q} name the same file; one would replace the "
+                    "other: give each output its own file"
+                )
+    ins = [Path(p) for p in inputs if p is not None]
+    for _name, p in named:
+        check_output(p, force=force, inputs=ins, option=option)
+    return [p for _name, p in named]
 
 
 def check_output(
@@ -507,6 +561,7 @@ def atomic_output(
         raise OutputError(_message(p, exc)) from None
     built = tmp_dir / p.name
     done = False
+    _OPEN[0] += 1
     try:
         try:
             yield built
@@ -517,11 +572,14 @@ def atomic_output(
                 verify(built)
             _replace(built, p, backup=backup, exclusive=exclusive)
             done = True
+            if _OPEN[0] == 1:
+                _COMPLETED.append(os.fspath(p))
         except OutputError:
             raise
         except OSError as exc:
             raise OutputError(_message(p, exc)) from None
     finally:
+        _OPEN[0] -= 1
         shutil.rmtree(tmp_dir, ignore_errors=True)
         if not done:  # a failed write leaves no trace, not even the folders made for it
             _remove_empty(created)
@@ -582,8 +640,27 @@ def atomic_write_bytes(path: PathLike, data: bytes, *, backup: bool = True) -> N
 
 
 def forget_checked_outputs() -> None:
-    """Forget the outputs :func:`check_output` found missing (the end of a command)."""
+    """Forget the outputs found missing and those completed (a command ends)."""
     _NEW_OUTPUTS.clear()
+    _COMPLETED.clear()
+
+
+def completed_outputs() -> list[str]:
+    """The outputs :func:`atomic_output` put in place, complete, since the command started."""
+    return list(_COMPLETED)
+
+
+def interrupted_message(what: str = "interrupted") -> str:
+    """One line for a command stopped by a signal: which outputs it left, complete, if any.
+
+    Every output is written to a temporary path and renamed in one step, so an
+    output is either complete or absent; the line says which.
+    """
+    done = completed_outputs()
+    if not done:
+        return f"{what}; no output was written"
+    shown = ", ".join(done) if len(done) <= 3 else f"{', '.join(done[:3])} and {len(done) - 3} more"
+    return f"{what} after {shown} was written complete; nothing else was written"
 
 
 __all__ = [
@@ -593,8 +670,11 @@ __all__ = [
     "backup_existing",
     "check_distinct_inputs",
     "check_output",
+    "check_outputs",
     "check_path_shape",
+    "completed_outputs",
     "forget_checked_outputs",
+    "interrupted_message",
     "next_backup",
     "thirdhand_folder",
     "write_bytes",

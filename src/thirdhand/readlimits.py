@@ -16,13 +16,14 @@ Errors are the caller's type (``error(message)``), so a task file still raises
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
 import stat
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 from thirdhand.errors import FormatError, ThirdhandError
 
@@ -33,6 +34,16 @@ MAX_DEPTH = 64
 MAX_DOCUMENT_BYTES = 256 * 2**20
 #: Largest recording file read (``poses.dat``, articulation logs), bytes.
 MAX_RECORDING_BYTES = 4 * 2**30
+#: Largest settings file (``--config``), bytes: a few hundred settings at most.
+MAX_CONFIG_BYTES = 2**20
+#: Largest run (``execute --record`` trajectory JSON), bytes: hours of a 7-joint arm at 50 Hz.
+MAX_RUN_BYTES = 256 * 2**20
+#: Largest skill library (JSON of a few dozen Gaussians and transitions), bytes.
+MAX_LIBRARY_BYTES = 16 * 2**20
+#: Largest mesh file of a part (STL, OBJ), bytes: a scanned part of a few million triangles.
+MAX_MESH_BYTES = 256 * 2**20
+#: Largest scene or small side file (a scene's bodies, a phases file, a tracks CSV), bytes.
+MAX_SIDE_BYTES = 64 * 2**20
 _CHUNK = 2**20
 
 ErrorFactory = Callable[[str], ThirdhandError]
@@ -71,6 +82,59 @@ def check_regular(
     return p
 
 
+@contextlib.contextmanager
+def open_input(
+    path: str | os.PathLike[str],
+    *,
+    what: str = "file",
+    limit: int = MAX_RECORDING_BYTES,
+    error: ErrorFactory | None = None,
+) -> Iterator[BinaryIO]:
+    """A regular file of at most ``limit`` bytes, open for reading in binary (a stream).
+
+    For readers that seek or read a file in parts (C3D, Motive, parquet): the
+    same checks as :func:`read_input` (a FIFO cannot hang it: the open is
+    non-blocking), then an ordinary buffered file object.
+    """
+    p = Path(path)
+    err = error or _default_error(p)
+    fd = _open_regular(p, what=what, limit=limit, error=err)
+    try:
+        fh = os.fdopen(fd, "rb")
+    except OSError as exc:
+        os.close(fd)
+        raise err(f"cannot read: {exc.strerror or exc}") from None
+    with fh:
+        yield fh
+
+
+def _open_regular(p: Path, *, what: str, limit: int, error: ErrorFactory) -> int:
+    """A blocking descriptor of the regular file ``p`` of at most ``limit`` bytes."""
+    try:
+        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise error("no such file") from None
+    except IsADirectoryError:
+        raise error(f"is a folder, not a {what}") from None
+    except OSError as exc:
+        raise error(f"cannot read: {exc.strerror or exc}") from None
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise error(f"is {_kind(st.st_mode)}, not a {what}")
+        if st.st_size > limit:
+            raise error(
+                f"is {st.st_size / 2**20:.0f} MiB; a {what} of more than "
+                f"{limit / 2**20:.0f} MiB is refused"
+            )
+        if hasattr(os, "set_blocking"):
+            os.set_blocking(fd, True)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
 def read_input(
     path: str | os.PathLike[str],
     *,
@@ -97,25 +161,8 @@ def read_input(
     """
     p = Path(path)
     err = error or _default_error(p)
+    fd = _open_regular(p, what=what, limit=limit, error=err)
     try:
-        fd = os.open(p, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0))
-    except FileNotFoundError:
-        raise err("no such file") from None
-    except IsADirectoryError:
-        raise err(f"is a folder, not a {what}") from None
-    except OSError as exc:
-        raise err(f"cannot read: {exc.strerror or exc}") from None
-    try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise err(f"is {_kind(st.st_mode)}, not a {what}")
-        if st.st_size > limit:
-            raise err(
-                f"is {st.st_size / 2**20:.0f} MiB; a {what} of more than "
-                f"{limit / 2**20:.0f} MiB is refused"
-            )
-        if hasattr(os, "set_blocking"):
-            os.set_blocking(fd, True)
         parts: list[bytes] = []
         total = 0
         while True:
@@ -129,6 +176,27 @@ def read_input(
         return b"".join(parts)
     except OSError as exc:
         raise err(f"cannot read: {exc.strerror or exc}") from None
+    finally:
+        os.close(fd)
+
+
+def sniff_bytes(path: str | os.PathLike[str], n: int, *, offset: int = 0) -> bytes:
+    """Up to ``n`` bytes at ``offset`` of a regular file; ``b""`` for anything else.
+
+    For format detection: a FIFO, device, folder or unreadable path is no
+    recording of any format (the reader then says why in one line).
+    """
+    p = Path(path)
+    try:
+        fd = _open_regular(
+            p, what="file", limit=MAX_RECORDING_BYTES * 16, error=lambda m: FormatError(p, m)
+        )
+    except FormatError:
+        return b""
+    try:
+        return os.pread(fd, n, offset) if offset else os.read(fd, n)
+    except OSError:
+        return b""
     finally:
         os.close(fd)
 
@@ -171,10 +239,36 @@ def check_json_depth(text: str, *, error: ErrorFactory, limit: int = MAX_DEPTH) 
         raise error(f"JSON nested {depth} levels deep; more than {limit} is refused")
 
 
+def unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    """A JSON object's pairs as a dict; a key given twice is refused (not last-wins)."""
+    out: dict[str, Any] = {}
+    for k, v in pairs:
+        if k in out:
+            raise ValueError(f"the key {k!r} is given twice in one object")
+        out[k] = v
+    return out
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a JSON number (write null, or a finite number)")
+
+
 def loads_json(
-    text: str | bytes, *, error: ErrorFactory, limit: int = MAX_DEPTH, **kwargs: Any
+    text: str | bytes,
+    *,
+    error: ErrorFactory,
+    limit: int = MAX_DEPTH,
+    strict: bool = False,
+    **kwargs: Any,
 ) -> Any:
-    """``json.loads`` after :func:`check_json_depth`; a syntax error raises ``error``."""
+    """``json.loads`` after :func:`check_json_depth`; a syntax error raises ``error``.
+
+    With ``strict`` a key given twice in one object and the non-JSON literals
+    ``NaN``/``Infinity`` are refused too (a file a person edits by hand).
+    """
+    if strict:
+        kwargs.setdefault("object_pairs_hook", unique_keys)
+        kwargs.setdefault("parse_constant", _no_constant)
     if isinstance(text, bytes):
         try:
             text = text.decode("utf-8")
@@ -187,6 +281,27 @@ def loads_json(
         raise error(f"line {exc.lineno} column {exc.colno}: invalid JSON: {exc.msg}") from None
     except RecursionError:  # pragma: no cover - the depth check comes first
         raise error("JSON nested too deeply") from None
+    except ValueError as exc:  # a duplicate key or a NaN literal (strict)
+        raise error(f"invalid JSON: {exc}") from None
+
+
+def read_json(
+    path: str | os.PathLike[str],
+    *,
+    what: str = "JSON file",
+    limit: int = MAX_DOCUMENT_BYTES,
+    error: ErrorFactory | None = None,
+    strict: bool = False,
+) -> Any:
+    """The JSON document in the regular file ``path``: size, text and nesting bounded.
+
+    :func:`read_text_input` then :func:`loads_json`; every failure is one ``error``.
+    """
+    p = Path(path)
+    err = error or _default_error(p)
+    return loads_json(
+        read_text_input(p, what=what, limit=limit, error=err), error=err, strict=strict
+    )
 
 
 def check_xml_depth(data: bytes, *, error: ErrorFactory, limit: int = MAX_DEPTH) -> None:
@@ -222,14 +337,23 @@ def check_xml_depth(data: bytes, *, error: ErrorFactory, limit: int = MAX_DEPTH)
 
 
 __all__ = [
+    "MAX_CONFIG_BYTES",
     "MAX_DEPTH",
     "MAX_DOCUMENT_BYTES",
+    "MAX_LIBRARY_BYTES",
+    "MAX_MESH_BYTES",
     "MAX_RECORDING_BYTES",
+    "MAX_RUN_BYTES",
+    "MAX_SIDE_BYTES",
     "check_json_depth",
     "check_regular",
     "check_xml_depth",
     "loads_json",
     "nesting_depth",
+    "open_input",
     "read_input",
+    "read_json",
     "read_text_input",
+    "sniff_bytes",
+    "unique_keys",
 ]

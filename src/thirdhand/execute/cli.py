@@ -71,7 +71,7 @@ def execute_command(
         task_defaults,
     )
     from thirdhand.execute.record import record_paths, write_run
-    from thirdhand.fileops import check_output
+    from thirdhand.fileops import check_outputs
     from thirdhand.task.store import load_task
 
     options.seed(seed)
@@ -82,8 +82,8 @@ def execute_command(
             raise ThirdhandError(f"[execute] meshes {folder}: not a folder of part meshes")
     if record is not None:
         inputs = [task, *([demo] if demo else []), *([config] if config else [])]
-        for target in record_paths(record):
-            check_output(target, force=force, inputs=inputs)
+        replay, run = record_paths(record)
+        check_outputs([("--record", replay), ("--record", run)], force=force, inputs=inputs)
     console = Console()
     t = load_task(task)
     search = [str(m) for m in meshes]

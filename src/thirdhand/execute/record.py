@@ -220,7 +220,9 @@ def write_run(
 
 def read_trajectory(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray, Sequence[str]]:
     """Read a trajectory file back: ``t`` (n,), ``q`` (n, dof), joint names."""
-    doc = json.loads(Path(path).read_text())
+    from thirdhand.readlimits import MAX_RUN_BYTES, read_json
+
+    doc = read_json(path, what="run (execute --record)", limit=MAX_RUN_BYTES)
     return (
         np.asarray(doc["t"], dtype=np.float64),
         np.asarray(doc["q"], dtype=np.float64),

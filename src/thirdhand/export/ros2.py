@@ -43,7 +43,6 @@ core dependency) through the temp-file-and-rename helpers.
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from collections.abc import Sequence
@@ -178,10 +177,9 @@ def read_execution(path: PathLike) -> ExecutionRecord:
         (a failed run is not exported to a robot: the message names the steps).
     """
     p = Path(path)
-    try:
-        doc = json.loads(p.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(p, f"not a readable JSON file: {exc}") from None
+    from thirdhand.readlimits import MAX_RUN_BYTES, read_json
+
+    doc = read_json(p, what="run (execute --record)", limit=MAX_RUN_BYTES, strict=True)
     if not isinstance(doc, dict) or doc.get("schema") != TRAJECTORY_SCHEMA:
         got = doc.get("schema") if isinstance(doc, dict) else type(doc).__name__
         raise FormatError(

@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import FormatError, OutputError
-from thirdhand.readlimits import loads_json, read_text_input
+from thirdhand.readlimits import MAX_RUN_BYTES, MAX_SIDE_BYTES, loads_json, read_text_input
 
 if TYPE_CHECKING:
     from thirdhand.execute.robot import Robot
@@ -140,7 +140,9 @@ def read_phases(path: Path) -> dict[str, Any]:
     def error(message: str) -> FormatError:
         return FormatError(path, f"not a readable phases JSON file: {message}")
 
-    doc = loads_json(read_text_input(path, what="phases file", error=error), error=error)
+    doc = loads_json(
+        read_text_input(path, what="phases file", limit=MAX_SIDE_BYTES, error=error), error=error
+    )
     if not isinstance(doc, dict) or doc.get("format") != "thirdhand.phases/1":
         raise FormatError(path, "expected a thirdhand.phases/1 file (thirdhand segment --json)")
     t = doc.get("time")
@@ -325,7 +327,9 @@ def read_execution(path: Path) -> dict[str, Any]:
     def error(message: str) -> FormatError:
         return FormatError(path, f"not a readable execution JSON file: {message}")
 
-    doc = loads_json(read_text_input(path, what="execution file", error=error), error=error)
+    doc = loads_json(
+        read_text_input(path, what="execution file", limit=MAX_RUN_BYTES, error=error), error=error
+    )
     if not isinstance(doc, dict) or "t" not in doc or "q" not in doc:
         raise FormatError(path, "expected an execution file with 't' and 'q' (thirdhand execute)")
     t, q = _joint_arrays(doc)

@@ -48,11 +48,9 @@ def sniff(path: Path) -> bool:
     """A ``.txt``/``.log`` file whose first non-blank line holds 3, 7 or 9 numbers."""
     if not path.is_file() or path.suffix.lower() not in _SUFFIXES:
         return False
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(4096)
-    except OSError:
-        return False
+    from thirdhand.readlimits import sniff_bytes
+
+    head = sniff_bytes(path, 4096)
     for line in head.splitlines():
         cells = line.split()
         if not cells:

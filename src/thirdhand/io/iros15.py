@@ -389,11 +389,11 @@ def read_user_study(path: str | os.PathLike[str]) -> UserStudy:
     """
     p = Path(path)
     loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+    from thirdhand.readlimits import read_text_input
+
+    text = read_text_input(p, what="user-study YAML file")
     try:
-        with open(p, encoding="utf-8") as fh:
-            data = yaml.load(fh, Loader=loader)
-    except OSError as exc:
-        raise FormatError(p, f"cannot read: {exc}") from None
+        data = yaml.load(text, Loader=loader)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else None

@@ -58,6 +58,8 @@ from thirdhand.demonstration import (
     Demonstration,
     HandSide,
     Labels,
+    labels_from_dict,
+    labels_to_dict,
 )
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output
@@ -68,6 +70,12 @@ POSES = "poses.dat"
 TIMES = "poses.dat.times"
 META = "meta.kvg"
 ANNOTATIONS = "ann_kvg.kvg"
+#: What the 3rdHand files cannot state, as thirdhand wrote it: the recording's meta
+#: and its labels at their exact times (``ann_kvg.kvg`` holds them on frames).
+EXTRA = "thirdhand.json"
+EXTRA_FORMAT = "thirdhand.mlr-extra/1"
+#: Meta keys :func:`read` sets to describe the folder read (the tracker's repair of it).
+_FOLDER_KEYS = frozenset({"format", "source", "labels_source", "mlr"})
 ELAN = "elan.eaf"
 
 #: The top-level ``meta.kvg`` entry thirdhand writes (``writer = "thirdhand"``).
@@ -558,6 +566,7 @@ def read(
         quat[b.name] = block[:, [4, 5, 6, 3]]
         valid[b.name] = ok[:, k]
     lab, source = _read_labels(folder, t, bodies, elan_offset) if labels else (Labels(), None)
+    lab, carried = _read_extra(folder, lab, source)
     meta = {
         "format": "mlr",
         "source": str(folder),
@@ -573,10 +582,71 @@ def read(
             },
         },
     }
+    meta.update(carried)  # the meta of the recording thirdhand wrote, as it was
     try:
         return Demonstration(t, bodies, pos, quat, valid, labels=lab, meta=meta)
     except ThirdhandError as exc:
         raise FormatError(folder, str(exc)) from None
+
+
+def _sha256(text: str) -> str:
+    import hashlib
+
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
+def _extra_text(demo: Demonstration, annotations: str | None) -> str | None:
+    """:data:`EXTRA`: the meta (when it is JSON) and exact labels, tied to ``ann_kvg.kvg``."""
+    import json
+
+    doc: dict[str, Any] = {"format": EXTRA_FORMAT}
+    # The keys the reader sets to describe the folder it reads are not carried.
+    meta = {k: v for k, v in (demo.meta or {}).items() if k not in _FOLDER_KEYS}
+    try:
+        text = json.dumps(meta, allow_nan=False)
+        if meta and json.loads(text) == meta:
+            doc["meta"] = meta
+    except (TypeError, ValueError):
+        pass
+    if annotations is not None:
+        doc["labels"] = labels_to_dict(demo.labels)
+        doc["annotations_sha256"] = _sha256(annotations)
+    if len(doc) == 1:
+        return None
+    return json.dumps(doc, indent=1, allow_nan=False) + "\n"
+
+
+def _read_extra(folder: Path, labels: Labels, source: str | None) -> tuple[Labels, dict[str, Any]]:
+    """The exact labels and the meta of :data:`EXTRA`, when present.
+
+    Its labels replace those of ``ann_kvg.kvg`` only while that file is the one
+    thirdhand wrote beside them (same SHA-256): labels edited by hand win.
+    """
+    path = folder / EXTRA
+    if not os.path.lexists(path):
+        return labels, {}
+    from thirdhand.readlimits import MAX_DOCUMENT_BYTES, loads_json
+
+    def error(message: str) -> FormatError:
+        return FormatError(path, message)
+
+    doc = loads_json(
+        read_input(path, what="thirdhand MLR extra", limit=MAX_DOCUMENT_BYTES, error=error),
+        error=error,
+    )
+    if not isinstance(doc, dict) or doc.get("format") != EXTRA_FORMAT:
+        raise error(f"expected a JSON object of format {EXTRA_FORMAT!r}")
+    meta = doc.get("meta", {})
+    if not isinstance(meta, dict):
+        raise error("'meta': expected a JSON object")
+    if "labels" in doc and source == ANNOTATIONS:
+        written = _read_bytes(folder / ANNOTATIONS).decode("utf-8", "replace")
+        if _sha256(written) == doc.get("annotations_sha256"):
+            try:
+                labels = labels_from_dict(doc["labels"])
+            except ThirdhandError as exc:
+                raise error(f"'labels': {exc}") from None
+    return labels, meta
 
 
 def _jsonable(fields: Mapping[str, Any]) -> dict[str, Any]:
@@ -725,6 +795,9 @@ def write(demo: Demonstration, path: str | os.PathLike[str], *, overwrite: bool 
         files[ANNOTATIONS] = kvg.format_annotations(
             demo.labels, frame_times=demo.t, bodies=demo.bodies, path=target / ANNOTATIONS
         )
+    extra = _extra_text(demo, files.get(ANNOTATIONS))
+    if extra is not None:
+        files[EXTRA] = extra
     with atomic_output(target) as tmp:
         tmp.mkdir()
         for name, text in files.items():

@@ -38,8 +38,9 @@ def sniff(path: Path) -> bool:
         return False
     if path.suffix.lower() == ".parquet":
         return True
-    with open(path, "rb") as fh:
-        return fh.read(4) == _MAGIC
+    from thirdhand.readlimits import sniff_bytes
+
+    return sniff_bytes(path, 4) == _MAGIC
 
 
 def write(demo: Demonstration, path: str | os.PathLike[str]) -> None:

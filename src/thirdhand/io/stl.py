@@ -13,6 +13,7 @@ import numpy as np
 
 from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
+from thirdhand.readlimits import MAX_MESH_BYTES, read_input
 
 _STL_DTYPE = np.dtype([("normal", "<f4", (3,)), ("vertices", "<f4", (3, 3)), ("attribute", "<u2")])
 
@@ -28,18 +29,18 @@ def read_stl(path: str | os.PathLike[str]) -> FloatArray:
     Raises
     ------
     FormatError
-        If the file is neither a consistent binary STL nor an ASCII one.
+        If the path is not a regular file of at most
+        :data:`~thirdhand.readlimits.MAX_MESH_BYTES`, the file is neither a
+        consistent binary STL nor an ASCII one, or a vertex is not finite (NaN or
+        infinite coordinates would reach the collision checker's solvers).
     """
     p = Path(path)
-    try:
-        data = p.read_bytes()
-    except OSError as exc:
-        raise FormatError(p, f"cannot read: {exc.strerror}") from None
+    data = read_input(p, what="mesh (STL) file", limit=MAX_MESH_BYTES)
     if len(data) >= 84:
         n = int(np.frombuffer(data[80:84], "<u4")[0])
         if 84 + 50 * n == len(data):
             tri = np.frombuffer(data, _STL_DTYPE, count=n, offset=84)["vertices"]
-            return tri.astype(np.float64)
+            return _finite(p, tri.astype(np.float64))
     text = data.decode("ascii", errors="replace")
     if not text.lstrip().lower().startswith("solid"):
         raise FormatError(
@@ -58,7 +59,20 @@ def read_stl(path: str | os.PathLike[str]) -> FloatArray:
                 raise FormatError(p, f"non-numeric vertex {line.strip()!r}", line=lineno) from None
     if not rows or len(rows) % 3:
         raise FormatError(p, f"expected vertices in triples, found {len(rows)}")
-    return np.asarray(rows, dtype=np.float64).reshape(-1, 3, 3)
+    return _finite(p, np.asarray(rows, dtype=np.float64).reshape(-1, 3, 3))
+
+
+def _finite(p: Path, tri: FloatArray) -> FloatArray:
+    """``tri`` if every coordinate is finite; else one line naming the first bad triangle."""
+    bad = ~np.isfinite(tri).all(axis=(1, 2))
+    if bad.any():
+        first = int(np.argmax(bad))
+        raise FormatError(
+            p,
+            f"{int(bad.sum())} of {len(tri)} triangles have a vertex that is not a finite "
+            f"number (NaN or infinite), the first is triangle {first}",
+        )
+    return tri
 
 
 def stl_bounds(path: str | os.PathLike[str]) -> tuple[FloatArray, FloatArray]:

@@ -19,7 +19,7 @@ from thirdhand import options
 from thirdhand.config import ConfigOption, JobsOption, SchedulerOption, check_batch, load_settings
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import TaskFileError, ThirdhandError
-from thirdhand.fileops import check_distinct_inputs, check_output
+from thirdhand.fileops import check_distinct_inputs, check_output, check_outputs
 from thirdhand.progress import stage_status
 
 out = Console(highlight=False, soft_wrap=True)
@@ -112,7 +112,9 @@ def learn_command(
     if report is not None:
         if report.exists() and not report.is_dir():
             raise ThirdhandError(f"--report {report}: expected a folder, it is a file")
-        check_output(report / "index.html", force=force, inputs=[*demos, output])
+        check_outputs(
+            [("-o", output), ("--report", report / "index.html")], force=force, inputs=inputs
+        )
     seg_model = None
     if cfg.segment_model is not None and not no_segment:
         from thirdhand.segment.model import resolve_model

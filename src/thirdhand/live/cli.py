@@ -60,7 +60,7 @@ def live_command(
     """
     from thirdhand import io
     from thirdhand.config import load_settings
-    from thirdhand.fileops import check_output, write_text
+    from thirdhand.fileops import check_outputs, write_text
     from thirdhand.live.loop import LiveLoop, LiveOptions
     from thirdhand.live.mcap_source import McapSource, being_written
     from thirdhand.live.settings import LiveSettings
@@ -71,17 +71,12 @@ def live_command(
 
     check_speed(speed)
     cfg = load_settings(config, "live", LiveSettings)
-    inputs = [recording, task, *([config] if config else [])]
-    if json_out is not None:
-        check_output(json_out, force=force, inputs=inputs)
+    outputs: list[tuple[str, Path | None]] = [("--json", json_out)]
     if record is not None:
         from thirdhand.execute.record import record_paths
 
-        targets = record_paths(record)
-        if json_out is not None and json_out.resolve() in {p.resolve() for p in targets}:
-            raise ThirdhandError(f"--record {record}: would write over --json {json_out}")
-        for target in targets:
-            check_output(target, force=force, inputs=inputs)
+        outputs += [("--record", p) for p in record_paths(record)]
+    check_outputs(outputs, force=force, inputs=[recording, task, *([config] if config else [])])
     t = load_task(task)
     model = resolve_model(cfg.segment_model)
     source: FrameSource

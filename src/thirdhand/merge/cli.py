@@ -11,7 +11,7 @@ from rich.console import Console
 
 from thirdhand import options
 from thirdhand.config import ConfigOption, load_settings
-from thirdhand.fileops import check_distinct_inputs, check_output
+from thirdhand.fileops import check_distinct_inputs, check_outputs
 from thirdhand.merge.settings import MergeSettings
 
 out = Console(highlight=False, soft_wrap=True)
@@ -101,10 +101,9 @@ def merge_command(
         if not eq or not ref_name or not other_name:
             raise MergeError(f"--same {item!r}: expected REF=OTHER")
         mapping[other_name] = ref_name
-    outputs = [output, *([report] if report else [])]
-    inputs = [*recordings, *([config] if config else [])]
-    for o in outputs:
-        check_output(o, force=force, inputs=inputs)
+    outputs = [("-o", output), ("--report", report)]
+    inputs = [*recordings, config]
+    check_outputs(outputs, force=force, inputs=inputs)
     demos = [io.load(p) for p in recordings]
     demos = [demos[0]] + [
         rename(d, {a: b for a, b in mapping.items() if a in d}) for d in demos[1:]
@@ -120,8 +119,7 @@ def merge_command(
         max_gap=settings.max_gap,
         sources=[str(p) for p in recordings],
     )
-    for o in outputs:
-        check_output(o, force=force, inputs=inputs)
+    check_outputs(outputs, force=force, inputs=inputs)
     io.save(merged, output)
     for path, al in zip(recordings[1:], alignments, strict=True):
         out.print(_summary(path, al))

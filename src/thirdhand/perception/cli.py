@@ -35,12 +35,17 @@ def _fail(message: str) -> NoReturn:
     raise typer.Exit(1)
 
 
-def _check_output(path: Path | None, force: bool, inputs: list[Path | None]) -> None:
-    """Refuse ``path`` if it is an input or exists without ``--force`` (``-`` is stdout)."""
-    from thirdhand.fileops import check_output
+def _check_outputs(
+    outputs: list[tuple[str, Path | None]], force: bool, inputs: list[Path | None]
+) -> None:
+    """Refuse outputs naming one file, an input, or an existing file without ``--force``.
 
-    if path is not None and str(path) != "-":
-        check_output(path, force=force, inputs=[p for p in inputs if p is not None])
+    ``-`` (standard output) is no file.
+    """
+    from thirdhand.fileops import check_outputs
+
+    files = [(name, p) for name, p in outputs if p is not None and str(p) != "-"]
+    check_outputs(files, force=force, inputs=inputs)
 
 
 def _write_json(data: Any, path: Path | None, force: bool) -> None:
@@ -93,8 +98,7 @@ def headpose_command(
 
     try:
         cfg = load_settings(config, "headpose", HeadposeSettings)
-        _check_output(json_out, force, [video, config])
-        _check_output(overlay, force, [video, json_out, config])
+        _check_outputs([("--json", json_out), ("--overlay", overlay)], force, [video, config])
         track = track_head(
             video, calibrate=cfg.calibrate, start=cfg.start, stop=cfg.stop, step=cfg.step,
             static=cfg.static, focal_px=cfg.focal,
@@ -150,7 +154,7 @@ def gestures_command(
     try:
         cfg = load_settings(config, "gestures", GestureSettings)
         ray, dwell, cone = cfg.ray, cfg.dwell, cfg.cone
-        _check_output(json_out, force, [recording, task, config])
+        _check_outputs([("--json", json_out)], force, [recording, task, config])
         demo = _load(recording)
         events = detect_pointing(demo, ray=ray, dwell=dwell, cone_deg=cone)
         data = {
@@ -196,7 +200,7 @@ def attention_command(
         cfg = load_settings(config, "attention", AttentionSettings)
         axis = list(cfg.forward)
         cone, hysteresis, min_duration = cfg.cone, cfg.hysteresis, cfg.min_duration
-        _check_output(json_out, force, [recording, task, config])
+        _check_outputs([("--json", json_out)], force, [recording, task, config])
         demo = _load(recording)
         if head is not None and head in demo and demo.info(head).kind != "head":
             heads = ", ".join(demo.bodies_of_kind("head")) or "none"

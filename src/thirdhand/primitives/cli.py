@@ -20,7 +20,7 @@ from rich.console import Console
 from thirdhand import options
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import FormatError, ThirdhandError
-from thirdhand.fileops import atomic_output, check_output, write_bytes
+from thirdhand.fileops import atomic_output, check_output, check_outputs, write_bytes
 
 app = typer.Typer(
     help="Motor primitives: DMPs and ProMPs per constraint, primitive libraries.",
@@ -158,11 +158,17 @@ def _read_tracks(path: Path, body: str | None) -> list[Any]:
             for s in streams
         ]
     if suffix in (".csv", ".txt", ".npy"):
-        from thirdhand.readlimits import check_regular
+        import io as _io
 
-        check_regular(path, what="track file")
+        from thirdhand.readlimits import MAX_RECORDING_BYTES, read_input
+
+        raw = read_input(path, what="track file", limit=MAX_RECORDING_BYTES)
         try:
-            arr = np.load(path) if suffix == ".npy" else np.loadtxt(path, delimiter=",", ndmin=2)
+            arr = (
+                np.load(_io.BytesIO(raw), allow_pickle=False)
+                if suffix == ".npy"
+                else np.loadtxt(_io.StringIO(raw.decode("utf-8")), delimiter=",", ndmin=2)
+            )
         except (OSError, ValueError) as exc:
             raise FormatError(
                 path, f"expected numeric columns t x y z [qx qy qz qw]: {exc}"
@@ -244,9 +250,7 @@ def library(
             raise ThirdhandError("--library and -o save and load the hsmm parser's library only")
         if lib_in is not None and skills is not None:
             raise ThirdhandError("--skills is fixed by the --library given; leave it out")
-        for o in (plot, output):
-            if o is not None:
-                check_output(o, force=force, inputs=[*tracks, *([lib_in] if lib_in else [])])
+        check_outputs([("-o", output), ("--plot", plot)], force=force, inputs=[*tracks, lib_in])
         if plot is not None and plot.suffix.lower() not in (".png", ".pdf", ".svg"):
             raise ThirdhandError(
                 f"--plot {plot}: a figure is written as .png, .pdf or .svg; "

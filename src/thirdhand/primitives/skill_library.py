@@ -22,7 +22,6 @@ The seed's parser (candidate cuts at speed minima + a mixture of ProMP skills,
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,7 +30,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 
 from thirdhand.arrays import FloatArray, IntArray
-from thirdhand.errors import FormatError, ThirdhandError
+from thirdhand.errors import ThirdhandError
 from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov, runs
 from thirdhand.primitives.pose_channels import CHANNELS, PoseTrack, default_channels, pose_channels
@@ -359,12 +358,9 @@ def read_skill_library(path: Path) -> SkillLibrary:
         No such file, not JSON, a task without a skill library, or a damaged library
         (one line naming the file).
     """
-    if not path.is_file():
-        raise ThirdhandError(f"{path}: no such file")
-    try:
-        doc = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise FormatError(path, f"not a JSON skill library or task file: {exc}") from None
+    from thirdhand.readlimits import MAX_DOCUMENT_BYTES, read_json
+
+    doc = read_json(path, what="skill library or task file", limit=MAX_DOCUMENT_BYTES)
     if isinstance(doc, dict) and str(doc.get("schema", "")).startswith("thirdhand.task/"):
         from thirdhand.taskfile import load_task
 

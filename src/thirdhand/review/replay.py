@@ -26,7 +26,7 @@ import numpy as np
 from thirdhand.demonstration import Demonstration
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.record import TOOL_BODY, record_paths
-from thirdhand.readlimits import loads_json, read_text_input
+from thirdhand.readlimits import MAX_RUN_BYTES, loads_json, read_text_input
 from thirdhand.review.playback import HandContacts
 from thirdhand.task.model import TaskFile
 
@@ -194,7 +194,9 @@ def load_replay(path: str | os.PathLike[str], task: TaskFile, task_path: Path) -
     if traj.exists():
         try:
             doc = loads_json(
-                read_text_input(traj, what="trajectory file", error=ReplayError),
+                read_text_input(
+                    traj, what="trajectory file", limit=MAX_RUN_BYTES, error=ReplayError
+                ),
                 error=ReplayError,
             )
             steps = list(doc.get("steps", []))

@@ -15,6 +15,7 @@ import os
 from pathlib import Path
 
 from thirdhand.errors import ThirdhandError
+from thirdhand.readlimits import read_input
 from thirdhand.review.edits import Edit, MoveStep, SetParent, SetPrimitivePoint
 from thirdhand.review.effort import ACTIONS, EffortLog, changed_parameters, operation_of
 from thirdhand.review.history import History
@@ -27,12 +28,14 @@ class ConflictError(ThirdhandError):
 
 
 def _sha256(path: Path) -> str | None:
-    try:
-        return hashlib.sha256(path.read_bytes()).hexdigest()
-    except FileNotFoundError:
+    if not os.path.lexists(path):
         return None
-    except OSError as exc:
-        raise ThirdhandError(f"{path}: cannot read task file: {exc}") from None
+    data = read_input(
+        path,
+        what="task file",
+        error=lambda m: ThirdhandError(f"{path}: cannot read task file: {m}"),
+    )
+    return hashlib.sha256(data).hexdigest()
 
 
 def _object_of(task: TaskFile, edit: Edit) -> str:
@@ -86,13 +89,12 @@ class ReviewSession:
         TaskFileError
             If the file cannot be read or is not a valid task file.
         """
-        p = Path(path)
-        try:
-            data = p.read_bytes()
-        except OSError as exc:
-            from thirdhand.errors import TaskFileError
+        from thirdhand.errors import TaskFileError
 
-            raise TaskFileError(f"{p}: cannot read task file: {exc}") from None
+        p = Path(path)
+        data = read_input(
+            p, what="task file", error=lambda m: TaskFileError(f"{p}: cannot read task file: {m}")
+        )
         try:
             text = data.decode("utf-8")
         except UnicodeDecodeError as exc:

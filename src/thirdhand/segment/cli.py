@@ -27,7 +27,13 @@ from typer.core import TyperGroup
 
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
-from thirdhand.fileops import atomic_output, check_distinct_inputs, check_output, write_text
+from thirdhand.fileops import (
+    atomic_output,
+    check_distinct_inputs,
+    check_output,
+    check_outputs,
+    write_text,
+)
 
 DEFAULT_COMMAND = "run"
 
@@ -101,13 +107,9 @@ def run(
     from thirdhand.segment.pipeline import scores_by_kind, segment_demonstration
 
     inputs = [demo] + ([model] if model is not None else [])
-    for target in (json_out, plot):
-        if target is not None:
-            check_output(target, force=force, inputs=inputs)
+    check_outputs([("--json", json_out), ("--plot", plot)], force=force, inputs=inputs)
     if plot is not None:
         check_plot_suffix(plot)
-    if json_out is not None and plot is not None and json_out.resolve() == plot.resolve():
-        raise ThirdhandError(f"--json and --plot name the same file {plot}")
     d = _load(demo)
     from thirdhand import options
 
@@ -408,8 +410,11 @@ def batch(
     names = output_names(recordings)
     model_inputs = [model] if model is not None and model.exists() else []
     targets = [output / n for n in names]
-    for target in targets:
-        check_output(target, force=force, inputs=[*inputs, *recordings, *model_inputs])
+    check_outputs(
+        [("--output", t) for t in targets],
+        force=force,
+        inputs=[*inputs, *recordings, *model_inputs],
+    )
     spec = None if model is None else str(model)
     if model is not None:
         _model(model)  # a bad model is one error before any unit runs

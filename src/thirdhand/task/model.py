@@ -28,6 +28,7 @@ from pydantic import (
 
 from thirdhand._version import __version__
 from thirdhand.errors import TaskFileError
+from thirdhand.readlimits import open_input
 from thirdhand.task.constraint import Constraint, Name
 from thirdhand.task.geometry import Pose, Positive, TaskModel, Vec3
 from thirdhand.task.stages import Stages
@@ -133,7 +134,7 @@ class InputFile(TaskModel):
         for f in files:
             if p.is_dir():
                 h.update(f.relative_to(p).as_posix().encode() + b"\0")
-            with open(f, "rb") as fh:
+            with open_input(f, what="input file") as fh:
                 while block := fh.read(1 << 20):
                     h.update(block)
         return cls(path=os.fspath(path), sha256=h.hexdigest())

@@ -47,7 +47,7 @@ from thirdhand import se3
 from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
 from thirdhand.io.stl import read_stl
-from thirdhand.readlimits import loads_json, read_text_input
+from thirdhand.readlimits import MAX_SIDE_BYTES, loads_json, read_text_input
 from thirdhand.task.geometry import Pose
 from thirdhand.task.meshes import mesh_scale, mesh_search_path, same_role_mesh
 
@@ -92,7 +92,8 @@ def read_scene(path: str | os.PathLike[str]) -> dict[str, SceneObject]:
     def error(m: str) -> FormatError:
         return FormatError(p, f"cannot read 3rdHand scene file: {m}")
 
-    data = loads_json(read_text_input(p, what="scene file", error=error), error=error)
+    text = read_text_input(p, what="scene file", limit=MAX_SIDE_BYTES, error=error)
+    data = loads_json(text, error=error, strict=True)
     objs = data.get("objects") if isinstance(data, dict) else None
     if not isinstance(objs, dict) or not objs:
         raise FormatError(p, 'expected {"objects": {name: {"mesh": ...}}}')

@@ -9,6 +9,7 @@ import numpy as np
 
 from thirdhand.errors import FormatError
 from thirdhand.io.c3d.constants import _MAGIC, _PROCESSORS, MAX_FRAMES
+from thirdhand.readlimits import open_input
 
 
 def sniff(path: Path) -> bool:
@@ -17,15 +18,12 @@ def sniff(path: Path) -> bool:
         return False
     if path.suffix.lower() == ".c3d":
         return True
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(2)
-            if len(head) < 2 or head[1] != _MAGIC or head[0] < 2:
-                return False
-            fh.seek((head[0] - 1) * 512 + 3)
-            proc = fh.read(1)
-    except OSError:
+    from thirdhand.readlimits import sniff_bytes
+
+    head = sniff_bytes(path, 2)
+    if len(head) < 2 or head[1] != _MAGIC or head[0] < 2:
         return False
+    proc = sniff_bytes(path, 1, offset=(head[0] - 1) * 512 + 3)
     return len(proc) == 1 and proc[0] in _PROCESSORS
 
 
@@ -40,7 +38,7 @@ def _check_structure(p: Path, *, allow_truncated: bool = False) -> str | None:
     """
     try:
         size = p.stat().st_size
-        with open(p, "rb") as fh:
+        with open_input(p, what="C3D file") as fh:
             head = fh.read(512)
             if len(head) < 2 or head[1] != _MAGIC or head[0] < 2:
                 raise FormatError(

@@ -148,8 +148,14 @@ def _time_axis(
     frame: NDArray[np.int64],
     time: FloatArray,
     rates: tuple[float, ...],
+    *,
+    full_precision: bool = False,
 ) -> FloatArray:
     """Time stamps from the frame numbers and the frame rate, cross-checked with Time.
+
+    ``full_precision``: the file states it was written by thirdhand (its
+    ``thirdhand`` key), whose Time column holds every time stamp exactly; it is
+    taken as is once it agrees with the frame numbers.
 
     Frame numbers count at the export rate (``rates[0]``); the other rates (the
     capture rate) are tried when the Time column contradicts it, as frames of a
@@ -199,7 +205,11 @@ def _time_axis(
             # started at the first time stamp (a recording whose clock is not a
             # whole number of frames from zero).
             shifted = (frame - frame[0]) / rate + time[0]
-            if float(dev.max()) <= 1e-8 or float(np.abs(time - shifted).max()) <= 1e-8:
+            if (
+                full_precision
+                or float(dev.max()) <= 1e-8
+                or float(np.abs(time - shifted).max()) <= 1e-8
+            ):
                 return time
             return t_frame
         if first_error is None:

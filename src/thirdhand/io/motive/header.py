@@ -33,10 +33,9 @@ _INTEGER = re.compile(r"[+-]?\d+")
 
 def sniff(path: Path) -> bool:
     """A file whose first line starts with ``Format Version,`` (Motive's CSV export)."""
-    if not path.is_file():
-        return False
-    with open(path, "rb") as fh:
-        head = fh.read(64)
+    from thirdhand.readlimits import sniff_bytes
+
+    head = sniff_bytes(path, 64)
     return head.removeprefix(b"\xef\xbb\xbf").startswith(_MAGIC.encode() + b",")
 
 
@@ -61,7 +60,9 @@ def _cells(text: str, path: Path | None = None, line: int | None = None) -> list
 
 def _read_header(path: Path) -> _Header:
     """Parse the key/value line and the header rows up to ``Frame,Time``."""
-    with open(path, "rb") as fh:
+    from thirdhand.readlimits import open_input
+
+    with open_input(path, what="Motive CSV file") as fh:
         first = fh.readline()
         if not first.strip():
             raise FormatError(

@@ -129,9 +129,9 @@ def read(
     _first_null(p, header, block[1], "Time")
     frame = np.asarray(block[0].to_numpy(zero_copy_only=False), dtype=np.int64)
     rates = (rate,) if capture_rate is None else (rate, capture_rate)
-    t = _time_axis(p, header, frame, _as_float(block[1]), rates)
+    t = _time_axis(p, header, frame, _as_float(block[1]), rates, full_precision=EXTRA_KEY in keys)
 
-    stated, labels = _extra(p, keys, specs)
+    stated, labels, carried = _extra(p, keys, specs)
     bodies, pos, quat, valid = [], {}, {}, {}
     extent = 0.0
     for s in specs:
@@ -171,6 +171,7 @@ def read(
     }
     if "Capture Start Time" in keys:
         meta["capture_start_time"] = keys["Capture Start Time"]
+    meta.update(carried)  # the meta of the recording thirdhand wrote, as it was
     try:
         return Demonstration(t, bodies, pos, quat, valid, labels=labels, meta=meta)
     except ThirdhandError as exc:
@@ -264,8 +265,8 @@ def sidecar_path(path: Path) -> Path:
 
 def _extra(
     path: Path, keys: Mapping[str, str], specs: Sequence[Any]
-) -> tuple[dict[str, BodyInfo], Labels]:
-    """Body metadata and labels stated in the first line's ``thirdhand`` key, or in a sidecar.
+) -> tuple[dict[str, BodyInfo], Labels, dict[str, Any]]:
+    """Body metadata, labels and meta stated in the first line's ``thirdhand`` key, or a sidecar.
 
     A real Motive export states no body kinds; the same JSON document in a file
     ``<stem>.thirdhand.json`` beside the CSV (:func:`sidecar_path`) states them.
@@ -277,7 +278,7 @@ def _extra(
     if raw is None:
         side = sidecar_path(path)
         if not side.is_file():
-            return {}, Labels()
+            return {}, Labels(), {}
         source, line = side, None
         raw = read_text_input(side, what="body-kinds sidecar")
 
@@ -303,4 +304,7 @@ def _extra(
         if isinstance(exc, FormatError):
             raise
         raise error(str(exc)) from None
-    return stated, labels
+    carried = doc.get("meta", {})
+    if not isinstance(carried, dict):
+        raise error("'meta': expected a JSON object")
+    return stated, labels, carried

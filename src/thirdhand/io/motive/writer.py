@@ -152,7 +152,10 @@ def write(
 
 
 def extra_key(demo: Demonstration) -> str | None:
-    """JSON of what a Motive export cannot state (body kinds, labels), or None if nothing.
+    """JSON of what a Motive export cannot state (body kinds, labels, meta), or None if nothing.
+
+    The recording's ``meta`` (part geometry, units, its source) is carried when it
+    is JSON without NaN; otherwise it is left out (``convert`` then names it lost).
 
     Written as the value of the first line's :data:`EXTRA_KEY` key, which
     :func:`~thirdhand.io.motive.read` reads back; Motive and other CSV readers
@@ -161,12 +164,27 @@ def extra_key(demo: Demonstration) -> str | None:
     bodies = [
         body_info_to_dict(b) for b in demo.bodies if b != BodyInfo(b.name, oriented=b.oriented)
     ]
-    if not bodies and not demo.labels:
+    meta = _json_meta(demo.meta)
+    if not bodies and not demo.labels and not meta:
         return None
     doc: dict[str, Any] = {"format": EXTRA_FORMAT, "bodies": bodies}
     if demo.labels:
         doc["labels"] = labels_to_dict(demo.labels)
+    if meta:
+        doc["meta"] = meta
     return json.dumps(doc, separators=(",", ":"), allow_nan=False, ensure_ascii=True)
+
+
+def _json_meta(meta: Any) -> dict[str, Any] | None:
+    """``meta`` if it is a JSON object without NaN or infinity (it then reads back equal)."""
+    if not isinstance(meta, dict) or not meta:
+        return None
+    try:
+        text = json.dumps(meta, allow_nan=False)
+    except (TypeError, ValueError):
+        return None
+    back: dict[str, Any] = json.loads(text)
+    return back if back == meta else None
 
 
 def _q(cell: str) -> str:
