@@ -86,6 +86,11 @@ def execute_command(
             check_output(target, force=force, inputs=inputs)
     console = Console()
     t = load_task(task)
+    if not t.plan:
+        raise ThirdhandError(
+            f"{task}: the task has no plan, nothing to execute "
+            "(learn one first: thirdhand learn RECORDINGS -o TASK.json)"
+        )
     search = [str(m) for m in meshes]
     opts = ExecutionOptions(
         sample_free_dofs=cfg.free_dofs, step_time_limit=cfg.step_time,
