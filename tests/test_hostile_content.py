@@ -1,6 +1,7 @@
 """Content checked against what it claims, in the typed models every consumer reads.
 
-A plan step against its constraint and its objects; an empty plan is no success.
+A plan step against its constraint and its objects; an empty plan is no success. A
+skill library's parameters against what makes them a model; JSON written strictly.
 """
 
 from __future__ import annotations
@@ -10,10 +11,15 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from pydantic import ValidationError
 
 from cli_helpers import call, settings_file
 from thirdhand.errors import TaskFileError
+from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.task.store import parse_task
 
 
@@ -118,3 +124,147 @@ def test_an_empty_plan_is_not_executed_as_a_success(capsys, tmp_path: Path, benc
     rc, out, err = call(capsys, "execute", str(path), "--config", str(cfg))
     assert rc == 1 and err.count("\n") == 1 and "the task has no plan" in err
     assert "succeeded" not in out
+
+
+# --- a skill library's parameters ---------------------------------------------------
+
+
+def _model(k: int = 3, c: int = 2) -> dict[str, Any]:
+    """A valid model: entry -> middle -> exit over ``c`` channels at 20 Hz."""
+    none = None
+    return {
+        "channels": ["speed", "logangular", "axial"][:c],
+        "rate_hz": 20.0,
+        "window": 8,
+        "means": [[float(i + j) for j in range(c)] for i in range(k)],
+        "covs": [np.diag(np.arange(1.0, c + 1.0)).tolist() for _ in range(k)],
+        "duration_log_mean": [1.0, 2.0, 1.5][:k],
+        "duration_log_sd": [0.2, 0.3, 0.25][:k],
+        "max_duration": 60,
+        "log_trans": [[none, 0.0, none], [none, none, 0.0], [none, none, none]],
+        "log_init": [0.0, none, none],
+        "log_final": [none, none, 0.0],
+    }
+
+
+def _set(key: str, value: Any) -> Any:
+    return lambda m: {**m, key: value}
+
+
+LIBRARY_CASES = [
+    ("a negative duration deviation", _set("duration_log_sd", [0.2, -0.3, 0.25]),
+     "skills.duration_log_sd[1] is -0.3; a standard deviation is positive"),
+    ("a positive log-probability", _set("log_init", [0.5, None, None]),
+     "skills.log_init[0] is 0.5 > 0; a log-probability is at most 0"),
+    ("a transition row not summing to 1",
+     _set("log_trans", [[None, -1.0, None], [None, None, 0.0], [None, None, None]]),
+     "skills.log_trans[0]: its probabilities sum to 0.367879, not 1"),
+    ("duplicate channels", _set("channels", ["speed", "speed"]),
+     "channels: 'speed' is listed twice"),
+    ("a 2 MHz rate", _set("rate_hz", 2e6), "rate_hz: expected a rate in (0, 1000] Hz, got 2e+06"),
+    ("a billion-sample skill", _set("max_duration", 10**9),
+     "skills.max_duration: expected 1 to 12000 samples (600 s at 20 Hz), got 1000000000"),
+    ("a huge log duration", _set("duration_log_mean", [1.0, 50.0, 1.5]),
+     "skills.duration_log_mean[1] is 50"),
+    ("a NaN mean", _set("means", [[0.0, float("nan")], [1.0, 2.0], [2.0, 3.0]]),
+     "skills.means: non-finite value nan"),
+    ("a covariance not positive definite", _set("covs", [[[1.0, 2.0], [2.0, 1.0]]] * 3),
+     "skills.covs[0] is not positive definite"),
+    ("an asymmetric covariance", _set("covs", [[[1.0, 0.5], [0.0, 1.0]]] * 3),
+     "skills.covs[0] is not symmetric"),
+    ("a huge window", _set("window", 10**9), "window: expected 1 to 10000 samples"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("label", "change", "says"), LIBRARY_CASES, ids=[c[0] for c in LIBRARY_CASES]
+)
+def test_a_skill_library_that_is_no_model_is_refused(label, change, says) -> None:
+    from thirdhand.task.skill_model import skill_model_problem
+
+    assert skill_model_problem(**_model()) is None
+    problem = skill_model_problem(**change(_model()))
+    assert problem is not None and says in problem and "\n" not in problem, (label, problem)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    st.integers(1, 5),
+    st.integers(1, 3),
+    st.floats(0.1, 1000.0),
+    st.lists(st.floats(1e-6, 1.0), min_size=25, max_size=25),
+    st.sampled_from(["sd", "trans", "init", "rate", "none"]),
+)
+def test_random_models_pass_and_each_broken_law_is_refused(k, c, rate, weights, broken) -> None:
+    from thirdhand.task.skill_model import skill_model_problem
+
+    w = np.asarray(weights).reshape(5, 5)[:k, :k]
+    trans = np.log(w / w.sum(axis=1, keepdims=True))
+    init = np.log(w[0] / w[0].sum())
+    model: dict[str, Any] = {
+        "channels": ["speed", "logangular", "axial"][:c],
+        "rate_hz": rate,
+        "window": 8,
+        "means": np.zeros((k, c)).tolist(),
+        "covs": np.tile(np.eye(c), (k, 1, 1)).tolist(),
+        "duration_log_mean": np.zeros(k).tolist(),
+        "duration_log_sd": np.full(k, 0.5).tolist(),
+        "max_duration": max(1, int(rate)),
+        "log_trans": trans.tolist(),
+        "log_init": init.tolist(),
+        "log_final": np.zeros(k).tolist(),
+    }
+    if broken == "sd":
+        model["duration_log_sd"] = [-0.5, *model["duration_log_sd"][1:]]
+    elif broken == "trans":
+        model["log_trans"] = (trans + 0.01).tolist()
+    elif broken == "init":
+        model["log_init"] = (init - 0.01).tolist()
+    elif broken == "rate":
+        model["rate_hz"] = 1000.0 + rate * 1e4
+    assert (skill_model_problem(**model) is None) == (broken == "none")
+
+
+def test_a_task_s_skill_library_is_checked_on_load_and_written_without_nan() -> None:
+    from thirdhand.primitives.pose_channels import PoseTrack
+    from thirdhand.primitives.skill_library import SkillLibrary, SkillParserOptions
+    from thirdhand.task.stages import SkillLibrary as Block
+
+    t = np.arange(200) / 50.0
+    pos = np.column_stack([np.sin(t), np.cos(2 * t), 0.1 * t])
+    quat = np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1))
+    lib = SkillLibrary(SkillParserOptions(n_skills=3)).fit([PoseTrack(t, pos, quat)])
+    doc = lib.to_dict()
+    text = json.dumps(doc, allow_nan=False)  # impossible moves are null, not NaN
+    assert "null" in text
+    SkillLibrary.from_dict(json.loads(text))
+    Block.model_validate(json.loads(text))
+    bad = json.loads(text)
+    bad["skills"]["duration_log_sd"][0] = -1.0
+    with pytest.raises(PrimitiveError, match=r"duration_log_sd\[0\] is -1.0"):
+        SkillLibrary.from_dict(bad)
+    with pytest.raises(ValidationError, match=r"duration_log_sd\[0\] is -1.0"):
+        Block.model_validate(bad)
+
+
+def test_json_writers_refuse_nan_in_one_line() -> None:
+    from thirdhand.errors import OutputError
+    from thirdhand.jsontext import dumps
+
+    assert dumps({"a": [1.0, None]}, what="x.json") == '{"a": [1.0, null]}'
+    with pytest.raises(OutputError, match=r"x.json: not written, \$.a\[1\].b = nan"):
+        dumps({"a": [1.0, {"b": float("nan")}]}, what="x.json")
+
+
+def test_every_json_writer_is_strict() -> None:
+    """No ``json.dumps`` in the package that could write a NaN literal."""
+    import re
+
+    src = Path(__file__).resolve().parents[1] / "src" / "thirdhand"
+    loose = []
+    for path in src.rglob("*.py"):
+        for k, line in enumerate(path.read_text().splitlines(), 1):
+            call = re.search(r"json\.dumps?\((.*)", line)
+            if call and "allow_nan=False" not in line:
+                loose.append(f"{path.relative_to(src)}:{k}: {line.strip()}")
+    assert loose == []

@@ -9,6 +9,8 @@ from __future__ import annotations
 import signal
 import sys
 
+from thirdhand import jsontext
+
 
 class Terminated(BaseException):
     """Raised in the main thread on SIGTERM, so ``finally`` blocks (servers, temporaries) run."""
@@ -563,7 +565,10 @@ def demo(
     for line in summary["lines"]:
         out.print(f"  {line}")
     out.print(f"done in {time.perf_counter() - start:.1f} s")
-    write_text(output / "summary.json", json.dumps(summary, indent=2, default=str))
+    write_text(
+        output / "summary.json",
+        jsontext.dumps(summary, what=str(output / "summary.json"), indent=2, default=str),
+    )
 
 
 @app.command("config")

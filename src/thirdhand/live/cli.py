@@ -8,13 +8,13 @@ report (``docs/live.md``).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.console import Console
 
+from thirdhand import jsontext
 from thirdhand.errors import ThirdhandError
 
 
@@ -127,7 +127,7 @@ def live_command(
         doc["recording"] = str(recording)
         doc["task"] = str(task)
         doc["speed"] = speed
-        write_text(json_out, json.dumps(doc, indent=1) + "\n")
+        write_text(json_out, jsontext.dumps(doc, what=str(json_out), indent=1) + "\n")
         console.print(f"wrote {json_out}")
     if record is not None:
         from thirdhand.live.record import write_live_record

@@ -9,7 +9,6 @@ skills and segmentation together and prints each track's parse.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -17,7 +16,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from thirdhand import options
+from thirdhand import jsontext, options
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output, check_output, write_bytes
@@ -83,7 +82,7 @@ def fit(
     doc = block.model_dump(mode="json", by_alias=True)
     doc["inputs"] = [str(p) for p in demos]
     try:
-        write_bytes(output, json.dumps(doc, indent=1).encode())
+        write_bytes(output, jsontext.dumps(doc, what=str(output), indent=1).encode())
         if task is not None:
             from thirdhand.taskfile import load_task, save_task
 
@@ -285,7 +284,7 @@ def library(
                 max(int(np.floor((tr.t[-1] - tr.t[0]) * lib.options.rate_hz)), 0) for tr in data
             ]
             if output is not None:
-                write_text(output, json.dumps(lib.to_dict(), indent=1))
+                write_text(output, jsontext.dumps(lib.to_dict(), what=str(output), indent=1))
                 result["saved"] = str(output)
         result["tracks"] = [
             {
@@ -305,7 +304,7 @@ def library(
     except ThirdhandError as exc:
         raise _fail(exc) from None
     if as_json:
-        out.print(json.dumps(result, indent=1))
+        out.print(jsontext.dumps(result, what="--json", indent=1))
         return
     out.print(
         f"{len(data)} tracks, parser {parser}, {result['n_skills']} skills, share of samples "
