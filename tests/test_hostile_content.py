@@ -268,3 +268,61 @@ def test_every_json_writer_is_strict() -> None:
             if call and "allow_nan=False" not in line:
                 loose.append(f"{path.relative_to(src)}:{k}: {line.strip()}")
     assert loose == []
+
+
+# --- primitives library input tracks ------------------------------------------------
+
+
+def _track_files(tmp_path: Path) -> list[Path]:
+    from test_primitives_skill_library import wipe_track
+
+    out = []
+    for s in range(2):
+        tr = wipe_track(s)[0]
+        path = tmp_path / f"T{s}.csv"
+        np.savetxt(path, np.column_stack([tr.t, tr.pos, tr.quat]), delimiter=",")
+        out.append(path)
+    return out
+
+
+def _library_error(args: list[str]) -> str:
+    from typer.testing import CliRunner
+
+    from thirdhand.primitives.cli import app
+
+    res = CliRunner().invoke(app, ["library", *args, "--skills", "3"])
+    lines = [ln for ln in res.output.splitlines() if ln.strip()]
+    assert res.exit_code == 1 and len(lines) == 1, res.output
+    return lines[0]
+
+
+def test_library_tracks_keep_the_recording_rules(tmp_path: Path) -> None:
+    a, b = _track_files(tmp_path)
+    arr = np.loadtxt(a, delimiter=",")
+    five = tmp_path / "five.csv"
+    bad = arr.copy()
+    bad[10, 4:8] *= 5.0
+    np.savetxt(five, bad, delimiter=",")
+    assert "five.csv line" not in (line := _library_error([str(five), str(b)]))
+    assert "row 11: quaternion of norm 5, expected a unit one" in line
+    mm = tmp_path / "mm.csv"
+    scaled = arr.copy()
+    scaled[:, 1:4] *= 1000.0
+    np.savetxt(mm, scaled, delimiter=",")
+    line = _library_error([str(mm), str(b)])
+    assert "are these millimetres?" in line  # 300 mm read as metres: beyond 50 m
+    # a 3 cm wipe in millimetres (values within 50) beside one in metres: 1000 times larger
+    small_m, small_mm = tmp_path / "small_m.csv", tmp_path / "small_mm.csv"
+    shrunk = np.loadtxt(b, delimiter=",")
+    shrunk[:, 1:4] *= 0.1
+    np.savetxt(small_m, shrunk, delimiter=",")
+    scaled[:, 1:4] = arr[:, 1:4] * 0.1 * 1000.0
+    np.savetxt(small_mm, scaled, delimiter=",")
+    line = _library_error([str(small_m), str(small_mm)])
+    assert "small_mm.csv spans" in line and "give every track in metres" in line
+    line = _library_error([str(a), str(b), str(a)])
+    assert f"{a}: given twice (as {a})" in line
+    copy_ = tmp_path / "copy.csv"
+    copy_.write_bytes(a.read_bytes())
+    line = _library_error([str(a), str(copy_)])
+    assert "copy.csv: the same samples as" in line and "T0.csv (track 1)" in line

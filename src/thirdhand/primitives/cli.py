@@ -122,9 +122,15 @@ def _table_track(path: Path, arr: np.ndarray) -> Any:
     pos[:, : min(arr.shape[1] - 1, 3)] = arr[:, 1:4]
     quat = arr[:, 4:8] if arr.shape[1] == 8 else None
     if quat is not None:
+        from thirdhand.demonstration import MAX_QUAT_NORM_ERROR
+
         norm = np.linalg.norm(quat, axis=1, keepdims=True)
-        if np.any(norm < 1e-9):
-            raise FormatError(path, f"row {int(np.argmin(norm[:, 0])) + 1}: a zero quaternion")
+        off = np.abs(norm[:, 0] - 1.0) > MAX_QUAT_NORM_ERROR
+        if off.any():
+            k = int(np.argmax(off))
+            raise FormatError(
+                path, f"row {k + 1}: quaternion of norm {norm[k, 0]:.6g}, expected a unit one"
+            )
         quat = quat / norm
     return PoseTrack(arr[:, 0], pos, quat, name=str(path))
 
@@ -226,6 +232,7 @@ def library(
     unchanged by where in the room the task was done.
     """
     from thirdhand.fileops import write_text
+    from thirdhand.primitives.pose_channels import check_track_set
     from thirdhand.primitives.skill_library import (
         SkillLibrary,
         SkillParserOptions,
@@ -251,7 +258,12 @@ def library(
                 f"--plot {plot}: a figure is written as .png, .pdf or .svg; "
                 f"got the extension {plot.suffix or '(none)'!r}"
             )
+        for i, p in enumerate(tracks):
+            twice = [q for q in tracks[:i] if q.resolve() == p.resolve()]
+            if twice:
+                raise ThirdhandError(f"{p}: given twice (as {twice[0]}); give each track once")
         data = [tr for p in tracks for tr in _read_tracks(p, body)]
+        check_track_set(data)
         opts = SkillParserOptions(parser=parser, n_skills=skills, seed=seed)  # type: ignore[arg-type]
         result: dict[str, Any] = {"parser": parser}
         if parser == "cuts":
