@@ -496,6 +496,41 @@ def _log_execution(rec: Any, doc: dict[str, Any], path: Path) -> tuple[int, int]
     return q.shape[1], _log_robot(rec, doc, replay, path)
 
 
+def _foreign_phases(doc: dict[str, Any], known: set[str]) -> str | None:
+    """Why a phases file is not of this task's bodies (None when it is)."""
+    for k, pair in enumerate(doc["pairs"]):
+        for role in ("a", "b"):
+            name = pair.get(role)
+            if name not in known:
+                return (
+                    f"pairs[{k}].{role}: {name!r} is a body of neither the task nor its "
+                    "recording: the phases of another task"
+                )
+    return None
+
+
+def _foreign_run(doc: dict[str, Any], task: TaskFile) -> str | None:
+    """Why a run file is not a run of this task (None when it is)."""
+    objects = {o.name for o in task.objects}
+    ids = {c.id for c in task.constraints}
+    for key in ("steps", "recognised"):
+        for k, s in enumerate(doc.get(key) or []):
+            if not isinstance(s, dict):
+                continue
+            for role in ("parent", "child"):
+                if role in s and s[role] not in objects:
+                    return (
+                        f"{key}[{k}].{role}: {s[role]!r} is not an object of the task: "
+                        "a run of another task"
+                    )
+            if s.get("constraint") is not None and s["constraint"] not in ids:
+                return (
+                    f"{key}[{k}].constraint: {s['constraint']!r} is not a constraint of the "
+                    "task: a run of another task"
+                )
+    return None
+
+
 def write_rrd(
     path: str | os.PathLike[str],
     demo: Demonstration | None,
@@ -535,6 +570,9 @@ def write_rrd(
     ------
     OutputError
         The target's folder does not exist, or the file cannot be written.
+    FormatError
+        A phases file naming bodies of neither the task nor the recording, or a run
+        whose steps name objects or constraints the task lacks (another task's).
     """
     import rerun as rr
 
@@ -546,6 +584,19 @@ def write_rrd(
         raise OutputError(f"{p}: the folder {folder} does not exist")
     phases_doc = read_phases(phases) if phases is not None else None
     exec_doc = read_execution(execution) if execution is not None else None
+    known = (
+        {*(demo.body_names if demo is not None else ()), *(o.name for o in task.objects)}
+        if (task is not None)
+        else None
+    )
+    if phases_doc is not None and phases is not None and known is not None:
+        problem = _foreign_phases(phases_doc, known)
+        if problem is not None:
+            raise FormatError(phases, problem)
+    if exec_doc is not None and execution is not None and task is not None:
+        problem = _foreign_run(exec_doc, task)
+        if problem is not None:
+            raise FormatError(execution, problem)
     counts = dict.fromkeys(
         (
             "bodies",

@@ -385,6 +385,21 @@ class TaskFile(TaskModel):
                 return c
         raise KeyError(f"no constraint with id {id!r}; ids are {[c.id for c in self.constraints]}")
 
+    def foreign_recording_problem(self, body_names: Iterable[str]) -> str | None:
+        """Why a recording with these bodies is not one of this task, or None.
+
+        A recording of the task shows some of its objects; one that shows none is a
+        recording of another task (a task without objects takes any).
+        """
+        if self.objects and not {o.name for o in self.objects} & set(body_names):
+            names = sorted(o.name for o in self.objects)
+            more = ", …" if len(names) > 5 else ""
+            return (
+                f"shows none of the task's objects ({', '.join(names[:5])}{more}); "
+                "give a recording of this task"
+            )
+        return None
+
     def predecessors(self) -> list[list[int]]:
         """For each plan step, the indices of the steps it must follow.
 
