@@ -18,6 +18,7 @@ from hypothesis import strategies as st
 from pydantic import ValidationError
 
 from cli_helpers import call, settings_file
+from test_export_rrd import scene  # noqa: F401 (the fixture)
 from thirdhand.errors import TaskFileError
 from thirdhand.primitives._checks import PrimitiveError
 from thirdhand.task.store import parse_task
@@ -326,3 +327,74 @@ def test_library_tracks_keep_the_recording_rules(tmp_path: Path) -> None:
     copy_.write_bytes(a.read_bytes())
     line = _library_error([str(a), str(copy_)])
     assert "copy.csv: the same samples as" in line and "T0.csv (track 1)" in line
+
+
+# --- inputs of another task ---------------------------------------------------------
+
+
+def test_a_scene_file_of_another_object_set_is_refused(tmp_path: Path) -> None:
+    from test_scene_file import _scene, _write_stl
+    from thirdhand.errors import FormatError
+    from thirdhand.task.meshes import box_triangles
+    from thirdhand.task.scene_file import scene_geometry
+
+    _write_stl(tmp_path / "box.stl", box_triangles([0, 0, 0], [100, 40, 10]))
+    spec = {"mesh": "box.stl", "transformation": [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]}
+    path = _scene(tmp_path / "scene_x.json", {"/toolbox/a": spec, "/toolbox/b": spec})
+    assert set(scene_geometry(path, ["/toolbox/a", "rh"], parts=["/toolbox/a"])) == {"/toolbox/a"}
+    with pytest.raises(FormatError, match="lists none of the recording's bodies") as err:
+        scene_geometry(path, ["/chair/seat", "/chair/leg"])
+    assert "\n" not in str(err.value)
+    with pytest.raises(FormatError, match="does not list the recording's part '/chair/leg'"):
+        scene_geometry(path, ["/toolbox/a", "/chair/leg"], parts=["/toolbox/a", "/chair/leg"])
+
+
+def _another_task_recording(folder: Path) -> Path:
+    import dataclasses
+
+    from thirdhand import io
+    from thirdhand.demonstration import Demonstration
+    from thirdhand.synth import make_scene
+
+    other = folder / "other.parquet"
+    demo = make_scene("drawer", seed=1, sensor=None).slice(0.0, 1.0)
+    new = {n: f"/elsewhere/{k}" for k, n in enumerate(demo.body_names)}
+    renamed = Demonstration(
+        demo.t,
+        [dataclasses.replace(b, name=new[b.name]) for b in demo.bodies],
+        {new[n]: demo.pos(n) for n in demo.body_names},
+        {new[n]: demo.quat(n) for n in demo.body_names},
+    )
+    io.save(renamed, other)
+    return other
+
+
+def test_rrd_with_files_of_another_task_are_refused(tmp_path: Path, capsys, scene) -> None:  # noqa: F811
+    target = tmp_path / "x.rrd"
+    phases = json.loads(scene["phases"].read_text())
+    phases["pairs"][0]["a"] = "/elsewhere/lid"
+    bad_phases = tmp_path / "phases.json"
+    bad_phases.write_text(json.dumps(phases))
+    run = json.loads(scene["execution"].read_text())
+    run["steps"] = [{"index": 0, "parent": "/elsewhere/base", "child": "/elsewhere/lid"}]
+    bad_run = tmp_path / "run.json"
+    bad_run.write_text(json.dumps(run))
+    cases = [
+        ([str(scene["rec"]), "--with", str(scene["task"]), "--with", str(bad_phases)],
+         "pairs[0].a: '/elsewhere/lid' is a body of neither the task nor its recording"),
+        ([str(scene["rec"]), "--with", str(scene["task"]), "--with", str(bad_run)],
+         "steps[0].parent: '/elsewhere/base' is not an object of the task"),
+        ([str(scene["task"]), "--with", str(_another_task_recording(tmp_path))],
+         "shows none of the task's objects"),
+    ]  # fmt: skip
+    for args, says in cases:
+        rc, _, err = call(capsys, "convert", args[0], str(target), *args[1:])
+        assert rc == 1 and err.count("\n") == 1 and says in err, err
+        assert not target.exists()
+
+
+def test_review_demo_of_another_task_is_refused(tmp_path: Path, capsys, scene) -> None:  # noqa: F811
+    other = _another_task_recording(tmp_path)
+    rc, _, err = call(capsys, "review", str(scene["task"]), "--demo", str(other))
+    assert rc == 1 and err.count("\n") == 1
+    assert f"--demo {other}: shows none of the task's objects" in err
