@@ -96,6 +96,7 @@ def test_a_newline_in_a_name_does_not_inject_pddl(tmp_path) -> None:
     assert ";   part x__define__problem_pwned = x\\n(define (problem pwned))\n" in text
 
 
+@pytest.mark.slow
 @settings(
     max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture]
 )
