@@ -289,3 +289,17 @@ def test_run_check_accepts_exactly_runs_within_the_limits(n, dt, offset, joint) 
     speed = abs(offset) / (dt * (n - 1))
     slow = speed * dt <= 1.05 * panda.velocity[joint] * dt + 4e-6
     assert (problem is None) == (inside and slow and t[-1] <= MAX_RUN_S), problem
+
+
+def test_rrd_checks_a_run_against_its_robot_too(tmp_path, capsys) -> None:
+    from test_export_rrd import _run_with_robot
+
+    path, _, _ = _run_with_robot(tmp_path, stored_base=True)
+    doc = json.loads(path.read_text())
+    doc["q"] = [[100.0, *row[1:]] for row in doc["q"]]
+    path.write_text(json.dumps(doc))
+    target = tmp_path / "x.rrd"
+    rc, _, err = call(capsys, "convert", str(path.with_suffix(".parquet")), str(target),
+                      "--with", str(path))  # fmt: skip
+    assert rc == 1 and err.count("\n") == 1
+    assert "panda_joint1 = 100 is outside its limits" in err and not target.exists()

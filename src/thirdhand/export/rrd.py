@@ -331,6 +331,9 @@ def read_execution(path: Path) -> dict[str, Any]:
     t, q = _joint_arrays(doc)
     if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.size:
         raise FormatError(path, f"'q' must have one row per time: {q.shape} for {t.size} times")
+    problem = _robot_problem(doc, t, q)
+    if problem is not None:
+        raise FormatError(path, problem)
     steps = doc.get("recognised", [])
     if not isinstance(steps, list) or not all(
         isinstance(s, dict) and isinstance(s.get("t"), (int, float)) for s in steps
@@ -350,6 +353,26 @@ def read_execution(path: Path) -> dict[str, Any]:
                 path, f"'base_pos' must be {t.size} finite [x, y, z] rows, beside a 'base_pose'"
             )
     return doc
+
+
+def _robot_problem(doc: dict[str, Any], t: FloatArray, q: FloatArray) -> str | None:
+    """How a run that names a robot thirdhand simulates contradicts it (None if not).
+
+    Joint names, limits and times (:func:`~thirdhand.execute.run_check.run_problem`);
+    velocities for an executed run (a live run's arm follows the person, sampled
+    at the stream's frames, and is not held to them here).
+    """
+    from thirdhand.execute.robot import ROBOTS
+    from thirdhand.execute.run_check import robot_description, run_problem
+
+    name = doc.get("robot")
+    if not isinstance(name, str) or name not in ROBOTS or q.size == 0:
+        return None
+    names = doc.get("joint_names")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        return "'joint_names': expected a list of strings"
+    live = doc.get("source") == "thirdhand.live"
+    return run_problem(robot_description(name), names, t, q, velocities=not live)
 
 
 def _joint_arrays(doc: dict[str, Any]) -> tuple[FloatArray, FloatArray]:
