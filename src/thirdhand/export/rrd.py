@@ -360,7 +360,8 @@ def _robot_problem(doc: dict[str, Any], t: FloatArray, q: FloatArray) -> str | N
 
     Joint names, limits and times (:func:`~thirdhand.execute.run_check.run_problem`);
     velocities for an executed run (a live run's arm follows the person, sampled
-    at the stream's frames, and is not held to them here).
+    at the stream's frames, and is not held to them here; its times are checked
+    from its first sample, the stream's clock need not start at 0).
     """
     from thirdhand.execute.robot import ROBOTS
     from thirdhand.execute.run_check import robot_description, run_problem
@@ -372,6 +373,8 @@ def _robot_problem(doc: dict[str, Any], t: FloatArray, q: FloatArray) -> str | N
     if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
         return "'joint_names': expected a list of strings"
     live = doc.get("source") == "thirdhand.live"
+    if live and t.size:  # on the stream's clock, which need not start at 0
+        t = t - t[0]
     return run_problem(robot_description(name), names, t, q, velocities=not live)
 
 
