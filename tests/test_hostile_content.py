@@ -398,3 +398,37 @@ def test_review_demo_of_another_task_is_refused(tmp_path: Path, capsys, scene) -
     rc, _, err = call(capsys, "review", str(scene["task"]), "--demo", str(other))
     assert rc == 1 and err.count("\n") == 1
     assert f"--demo {other}: shows none of the task's objects" in err
+
+
+def test_a_primitive_s_scales_are_checked_when_read() -> None:
+    from thirdhand.primitives.dmp import DMP
+    from thirdhand.primitives.promp import ProMP
+    from thirdhand.primitives.serialize import (
+        dmp_from_dict,
+        dmp_to_dict,
+        promp_from_dict,
+        promp_to_dict,
+    )
+
+    t = np.linspace(0.0, 2.0, 101)
+    y = np.column_stack([np.sin(t), np.cos(t)])
+    doc = dmp_to_dict(DMP(20).fit(t, y))
+    dmp_from_dict(doc)
+    for key, value, says in [
+        ("tau", -2.0, "tau: expected a positive number, got -2.0"),
+        ("dt", 0.0, "dt: expected a positive number, got 0.0"),
+        ("tau", 1e9, "expected dt <= tau <= 3600 s"),
+        ("goal", [float("nan"), 0.0], "goal: non-finite values"),
+    ]:
+        with pytest.raises(PrimitiveError, match=None) as err:
+            dmp_from_dict({**doc, key: value})
+        assert says in str(err.value), str(err.value)
+    pdoc = promp_to_dict(ProMP(8).fit([(t, y), (t, y + 0.01 * t[:, None])]))
+    promp_from_dict(pdoc)
+    for key, value, says in [
+        ("noise", -1.0, "noise must be a variance >= 0"),
+        ("duration", 1e12, "duration must be in (0, 3600] s"),
+    ]:
+        with pytest.raises(PrimitiveError, match=None) as err:
+            promp_from_dict({**pdoc, key: value})
+        assert says in str(err.value), str(err.value)
