@@ -164,7 +164,7 @@ LIBRARY_CASES = [
      "channels: 'speed' is listed twice"),
     ("a 2 MHz rate", _set("rate_hz", 2e6), "rate_hz: expected a rate in (0, 1000] Hz, got 2e+06"),
     ("a billion-sample skill", _set("max_duration", 10**9),
-     "skills.max_duration: expected 1 to 12000 samples (600 s at 20 Hz), got 1000000000"),
+     "skills.max_duration: expected 1 to 72000 samples (at most 3600 s at 20 Hz), got 1000000000"),
     ("a huge log duration", _set("duration_log_mean", [1.0, 50.0, 1.5]),
      "skills.duration_log_mean[1] is 50"),
     ("a NaN mean", _set("means", [[0.0, float("nan")], [1.0, 2.0], [2.0, 3.0]]),

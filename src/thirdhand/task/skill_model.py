@@ -22,8 +22,10 @@ import numpy as np
 
 #: Highest rate a library parses tracks at, Hz (motion capture runs at 100-360 Hz).
 MAX_RATE_HZ = 1000.0
-#: Longest skill a library may hold, seconds: ``max_duration`` / ``rate_hz``.
-MAX_SKILL_S = 600.0
+#: Longest skill a library may hold, seconds: ``max_duration`` / ``rate_hz`` (an hour).
+MAX_SKILL_S = 3600.0
+#: Longest skill in samples whatever the rate (the parser's arrays grow with it).
+MAX_SKILL_SAMPLES = 100_000
 #: Widest smoothing window, samples.
 MAX_WINDOW = 10_000
 #: How far a probability sum may be from 1 (the file stores 17 significant digits).
@@ -70,7 +72,8 @@ def skill_model_problem(
         Log-normal durations in samples: finite means of at most
         :data:`MAX_SKILL_S` seconds; positive finite standard deviations.
     max_duration : int
-        Longest skill, samples: at least 1, at most :data:`MAX_SKILL_S` seconds.
+        Longest skill, samples: at least 1, at most :data:`MAX_SKILL_S` seconds
+        and :data:`MAX_SKILL_SAMPLES`.
     log_trans : array-like, shape (K, K)
         Each row's probabilities sum to 1, or the row is all impossible (an exit).
     log_init : array-like, shape (K,)
@@ -85,11 +88,11 @@ def skill_model_problem(
         return f"rate_hz: expected a rate in (0, {MAX_RATE_HZ:g}] Hz, got {rate_hz:g}"
     if not 1 <= window <= MAX_WINDOW:
         return f"window: expected 1 to {MAX_WINDOW} samples, got {window}"
-    longest = MAX_SKILL_S * rate_hz
+    longest = min(MAX_SKILL_S * rate_hz, MAX_SKILL_SAMPLES)
     if not 1 <= max_duration <= longest:
         return (
-            f"skills.max_duration: expected 1 to {longest:.0f} samples "
-            f"({MAX_SKILL_S:g} s at {rate_hz:g} Hz), got {max_duration}"
+            f"skills.max_duration: expected 1 to {longest:.0f} samples (at most "
+            f"{MAX_SKILL_S:g} s at {rate_hz:g} Hz), got {max_duration}"
         )
     try:
         mu, cov = _array(means), _array(covs)
