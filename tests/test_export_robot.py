@@ -27,6 +27,8 @@ from thirdhand.export.ros2 import ORIGIN_NS, WORLD_FRAME
 from thirdhand.taskfile import TaskFile, save_task
 
 PANDA = [f"panda_joint{k}" for k in range(1, 8)]
+PANDA_HOME = (0.0, -0.785398, 0.0, -2.35619, 0.0, 1.5707, 0.785398)
+BAXTER_HOME = (0.0, -0.55, 0.0, 0.75, 0.0, 1.26, 0.0)
 NS = 1_000_000_000
 
 
@@ -36,9 +38,13 @@ NS = 1_000_000_000
 def _run(
     folder: Path, *, success: bool = True, joints: list[str] = PANDA
 ) -> tuple[Path, dict[str, Any], Demonstration]:
-    """A Panda run of 3 steps (the 2nd by a person) at 50 Hz, with its replay."""
+    """A Panda run of 3 steps (the 2nd by a person) at 50 Hz, with its replay.
+
+    The joints swing by 0.1 rad around the robot's home, inside its limits.
+    """
+    home = PANDA_HOME if joints == PANDA else BAXTER_HOME
     t = np.round(np.arange(100) * 0.02, 6)
-    q = 0.1 * np.sin(np.outer(t, np.arange(1, 8)) + np.arange(7))
+    q = np.round(np.asarray(home) + 0.1 * np.sin(np.outer(t, np.arange(1, 8)) + np.arange(7)), 6)
     segments = [
         {"step": 0, "segment": "approach", "t_start": 0.0, "t_end": 0.48, "attached": None},
         {"step": 0, "segment": "insert", "t_start": 0.5, "t_end": 0.98, "attached": "leg 1"},
@@ -566,7 +572,7 @@ def test_real_toolbox_learned_with_its_scene_exports(tmp_path, capsys, shared_da
         (lambda d: d.update(segments=[3]), "segments[0]: expected step, t_start and t_end"),
         (lambda d: d["base_pose"].update(quat=[0, 0, 0, 2]), "not a unit quaternion"),
         (lambda d: d.update(success=False), "the run failed, only a successful run"),
-        (lambda d: d.update(t=d["t"][::-1]), "'t' is not strictly increasing"),
+        (lambda d: d.update(t=d["t"][::-1]), "'t'[1] = 1.96 s is not after 't'[0] = 1.98 s"),
         (lambda d: d.update(robot="ur5"), "'robot' 'ur5' is not a robot thirdhand simulates"),
     ],
 )

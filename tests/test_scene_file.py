@@ -257,6 +257,12 @@ def test_learned_from_finds_the_first_readable_recording(tmp_path: Path) -> None
     inputs = [InputFile(path=str(tmp_path / "gone.parquet"), sha256="0" * 64)]
     inputs.append(InputFile(path=str(scene), sha256="0" * 64))
     assert learned_from(TaskFile.new(inputs=inputs), task) is None
-    # a relative path is found beside the task file
-    inputs.append(InputFile(path="rec.parquet", sha256="0" * 64))
+    # a relative path is found beside the task file, if it holds what was recorded
+    changed = [*inputs, InputFile(path="rec.parquet", sha256="0" * 64)]
+    assert learned_from(TaskFile.new(inputs=changed), task) is None
+    inputs.append(InputFile.from_path(rec).model_copy(update={"path": "rec.parquet"}))
     assert learned_from(TaskFile.new(inputs=inputs), task) == tmp_path / "rec.parquet"
+    # not from the current folder: only where the task says
+    other = tmp_path / "elsewhere"
+    other.mkdir()
+    assert learned_from(TaskFile.new(inputs=inputs), other / "task.json") is None

@@ -286,3 +286,17 @@ def test_every_reader_goes_through_the_reading_policy() -> None:
             if not called & POLICY:
                 offenders.append(f"{rel}:{raw[0]} ({fn.name})")
     assert offenders == []
+
+
+def test_every_module_has_a_layer() -> None:
+    """Every top-level module and package of thirdhand is named in a layer of the
+    import-linter contract, so none escapes it."""
+    import re
+    import tomllib
+
+    config = tomllib.loads((PACKAGE.parents[1] / "pyproject.toml").read_text())
+    (contract,) = config["tool"]["importlinter"]["contracts"]
+    named = set(re.findall(r"thirdhand\.([\w]+)", " ".join(contract["layers"])))
+    tops = {p.stem for p in PACKAGE.glob("*.py") if p.stem != "__init__"}
+    tops |= {p.name for p in PACKAGE.iterdir() if (p / "__init__.py").exists()}
+    assert tops - named == set()

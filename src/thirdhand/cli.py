@@ -9,6 +9,7 @@ from __future__ import annotations
 import signal
 import sys
 
+from thirdhand import jsontext
 from thirdhand.errors import Terminated
 
 
@@ -585,15 +586,15 @@ def _convert_rrd(
             _fail("--with a recording is for a TASK source; the source is the recording")
         recording = source
     task_file = load_task(task_path) if task_path is not None else None
-    if recording is None and task_file is not None:
-        for inp in task_file.provenance.inputs:
-            for cand in (Path(inp.path), source.parent / inp.path):
-                if cand.exists() and cand.suffix.lower() != ".json":
-                    recording = cand
-                    break
-            if recording is not None:
-                break
+    if recording is None and task_file is not None and task_path is not None:
+        from thirdhand.execute.cli import learned_from
+
+        recording = learned_from(task_file, task_path)
     demo_obj = io.load(recording) if recording is not None else None
+    if demo_obj is not None and task_file is not None:
+        problem = task_file.foreign_recording_problem(demo_obj.body_names)
+        if problem is not None:
+            _fail(f"--with {recording}: {problem}")
     counts = write_rrd(
         target,
         demo_obj,
@@ -624,7 +625,10 @@ def demo(
     for line in summary["lines"]:
         out.print(f"  {line}")
     out.print(f"done in {time.perf_counter() - start:.1f} s")
-    write_text(output / "summary.json", json.dumps(summary, indent=2, default=str))
+    write_text(
+        output / "summary.json",
+        jsontext.dumps(summary, what=str(output / "summary.json"), indent=2, default=str),
+    )
 
 
 @app.command("config")

@@ -8,12 +8,11 @@ returned summary lists what was written and the key figures.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Any
 
-from thirdhand import io
+from thirdhand import io, jsontext
 from thirdhand.demonstration import Demonstration
 from thirdhand.fileops import atomic_output, write_text
 from thirdhand.learn.results import LearnedTask
@@ -88,7 +87,7 @@ def _write_segmentation(result: Any, out: Path, summary: dict[str, Any]) -> None
     from thirdhand.segment.pipeline import scores_by_kind
 
     path = out / "phases.json"
-    write_text(path, json.dumps(result.to_dict()))
+    write_text(path, jsontext.dumps(result.to_dict(), what=str(path)))
     summary["files"].append(str(path))
     scores = scores_by_kind(result)
     n_int = sum(len(p.intervals) for p in result.pairs)

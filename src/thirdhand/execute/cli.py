@@ -86,6 +86,11 @@ def execute_command(
         check_outputs([("--record", replay), ("--record", run)], force=force, inputs=inputs)
     console = Console()
     t = load_task(task)
+    if not t.plan:
+        raise ThirdhandError(
+            f"{task}: the task has no plan, nothing to execute "
+            "(learn one first: thirdhand learn RECORDINGS -o TASK.json)"
+        )
     search = [str(m) for m in meshes]
     opts = ExecutionOptions(
         sample_free_dofs=cfg.free_dofs, step_time_limit=cfg.step_time,
@@ -95,13 +100,9 @@ def execute_command(
     )  # fmt: skip
     d = io.load(demo) if demo is not None else None
     if d is not None:
-        shown = {o.name for o in t.objects} & set(d.body_names)
-        if t.objects and not shown:
-            raise ThirdhandError(
-                f"--demo {demo}: shows none of the task's objects "
-                f"({', '.join(sorted(o.name for o in t.objects))}); give a demonstration of "
-                "this task"
-            )
+        problem = t.foreign_recording_problem(d.body_names)
+        if problem is not None:
+            raise ThirdhandError(f"--demo {demo}: {problem}")
     if robot is not None and robot not in ROBOTS:
         raise ThirdhandError(f"--robot {robot}: unknown (expected one of {', '.join(ROBOTS)})")
     robot, assembly_xy = task_defaults(t, robot, cfg.assembly_at)
@@ -190,18 +191,27 @@ def execute_command(
 
 
 def learned_from(t: TaskFile, task: Path) -> Path | None:
-    """The first recording the task's provenance lists that is still readable, or None.
+    """The first recording the task's provenance lists that is still there, or None.
 
-    A relative path is tried as written (from the current folder) and beside the task file.
+    Only where the task says: a relative path beside the task file (not from the
+    current folder), an absolute one as written; a regular file or folder of a
+    recording format whose content has the SHA-256 the provenance recorded (an
+    input recorded without one is taken as found). A file changed since is not
+    the recording the task was learned from.
     """
     from thirdhand import io
+    from thirdhand.task.model import InputFile
 
     for inp in t.provenance.inputs:
         raw = Path(inp.path)
-        for p in (raw,) if raw.is_absolute() else (raw, task.parent / raw):
-            try:
-                io.detect(p)
-            except ThirdhandError:
-                continue
-            return p
+        p = raw if raw.is_absolute() else task.parent / raw
+        if not (p.is_file() or p.is_dir()):
+            continue
+        try:
+            io.detect(p)
+        except ThirdhandError:
+            continue
+        if inp.sha256 is not None and InputFile.from_path(p).sha256 != inp.sha256:
+            continue
+        return p
     return None

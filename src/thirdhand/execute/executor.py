@@ -662,7 +662,8 @@ class Executor:
     ) -> ExecutionResult:  # fmt: skip
         holds = detect_done(world, self.bound_task(), pos_tol=self.options.pos_tol,
                             rot_tol=self.options.rot_tol)  # fmt: skip
-        ok = all(holds[c.id] for _, _, c in self._steps())
+        steps = self._steps()
+        ok = bool(steps) and all(holds[c.id] for _, _, c in steps)  # nothing done is no success
         return ExecutionResult(reports, ok, trajectory, [*self.notes, *log], world.poses())
 
     def bound_task(self) -> TaskFile:

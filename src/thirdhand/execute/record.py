@@ -11,7 +11,6 @@ the per-step reports.
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Sequence
 from dataclasses import asdict
@@ -20,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-from thirdhand import se3
+from thirdhand import jsontext, se3
 from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.execute.executor import ExecutionResult
@@ -214,7 +213,9 @@ def write_run(
     replay, traj_path = record_paths(out)
     io.save(replay_demonstration(robot, result, rate_hz=rate_hz, task_name=task_name), replay)
     doc = trajectory_document(robot, result, rate_hz=rate_hz)
-    atomic_write_bytes(traj_path, (json.dumps(doc, indent=1) + "\n").encode())
+    atomic_write_bytes(
+        traj_path, (jsontext.dumps(doc, what=str(traj_path), indent=1) + "\n").encode()
+    )
     return replay, traj_path
 
 

@@ -292,7 +292,7 @@ class ExecutionResult:
         One per attempted step, in execution order (online: also the steps a
         person did or that already held).
     success : bool
-        Every constraint of the plan holds at the end.
+        Every constraint of the plan holds at the end (a plan of no step is no success).
     trajectory : list of (Segment, ExecutedSegment-like dict)
         Executed motions, for :mod:`thirdhand.execute.record`.
     events : list of str

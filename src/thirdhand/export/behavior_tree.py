@@ -25,6 +25,13 @@ Port values are strings; numbers are separated by ``;`` (BehaviorTree.CPP's
     ``min;max`` of tx ty tz (metres) and rx ry rz (radians) in the constraint
     frame: 12 numbers.
 
+Names go into the XML as they are (the robot side looks objects up by name),
+so a name the tree cannot hold is refused with one line
+(:func:`check_port_value`): a control character (XML 1.0 has no way to write
+most of them, and none belongs in an object name) and a value BehaviorTree.CPP
+would read as a blackboard reference rather than a string (``{child}``: a
+value whose first and last characters, spaces aside, are braces).
+
 The ``TreeNodesModel`` declares every custom node and its ports (with
 descriptions), so Groot2 shows the tree and BehaviorTree.CPP can check the
 subtree's ports. The robot side implements ``Pick``, ``MoveAlongConstraint``
@@ -33,6 +40,7 @@ and ``Place`` (see ``docs/how-to/robot.md``).
 
 from __future__ import annotations
 
+import unicodedata
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
@@ -98,13 +106,39 @@ def _nums(values: tuple[float, ...] | list[float]) -> str:
     return ";".join(f"{float(v):.9g}" for v in values)
 
 
+def check_port_value(value: str, *, where: str) -> str:
+    """``value`` if a BehaviorTree.CPP v4 XML port can hold it as a plain string.
+
+    Raises
+    ------
+    TaskFileError
+        A control or non-character code point (``where`` names the field), or a
+        value BehaviorTree.CPP reads as a blackboard reference (``{name}``).
+    """
+    for ch in value:
+        cat = unicodedata.category(ch)
+        if cat in ("Cc", "Cs") or ch in ("\ufffe", "\uffff"):
+            raise TaskFileError(
+                f"{where}: {value!r} has the character U+{ord(ch):04X}, which a behaviour "
+                "tree's XML cannot hold; rename it in the task file"
+            )
+    stripped = value.strip(" ")
+    if len(stripped) >= 2 and stripped[0] == "{" and stripped[-1] == "}":
+        raise TaskFileError(
+            f"{where}: {value!r} would be read by BehaviorTree.CPP as a blackboard "
+            "reference, not a name; rename it in the task file"
+        )
+    return value
+
+
 def step_ports(task: TaskFile) -> list[StepPorts]:
     """Every plan step's port values.
 
     Raises
     ------
     TaskFileError
-        No plan, or a step whose constraint is not in the task.
+        No plan, a step whose constraint is not in the task, or a name a port
+        cannot hold (:func:`check_port_value`).
     """
     if not task.plan:
         raise TaskFileError("the task has no plan (learn it from a demonstration first)")
@@ -121,6 +155,9 @@ def step_ports(task: TaskFile) -> list[StepPorts]:
                 )
             c = cands[0]
         frame = c.frame
+        check_port_value(c.id, where=f"plan[{i}].constraint")
+        check_port_value(s.parent, where=f"plan[{i}].parent")
+        check_port_value(s.child, where=f"plan[{i}].child")
         out.append(
             StepPorts(
                 index=i,

@@ -23,10 +23,15 @@ first) is not in the problem: STRIPS cannot say "after all of these steps"
 in one generic action, and a planner is free to choose; the behaviour tree
 (:mod:`thirdhand.export.behavior_tree`) keeps it.
 
-PDDL names are letters, digits, ``-`` and ``_``: object names are lower-cased
-and other characters replaced by ``_`` (``/toolbox/side_front`` becomes
-``toolbox_side_front``); the problem's header comments give every name's
-original.
+PDDL names are a letter, then letters, digits, ``-`` and ``_``, and PDDL
+does not tell case apart: object names are lower-cased and other characters
+replaced by ``_`` (``/toolbox/side_front`` becomes ``toolbox_side_front``); a
+name that is one of PDDL's words (``not``, ``define``, ``and``, ``object``...)
+or the domain's own (``part``, ``placed``...) gets ``_`` appended, and a name
+another name already took a numeric suffix, so every object has its own
+identifier (:func:`pddl_names`, checked injective). The problem's header
+comments give every name's original, escaped to one line of printable ASCII
+(:func:`comment_text`): nothing in a name can end a comment.
 """
 
 from __future__ import annotations
@@ -69,19 +74,52 @@ def domain_path(problem: str | os.PathLike[str]) -> Path:
     return p.with_name(f"{p.stem}.domain{p.suffix or '.pddl'}")
 
 
+#: Words a PDDL name may not be: the language's keywords and the domain's own names.
+RESERVED: frozenset[str] = frozenset(
+    {
+        "and", "or", "not", "imply", "exists", "forall", "when", "either", "oneof",
+        "define", "domain", "problem", "object", "assign", "increase", "decrease",
+        "scale-up", "scale-down", "maximize", "minimize", "total-cost", "total-time",
+        "at", "over", "all", "start", "end", "preference", "sometime", "always",
+        "within", "number", "undefined", "is-violated",
+        DOMAIN_NAME, ACTION, "part", "slot", "fits", "placed", "loose", "open", "is_constraint",
+    }
+)  # fmt: skip
+_IDENTIFIER = re.compile(r"[a-z][a-z0-9_-]*")
+
+
+def comment_text(name: str) -> str:
+    """``name`` as printable ASCII on one line (``\\n``, ``\\x00``, ``\\u00e9`` escapes)."""
+    return name.encode("unicode_escape").decode("ascii")
+
+
 def pddl_names(names: Sequence[str], *, taken: set[str] | None = None) -> list[str]:
-    """Valid, unique PDDL names (a letter, then letters, digits, ``-``, ``_``), lower case."""
+    """Valid, unique PDDL names (a letter, then letters, digits, ``-``, ``_``), lower case.
+
+    No name is a PDDL keyword or a name of the domain (:data:`RESERVED`), and no
+    two names map to one identifier (nor to one in ``taken``, which is updated).
+
+    Raises
+    ------
+    TaskFileError
+        Two names mapped to one identifier (a broken invariant, never expected).
+    """
     used = taken if taken is not None else set()
+    before = len(used)
     out = []
     for name in names:
         base = re.sub(r"[^a-z0-9_-]", "_", name.lower()).strip("_-") or "x"
         if not base[0].isalpha():
             base = f"n{base}"
+        if base in RESERVED:
+            base = f"{base}_"
         cand, k = base, 2
         while cand in used:
             cand, k = f"{base}_{k}", k + 1
         used.add(cand)
         out.append(cand)
+    if len(used) - before != len(out) or not all(_IDENTIFIER.fullmatch(n) for n in out):
+        raise TaskFileError(f"PDDL names {out} of {list(names)} are not unique identifiers")
     return out
 
 
@@ -107,9 +145,10 @@ def problem_pddl(task: TaskFile, *, name: str = "task") -> str:
     children = {s.child for s in task.plan}
     (problem_name,) = pddl_names([name])
     lines = [f"; thirdhand task as a PDDL problem; domain in {DOMAIN_NAME} (the .domain.pddl file)"]
-    lines += [f";   part {part_of[n]} = {n}" for n in parts]
+    lines += [f";   part {part_of[n]} = {comment_text(n)}" for n in parts]
     lines += [
-        f";   slot {c} = constraint {slots[i]} (plan step {i})" for i, c in enumerate(slot_names)
+        f";   slot {c} = constraint {comment_text(slots[i])} (plan step {i})"
+        for i, c in enumerate(slot_names)
     ]
     lines += [
         f"(define (problem {problem_name})",

@@ -18,7 +18,11 @@ into the topics a ROS 2 integrator plays back with ``ros2 bag play``:
     tucked left arm), so ``robot_state_publisher`` can draw the whole robot.
 ``/tf``
     ``tf2_msgs/msg/TFMessage`` at every sample: ``world -> <part>`` for every part
-    placed at that time, the frames named after the task's objects.
+    placed at that time, the frames named after the task's objects: a name
+    that is a valid frame id and not one of the robot's links is its own frame;
+    any other is made one, unique whatever the other names are
+    (:func:`frame_ids`: ``leg 3`` beside ``leg_3`` becomes ``leg_3_`` and 8 hex
+    digits of the name's hash).
 ``/tf_static``
     ``world -> <robot root link>`` (``panda_link0``; Baxter's ``base``), the base
     pose the run was planned for, offered with transient-local durability as
@@ -55,6 +59,7 @@ from numpy.typing import NDArray
 
 from thirdhand.arrays import FloatArray
 from thirdhand.errors import FormatError
+from thirdhand.execute.run_check import UnknownRobotError, robot_description, run_problem
 from thirdhand.fileops import atomic_output
 
 if TYPE_CHECKING:
@@ -194,18 +199,29 @@ def read_execution(path: PathLike) -> ExecutionRecord:
         raise FormatError(
             p, f"'q' has shape {q.shape}, expected ({t.size}, {len(names)}) for 't' and the joints"
         )
-    if np.any(np.diff(t) <= 0):
-        raise FormatError(p, "'t' is not strictly increasing")
+    try:
+        robot = robot_description(str(doc.get("robot")))
+    except UnknownRobotError as exc:
+        raise FormatError(p, f"'robot' {exc}") from None
+    problem = run_problem(robot, names, t, q)
+    if problem is not None:
+        raise FormatError(p, problem)
     steps = doc.get("steps")
     segments = doc.get("segments")
     if not isinstance(steps, list) or not isinstance(segments, list):
         raise FormatError(p, "expected 'steps' and 'segments' lists")
+    listed: dict[int, int] = {}
     for k, s in enumerate(steps):
         if not isinstance(s, dict) or not isinstance(s.get("index"), int):
             raise FormatError(p, f"steps[{k}]: expected a step report with an integer 'index'")
+        if s["index"] < 0 or s["index"] in listed:
+            why = "is negative" if s["index"] < 0 else f"is also steps[{listed[s['index']]}]"
+            raise FormatError(p, f"steps[{k}]: step {s['index']} {why}; each step is listed once")
+        listed[s["index"]] = k
     for k, seg in enumerate(segments):
-        if not isinstance(seg, dict):
-            raise FormatError(p, f"segments[{k}]: expected step, t_start and t_end")
+        problem = _segment_problem(seg, t, listed)
+        if problem is not None:
+            raise FormatError(p, f"segments[{k}]: {problem}")
     not_done = [s for s in steps if s.get("status") not in DONE_STATUSES]
     if not_done or doc.get("success") is not True or not steps:
         detail = "; ".join(
@@ -271,7 +287,7 @@ def read_execution(path: PathLike) -> ExecutionRecord:
             if not gripper or gripper[-1].part != part:
                 gripper.append(GripperEvent(t=float(seg["t_start"]), part=part))
     return ExecutionRecord(
-        robot=str(doc.get("robot")),
+        robot=robot.name,
         base_pos=base_pos,
         base_quat=base_quat / norm,
         joint_names=list(names),
@@ -284,24 +300,69 @@ def read_execution(path: PathLike) -> ExecutionRecord:
     )
 
 
+def _segment_problem(seg: Any, t: FloatArray, steps: dict[int, int]) -> str | None:
+    """How a ``segments`` entry is malformed (None if it is not)."""
+    if not isinstance(seg, dict):
+        return "expected step, t_start and t_end"
+    step, span = seg.get("step"), (seg.get("t_start"), seg.get("t_end"))
+    if not isinstance(step, int) or not all(isinstance(v, (int, float)) for v in span):
+        return "expected an integer step and numbers t_start and t_end"
+    lo, hi = float(span[0]), float(span[1])  # type: ignore[arg-type]
+    if step != -1 and step not in steps:
+        return f"step {step} is not in 'steps' (-1 is the return home)"
+    if not (t[0] - 1e-6 <= lo <= hi <= t[-1] + 1e-6):
+        return f"[{lo}, {hi}] s is not a time span within the run's [{t[0]}, {t[-1]}] s"
+    return None
+
+
 def replay_path(execution: PathLike) -> Path:
     """The replay ``execute --record`` writes beside the trajectory file."""
     return Path(execution).with_suffix(".parquet")
 
 
-def frame_ids(names: Sequence[str]) -> list[str]:
-    """Valid, unique tf frame ids for object names (``leg 1`` -> ``leg_1``)."""
-    out: list[str] = []
-    used: set[str] = {WORLD_FRAME}
-    for name in names:
-        base = re.sub(r"[^A-Za-z0-9_/]", "_", name).strip("/") or "part"
-        if base[0].isdigit():
-            base = f"_{base}"
-        cand, k = base, 2
-        while cand in used:
-            cand, k = f"{base}_{k}", k + 1
-        used.add(cand)
-        out.append(cand)
+_FRAME_ID = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*")
+
+
+def _frame_stem(name: str) -> str:
+    parts = re.sub(r"[^A-Za-z0-9_/]", "_", name).split("/")
+    parts = [f"_{s}" if s[0].isdigit() else s for s in parts if s]
+    return "/".join(parts) or "part"
+
+
+def frame_ids(names: Sequence[str], *, reserved: Sequence[str] = ()) -> list[str]:
+    """Valid tf frame ids for distinct object names, unique by construction.
+
+    A name that is already a valid frame id (``[A-Za-z_][A-Za-z0-9_]*`` parts
+    joined by ``/``, no leading ``/``) and not :data:`WORLD_FRAME` or one of
+    ``reserved`` (the robot's links) is its own frame. Any other name's
+    characters outside ``[A-Za-z0-9_/]`` become ``_`` (``leg 3`` -> ``leg_3``);
+    when that stem is a frame another name has, or the stem of another name
+    too, it is followed by ``_`` and 8 hex digits of the name's SHA-256
+    (``leg 3`` beside ``leg_3`` -> ``leg_3_…``). So a name's frame does not
+    depend on the order of the names, and two names never share a frame.
+
+    Raises
+    ------
+    FormatError
+        Two names given twice, or mapped to one frame (a broken invariant).
+    """
+    import hashlib
+    from collections import Counter
+
+    taken = {WORLD_FRAME, *reserved}
+    own = {n for n in names if _FRAME_ID.fullmatch(n) and n not in taken}
+    stems = {n: _frame_stem(n) for n in names if n not in own}
+    shared = Counter(stems.values())
+    out = []
+    for n in names:
+        frame = n
+        if n not in own:
+            frame = stems[n]
+            if frame in taken or frame in own or shared[frame] > 1:
+                frame = f"{frame}_{hashlib.sha256(n.encode()).hexdigest()[:8]}"
+        out.append(frame)
+    if len(set(out)) != len(out) or taken & set(out) or len(set(names)) != len(names):
+        raise FormatError("frames", f"no distinct tf frames for the objects {list(names)}")
     return out
 
 
@@ -322,28 +383,14 @@ def robot_joints(robot: str) -> tuple[str, dict[str, float], tuple[float, float]
     FormatError
         For a robot thirdhand does not simulate.
     """
-    from thirdhand.execute.robot import ROBOTS, robots_dir
-
-    spec = ROBOTS.get(robot)
-    if spec is None:
-        raise FormatError(robot, f"{robot!r} is not a robot thirdhand simulates ({sorted(ROBOTS)})")
-    import xml.etree.ElementTree as ET
-
-    urdf = ET.parse(robots_dir() / spec.urdf).getroot()
-    children = {j.find("child").get("link") for j in urdf.findall("joint")}  # type: ignore[union-attr]
-    roots = [link.get("name") for link in urdf.findall("link") if link.get("name") not in children]
-    movable = [
-        str(j.get("name"))
-        for j in urdf.findall("joint")
-        if j.get("type") in ("revolute", "prismatic", "continuous")
-    ]
-    held = {n: float(spec.locked.get(n, 0.0)) for n in movable if n not in spec.arm_joints}
+    try:
+        desc = robot_description(robot)
+    except UnknownRobotError as exc:
+        raise FormatError(robot, str(exc)) from None
     finger = GRIPPER_JOINT[robot]
-    limit = next(j.find("limit") for j in urdf.findall("joint") if j.get("name") == finger)
-    bounds = [float(limit.get(k, "0")) for k in ("lower", "upper")]  # type: ignore[union-attr]
-    opened = held[finger]
-    closed = max(bounds, key=lambda b: abs(b - opened))
-    return str(roots[0]), held, (opened, closed)
+    opened = desc.held[finger]
+    closed = max(desc.finger_limits[finger], key=lambda b: abs(b - opened))
+    return desc.root_link, dict(desc.held), (opened, closed)
 
 
 def _stamp(store: Typestore, ns: int) -> Any:
@@ -396,7 +443,8 @@ def _messages(
         )
         out.append((ns, "/joint_states", msg))
     parts = [b.name for b in replay.bodies if b.kind == "part"]
-    frames = dict(zip(parts, frame_ids(parts), strict=True))
+    links = robot_description(run.robot).links
+    frames = dict(zip(parts, frame_ids(parts, reserved=links), strict=True))
     pos = {n: replay.pos(n) for n in parts}
     quat = {n: replay.quat(n) for n in parts}
     seen = {

@@ -335,6 +335,9 @@ def read_execution(path: Path) -> dict[str, Any]:
     t, q = _joint_arrays(doc)
     if t.ndim != 1 or q.ndim != 2 or q.shape[0] != t.size:
         raise FormatError(path, f"'q' must have one row per time: {q.shape} for {t.size} times")
+    problem = _robot_problem(doc, t, q)
+    if problem is not None:
+        raise FormatError(path, problem)
     steps = doc.get("recognised", [])
     if not isinstance(steps, list) or not all(
         isinstance(s, dict) and isinstance(s.get("t"), (int, float)) for s in steps
@@ -354,6 +357,29 @@ def read_execution(path: Path) -> dict[str, Any]:
                 path, f"'base_pos' must be {t.size} finite [x, y, z] rows, beside a 'base_pose'"
             )
     return doc
+
+
+def _robot_problem(doc: dict[str, Any], t: FloatArray, q: FloatArray) -> str | None:
+    """How a run that names a robot thirdhand simulates contradicts it (None if not).
+
+    Joint names, limits and times (:func:`~thirdhand.execute.run_check.run_problem`);
+    velocities for an executed run (a live run's arm follows the person, sampled
+    at the stream's frames, and is not held to them here; its times are checked
+    from its first sample, the stream's clock need not start at 0).
+    """
+    from thirdhand.execute.robot import ROBOTS
+    from thirdhand.execute.run_check import robot_description, run_problem
+
+    name = doc.get("robot")
+    if not isinstance(name, str) or name not in ROBOTS or q.size == 0:
+        return None
+    names = doc.get("joint_names")
+    if not isinstance(names, list) or not all(isinstance(n, str) for n in names):
+        return "'joint_names': expected a list of strings"
+    live = doc.get("source") == "thirdhand.live"
+    if live and t.size:  # on the stream's clock, which need not start at 0
+        t = t - t[0]
+    return run_problem(robot_description(name), names, t, q, velocities=not live)
 
 
 def _joint_arrays(doc: dict[str, Any]) -> tuple[FloatArray, FloatArray]:
@@ -500,6 +526,41 @@ def _log_execution(rec: Any, doc: dict[str, Any], path: Path) -> tuple[int, int]
     return q.shape[1], _log_robot(rec, doc, replay, path)
 
 
+def _foreign_phases(doc: dict[str, Any], known: set[str]) -> str | None:
+    """Why a phases file is not of this task's bodies (None when it is)."""
+    for k, pair in enumerate(doc["pairs"]):
+        for role in ("a", "b"):
+            name = pair.get(role)
+            if name not in known:
+                return (
+                    f"pairs[{k}].{role}: {name!r} is a body of neither the task nor its "
+                    "recording: the phases of another task"
+                )
+    return None
+
+
+def _foreign_run(doc: dict[str, Any], task: TaskFile) -> str | None:
+    """Why a run file is not a run of this task (None when it is)."""
+    objects = {o.name for o in task.objects}
+    ids = {c.id for c in task.constraints}
+    for key in ("steps", "recognised"):
+        for k, s in enumerate(doc.get(key) or []):
+            if not isinstance(s, dict):
+                continue
+            for role in ("parent", "child"):
+                if role in s and s[role] not in objects:
+                    return (
+                        f"{key}[{k}].{role}: {s[role]!r} is not an object of the task: "
+                        "a run of another task"
+                    )
+            if s.get("constraint") is not None and s["constraint"] not in ids:
+                return (
+                    f"{key}[{k}].constraint: {s['constraint']!r} is not a constraint of the "
+                    "task: a run of another task"
+                )
+    return None
+
+
 def write_rrd(
     path: str | os.PathLike[str],
     demo: Demonstration | None,
@@ -539,6 +600,9 @@ def write_rrd(
     ------
     OutputError
         The target's folder does not exist, or the file cannot be written.
+    FormatError
+        A phases file naming bodies of neither the task nor the recording, or a run
+        whose steps name objects or constraints the task lacks (another task's).
     """
     import rerun as rr
 
@@ -550,6 +614,19 @@ def write_rrd(
         raise OutputError(f"{p}: the folder {folder} does not exist")
     phases_doc = read_phases(phases) if phases is not None else None
     exec_doc = read_execution(execution) if execution is not None else None
+    known = (
+        {*(demo.body_names if demo is not None else ()), *(o.name for o in task.objects)}
+        if (task is not None)
+        else None
+    )
+    if phases_doc is not None and phases is not None and known is not None:
+        problem = _foreign_phases(phases_doc, known)
+        if problem is not None:
+            raise FormatError(phases, problem)
+    if exec_doc is not None and execution is not None and task is not None:
+        problem = _foreign_run(exec_doc, task)
+        if problem is not None:
+            raise FormatError(execution, problem)
     counts = dict.fromkeys(
         (
             "bodies",

@@ -8,13 +8,13 @@ labels and the demonstration's ``meta``.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from thirdhand import jsontext
 from thirdhand.demonstration import (
     Demonstration,
     body_info_from_dict,
@@ -63,7 +63,9 @@ def write(demo: Demonstration, path: str | os.PathLike[str]) -> None:
         "meta": demo.meta,
     }
     table = pa.table(arrays)
-    table = table.replace_schema_metadata({_META_KEY: json.dumps(header).encode()})
+    table = table.replace_schema_metadata(
+        {_META_KEY: jsontext.dumps(header, what="the recording's header").encode()}
+    )
     with atomic_output(p) as tmp:
         pq.write_table(table, tmp, compression="zstd")
 

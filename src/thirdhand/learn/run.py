@@ -176,7 +176,11 @@ def learn_task(
     if scene_path is not None:
         from thirdhand.task.scene_file import scene_geometry
 
-        geometry = scene_geometry(scene_path, sorted({b for d in demo_list for b in d.body_names}))
+        geometry = scene_geometry(
+            scene_path,
+            sorted({b for d in demo_list for b in d.body_names}),
+            parts=sorted({b.name for d in demo_list for b in d.bodies if b.kind == "part"}),
+        )
     objects = task_objects(demo_list, geometry)
     constraints = task_constraints(learned)
 

@@ -8,13 +8,13 @@ report (``docs/explanation/live.md``).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated
 
 import typer
 from rich.console import Console
 
+from thirdhand import jsontext
 from thirdhand.config import ConfigOption
 from thirdhand.errors import Terminated, ThirdhandError
 
@@ -141,7 +141,7 @@ def live_command(
         doc["task"] = str(task)
         doc["speed"] = speed
         doc["interrupted"] = interrupted is not None
-        write_text(json_out, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+        write_text(json_out, jsontext.dumps(doc, what=str(json_out), indent=1) + "\n")
         console.print(f"wrote {json_out}")
     if record is not None:
         from thirdhand.live.record import write_live_record

@@ -30,14 +30,13 @@ there is no arm: ``t`` and ``q`` are empty.
 
 from __future__ import annotations
 
-import json
 import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from thirdhand import se3
+from thirdhand import jsontext, se3
 from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import BodyInfo, Demonstration
 from thirdhand.execute.record import TOOL_BODY, record_paths, robot_joints_document
@@ -165,7 +164,9 @@ def write_live_record(
     replay_path, traj_path = record_paths(out)
     replay, doc = live_replay(demo, report, assist)
     io.save(replay, replay_path)
-    atomic_write_bytes(traj_path, (json.dumps(doc, indent=1) + "\n").encode())
+    atomic_write_bytes(
+        traj_path, (jsontext.dumps(doc, what=str(traj_path), indent=1) + "\n").encode()
+    )
     return replay_path, traj_path
 
 

@@ -2,14 +2,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 from rich.console import Console
 
-from thirdhand import options
+from thirdhand import jsontext, options
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.fileops import check_distinct_inputs, check_outputs
 from thirdhand.merge.settings import MergeSettings
@@ -130,7 +129,7 @@ def merge_command(
                 str(p): alignment_dict(a) for p, a in zip(recordings[1:], alignments, strict=True)
             },
         }
-        write_text(report, json.dumps(doc, indent=1))
+        write_text(report, jsontext.dumps(doc, what=str(report), indent=1))
     out.print(f"wrote {output}: {merged}")
 
 

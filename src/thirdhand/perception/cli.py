@@ -8,7 +8,6 @@ functions :func:`headpose_command`, :func:`gestures_command` and
 
 from __future__ import annotations
 
-import json
 import sys
 from pathlib import Path
 from typing import Annotated, Any, NoReturn
@@ -17,6 +16,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
+from thirdhand import jsontext
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
 from thirdhand.perception.settings import AttentionSettings, GestureSettings, HeadposeSettings
@@ -52,7 +52,7 @@ def _write_json(data: Any, path: Path | None, force: bool) -> None:
     """``-`` prints to stdout; a path is written atomically, an old file kept as a numbered .bak."""
     if path is None:
         return
-    text = json.dumps(data, indent=2)
+    text = jsontext.dumps(data, what="the perception report", indent=2)
     if str(path) == "-":
         sys.stdout.write(text + "\n")
         return

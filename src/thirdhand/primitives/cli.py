@@ -9,7 +9,6 @@ skills and segmentation together and prints each track's parse.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -17,7 +16,7 @@ import numpy as np
 import typer
 from rich.console import Console
 
-from thirdhand import options
+from thirdhand import jsontext, options
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import FormatError, ThirdhandError
 from thirdhand.fileops import atomic_output, check_output, check_outputs, write_bytes
@@ -83,7 +82,7 @@ def fit(
     doc = block.model_dump(mode="json", by_alias=True)
     doc["inputs"] = [str(p) for p in demos]
     try:
-        write_bytes(output, json.dumps(doc, indent=1).encode())
+        write_bytes(output, jsontext.dumps(doc, what=str(output), indent=1).encode())
         if task is not None:
             from thirdhand.taskfile import load_task, save_task
 
@@ -123,9 +122,15 @@ def _table_track(path: Path, arr: np.ndarray) -> Any:
     pos[:, : min(arr.shape[1] - 1, 3)] = arr[:, 1:4]
     quat = arr[:, 4:8] if arr.shape[1] == 8 else None
     if quat is not None:
+        from thirdhand.demonstration import MAX_QUAT_NORM_ERROR
+
         norm = np.linalg.norm(quat, axis=1, keepdims=True)
-        if np.any(norm < 1e-9):
-            raise FormatError(path, f"row {int(np.argmin(norm[:, 0])) + 1}: a zero quaternion")
+        off = np.abs(norm[:, 0] - 1.0) > MAX_QUAT_NORM_ERROR
+        if off.any():
+            k = int(np.argmax(off))
+            raise FormatError(
+                path, f"row {k + 1}: quaternion of norm {norm[k, 0]:.6g}, expected a unit one"
+            )
         quat = quat / norm
     return PoseTrack(arr[:, 0], pos, quat, name=str(path))
 
@@ -233,6 +238,7 @@ def library(
     unchanged by where in the room the task was done.
     """
     from thirdhand.fileops import write_text
+    from thirdhand.primitives.pose_channels import check_track_set
     from thirdhand.primitives.skill_library import (
         SkillLibrary,
         SkillParserOptions,
@@ -256,7 +262,12 @@ def library(
                 f"--plot {plot}: a figure is written as .png, .pdf or .svg; "
                 f"got the extension {plot.suffix or '(none)'!r}"
             )
+        for i, p in enumerate(tracks):
+            twice = [q for q in tracks[:i] if q.resolve() == p.resolve()]
+            if twice:
+                raise ThirdhandError(f"{p}: given twice (as {twice[0]}); give each track once")
         data = [tr for p in tracks for tr in _read_tracks(p, body)]
+        check_track_set(data)
         opts = SkillParserOptions(parser=parser, n_skills=skills, seed=seed)  # type: ignore[arg-type]
         result: dict[str, Any] = {"parser": parser}
         if parser == "cuts":
@@ -289,7 +300,7 @@ def library(
                 max(int(np.floor((tr.t[-1] - tr.t[0]) * lib.options.rate_hz)), 0) for tr in data
             ]
             if output is not None:
-                write_text(output, json.dumps(lib.to_dict(), indent=1))
+                write_text(output, jsontext.dumps(lib.to_dict(), what=str(output), indent=1))
                 result["saved"] = str(output)
         result["tracks"] = [
             {
@@ -309,7 +320,7 @@ def library(
     except ThirdhandError as exc:
         raise _fail(exc) from None
     if as_json:
-        out.print(json.dumps(result, indent=1))
+        out.print(jsontext.dumps(result, what="--json", indent=1))
         return
     out.print(
         f"{len(data)} tracks, parser {parser}, {result['n_skills']} skills, share of samples "

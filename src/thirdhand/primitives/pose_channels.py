@@ -39,6 +39,7 @@ from scipy.ndimage import uniform_filter1d
 
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
+from thirdhand.demonstration import MAX_PLAUSIBLE_POSITION_M, MAX_QUAT_NORM_ERROR
 from thirdhand.primitives.checks import PrimitiveError
 
 #: Unit of the log-magnitude channels (dimensionless): a third of an e-fold.
@@ -128,9 +129,16 @@ class PoseTrack:
                     f"(first: sample {int(rows[0])}); remove or interpolate them"
                 )
             object.__setattr__(self, key, a)
+        far = np.flatnonzero((np.abs(self.pos) > MAX_PLAUSIBLE_POSITION_M).any(axis=1))
+        if far.size:
+            k = int(far[0])
+            raise PrimitiveError(
+                f"{self.name}: sample {k}: position {np.abs(self.pos[k]).max():.6g} m from the "
+                f"origin is beyond {MAX_PLAUSIBLE_POSITION_M:g} m; are these millimetres?"
+            )
         if self.quat is not None:
             norm = np.linalg.norm(self.quat, axis=1)
-            if np.any(np.abs(norm - 1.0) > 1e-3):
+            if np.any(np.abs(norm - 1.0) > MAX_QUAT_NORM_ERROR):
                 k = int(np.argmax(np.abs(norm - 1.0)))
                 raise PrimitiveError(
                     f"{self.name}: sample {k}: expected a unit quaternion, norm {norm[k]:.4g}"
@@ -173,6 +181,51 @@ class PoseTrack:
             tuple(se3.quat_rotate(r, o) + p for o in self.others),
             self.name,
         )
+
+
+#: Largest ratio of two tracks' spatial extents in one set: demonstrations of one
+#: skill differ in size by far less; a thousand is millimetres beside metres.
+MAX_EXTENT_RATIO = 100.0
+#: Tracks that move less than this (in any unit) are not compared.
+MIN_EXTENT = 1e-3
+
+
+def extent(track: PoseTrack) -> float:
+    """The diagonal of the track's bounding box, metres."""
+    return float(np.linalg.norm(track.pos.max(axis=0) - track.pos.min(axis=0)))
+
+
+def check_track_set(tracks: Sequence[PoseTrack]) -> None:
+    """Tracks a user gives to learn from together: in one unit, no track given twice.
+
+    (Tracks thirdhand cuts from a demonstration itself are in metres by construction
+    and may move very differently; they are not held to the extent ratio.)
+
+    Raises
+    ------
+    PrimitiveError
+        Two tracks with the same samples (the same file twice), or two whose
+        extents differ by more than :data:`MAX_EXTENT_RATIO` (one in millimetres).
+    """
+    seen: dict[bytes, int] = {}
+    for i, tr in enumerate(tracks):
+        key = np.ascontiguousarray(np.column_stack([tr.t, tr.pos])).tobytes()
+        if key in seen:
+            first = tracks[seen[key]]
+            raise PrimitiveError(
+                f"{tr.name}: the same samples as {first.name} (track {seen[key] + 1}); "
+                "give each demonstration once"
+            )
+        seen[key] = i
+    sizes = [(extent(tr), tr) for tr in tracks]
+    moving = [(e, tr) for e, tr in sizes if e > MIN_EXTENT]
+    if len(moving) > 1:
+        small, big = min(moving, key=lambda m: m[0]), max(moving, key=lambda m: m[0])
+        if big[0] > MAX_EXTENT_RATIO * small[0]:
+            raise PrimitiveError(
+                f"{big[1].name} spans {big[0]:.4g} m, {big[0] / small[0]:.0f} times "
+                f"{small[1].name} ({small[0]:.4g} m): give every track in metres"
+            )
 
 
 def default_channels(track: PoseTrack) -> tuple[str, ...]:

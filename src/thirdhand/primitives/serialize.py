@@ -6,6 +6,7 @@ object exactly (the rollout of a rebuilt DMP equals the original's bit for bit).
 
 from __future__ import annotations
 
+import math
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -80,7 +81,32 @@ def dmp_from_dict(data: dict[str, Any]) -> DMP | QuaternionDMP:
         raise PrimitiveError(
             f"DMP parameters: weights must be ({d.n_weights}, dims), got {w.shape}"
         )
+    problem = _dmp_problem(d)
+    if problem is not None:
+        raise PrimitiveError(f"DMP parameters: {problem}")
     return d
+
+
+#: Most basis functions a DMP is read with (they size every rollout's arrays).
+MAX_WEIGHTS = 10_000
+#: Longest primitive read, seconds.
+MAX_DURATION_S = 3600.0
+
+
+def _dmp_problem(d: DMP | QuaternionDMP) -> str | None:
+    """How a DMP's parameters are not a model (None if they are)."""
+    if not 1 <= d.n_weights <= MAX_WEIGHTS:
+        return f"n_weights: expected 1 to {MAX_WEIGHTS}, got {d.n_weights}"
+    for name in ("alpha", "alpha_x_", "tau_", "dt_"):
+        v = float(getattr(d, name))
+        if not (math.isfinite(v) and v > 0):
+            return f"{name.rstrip('_')}: expected a positive number, got {v}"
+    if d.tau_ > MAX_DURATION_S or d.dt_ > d.tau_:
+        return f"tau {d.tau_:g} s and dt {d.dt_:g} s: expected dt <= tau <= {MAX_DURATION_S:g} s"
+    for name in ("weights_", "start_", "goal_", "start_velocity_"):
+        if not np.isfinite(getattr(d, name)).all():
+            return f"{name.rstrip('_')}: non-finite values"
+    return None
 
 
 def pose_dmp_to_dict(p: PoseDMP) -> dict[str, Any]:
@@ -137,6 +163,16 @@ def promp_from_dict(data: dict[str, Any]) -> ProMP:
         noise, duration = float(data["noise"]), float(data["duration"])
     except KeyError as exc:
         raise PrimitiveError(f"ProMP parameters: missing field {exc.args[0]!r}") from None
+    except (TypeError, ValueError) as exc:
+        raise PrimitiveError(f"ProMP parameters: malformed value ({exc})") from None
+    if not (np.isfinite(mean).all() and np.isfinite(packed).all()):
+        raise PrimitiveError("ProMP parameters: non-finite mean or covariance")
+    if not (math.isfinite(noise) and noise >= 0):
+        raise PrimitiveError(f"ProMP parameters: noise must be a variance >= 0, got {noise}")
+    if not (math.isfinite(duration) and 0 < duration <= MAX_DURATION_S):
+        raise PrimitiveError(
+            f"ProMP parameters: duration must be in (0, {MAX_DURATION_S:g}] s, got {duration}"
+        )
     f = mean.size
     if packed.size != f * (f + 1) // 2:
         raise PrimitiveError(

@@ -34,6 +34,7 @@ from thirdhand.errors import ThirdhandError
 from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov, runs
 from thirdhand.primitives.pose_channels import CHANNELS, PoseTrack, default_channels, pose_channels
+from thirdhand.task.skill_model import MAX_RATE_HZ, MAX_WINDOW, skill_model_problem
 
 if TYPE_CHECKING:
     from thirdhand.task.stages import SkillLibraryRecord
@@ -94,11 +95,14 @@ class SkillParserOptions:
                 raise PrimitiveError(
                     f"channels {list(self.channels)}: expected some of {', '.join(CHANNELS)}"
                 )
-        if not (np.isfinite(self.rate_hz) and self.rate_hz > 0):
-            raise PrimitiveError(f"rate must be a positive number of Hz, got {self.rate_hz}")
-        if self.window < 1 or self.n_init < 1:
+        if not (np.isfinite(self.rate_hz) and 0 < self.rate_hz <= MAX_RATE_HZ):
             raise PrimitiveError(
-                f"window and restarts must be ≥ 1, got {self.window}, {self.n_init}"
+                f"rate must be a number of Hz in (0, {MAX_RATE_HZ:g}], got {self.rate_hz}"
+            )
+        if not (1 <= self.window <= MAX_WINDOW) or self.n_init < 1:
+            raise PrimitiveError(
+                f"window must be 1 to {MAX_WINDOW} and restarts ≥ 1, got {self.window}, "
+                f"{self.n_init}"
             )
 
 
@@ -241,7 +245,7 @@ class SkillLibrary:
         m, o = self.model_, self.options
 
         def finite(a: FloatArray) -> Any:
-            return np.where(np.isfinite(a), a, np.nan).tolist()
+            return [finite(v) for v in a] if a.ndim else (float(a) if np.isfinite(a) else None)
 
         return {
             "schema": SCHEMA,
@@ -319,9 +323,15 @@ class SkillLibrary:
             model.log_final_ = logp("log_final", (s,))
             model.ends_ = bool(opts.ends)
             model.states_ = np.arange(s)
-            if not (np.isfinite(model.means_).all() and np.isfinite(model.covs_).all()):
-                raise PrimitiveError(f"{source}: skills have non-finite means or covariances")
-            np.linalg.cholesky(model.covs_)
+            problem = skill_model_problem(
+                channels=channels, rate_hz=opts.rate_hz, window=opts.window,
+                means=sk["means"], covs=sk["covs"], duration_log_mean=sk["duration_log_mean"],
+                duration_log_sd=sk["duration_log_sd"], max_duration=model.max_duration_,
+                # NaN for an impossible move in files of earlier versions: read as null
+                log_trans=model.log_trans_, log_init=model.log_init_, log_final=model.log_final_,
+            )  # fmt: skip
+            if problem is not None:
+                raise PrimitiveError(f"{source}: {problem}")
         except (KeyError, TypeError, ValueError, np.linalg.LinAlgError) as exc:
             if isinstance(exc, PrimitiveError):
                 raise

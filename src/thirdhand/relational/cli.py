@@ -9,7 +9,6 @@ with other numbers of legs with it.
 
 from __future__ import annotations
 
-import json
 from dataclasses import asdict
 from pathlib import Path
 from typing import Annotated
@@ -17,7 +16,7 @@ from typing import Annotated
 import typer
 from rich.console import Console
 
-from thirdhand import options
+from thirdhand import jsontext, options
 from thirdhand.fileops import check_output, write_text
 from thirdhand.relational.assembly import (
     learn_assembly,
@@ -94,5 +93,8 @@ def learn(
             out.print(f"  {i + 1}. {step}")
     if json_out is not None:
         write_text(
-            json_out, json.dumps({"reward": str(model.rcsi.reward), "plans": plans}, indent=1)
+            json_out,
+            jsontext.dumps(
+                {"reward": str(model.rcsi.reward), "plans": plans}, what=str(json_out), indent=1
+            ),
         )

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Annotated
+from typing import Annotated, Any
 
 import typer
 
@@ -56,9 +56,10 @@ def review_command(
     options.host(host)
     from thirdhand.review.app import ReviewApp
 
+    demos = _task_recordings(task, list(demo or []))
     app = ReviewApp(
         task,
-        demos=list(demo or []),
+        demos=demos,
         host=host,
         port=port,
         meshes=[Path(m) for m in cfg.meshes],
@@ -78,3 +79,22 @@ def review_command(
             sys.stderr.write("thirdhand review: stopped with unsaved changes\n")
     finally:
         app.stop()
+
+
+def _task_recordings(task: Path, paths: list[Path]) -> list[Any]:
+    """The ``--demo`` recordings, each refused in one line if it is another task's."""
+    from thirdhand import io
+    from thirdhand.errors import ThirdhandError
+    from thirdhand.task.store import load_task
+
+    if not paths:
+        return []
+    t = load_task(task)
+    out = []
+    for p in paths:
+        d = io.load(p)
+        problem = t.foreign_recording_problem(d.body_names)
+        if problem is not None:
+            raise ThirdhandError(f"--demo {p}: {problem}")
+        out.append(d)
+    return out

@@ -16,7 +16,6 @@ Label files: ``--labels`` (one per recording); a 3rdHand folder holding an
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -25,6 +24,7 @@ from rich.console import Console
 from rich.table import Table
 from typer.core import TyperGroup
 
+from thirdhand import jsontext
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
 from thirdhand.fileops import (
@@ -127,7 +127,7 @@ def run(
     for kind, s in scores_by_kind(result).items():
         out.print(f"  vs labels, {kind}: frame F1 {s['frame_f1']:.3f}, IoU {s['interval_iou']:.3f}")
     if json_out is not None:
-        write_text(json_out, json.dumps(result.to_dict()))
+        write_text(json_out, jsontext.dumps(result.to_dict(), what=str(json_out)))
         out.print(f"wrote {json_out}")
     if plot is not None:
         from thirdhand.segment.plot import plot_phases
@@ -304,7 +304,7 @@ def evaluate(
         "test; CRF 2464.9 (0.0875) / 1912.8 (0.0679)"
     )
     if json_out is not None:
-        write_text(json_out, json.dumps(tab, indent=1))
+        write_text(json_out, jsontext.dumps(tab, what=str(json_out), indent=1))
 
 
 @app.command()
@@ -430,7 +430,7 @@ def batch(
                 out.print(f"{outcome.recording}: FAILED: {outcome.error}")
                 continue
             output.mkdir(parents=True, exist_ok=True)
-            write_text(target, json.dumps(outcome.phases))
+            write_text(target, jsontext.dumps(outcome.phases, what=str(target)))
             scores = ", ".join(
                 f"{kind} F1 {s['frame_f1']:.3f}" for kind, s in outcome.scores.items()
             )

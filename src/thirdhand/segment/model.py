@@ -29,6 +29,7 @@ from typing import Any
 
 import numpy as np
 
+from thirdhand import jsontext
 from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.readlimits import check_json_depth, read_input
@@ -179,7 +180,7 @@ class SegmentModel:
         previous file is kept as a numbered backup)."""
         from thirdhand.fileops import write_text
 
-        write_text(path, json.dumps(self.to_dict(), indent=1) + "\n")
+        write_text(path, jsontext.dumps(self.to_dict(), what=str(path), indent=1) + "\n")
 
 
 def load_model(path: str | os.PathLike[str]) -> SegmentModel:

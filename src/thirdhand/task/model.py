@@ -204,6 +204,41 @@ def _tree_problem(constraints: Sequence[Any]) -> str | None:
     return None
 
 
+#: Object kinds a plan never attaches nor attaches to: a person's body parts. (A
+#: tool is an object of the assembly: a screwdriver engages a screw.)
+BODY_PART_KINDS: frozenset[str] = frozenset({"finger", "hand", "head"})
+
+
+def _step_problem(
+    i: int, s: TaskStep, c: Constraint | None, kinds: Mapping[str, str], mounted: Mapping[str, int]
+) -> str | None:
+    """How plan step ``i`` contradicts its constraint or its objects, or None.
+
+    The step must attach what its constraint attaches (same parent, same child),
+    attach no object to itself, attach each object once, and attach objects,
+    not the person's body parts.
+    """
+    if s.parent == s.child:
+        return (
+            f"plan[{i}]: parent and child are both {s.parent!r} (a part is not mounted on itself)"
+        )
+    if c is not None and (s.parent, s.child) != (c.parent, c.child):
+        return (
+            f"plan[{i}]: mounts {s.child!r} on {s.parent!r}, but its constraint {c.id!r} "
+            f"mounts {c.child!r} on {c.parent!r}"
+        )
+    if s.child in mounted:
+        return f"plan[{i}].child: {s.child!r} is already mounted by plan[{mounted[s.child]}]"
+    for role in ("child", "parent"):
+        name = getattr(s, role)
+        if kinds.get(name) in BODY_PART_KINDS:
+            return (
+                f"plan[{i}].{role}: {name!r} is a {kinds[name]} of the person, "
+                "not an object of the assembly"
+            )
+    return None
+
+
 class TaskFile(TaskModel):
     """Everything learned about one task (schema ``thirdhand.task/2``).
 
@@ -260,13 +295,15 @@ class TaskFile(TaskModel):
         tree_problem = _tree_problem(self.constraints)
         if tree_problem is not None:
             return tree_problem
-        ids = {c.id for c in self.constraints}
+        by_id = {c.id: c for c in self.constraints}
+        kinds = {o.name: o.kind for o in self.objects}
         made: dict[str, int] = {}
+        mounted: dict[str, int] = {}
         for i, s in enumerate(self.plan):
             for role in ("parent", "child"):
                 if getattr(s, role) not in names:
                     return f"plan[{i}].{role}: unknown object {getattr(s, role)!r}"
-            if s.constraint is not None and s.constraint not in ids:
+            if s.constraint is not None and s.constraint not in by_id:
                 return f"plan[{i}].constraint: unknown constraint {s.constraint!r}"
             if s.constraint is not None and s.constraint in made:
                 return (
@@ -275,6 +312,10 @@ class TaskFile(TaskModel):
                 )
             if s.constraint is not None:
                 made[s.constraint] = i
+            problem = _step_problem(i, s, by_id.get(s.constraint or ""), kinds, mounted)
+            if problem is not None:
+                return problem
+            mounted[s.child] = i
             for k, j in enumerate(s.after or []):
                 if not 0 <= j < i:
                     return (
@@ -343,6 +384,21 @@ class TaskFile(TaskModel):
             if c.id == id:
                 return c
         raise KeyError(f"no constraint with id {id!r}; ids are {[c.id for c in self.constraints]}")
+
+    def foreign_recording_problem(self, body_names: Iterable[str]) -> str | None:
+        """Why a recording with these bodies is not one of this task, or None.
+
+        A recording of the task shows some of its objects; one that shows none is a
+        recording of another task (a task without objects takes any).
+        """
+        if self.objects and not {o.name for o in self.objects} & set(body_names):
+            names = sorted(o.name for o in self.objects)
+            more = ", …" if len(names) > 5 else ""
+            return (
+                f"shows none of the task's objects ({', '.join(names[:5])}{more}); "
+                "give a recording of this task"
+            )
+        return None
 
     def predecessors(self) -> list[list[int]]:
         """For each plan step, the indices of the steps it must follow.

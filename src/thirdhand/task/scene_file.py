@@ -142,8 +142,14 @@ def _transformation(path: Path, where: str, value: Any) -> tuple[FloatArray, Flo
     return np.asarray(value[0], dtype=np.float64), q / norm
 
 
-def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[str, dict[str, Any]]:
+def scene_geometry(
+    path: str | os.PathLike[str], names: Sequence[str], *, parts: Sequence[str] | None = None
+) -> dict[str, dict[str, Any]]:
     """Task-object geometry fields for the bodies of ``names`` that a scene file lists.
+
+    A scene file is the recording's only when it lists some of its bodies and,
+    when ``parts`` are given, every part (as :func:`find_scene` requires of the
+    file it finds): a scene of another object set is refused, not reported as used.
 
     Parameters
     ----------
@@ -151,6 +157,9 @@ def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[s
         The ``scene_*.json`` file.
     names : sequence of str
         Body names of the recording.
+    parts : sequence of str, optional
+        The recording's parts (bodies of kind ``part``), each of which the scene
+        must list.
 
     Returns
     -------
@@ -165,9 +174,25 @@ def scene_geometry(path: str | os.PathLike[str], names: Sequence[str]) -> dict[s
     Raises
     ------
     FormatError
-        A malformed scene file, or a mesh file it names that is missing or malformed.
+        A malformed scene file, a mesh file it names that is missing or malformed,
+        or a scene that lists none of ``names`` or not every one of ``parts``.
     """
     scene = read_scene(path)
+    listed = sorted(set(scene))
+    if not set(names) & set(scene):
+        raise FormatError(
+            path,
+            f"lists none of the recording's bodies (it lists {', '.join(listed[:4])}"
+            f"{', …' if len(listed) > 4 else ''}): a scene of another object set",
+        )
+    missing = [p for p in parts or () if p not in scene]
+    if missing:
+        raise FormatError(
+            path,
+            f"does not list the recording's part {missing[0]!r}"
+            f"{f' and {len(missing) - 1} more' if len(missing) > 1 else ''}: "
+            "a scene of another object set",
+        )
     out: dict[str, dict[str, Any]] = {}
     for name in names:
         obj = scene.get(name)

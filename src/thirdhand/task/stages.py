@@ -420,6 +420,17 @@ class SkillLibraryRecord(TaskModel):
                 raise ValueError(
                     f"skills.{name}: expected {dims} numbers (n_skills {k}, {c} channels)"
                 )
+        from thirdhand.task.skill_model import skill_model_problem
+
+        sk = self.skills
+        problem = skill_model_problem(
+            channels=self.channels, rate_hz=self.rate_hz, window=self.window, means=sk.means,
+            covs=sk.covs, duration_log_mean=sk.duration_log_mean,
+            duration_log_sd=sk.duration_log_sd, max_duration=sk.max_duration,
+            log_trans=sk.log_trans, log_init=sk.log_init, log_final=sk.log_final,
+        )  # fmt: skip
+        if problem is not None:
+            raise ValueError(problem)
         for i, s in enumerate(self.summary):
             if s.id != i:
                 raise ValueError(f"summary[{i}].id: expected {i} (skills in order), got {s.id}")

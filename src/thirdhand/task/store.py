@@ -101,7 +101,7 @@ def _format(value: Any, indent: str) -> str:
         if not value:
             return "{}"
         items = [
-            f"{inner}{json.dumps(k, ensure_ascii=False)}: {_format(v, inner)}"
+            f"{inner}{json.dumps(k, ensure_ascii=False, allow_nan=False)}: {_format(v, inner)}"
             for k, v in value.items()
         ]
         return "{\n" + ",\n".join(items) + "\n" + indent + "}"

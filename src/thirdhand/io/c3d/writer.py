@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import errno
-import json
 import os
 import struct
 from collections.abc import Mapping, Sequence
@@ -13,6 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
+from thirdhand import jsontext
 from thirdhand.arrays import FloatArray
 from thirdhand.demonstration import Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError, ThirdhandError
@@ -184,7 +184,9 @@ def _doc_params(doc: Mapping[str, Any]) -> dict[str, list[str]]:
     C3D strings are at most 255 characters and readers strip trailing blanks,
     so the compact ASCII JSON has its spaces (only ever inside strings) escaped.
     """
-    text = json.dumps(doc, ensure_ascii=True, separators=(",", ":"), default=_plain)
+    text = jsontext.dumps(
+        doc, what="the recording's header", ensure_ascii=True, separators=(",", ":"), default=_plain
+    )
     text = text.replace(" ", "\\u0020")
     chunks = [text[i : i + _CHUNK] for i in range(0, len(text), _CHUNK)]
     out: dict[str, list[str]] = {}

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import os
 import re
 from collections.abc import Iterator, Mapping, Sequence
@@ -11,6 +10,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 
+from thirdhand import jsontext
 from thirdhand.arrays import IntArray
 from thirdhand.demonstration import Demonstration, body_info_to_dict, labels_to_dict
 from thirdhand.errors import FormatError
@@ -237,7 +237,7 @@ def write(
         demo, store, stamps, topic_of=topic_of, frame_of=ros, root_frame=root_frame
     )
     try:
-        meta_msg = store.types[_STRING](data=json.dumps(header))
+        meta_msg = store.types[_STRING](data=jsontext.dumps(header, what="the recording's header"))
     except TypeError as exc:
         raise FormatError(p, f"demonstration meta is not JSON-able: {exc}") from None
     types = {t: _POSE_STAMPED for t in topic_of or []} or {"/tf": _TFMESSAGE}
