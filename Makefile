@@ -31,7 +31,7 @@ test: $(STAMP) lint docs
 
 ## The documentation site, into site/ (offline; warnings are errors).
 docs: $(STAMP)
-	$(BIN)/mkdocs build --strict -d site
+	NO_MKDOCS_2_WARNING=1 DISABLE_MKDOCS_2_WARNING=true $(BIN)/mkdocs build --strict -d site
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests research benchmarks conftest.py
