@@ -20,10 +20,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cli_helpers import call
-from test_export_robot import PANDA, _run
+from test_export_robot import PANDA, _bt_run, _run
 from thirdhand.errors import FormatError, TaskFileError
 from thirdhand.execute.run_check import MAX_RUN_S, robot_description, run_problem
-from thirdhand.export.behavior_tree import ACTIONS, check_port_value, tree_xml
+from thirdhand.export.behavior_tree import check_port_value, tree_xml
 from thirdhand.export.pddl_task import DOMAIN, RESERVED, comment_text, pddl_names, problem_pddl
 from thirdhand.export.ros2 import WORLD_FRAME, frame_ids, read_execution
 from thirdhand.taskfile import TaskFile
@@ -144,28 +144,6 @@ def test_a_control_character_or_a_blackboard_reference_is_one_line() -> None:
         assert check_port_value(fine, where="x") == fine
 
 
-def _btcpp_ticks(xml: str) -> int:
-    import behaviortreepy as bt
-
-    root = ET.fromstring(xml)
-    for tree in root.findall("BehaviorTree"):
-        for el in tree.iter():
-            if el.tag in {a[0] for a in ACTIONS}:
-                el.attrib = {"name": el.get("name", el.tag)}
-    factory = bt.BehaviorTreeFactory()
-    ticked: list[str] = []
-
-    def tick(node: Any) -> Any:
-        ticked.append(node.full_path())
-        return bt.NodeStatus.SUCCESS
-
-    for name, _, _ in ACTIONS:
-        factory.register_simple_action(name, tick)
-    tree = factory.create_tree_from_text(ET.tostring(root, encoding="unicode"))
-    assert tree.tick_while_running() == bt.NodeStatus.SUCCESS
-    return len(ticked)
-
-
 @settings(max_examples=30, deadline=None)
 @given(
     st.lists(
@@ -192,7 +170,7 @@ def test_any_names_make_well_formed_xml_with_the_names_or_one_line(names) -> Non
     assert [(s.get("parent"), s.get("child")) for s in steps] == [
         (p.parent, p.child) for p in task.plan
     ]
-    assert _btcpp_ticks(xml) == 3 * len(task.plan)
+    assert len(_bt_run(xml)) == 3 * len(task.plan)
 
 
 # --- tf frames ----------------------------------------------------------------------
