@@ -122,7 +122,7 @@ def test_info_on_real_3rdhand_excerpt(
     assert all(0.0 < m < 1.0 for m in missing)
 
 
-# -- start-up: stage commands are imported only when they run (issue 18) -------------
+# -- start-up: stage commands are imported only when they run -------------
 
 #: Heavy modules no stage-free command needs (``thirdhand --help`` must not import them).
 HEAVY = ("scipy", "numba", "pinocchio", "coal", "ompl", "cma", "matplotlib", "viser", "pyarrow")

@@ -1,4 +1,4 @@
-"""The hinge-radius prior, the runner-up type, and bad input of any size (issue 32)."""
+"""The hinge-radius prior, the runner-up type, and bad input of any size."""
 
 from __future__ import annotations
 

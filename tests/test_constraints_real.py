@@ -85,7 +85,7 @@ def test_drawer_one_004_is_prismatic_by_its_score(shared_data: Path) -> None:
     """004's grasp slides 5 cm sideways at the end stop (frames 84 on) and creeps along the
     handle before it; why it is prismatic, and how close the call is.
 
-    Until issue 32 the prismatic fit under the 1 cm ceiling stopped at a poor local
+    Before the hinge-radius prior, the prismatic fit under the 1 cm ceiling stopped at a poor local
     optimum (its noise at the ceiling, no outlier: 726 nats) and the arc scored better;
     the bow test alone kept it a drawer (at 0.46). The fit's second start, from a trimmed
     fit (``robust.fit_model``), finds the line that gives exactly the terminal regime to
@@ -134,7 +134,7 @@ def test_drawer_one_004_is_prismatic_by_its_score(shared_data: Path) -> None:
     # Before the slide the stroke bends by creeping steps: flat stretches of the sideways
     # coordinate 16 mm apart, each within 2 mm; with the estimated noise the arc scores
     # better there (the stroke alone has more effective samples: its bow is resolved), but
-    # it is a 1.6 m radius, flatter than any hinge's (issue 32: it was revolute before).
+    # it is a 1.6 m radius, flatter than any hinge's (it was revolute before).
     y = pos[:, 1]
     assert y[64:76].mean() - y[47:58].mean() > 0.012
     assert max(y[47:58].std(), y[64:76].std()) < 0.002
@@ -265,7 +265,7 @@ def test_attached_toolbox_boards_drift_in_time(shared_data: Path) -> None:
 
 
 # The second set (camera-tracked, position-only, ~250-390 samples) and cabinet_two (a
-# cabinet door opened through ~20-35°, 64-89 samples): issue 32.
+# cabinet door opened through ~20-35°, 64-89 samples).
 SECOND_SET = [
     *(("second_set/drawer", i, "prismatic") for i in range(1, 9)),
     *(("second_set/left_door", i, "revolute") for i in range(1, 8)),
@@ -301,7 +301,7 @@ def test_sliding_cabinet_001_is_no_hinge(
     better than the line, with a bow of 23 mm that is 8 standard errors of its
     residuals' trend. No hinge a person opens has that radius: the arc is flatter than
     one of :data:`MAX_HINGE_RADIUS` (1 m) over the same chord by 7.6 standard errors,
-    and is void (issue 32; it was revolute at 0.995 before)."""
+    and is void (it was revolute at 0.995 before)."""
     pos, _ = _track(shared_data / "articulation" / "second_set" / "sliding_cabinet" / "001.log")
     c = fit_constraint(pos)
     assert c.type == "prismatic"
@@ -315,7 +315,7 @@ def test_sliding_cabinet_001_is_no_hinge(
 
 
 @pytest.mark.parametrize("index", [1, 2, 5])
-@pytest.mark.xfail(strict=True, reason="short door arcs the track does not resolve (issue 32)")
+@pytest.mark.xfail(strict=True, reason="short door arcs the track does not resolve")
 def test_cabinet_two_short_arcs(shared_data: Path, index: int) -> None:
     """cabinet_two/001, 002, 005 read prismatic: 001's path bows by 1 % of its chord (a
     3 mm bow of the best arc: straight by the track); 002 and 005 bow by 18 mm over

@@ -12,7 +12,7 @@ reference scores. The scores are BIC values at the track's effective sample
 count: when that count changed from the lag-1 AR(1) formula to the residuals'
 integrated autocorrelation time, the scores of the 12 cases it moves were
 recorded again from the same fits (every other field, and every chosen type,
-is still the numpy reference's, to 1e-9). Issue 32's second start of a fit pinned
+is still the numpy reference's, to 1e-9). The second start of a fit pinned
 at its ceiling with no outlier (:func:`~thirdhand.constraints.robust.fit_model`)
 moves two scores, the revolute and cylindrical fits of a prismatic track, to a
 higher likelihood; they were recorded again.
@@ -156,7 +156,7 @@ REFERENCE: list[tuple[int, str, bool, float, dict[str, Any]]] = [(0,
               0.0],
    'scores': {'fixed': -8882.187213354622,
               'prismatic': -12144.977193436474,
-              # Issue 32: the second start from a trimmed fit (a revolute or cylindrical
+              # The second start from a trimmed fit (a revolute or cylindrical
               # fit pinned at its ceiling with no outlier) finds a higher likelihood;
               # were -6312.50852695966 and -6308.937365088467.
               'revolute': -8974.719448424552,
@@ -916,12 +916,12 @@ def test_fit_matches_reference(
         why = [n for n in got["notes"] if n.startswith(f"{chosen} not chosen")]
         assert len(why) == 1
         if EVIDENCE_NOTE in why[0]:
-            # Issue 15 round 5: the reference's joint scores better than a simpler one by
+            # The reference's joint scores better than a simpler one by
             # less than the evidence margin (a screw read as cylindrical, 4.7 BIC units
             # better than revolute): the simpler joint is chosen.
             assert f"below {got['type']}'s" in why[0]
         else:
-            # Issue 15 round 4: the reference's joint needs nearly its ceiling noise and
+            # The reference's joint needs nearly its ceiling noise and
             # calls smooth samples outliers (a free part read as a circle): it is passed
             # over, and the call is the truth.
             assert got["type"] == kind

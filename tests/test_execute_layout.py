@@ -129,7 +129,7 @@ def _reachable_grasps(arm, scene, task, name, pose, seed) -> int:
 
 @pytest.mark.slow
 def test_far_start_spot_on_baxter_is_laid_within_reach() -> None:
-    # Issue 16, cause 3: the learned bench of seed 4 on Baxter laid leg1 0.75 m from the
+    # The learned bench of seed 4 on Baxter laid leg1 0.75 m from the
     # shoulder where the right arm reached 1 of its 24 grasps (the step failed). With the
     # reach check every part lying beyond 0.55 m keeps at least 4 reachable grasps
     # (re-counted here with other and twice as many IK starts).
@@ -225,7 +225,7 @@ def test_thin_board_is_placed_with_a_generic_grasp() -> None:
 
 @pytest.mark.slow
 def test_automatic_placement_falls_back_to_reach_only_when_a_part_reaches_no_goal() -> None:
-    # Issue 35: at the default spot every child reaches a goal (nothing changes); with the
+    # At the default spot every child reaches a goal (nothing changes); with the
     # chair built out at (0.78, 0.25) two legs reach no goal at the geometric placement, so
     # the base is stood by reach (here no candidate does better: the geometric one stays) and
     # the start spots kept within reach, and the events say so.

@@ -1,4 +1,4 @@
-"""Issue 16, cause 3: a far start spot solved by a regrasp through an intermediate placement."""
+"""A far start spot solved by a regrasp through an intermediate placement."""
 
 from __future__ import annotations
 

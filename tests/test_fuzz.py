@@ -1,4 +1,4 @@
-"""Fuzz suite: random mutations of every text format never crash a reader (issue 17).
+"""Fuzz suite: random mutations of every text format never crash a reader.
 
 A mutated file must either load faithfully or raise the package's error type
 (:class:`~thirdhand.errors.ThirdhandError`, whose message the CLI prints as one

@@ -1,4 +1,4 @@
-"""Hostile command lines: nonsense options and malformed inputs (issue 17).
+"""Hostile command lines: nonsense options and malformed inputs.
 
 Every case must end in ONE line ``thirdhand: error: <what and where>`` on stderr
 and exit status 1 (2 for a usage error): no traceback (an exception escaping

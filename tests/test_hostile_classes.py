@@ -1,4 +1,4 @@
-"""Issue 33: every case of the second hostile pass, closed by class (docs/reference/reliability.md).
+"""Every case of the second hostile pass, closed by class (docs/reference/reliability.md).
 
 Each test names the issue's case number. The classes: one output-path policy
 (``fileops.check_output``), bounded reads (``readlimits``), validation of the core

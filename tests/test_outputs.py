@@ -1,4 +1,4 @@
-"""Nothing a user made is lost: the output policy of every command (issue 17).
+"""Nothing a user made is lost: the output policy of every command.
 
 No command writes over one of its inputs, nor over an existing file without
 ``--force``; with ``--force`` the previous file is kept as a numbered backup and

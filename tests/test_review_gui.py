@@ -729,7 +729,7 @@ def test_chair_task_transferred_to_the_bench(open_review: Any, chair: Any) -> No
     review.shot("bench-transferred")
 
 
-# ---------------------------------------------------------------------------- issue 22 bugs
+# -- regressions
 
 
 @pytest.mark.slow
@@ -888,7 +888,7 @@ def test_a_second_tab_only_views(review: Review, chromium_browser: Any) -> None:
         page_b.close()
 
 
-# ---------------------------------------------------------------------- issue 22: plan, replay
+# ---------------------------------------------------------------------- plan, replay
 
 
 @pytest.mark.slow

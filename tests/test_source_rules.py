@@ -20,7 +20,7 @@ def _modules() -> list[tuple[Path, ast.Module]]:
 
 def test_rotations_go_through_se3() -> None:
     """Only se3 imports scipy's Rotation: every conversion, inversion and mean is one
-    tested function (issue 31)."""
+    tested function."""
     offenders = []
     for path, tree in _modules():
         if path.name == "se3.py":

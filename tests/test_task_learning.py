@@ -141,8 +141,8 @@ def test_cli_learn_on_the_real_toolbox(shared_data: Path, tmp_path: Path, capsys
     assert [c.type for c in task.constraints] == ["fixed"]
     assert "reward plan for as demonstrated: 1 steps, complete" in text
     # followed live, the one step is recognised within 1 s of the offline detection
-    # (issue 37): the boards slide 3 cm along each other for 1.5 s after they first
-    # meet; the offline run starts where they settle, the live loop 0.4 s + 0.2 s later
+    # (the boards slide 3 cm along each other for 1.5 s after they first
+    # meet; the offline run starts where they settle, the live loop 0.4 s + 0.2 s later)
     (inst,) = task.stages.constraints.demos[0].instances
     doc_path = tmp_path / "live.json"
     rec = str(shared_data / "3rdhand" / "toolbox_coop_4")

@@ -5,7 +5,7 @@ For each track of ``articulation/cabinet_two`` (a door, short openings) and
 expressed in its principal axes; a parabola fitted to the lateral coordinate along
 the first axis gives the bow (sagitta over the chord) and the radius of the
 circle it approximates. A door whose path bows less than a slide's cannot be told
-from the slide by its shape, whatever the detector (issue 32).
+from the slide by its shape, whatever the detector.
 
 Usage: ``python research/scripts/constraint_bow_overlap.py [--data DIR]``
 """

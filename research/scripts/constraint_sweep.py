@@ -79,7 +79,7 @@ def conditions() -> list[Condition]:
             Condition(f"time drift 2x, {tag}", s, drift=2.0),
             Condition(f"10° opening, {tag}", s, span=math.radians(10.0)),
         ]
-    # Bowed rails / calibration warps as measured on the real prismatic tracks (issue 32):
+    # Bowed rails / calibration warps as measured on the real prismatic tracks:
     # the median (1 %) and the upper end (3 %) of their bow, as a fraction of the chord.
     out += [Condition(f"bowed rail {100 * b:g} %, 1 mm", 1e-3, rail_bow=b) for b in BOWS]
     return out
@@ -221,8 +221,8 @@ def main() -> None:
     accuracy_table(held_out)
     old_world = [t.correct for t in held_out if t.dof_ratio >= 5.0 and not t.condition.rail_bow]
     print(
-        "Distinguishing motion ≥ 5× noise, without the bowed rails (the sweep before "
-        f"issue 32): {sum(old_world)}/{len(old_world)} = {100 * np.mean(old_world):.1f} %\n"
+        "Distinguishing motion ≥ 5× noise, without the bowed rails: "
+        f"{sum(old_world)}/{len(old_world)} = {100 * np.mean(old_world):.1f} %\n"
     )
     dof_table(held_out)
     axis_table(held_out)

@@ -1,6 +1,6 @@
 """What ``articulation/drawer_one/004`` holds: its end-stop slide as a regime, and more.
 
-A close call: revolute until a turn's bow had to be resolved (issue 15, round 3).
+A close call: revolute until a turn's bow had to be resolved.
 
 The gripper slides sideways along the handle at the end stop (frames 83-90). The
 script models that as a real artefact: the track is split at a change point
