@@ -79,6 +79,7 @@ def check_batch(jobs: int, scheduler: str | None) -> None:
 REGISTRY: dict[str, str] = {
     "constraints.fit": "thirdhand.constraints.settings:FitSettings",
     "execute": "thirdhand.execute.settings:ExecuteSettings",
+    "simulate": "thirdhand.simulate.settings:SimulateSettings",
     "learn": "thirdhand.task_settings:LearnSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",
     "synth": "thirdhand.synth.settings:SynthSettings",

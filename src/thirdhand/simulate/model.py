@@ -271,6 +271,7 @@ def _table(spec: mujoco.MjSpec, cell: CellModel, settings: SimulateSettings) -> 
     light.pos = [(x0 + x1) / 2.0, (y0 + y1) / 2.0, cell.table_z + 2.5]
     light.dir = [0.0, 0.0, -1.0]
     light.diffuse = [0.8, 0.8, 0.8]
+    light.castshadow = False  # shadows double the software renderer's time per frame
 
 
 #: Colours of the parts in the video, cycled.

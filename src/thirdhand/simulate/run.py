@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -52,13 +53,18 @@ def simulate_run(
     *,
     task_path: str | os.PathLike[str] | None = None,
     search: Sequence[str | os.PathLike[str]] = (),
-    sink: FrameSink | None = None,
+    make_sink: Callable[[Any], FrameSink | None] | None = None,
 ) -> SimulatedRun:
-    """Simulate ``plan`` of ``task`` (see :class:`~thirdhand.simulate.runner.Simulation`)."""
+    """Simulate ``plan`` of ``task`` (see :class:`~thirdhand.simulate.runner.Simulation`).
+
+    ``make_sink(model)`` is called with the compiled model and returns the frame
+    sink (a video writer) or None.
+    """
     t0 = time.perf_counter()
     built = build_cell(task, plan, settings, task_path=task_path, search=search)
     t1 = time.perf_counter()
     model = build_spec(built.cell, settings).compile()
+    sink = make_sink(model) if make_sink is not None else None
     constraints = {c.id: c for c in task.constraints}
     sim = Simulation(model, plan, constraints, built.corners, settings,
                      tool_planned=tool_path(plan), sink=sink)  # fmt: skip

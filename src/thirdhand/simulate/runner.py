@@ -299,7 +299,7 @@ class Simulation:
         wall0 = time.perf_counter()
         for phase in schedule(self.plan.spans, s):
             out = outcomes.get(phase.step)
-            step_name = "" if out is None else f"step {out.index}: {out.child} → {out.parent}"
+            step_name = "" if out is None else f"step {out.index}: {out.child} -> {out.parent}"
             self._label = f"{step_name} ({phase.segment})" if step_name else phase.segment
             if phase.kind == "move":
                 tau, qr, ctrl = self._reference(phase)
