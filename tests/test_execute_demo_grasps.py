@@ -137,3 +137,18 @@ def test_square_to_box_closes_along_the_faces_normal_and_keeps_the_place() -> No
     steep = Grasp(tool_frame([0, 0, 0], [0, 0, -1], [1.0, 1.0, 0.0]), "demo", "y")
     shape = Grasp(slant, "shape", "side")
     assert square_to_box([square, steep, shape]) == [square, steep, shape]
+
+
+def test_within_fingers_slides_a_deep_grasp_back_and_centres_it() -> None:
+    from thirdhand.execute.grasps import FINGER_DEPTH_M, within_fingers
+
+    lo, hi = np.array([-0.2, -0.06, 0.0]), np.array([0.2, 0.06, 0.017])
+    # a board's middle held from its -y edge (approach +y), 4 mm off its mid-plane
+    g = Grasp(tool_frame([0.05, 0.0, 0.0125], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]), "demo", "d")
+    (fit,) = within_fingers([g], lo, hi)
+    np.testing.assert_allclose(fit.pose[:3, 3], [0.05, -0.06 + FINGER_DEPTH_M, 0.0085], atol=1e-12)
+    np.testing.assert_allclose(fit.pose[:3, :3], g.pose[:3, :3])
+    shallow = Grasp(tool_frame([0.05, -0.05, 0.0085], [0, 1, 0], [0, 0, 1]), "demo", "s")
+    np.testing.assert_allclose(within_fingers([shallow], lo, hi)[0].pose, shallow.pose)
+    shape = Grasp(g.pose, "shape", "face")
+    assert within_fingers([shape], lo, hi) == [shape]

@@ -91,7 +91,7 @@ def simulate_command(
         plan = from_record(run, t)
         source = f"recorded: {run}"
     else:
-        plan = _plan(t, task, robot, seed, search, console)
+        plan = _plan(t, task, robot, seed, search, console, cfg.rate)
         source = "planned"
     from thirdhand.simulate.video import choose_backend
 
@@ -188,8 +188,9 @@ def _base(t: Any) -> str:
 
 
 def _plan(
-    t: Any, task: Path, robot: str | None, seed: int, search: list[str], console: Console
-) -> Any:
+    t: Any, task: Path, robot: str | None, seed: int, search: list[str], console: Console,
+    rate: float,
+) -> Any:  # fmt: skip
     """Plan the task offline as ``thirdhand execute`` does, with its settings' defaults."""
     from thirdhand.execute.executor import ExecutionOptions, Executor, task_defaults
     from thirdhand.execute.robot import ROBOTS
@@ -218,7 +219,7 @@ def _plan(
     )
     with console.status("planning the run (thirdhand execute)"):
         result = ex.run_offline(seed=seed)
-    return from_execution(ex, result)
+    return from_execution(ex, result, rate_hz=rate)
 
 
 def _fmt(v: float | None, digits: int = 1) -> str:
