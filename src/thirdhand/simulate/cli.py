@@ -48,10 +48,6 @@ def simulate_command(
         Path | None, typer.Option("--json", help="Write the per-step measures (JSON).")
     ] = None,
     video: Annotated[Path | None, typer.Option(help="Write a video of the run (MP4).")] = None,
-    robot: Annotated[
-        str | None, typer.Option(help="Simulated robot [default: the task's, else panda].")
-    ] = None,
-    seed: Annotated[int, typer.Option(help="Seed of the start layout and the planner.")] = 0,
     force: Annotated[
         bool, typer.Option(help="Replace existing outputs (kept as numbered .bak).")
     ] = False,
@@ -68,8 +64,9 @@ def simulate_command(
     from thirdhand.fileops import atomic_output, atomic_write_bytes, check_output
     from thirdhand.task.store import load_task
 
-    options.seed(seed)
     cfg = load_settings(config, "simulate", SimulateSettings)
+    robot, seed = cfg.robot, cfg.seed
+    options.seed(seed)
     for folder in cfg.meshes:
         if not Path(folder).is_dir():
             raise ThirdhandError(f"[simulate] meshes {folder}: not a folder of part meshes")
@@ -87,7 +84,7 @@ def simulate_command(
         from thirdhand.simulate.plan import from_record
 
         if robot is not None:
-            raise ThirdhandError("--robot: a recorded run (--run) names its robot")
+            raise ThirdhandError("[simulate] robot: a recorded run (--run) names its robot")
         plan = from_record(run, t)
         source = f"recorded: {run}"
     else:
@@ -198,7 +195,9 @@ def _plan(
     from thirdhand.simulate.plan import from_execution
 
     if robot is not None and robot not in ROBOTS:
-        raise ThirdhandError(f"--robot {robot}: unknown (expected one of {', '.join(ROBOTS)})")
+        raise ThirdhandError(
+            f"[simulate] robot {robot}: unknown (expected one of {', '.join(ROBOTS)})"
+        )
     ecfg = ExecuteSettings.model_validate({})
     opts = ExecutionOptions(
         sample_free_dofs=ecfg.free_dofs, step_time_limit=ecfg.step_time,

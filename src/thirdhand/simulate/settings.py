@@ -17,6 +17,10 @@ from thirdhand.config import Settings
 class SimulateSettings(Settings):
     """How the physics simulation of a planned run is built, driven and judged."""
 
+    robot: str | None = Field(
+        None, description="Robot planned and simulated (default: the task's, else panda)."
+    )
+    seed: int = Field(0, ge=0, le=2**31 - 1, description="Seed of the start layout and planner.")
     grasp: Literal["friction", "weld"] = Field(
         "friction",
         description="friction: the fingers close with the gripper's force limit and the part "
