@@ -275,10 +275,11 @@ class Simulation:
         """Per physics step of a move: times (k,), reference q (k, dof), control (k, dof)."""
         dt = self.settings.timestep
         k = max(1, int(np.ceil(phase.duration / dt)))
-        tau = phase.t_start + dt * np.arange(1, k + 1)
+        slow = self.settings.slowdown
+        tau = phase.t_start + dt * np.arange(1, k + 1) / slow
         tau = np.minimum(tau, phase.t_end)
         t, q = self.plan.t, self.plan.q
-        qd = np.gradient(q, t, axis=0)
+        qd = np.gradient(q, t, axis=0) / slow
         qr = np.stack([np.interp(tau, t, q[:, j]) for j in range(q.shape[1])], axis=1)
         vr = np.stack([np.interp(tau, t, qd[:, j]) for j in range(q.shape[1])], axis=1)
         return tau, qr, qr + self._kv_over_kp * vr

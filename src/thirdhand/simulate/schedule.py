@@ -33,7 +33,7 @@ class Phase:
     t_start, t_end : float
         Planned clock of a move, seconds (0 otherwise).
     duration : float
-        Simulated seconds.
+        Simulated seconds (a move's planned span times ``slowdown``).
     """
 
     kind: str
@@ -63,7 +63,7 @@ def schedule(spans: Sequence[Span], settings: SimulateSettings) -> list[Phase]:
             hold("close", span.step, span.attached, settings.close_time)
         out.append(
             Phase("move", span.step, span.segment, span.attached, span.t_start, span.t_end,
-                  max(span.t_end - span.t_start, 0.0))
+                  max(span.t_end - span.t_start, 0.0) * settings.slowdown)
         )  # fmt: skip
         held = span.attached
         last = span

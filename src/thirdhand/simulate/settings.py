@@ -46,6 +46,13 @@ class SimulateSettings(Settings):
         le=1000.0,
         description="Force limit of each finger, N (the Franka Hand's continuous force).",
     )
+    slowdown: float = Field(
+        1.0,
+        ge=1.0,
+        le=20.0,
+        description="The planned motions replayed this many times slower (the planner times "
+        "them at the arm's velocity and acceleration limits).",
+    )
     timestep: float = Field(0.002, gt=0.0, le=0.01, description="Physics time step, seconds.")
     close_time: float = Field(
         0.6, gt=0.0, le=10.0, description="Seconds the arm waits while the fingers close."
