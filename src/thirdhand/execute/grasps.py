@@ -317,11 +317,12 @@ def within_fingers(
 
     A person's fingertips may hold a board deep inside its edge or off its middle; the
     gripper's fingers reach ``depth`` past the tool point toward the hand before its
-    casing, and close symmetrically. Each demonstrated grasp whose part reaches farther
-    than ``depth`` behind the tool point (along the approach, toward the hand) is slid
-    back along its approach until it reaches ``depth``, and its tool point is centred
-    between the box's faces along the closing direction. Shape grasps are returned as
-    given.
+    casing, and they close symmetrically about the tool point. Each demonstrated grasp
+    whose part reaches farther than ``depth`` behind the tool point (along the approach,
+    toward the hand) is slid back along its approach until it reaches ``depth``, and its
+    tool point is centred between the box's faces along the closing direction (held off
+    centre, the part is pushed across in the hand as the fingers close and placed off
+    its goal by as much). Shape grasps are returned as given.
 
     Parameters
     ----------
