@@ -561,6 +561,8 @@ WRITERS: list[tuple[str, str]] = [
     ("task", "irl learn {IN} --json {OUT}"),
     ("task", "transfer {IN} --to bench -o {OUT}"),
     ("task", "execute {IN} --record {OUT}"),
+    ("task", "simulate {IN} --json {OUT}"),
+    ("task", "simulate {IN} --video {OUT}"),
 ]
 
 

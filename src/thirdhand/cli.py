@@ -95,6 +95,11 @@ LAZY: dict[str, LazyCommand] = {
         "execute_command",
         "Execute a task's plan on a simulated robot arm with a motion planner.",
     ),
+    "simulate": LazyCommand(
+        "thirdhand.simulate.cli",
+        "simulate_command",
+        "Run a task's plan in a physics simulator (MuJoCo) and say per step whether it works.",
+    ),
     "live": LazyCommand(
         "thirdhand.live.cli",
         "live_command",

@@ -76,6 +76,7 @@ def check_batch(jobs: int, scheduler: str | None) -> None:
 REGISTRY: dict[str, str] = {
     "constraints.fit": "thirdhand.constraints.settings:FitSettings",
     "execute": "thirdhand.execute.settings:ExecuteSettings",
+    "simulate": "thirdhand.simulate.settings:SimulateSettings",
     "learn": "thirdhand.learn.settings:LearnSettings",
     "live": "thirdhand.live.settings:LiveSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",

@@ -37,6 +37,9 @@ from thirdhand.execute.goals import invert
 
 #: How far inside a face the tool frame sits for a face or end grasp, metres.
 GRASP_DEPTH_M = 0.015
+#: How far a gripper's fingers reach past the tool point toward the hand before its casing,
+#: metres, less a margin (Panda: tool point 45 mm from the fingers' base).
+FINGER_DEPTH_M = 0.035
 #: A fingertip centroid this close to a part's core (the box shrunk by its smallest half
 #: extent) pinches the core: the approach comes from the fingers' layout, metres.
 CORE_TOL_M = 0.005
@@ -303,6 +306,51 @@ def square_to_box(grasps: Sequence[Grasp]) -> list[Grasp]:
             approach = np.sign(approach[b]) * np.eye(3)[b]
         t = tool_frame(g.pose[:3, 3], approach, closing)
         out.append(Grasp(t, g.source, f"{g.label}/square"))
+    return out
+
+
+def within_fingers(
+    grasps: Sequence[Grasp], bbox_min: ArrayLike, bbox_max: ArrayLike, *,
+    depth: float = FINGER_DEPTH_M,
+) -> list[Grasp]:  # fmt: skip
+    """Demonstrated grasps moved to where a parallel gripper's fingers can hold them.
+
+    A person's fingertips may hold a board deep inside its edge or off its middle; the
+    gripper's fingers reach ``depth`` past the tool point toward the hand before its
+    casing, and they close symmetrically about the tool point. Each demonstrated grasp
+    whose part reaches farther than ``depth`` behind the tool point (along the approach,
+    toward the hand) is slid back along its approach until it reaches ``depth``, and its
+    tool point is centred between the box's faces along the closing direction (held off
+    centre, the part is pushed across in the hand as the fingers close and placed off
+    its goal by as much). Shape grasps are returned as given.
+
+    Parameters
+    ----------
+    grasps : sequence of Grasp
+        ``T_part_tool``, part's body frame.
+    bbox_min, bbox_max : array_like, shape (3,)
+        The part's bounding box, body frame, metres.
+    depth : float
+        Metres of the fingers past the tool point, toward the hand.
+    """
+    lo = np.asarray(bbox_min, dtype=np.float64)
+    hi = np.asarray(bbox_max, dtype=np.float64)
+    out: list[Grasp] = []
+    for g in grasps:
+        if g.source != "demo":
+            out.append(g)
+            continue
+        t = g.pose.copy()
+        p, closing, approach = t[:3, 3].copy(), t[:3, 1], t[:3, 2]
+        inside = bool(np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9))
+        if inside:
+            behind = _exit_distance(p, -approach, lo, hi)
+            if behind > depth:
+                p = p - (behind - depth) * approach
+            ahead, back = _exit_distance(p, closing, lo, hi), _exit_distance(p, -closing, lo, hi)
+            p = p + (ahead - back) / 2.0 * closing
+        t[:3, 3] = p
+        out.append(Grasp(t, g.source, g.label))
     return out
 
 

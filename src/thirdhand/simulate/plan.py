@@ -1,0 +1,196 @@
+"""The run to simulate: the arm's planned joint trajectory, its segments, steps and start poses.
+
+Either planned now (:func:`from_execution`, the plan ``thirdhand execute`` makes)
+or read back from a run recorded with ``thirdhand execute --record OUT``
+(:func:`from_record`: ``OUT.json`` holds the trajectory and the steps,
+``OUT.parquet`` the parts' poses, of which the first frame is the start).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thirdhand import se3
+from thirdhand.arrays import FloatArray
+from thirdhand.readlimits import read_input
+from thirdhand.simulate.parts import SimulateError
+from thirdhand.task.model import TaskFile
+
+
+@dataclass(frozen=True)
+class Span:
+    """One planned motion segment on the run's clock.
+
+    Attributes
+    ----------
+    step : int
+        Index of the step in the plan (-1: the final motion home).
+    segment : str
+        ``approach``, ``grasp``, ``lift``, ``transport``, ``insert``, ``retreat`` or ``home``.
+    t_start, t_end : float
+        Seconds on the planned clock.
+    attached : str or None
+        The part the planner had attached to the hand during it.
+    """
+
+    step: int
+    segment: str
+    t_start: float
+    t_end: float
+    attached: str | None
+
+
+@dataclass(frozen=True)
+class PlannedStep:
+    """One step of the plan as the planner left it.
+
+    Attributes
+    ----------
+    index : int
+    constraint, parent, child : str
+        The slot and the part put into it.
+    planned : bool
+        Whether the planner found motions for it.
+    status : str
+        The planner's status (its reason when not planned).
+    grasp : str or None
+        The grasp's name.
+    """
+
+    index: int
+    constraint: str
+    parent: str
+    child: str
+    planned: bool
+    status: str
+    grasp: str | None = None
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """Everything the simulation replays.
+
+    Attributes
+    ----------
+    robot : str
+    robot_base : ndarray, shape (4, 4)
+        Robot root pose, world frame.
+    t : ndarray, shape (n,)
+        Seconds, strictly increasing.
+    q : ndarray, shape (n, dof)
+        Planned joint positions, radians.
+    spans : list of Span
+    steps : list of PlannedStep
+    start : dict of str to ndarray (4, 4)
+        Every part's start pose, world frame.
+    """
+
+    robot: str
+    robot_base: FloatArray
+    t: FloatArray
+    q: FloatArray
+    spans: Sequence[Span]
+    steps: Sequence[PlannedStep]
+    start: Mapping[str, FloatArray]
+
+
+def _spans(rows: Sequence[Mapping[str, Any]]) -> list[Span]:
+    return [
+        Span(int(s["step"]), str(s["segment"]), float(s["t_start"]), float(s["t_end"]),
+             s.get("attached"))
+        for s in rows
+    ]  # fmt: skip
+
+
+def _steps(rows: Sequence[Mapping[str, Any]]) -> list[PlannedStep]:
+    return [
+        PlannedStep(int(r["index"]), str(r["constraint"]), str(r["parent"]), str(r["child"]),
+                    bool(r["success"]), str(r["status"]), r.get("grasp"))
+        for r in rows
+    ]  # fmt: skip
+
+
+def from_execution(executor: Any, result: Any, *, rate_hz: float = 100.0) -> RunPlan:
+    """The run of an :class:`~thirdhand.execute.executor.Executor`'s offline result."""
+    from dataclasses import asdict
+
+    from thirdhand.execute.record import sample_run
+
+    spans: list[dict[str, Any]] = []
+    t, q, _ = sample_run(executor.robot, result, rate_hz=rate_hz, spans=spans)
+    start = result.trajectory[0]["static"] if result.trajectory else executor.start
+    return RunPlan(
+        robot=executor.robot.name,
+        robot_base=se3.matrix_from_pose(*executor.robot.base_pose),
+        t=np.asarray(t, dtype=np.float64),
+        q=np.asarray(q, dtype=np.float64),
+        spans=_spans(spans),
+        steps=_steps([asdict(s) for s in result.steps]),
+        start={k: np.asarray(v, dtype=np.float64) for k, v in start.items()},
+    )
+
+
+def from_record(path: Path, task: TaskFile) -> RunPlan:
+    """A run recorded by ``thirdhand execute --record``: ``path`` (.json) and its .parquet.
+
+    Raises
+    ------
+    SimulateError
+        When a file is missing or malformed, or the run was recorded for another task.
+    """
+    from thirdhand import io
+
+    def bad(msg: str) -> SimulateError:
+        return SimulateError(f"--run {path}: {msg}")
+
+    text = read_input(path, what="recorded run", error=bad)
+    try:
+        doc = json.loads(text)
+        t = np.asarray(doc["t"], dtype=np.float64)
+        q = np.asarray(doc["q"], dtype=np.float64)
+        base = doc["base_pose"]
+        robot = str(doc["robot"])
+        spans = _spans(doc["segments"])
+        steps = _steps(doc["steps"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise bad(f"not a run recorded by 'thirdhand execute --record' ({exc})") from None
+    if q.ndim != 2 or q.shape[0] != t.shape[0] or t.shape[0] < 2:
+        raise bad(f"'q' has shape {q.shape}, expected ({t.shape[0]}, dof)")
+    objects = {o.name for o in task.objects}
+    constraints = {c.id for c in task.constraints}
+    for s in steps:
+        if s.constraint not in constraints or s.child not in objects or s.parent not in objects:
+            raise bad(
+                f"recorded for another task: step {s.index} puts {s.child!r} into "
+                f"{s.constraint!r} of {s.parent!r}, which this task does not have"
+            )
+    replay_path = path.with_suffix(".parquet")
+    if not replay_path.is_file():
+        raise bad(f"no replay {replay_path} beside it (the start poses of the parts)")
+    replay = io.load(replay_path)
+    start: dict[str, FloatArray] = {}
+    for name in replay.body_names:
+        if name not in objects:
+            continue
+        pos = np.asarray(replay.pos(name)[0], dtype=np.float64)
+        quat = np.asarray(replay.quat(name)[0], dtype=np.float64)
+        if np.all(np.isfinite(pos)) and np.all(np.isfinite(quat)):
+            start[name] = se3.matrix_from_pose(pos, quat)
+    missing = sorted({s.child for s in steps if s.planned} - set(start))
+    if missing:
+        raise bad(f"the replay {replay_path} has no start pose of {', '.join(missing)}")
+    return RunPlan(
+        robot=robot,
+        robot_base=se3.matrix_from_pose(np.asarray(base["pos"]), np.asarray(base["quat"])),
+        t=t,
+        q=q,
+        spans=spans,
+        steps=steps,
+        start=start,
+    )

@@ -1,0 +1,390 @@
+"""Run a planned run in MuJoCo and measure every step (the stateful shell over the model).
+
+:class:`Simulation` steps the physics through the phases of
+:func:`~thirdhand.simulate.schedule.schedule`: the arm's servos track the planned
+joint trajectory, the fingers close with the gripper's force limit (or, with the
+weld grasp, the part is welded to the hand once they closed), a part placed by
+its ``insert`` segment is joined to its parent where it stands (a weld: the
+person fastening it) and let go, and the assembly rests at the end. Per step it
+measures what :mod:`~thirdhand.simulate.measure` judges.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import mujoco
+import numpy as np
+
+from thirdhand import se3
+from thirdhand.arrays import FloatArray
+from thirdhand.execute.robot import ROBOTS
+from thirdhand.simulate.measure import (
+    PoseError,
+    displacement_mm,
+    pose_error,
+    slip_mm,
+    step_status,
+)
+from thirdhand.simulate.model import FINGER_OPEN, FINGERS, HAND, TOOL
+from thirdhand.simulate.plan import RunPlan
+from thirdhand.simulate.schedule import Phase, schedule
+from thirdhand.simulate.settings import SimulateSettings
+from thirdhand.task.constraint import Constraint
+
+#: Seconds between two measurements (slip, forces, tracking).
+MEASURE_PERIOD = 0.01
+
+#: ``sink(model, data, label)`` called at every video frame.
+FrameSink = Callable[[mujoco.MjModel, mujoco.MjData, str], None]
+
+
+@dataclass
+class StepOutcome:
+    """What one step did in the simulation.
+
+    Attributes
+    ----------
+    index : int
+    constraint, parent, child : str
+    status : str
+        ``done``, ``slipped``, ``dropped``, ``jammed`` or ``failed``.
+    grasp : str or None
+        The planner's grasp.
+    planner_status : str
+    position_error_mm, angle_error_deg : float or None
+        The part against its learned constraint when it was fastened.
+    slip_mm : float
+        Largest slip in the hand during the carry (lift and transport).
+    peak_force_n : float
+        Largest normal contact force on the part from anything but the fingers, N.
+    tracking_error_deg : float
+        Largest joint tracking error of the arm during the step, degrees.
+    tool_error_mm : float
+        Largest distance of the tool point from the planned one during the step, mm.
+    held : bool
+        The part was between the fingers at the end of the carry.
+    blocked : bool
+        When placed, the part touched a body other than the hand.
+    """
+
+    index: int
+    constraint: str
+    parent: str
+    child: str
+    status: str = "failed"
+    grasp: str | None = None
+    planner_status: str = ""
+    position_error_mm: float | None = None
+    angle_error_deg: float | None = None
+    slip_mm: float = 0.0
+    peak_force_n: float = 0.0
+    tracking_error_deg: float = 0.0
+    tool_error_mm: float = 0.0
+    held: bool = False
+    blocked: bool = False
+
+
+@dataclass
+class SimulationResult:
+    """The outcome of a simulated run.
+
+    Attributes
+    ----------
+    steps : list of StepOutcome
+    grasp : str
+        ``friction`` or ``weld``.
+    sim_time_s, wall_time_s : float
+        Simulated seconds and the wall-clock seconds the stepping took.
+    rest_displacement_mm : float
+        Largest move of any part's corners during the final rest.
+    rest_part : str or None
+        The part that moved most then.
+    render_time_s : float
+        Wall-clock seconds spent in the frame sink (rendering, encoding).
+    """
+
+    steps: list[StepOutcome]
+    grasp: str
+    sim_time_s: float = 0.0
+    wall_time_s: float = 0.0
+    rest_displacement_mm: float = 0.0
+    rest_part: str | None = None
+    render_time_s: float = 0.0
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def success(self) -> bool:
+        """Every step done."""
+        return all(s.status == "done" for s in self.steps)
+
+
+def _pose(data: mujoco.MjData, body: int) -> FloatArray:
+    t = np.eye(4)
+    t[:3, :3] = data.xmat[body].reshape(3, 3)
+    t[:3, 3] = data.xpos[body]
+    return t
+
+
+def _weld_relpose(eq: int, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+    """Set weld ``eq`` to hold its two bodies as they are now (body2 in body1's frame)."""
+    b1, b2 = model.eq_obj1id[eq], model.eq_obj2id[eq]
+    rel = se3.transform_invert(_pose(data, b1)) @ _pose(data, b2)
+    x, y, z, w = se3.quat_from_matrix(rel[:3, :3])
+    model.eq_data[eq, :3] = 0.0
+    model.eq_data[eq, 3:6] = rel[:3, 3]
+    model.eq_data[eq, 6:10] = [w, x, y, z]
+    model.eq_data[eq, 10] = 1.0
+    data.eq_active[eq] = 1
+
+
+class Simulation:
+    """One run of a plan in a compiled model.
+
+    Parameters
+    ----------
+    model : mujoco.MjModel
+        From :func:`~thirdhand.simulate.model.build_spec`.
+    plan : RunPlan
+    constraints : dict of str to Constraint
+        The task's constraints by id.
+    corners : dict of str to ndarray (8, 3)
+        Each part's bounding-box corners, body frame, metres.
+    settings : SimulateSettings
+    tool_planned : ndarray, shape (n, 3), optional
+        The planned tool point at each of ``plan.t`` (world, metres), for the tool error.
+    sink : callable, optional
+        Called at every video frame.
+    """
+
+    def __init__(
+        self,
+        model: mujoco.MjModel,
+        plan: RunPlan,
+        constraints: Mapping[str, Constraint],
+        corners: Mapping[str, FloatArray],
+        settings: SimulateSettings,
+        *,
+        tool_planned: FloatArray | None = None,
+        sink: FrameSink | None = None,
+    ) -> None:
+        self.model = model
+        self.data = mujoco.MjData(model)
+        self.plan = plan
+        self.constraints = constraints
+        self.corners = corners
+        self.settings = settings
+        self.tool_planned = tool_planned
+        self.sink = sink
+        names = ROBOTS[plan.robot].arm_joints
+        self._qadr = np.array([model.jnt_qposadr[model.joint(n).id] for n in names])
+        self._vadr = np.array([model.jnt_dofadr[model.joint(n).id] for n in names])
+        self._arm_act = np.array([model.actuator(n).id for n in names])
+        self._finger_act = np.array([model.actuator(n).id for n in FINGERS])
+        self._finger_q = np.array([model.jnt_qposadr[model.joint(n).id] for n in FINGERS])
+        self._kv_over_kp = settings.damping / settings.stiffness
+        self._tool = model.body(TOOL).id
+        self._hand = model.body(HAND).id
+        robot_bodies = [model.body(b).id for b in range(model.nbody) if model.body(b).name
+                        .startswith("panda_")]  # fmt: skip
+        self._robot_bodies = set(robot_bodies)
+        self._pads = {model.geom("pad_left").id, model.geom("pad_right").id}
+        self._geom_body = np.asarray(model.geom_bodyid)
+        self._eq = {model.equality(i).name: i for i in range(model.neq)}
+        self._every = max(1, round(MEASURE_PERIOD / settings.timestep))
+        self._frame_every = max(1, round(1.0 / settings.fps / settings.timestep))
+        self._n = 0
+        self.render_time = 0.0
+        self._label = ""
+
+    # -- state -------------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Arm at the plan's first configuration, fingers open, parts at their start."""
+        m, d = self.model, self.data
+        mujoco.mj_resetData(m, d)
+        d.qpos[self._qadr] = self.plan.q[0]
+        d.qpos[self._finger_q] = FINGER_OPEN
+        for name, pose in self.plan.start.items():
+            b = m.body(name)
+            if m.body_jntnum[b.id] == 0:
+                continue
+            adr = m.jnt_qposadr[m.body_jntadr[b.id]]
+            x, y, z, w = se3.quat_from_matrix(pose[:3, :3])
+            d.qpos[adr : adr + 7] = [*pose[:3, 3], w, x, y, z]
+        d.ctrl[self._arm_act] = self.plan.q[0]
+        d.ctrl[self._finger_act] = self.settings.gripper_force
+        mujoco.mj_forward(m, d)
+
+    def body_pose(self, name: str) -> FloatArray:
+        """World pose (4, 4) of a body now."""
+        return _pose(self.data, self.model.body(name).id)
+
+    def touching(self, part: str) -> tuple[bool, bool, float]:
+        """Whether ``part`` touches a finger pad, another body than the hand, and the force.
+
+        Returns
+        -------
+        pads : bool
+        other : bool
+            A contact with a body outside the robot (a part, the table, the world).
+        force : float
+            Largest normal force of those other contacts, N.
+        """
+        d = self.data
+        n = d.ncon
+        if n == 0:
+            return False, False, 0.0
+        b = self.model.body(part).id
+        geoms = d.contact.geom[:n]
+        bodies = self._geom_body[geoms]
+        mine = (bodies[:, 0] == b) | (bodies[:, 1] == b)
+        if not mine.any():
+            return False, False, 0.0
+        other_body = np.where(bodies[:, 0] == b, bodies[:, 1], bodies[:, 0])
+        pads = np.isin(geoms, list(self._pads)).any(axis=1) & mine
+        robot = np.isin(other_body, list(self._robot_bodies))
+        rest = mine & ~robot
+        force = 0.0
+        if rest.any():
+            adr = d.contact.efc_address[:n][rest]
+            adr = adr[adr >= 0]
+            if len(adr):
+                force = float(np.max(np.abs(d.efc_force[adr])))
+        return bool(pads.any()), bool(rest.any()), force
+
+    # -- the run -----------------------------------------------------------------------
+
+    def _advance(self, ctrl: FloatArray, on_tick: Callable[[int], None]) -> None:
+        """Step once per row of ``ctrl`` (k, dof), measuring every few steps."""
+        m, d = self.model, self.data
+        for k in range(ctrl.shape[0]):
+            d.ctrl[self._arm_act] = ctrl[k]
+            mujoco.mj_step(m, d)
+            self._n += 1
+            if self._n % self._every == 0:
+                on_tick(k)
+            if self.sink is not None and self._n % self._frame_every == 0:
+                t0 = time.perf_counter()
+                self.sink(m, d, self._label)
+                self.render_time += time.perf_counter() - t0
+
+    def _reference(self, phase: Phase) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Per physics step of a move: times (k,), reference q (k, dof), control (k, dof)."""
+        dt = self.settings.timestep
+        k = max(1, int(np.ceil(phase.duration / dt)))
+        slow = self.settings.slowdown
+        tau = phase.t_start + dt * np.arange(1, k + 1) / slow
+        tau = np.minimum(tau, phase.t_end)
+        t, q = self.plan.t, self.plan.q
+        qd = np.gradient(q, t, axis=0) / slow
+        qr = np.stack([np.interp(tau, t, q[:, j]) for j in range(q.shape[1])], axis=1)
+        vr = np.stack([np.interp(tau, t, qd[:, j]) for j in range(q.shape[1])], axis=1)
+        return tau, qr, qr + self._kv_over_kp * vr
+
+    def run(self) -> SimulationResult:
+        """Run every phase; the per-step outcomes and the rest displacement."""
+        s = self.settings
+        m, d = self.model, self.data
+        self.reset()
+        outcomes = {
+            p.index: StepOutcome(p.index, p.constraint, p.parent, p.child, grasp=p.grasp,
+                                 planner_status=p.status)
+            for p in self.plan.steps
+        }  # fmt: skip
+        grip0: dict[str, FloatArray] = {}
+        hold_q = self.plan.q[0].copy()
+        rest_start: dict[str, FloatArray] = {}
+        wall0 = time.perf_counter()
+        for phase in schedule(self.plan.spans, s):
+            out = outcomes.get(phase.step)
+            step_name = "" if out is None else f"step {out.index}: {out.child} -> {out.parent}"
+            self._label = f"{step_name} ({phase.segment})" if step_name else phase.segment
+            if phase.kind == "move":
+                tau, qr, ctrl = self._reference(phase)
+                tool = None
+                if self.tool_planned is not None:
+                    tool = np.stack(
+                        [np.interp(tau, self.plan.t, self.tool_planned[:, j]) for j in range(3)],
+                        axis=1,
+                    )
+                carry = phase.part is not None and phase.segment in ("lift", "transport")
+
+                def tick(k: int, out: StepOutcome | None = out, qr: FloatArray = qr,
+                         tool: FloatArray | None = tool, carry: bool = carry,
+                         part: str | None = phase.part) -> None:  # fmt: skip
+                    if out is None:
+                        return
+                    err = float(np.max(np.abs(d.qpos[self._qadr] - qr[k])))
+                    out.tracking_error_deg = max(out.tracking_error_deg, float(np.rad2deg(err)))
+                    if tool is not None:
+                        e = float(np.linalg.norm(d.xpos[self._tool] - tool[k]) * 1e3)
+                        out.tool_error_mm = max(out.tool_error_mm, e)
+                    if part is not None:
+                        _, _, f = self.touching(part)
+                        out.peak_force_n = max(out.peak_force_n, f)
+                        if carry and part in grip0:
+                            rel = se3.transform_invert(_pose(d, self._tool)) @ self.body_pose(part)
+                            out.slip_mm = max(
+                                out.slip_mm, slip_mm(rel, grip0[part], self.corners[part])
+                            )
+
+                self._advance(ctrl, tick)
+                hold_q = qr[-1].copy()
+                if phase.segment == "transport" and out is not None and phase.part is not None:
+                    pads, _, _ = self.touching(phase.part)
+                    out.held = pads or s.grasp == "weld"
+                continue
+            k = max(1, round(phase.duration / s.timestep))
+            ctrl = np.repeat((hold_q)[None], k, axis=0)
+            part = phase.part
+            if phase.kind == "close" and part is not None:
+                d.ctrl[self._finger_act] = -s.gripper_force
+                self._advance(ctrl, lambda k: None)
+                if s.grasp == "weld":
+                    _weld_relpose(self._eq[f"grasp:{part}"], m, d)
+                grip0[part] = se3.transform_invert(_pose(d, self._tool)) @ self.body_pose(part)
+            elif phase.kind == "fasten" and part is not None and out is not None:
+                c = self.constraints[out.constraint]
+                err = pose_error(self.body_pose(out.parent), self.body_pose(part), c)
+                out.position_error_mm, out.angle_error_deg = err.position_mm, err.angle_deg
+                _, out.blocked, _ = self.touching(part)
+                eq = self._eq.get(f"fasten:{part}")
+                if eq is not None:
+                    _weld_relpose(eq, m, d)
+                self._advance(ctrl, lambda k: None)
+            elif phase.kind == "open":
+                d.ctrl[self._finger_act] = s.gripper_force
+                if part is not None and f"grasp:{part}" in self._eq:
+                    d.eq_active[self._eq[f"grasp:{part}"]] = 0
+                self._advance(ctrl, lambda k: None)
+            elif phase.kind == "rest":
+                rest_start = {n: self.body_pose(n) for n in self.plan.start}
+                self._label = "rest"
+                self._advance(ctrl, lambda k: None)
+        wall = time.perf_counter() - wall0
+        moved = {
+            n: displacement_mm(p, self.body_pose(n), self.corners[n]) for n, p in rest_start.items()
+        }
+        for o in outcomes.values():
+            verdict: PoseError | None = None
+            if o.position_error_mm is not None and o.angle_error_deg is not None:
+                verdict = PoseError(o.position_error_mm, o.angle_error_deg)
+            planned = next(p.planned for p in self.plan.steps if p.index == o.index)
+            o.status = step_status(
+                planned=planned, held=o.held, slip=o.slip_mm, error=verdict, blocked=o.blocked,
+                position_tolerance=s.position_tolerance, angle_tolerance=s.angle_tolerance,
+                slip_tolerance=s.slip_tolerance, drop_distance=s.drop_distance,
+            )  # fmt: skip
+        worst = max(moved, key=moved.__getitem__) if moved else None
+        return SimulationResult(
+            steps=list(outcomes.values()),
+            grasp=s.grasp,
+            sim_time_s=float(d.time),
+            wall_time_s=wall - self.render_time,
+            rest_displacement_mm=moved[worst] if worst is not None else 0.0,
+            rest_part=worst,
+            render_time_s=self.render_time,
+        )
