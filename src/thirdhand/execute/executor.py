@@ -258,7 +258,8 @@ class Executor:
                     continue
             if box is not None:
                 found = grasp_mod.rod_turns(grasp_mod.square_to_box(found), *box)
-                found = grasp_mod.within_fingers(found, *box)
+                if self.options.fit_grasps_to_fingers:
+                    found = grasp_mod.within_fingers(found, *box)
             self.hints[c.child] = found
         self.primitives = task.stages.primitives if self.options.use_primitives else None
         #: Constraint id → the part put into its slot (offline; identical parts swap).

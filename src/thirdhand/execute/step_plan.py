@@ -81,6 +81,12 @@ class ExecutionOptions:
         When no grasp reached where the part lies reaches its goal, put the part down
         near the arm and pick it again (:mod:`~thirdhand.execute.regrasp`); tried only
         after the plain search of the step failed.
+    fit_grasps_to_fingers : bool
+        Slide each demonstrated grasp back to within the gripper's finger reach and
+        centre it between the faces it closes on
+        (:func:`~thirdhand.execute.grasps.within_fingers`): a person's fingertips hold
+        a board deeper than a parallel gripper can. ``thirdhand simulate`` plans with
+        it (the friction grasp needs it); ``execute`` keeps the demonstrated grasps.
     """
 
     sample_free_dofs: bool = True
@@ -108,6 +114,7 @@ class ExecutionOptions:
     placement: str = "auto"
     start_grasps: int = 0
     regrasp: bool = True
+    fit_grasps_to_fingers: bool = False
 
 
 @dataclass

@@ -203,7 +203,7 @@ def _plan(
         sample_free_dofs=ecfg.free_dofs, step_time_limit=ecfg.step_time,
         plan_time_limit=ecfg.plan_time, order=ecfg.order, max_grasps=ecfg.max_grasps,
         n_goal_samples=ecfg.goals, placement=ecfg.placement, start_grasps=ecfg.start_grasps,
-        regrasp=ecfg.regrasp,
+        regrasp=ecfg.regrasp, fit_grasps_to_fingers=True,
     )  # fmt: skip
     name, assembly_xy = task_defaults(t, robot, ecfg.assembly_at)
     from thirdhand.simulate.model import SIM_ROBOTS

@@ -11,7 +11,7 @@ from typing import Literal
 
 from pydantic import Field
 
-from thirdhand.config import Settings
+from thirdhand.settings import Settings
 
 
 class SimulateSettings(Settings):
