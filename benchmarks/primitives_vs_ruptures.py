@@ -236,8 +236,8 @@ def _loo_scores(
 
 def product_table(files: list[Path], tol: float) -> None:
     """Skill library vs seed parser vs KernelCPD vs ZCV, pose only and with forces."""
-    from thirdhand.primitives.library import PrimitiveLibrary
     from thirdhand.primitives.pose_channels import default_channels, pose_channels
+    from thirdhand.primitives.primitive_library import PrimitiveLibrary
     from thirdhand.primitives.skill_library import SkillLibrary, SkillParserOptions
 
     print(

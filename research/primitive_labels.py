@@ -3,7 +3,7 @@
 For each recording of a file the library is fitted on the others (on the
 recording itself when the file holds only one, reported as in-sample), the
 recording is parsed, consecutive segments of the same skill are merged into one
-run (:meth:`~thirdhand.primitives.library.Parse.merged`), optionally runs are
+run (:meth:`~thirdhand.primitives.primitive_library.Parse.merged`), optionally runs are
 grouped into phases (:class:`~thirdhand.primitives.phases.PhaseGrouper`, learned
 on the training recordings' parses), and the result is compared with the labels
 (:mod:`~research.primitive_scores`): boundary precision / recall / F1
@@ -35,8 +35,8 @@ from thirdhand.arrays import IntArray
 from thirdhand.io.figueroa import LabelledStream
 from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.hsmm import HiddenSemiMarkov
-from thirdhand.primitives.library import PrimitiveLibrary
 from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
+from thirdhand.primitives.primitive_library import PrimitiveLibrary
 from thirdhand.primitives.segment_features import smoothed_speed
 
 #: How K is selected without ``--skills`` (see :class:`ParserConfig`).

@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from thirdhand import se3
 from thirdhand.datasets.primitive_shapes import concatenate_shapes, lasa_shapes, sine_tracks
-from thirdhand.primitives.library import Parse, PrimitiveLibrary
+from thirdhand.primitives.primitive_library import Parse, PrimitiveLibrary
 from thirdhand.primitives.quaternion_dmp import PoseDMP
 from thirdhand.primitives.segmentation_dp import brute_force_marginals, segment_marginals
 

@@ -370,8 +370,8 @@ def test_evaluate_bad_files_one_line(tmp_path: Path, capsys: pytest.CaptureFixtu
 
 # ------------------------------------------------------------------ phases
 def test_phase_grouper_splits_one_skill_by_where_it_goes() -> None:
-    from thirdhand.primitives.library import Parse
     from thirdhand.primitives.phases import PhaseGrouper, run_descriptors
+    from thirdhand.primitives.primitive_library import Parse
 
     # free move down (skill 0), contact (skill 1), free move up (skill 0)
     y = np.concatenate([np.linspace(10, 0, 30), np.zeros(40), np.linspace(0, 10, 30)])[:, None]

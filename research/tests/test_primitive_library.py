@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 from research.primitive_library import lasa_join_experiment, orientation_comparison
 from thirdhand.datasets.primitive_shapes import concatenate_shapes, lasa_shapes, sine_tracks
 from thirdhand.primitives.cli import app
-from thirdhand.primitives.library import PrimitiveLibrary
+from thirdhand.primitives.primitive_library import PrimitiveLibrary
 
 runner = CliRunner()
 

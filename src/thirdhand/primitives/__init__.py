@@ -15,7 +15,7 @@
 from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.primitives.dmp import DMP
 from thirdhand.primitives.hsmm import HiddenSemiMarkov
-from thirdhand.primitives.library import Parse, PrimitiveLibrary
+from thirdhand.primitives.primitive_library import Parse, PrimitiveLibrary
 from thirdhand.primitives.promp import ProMP
 from thirdhand.primitives.quaternion_dmp import PoseDMP, QuaternionDMP
 from thirdhand.primitives.stage import primitives_stage

@@ -1,7 +1,7 @@
 """The second level of the parse: runs of one skill grouped into phases.
 
 The library parses a stream into skills; consecutive segments of one skill are
-one *run* (:meth:`~thirdhand.primitives.library.Parse.merged`: a wiping phase of
+one *run* (:meth:`~thirdhand.primitives.primitive_library.Parse.merged`: a wiping phase of
 many circles is one run of the circle skill). The same skill can serve
 different phases — moving freely towards a surface and away from it — which
 differ in where the run takes the arm. A run is described by
@@ -24,7 +24,7 @@ import numpy as np
 
 from thirdhand.arrays import FloatArray, IntArray
 from thirdhand.primitives.checks import PrimitiveError
-from thirdhand.primitives.library import Parse
+from thirdhand.primitives.primitive_library import Parse
 
 #: Weight of the skill identity in a run's descriptor, in standard deviations.
 SKILL_WEIGHT = 3.0

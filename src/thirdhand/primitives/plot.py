@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from thirdhand.arrays import FloatArray
-from thirdhand.primitives.library import Parse, PrimitiveLibrary
+from thirdhand.primitives.primitive_library import Parse, PrimitiveLibrary
 from thirdhand.primitives.quaternion_dmp import PoseDMP
 
 

@@ -1,6 +1,6 @@
 """Candidate cuts and the normalised weight-space features of every possible segment.
 
-Used by the primitive-library parser (:mod:`thirdhand.primitives.library`).
+Used by the primitive-library parser (:mod:`thirdhand.primitives.primitive_library`).
 """
 
 from __future__ import annotations

@@ -16,7 +16,7 @@ freely. Without ``K``, it is chosen over :attr:`SkillParserOptions.k_range` by
 BIC on the training tracks.
 
 The seed's parser (candidate cuts at speed minima + a mixture of ProMP skills,
-:class:`~thirdhand.primitives.library.PrimitiveLibrary`) stays reachable as
+:class:`~thirdhand.primitives.primitive_library.PrimitiveLibrary`) stays reachable as
 ``parser="cuts"`` for comparison; it is not saved.
 """
 
@@ -398,7 +398,7 @@ def cuts_parses(
     Candidate cuts where the smoothed speed falls under 5 % of the median peak
     speed, ProMP skills over the segments (``K`` = ``n_skills`` or 3).
     """
-    from thirdhand.primitives.library import PrimitiveLibrary
+    from thirdhand.primitives.primitive_library import PrimitiveLibrary
     from thirdhand.primitives.segment_features import smoothed_speed
 
     data = [(tr.t, tr.pos) for tr in tracks]
