@@ -27,7 +27,10 @@ def live_command(
     task: Annotated[Path, typer.Option(help="Task file with a plan (thirdhand learn).")],
     speed: Annotated[
         float,
-        typer.Option(help="Replay speed: 1 real time, 2 twice as fast, 0 as fast as possible."),
+        typer.Option(
+            help="Replay speed: 1 real time, 2 twice as fast, 0 as fast as possible "
+            "(otherwise 0.01 to 1000)."
+        ),
     ] = 1.0,
     json_out: Annotated[
         Path | None, typer.Option("--json", help="Write the report (steps, latency, assists).")
