@@ -16,11 +16,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from pydantic import ValidationError
-from thirdhand.primitives._checks import PrimitiveError
 
 from cli_helpers import call, settings_file
 from test_export_rrd import scene  # noqa: F401 (the fixture)
 from thirdhand.errors import TaskFileError
+from thirdhand.primitives.checks import PrimitiveError
 from thirdhand.task.store import parse_task
 
 
@@ -229,7 +229,7 @@ def test_random_models_pass_and_each_broken_law_is_refused(k, c, rate, weights, 
 def test_a_task_s_skill_library_is_checked_on_load_and_written_without_nan() -> None:
     from thirdhand.primitives.pose_channels import PoseTrack
     from thirdhand.primitives.skill_library import SkillLibrary, SkillParserOptions
-    from thirdhand.task.stages import SkillLibrary as Block
+    from thirdhand.task.stages import SkillLibraryRecord as Block
 
     t = np.arange(200) / 50.0
     pos = np.column_stack([np.sin(t), np.cos(2 * t), 0.1 * t])

@@ -29,8 +29,12 @@ FILE_KEYS = frozenset({"source", "format", "format_version", "ros_version", "lab
 
 
 def _json(value: Any) -> Any:
-    """``value`` as JSON sees it (tuples as lists, NaN kept), for comparing meta."""
-    return json.loads(json.dumps(value, default=str))
+    """``value`` as JSON sees it (tuples as lists), for comparing meta; a value JSON
+    cannot hold (a NaN) as its repr, which no file gives back."""
+    try:
+        return json.loads(json.dumps(value, default=str, allow_nan=False))
+    except ValueError:
+        return {"not JSON": repr(value)}
 
 
 def _label_times(d: dict[str, Any]) -> list[tuple[str, float]]:

@@ -11,7 +11,6 @@ done. Needs the ``sim`` extra (``pip install 'thirdhand[sim]'``).
 from __future__ import annotations
 
 import importlib.util
-import json
 import time
 from pathlib import Path
 from typing import Annotated, Any
@@ -20,6 +19,7 @@ import typer
 from rich.console import Console
 from rich.table import Table
 
+from thirdhand import jsontext
 from thirdhand.config import ConfigOption, load_settings
 from thirdhand.errors import ThirdhandError
 from thirdhand.simulate.settings import SimulateSettings
@@ -146,7 +146,8 @@ def simulate_command(
             sim, cfg, task=str(task), robot=plan.robot, source=source, video=wrote_video,
             video_note=note, frames=frames,
         )  # fmt: skip
-        atomic_write_bytes(json_out, (json.dumps(doc, indent=1) + "\n").encode())
+        text = jsontext.dumps(doc, what=str(json_out), indent=1)
+        atomic_write_bytes(json_out, (text + "\n").encode())
         console.print(f"wrote {json_out}")
     bad = [o for o in sorted(sim.result.steps, key=lambda o: o.index) if o.status != "done"]
     if bad:

@@ -35,6 +35,7 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
 from thirdhand.execute.robot import ROBOTS, robots_dir
+from thirdhand.readlimits import read_text_input
 from thirdhand.simulate.parts import MassProperties, Piece, SimulateError
 from thirdhand.simulate.settings import SimulateSettings
 
@@ -120,7 +121,7 @@ def robot_urdf_text(robot: str) -> str:
             f"robot {robot!r}: the physics simulation builds {', '.join(SIM_ROBOTS)} only"
         )
     root = robots_dir()
-    text = (root / ROBOTS[robot].urdf).read_text()
+    text = read_text_input(root / ROBOTS[robot].urdf, what="robot model (URDF)")
     text = re.sub(r"<visual>.*?</visual>", "", text, flags=re.S)
     text = re.sub(r"<mimic[^>]*/>", "", text)
     text = text.replace("package://example-robot-data/robots/", f"{root}/")
