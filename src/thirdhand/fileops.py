@@ -122,17 +122,23 @@ def _stat(p: Path) -> os.stat_result | None:
 
 
 def thirdhand_folder(p: Path) -> bool:
-    """True for a folder ``--force`` may move aside: empty, or a recording folder.
+    """True for a folder ``--force`` may move aside: empty, a recording or a dataset folder.
 
     thirdhand writes folders only as recordings (an MLR folder holding
-    ``poses.dat`` and ``meta.kvg``, a ROS 2 bag holding ``metadata.yaml``); any
-    other folder is the user's and is never moved.
+    ``poses.dat`` and ``meta.kvg``, a ROS 2 bag holding ``metadata.yaml``) and
+    LeRobot datasets (``meta/info.json``); any other folder is the user's and
+    is never moved.
     """
     try:
         names = set(os.listdir(p))
     except OSError:
         return False
-    return not names or {"poses.dat", "meta.kvg"} <= names or "metadata.yaml" in names
+    return (
+        not names
+        or {"poses.dat", "meta.kvg"} <= names
+        or "metadata.yaml" in names
+        or (p / "meta" / "info.json").is_file()
+    )
 
 
 def check_path_shape(path: PathLike, *, what: str = "output") -> Path:
