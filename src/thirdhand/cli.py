@@ -395,6 +395,14 @@ def convert(
             "(meta, exact label times, body kinds); what is lost is printed.",
         ),
     ] = False,
+    fps: Annotated[
+        int | None,
+        typer.Option(
+            "--fps",
+            help="--to lerobot: frames per second of the dataset (default: the recording's "
+            "rate, rounded).",
+        ),
+    ] = None,
 ) -> None:
     """Convert a recording between formats, or export a task or a run to a robot or a viewer.
 
@@ -405,6 +413,9 @@ def convert(
     as a ROS 2 bag; ``convert TASK out.xml`` the plan as a BehaviorTree.CPP v4
     tree; ``convert TASK out.pddl`` a PDDL problem and its domain
     (``out.domain.pddl``); see docs/how-to/robot.md.
+    ``convert REC DIR --to lerobot`` writes the recording as a one-episode
+    LeRobot dataset (v3.0): every body's pose per frame at ``--fps``, the
+    interaction labels as per-frame text; see docs/reference/lerobot.md.
 
     A recording is read back from what would be written before it replaces
     anything: a format that cannot carry the recording exactly (its meta, label
@@ -414,6 +425,13 @@ def convert(
     """
     from thirdhand import io
 
+    if to is not None and to.lower() == "lerobot":
+        if with_ or lossy:
+            _fail("--with, --lossy: not for --to lerobot")
+        _convert_lerobot(source, target, force=force, fps=fps)
+        return
+    if fps is not None:
+        _fail("--fps: only for --to lerobot")
     suffix = target.suffix.lower()
     if suffix == ".rrd":
         _convert_rrd(source, target, force=force, **_classify_extras(with_ or []))
@@ -435,6 +453,26 @@ def convert(
     out.print(f"wrote {target}: {recording}")
     if lost:
         out.print(f"not carried by the format (--lossy): {'; '.join(lost)}")
+
+
+def _convert_lerobot(source: Path, target: Path, *, force: bool, fps: int | None) -> None:
+    """A recording as a one-episode LeRobot dataset folder (``thirdhand.lerobot.human``)."""
+    from thirdhand import io
+    from thirdhand.lerobot.human import recording_episode
+    from thirdhand.lerobot.writer import write_dataset
+
+    check_output(target, force=force, inputs=[source])
+    recording = io.load(source)
+    rate = fps if fps is not None else max(1, round(recording.rate))
+    task = str(recording.meta.get("task") or f"human demonstration {source.name}")
+    human = recording_episode(recording, fps=rate, task=task)
+    summary = write_dataset([human.episode], target, fps=rate, robot_type=None, force=force)
+    out.print(
+        f"wrote {target}: LeRobot dataset, {summary.frames} frames at {rate} fps, "
+        f"{len(human.episode.names['observation.state']) // 7} bodies"
+    )
+    if human.dropped:
+        out.print(f"left out (never tracked): {', '.join(human.dropped)}")
 
 
 def _save_checked(recording: Any, target: Path, *, fmt: str | None, lossy: bool) -> list[str]:
