@@ -34,9 +34,12 @@ from thirdhand.fileops import atomic_output, check_output
 from thirdhand.lerobot import layout, video
 from thirdhand.lerobot.episode import Episode
 from thirdhand.lerobot.stats import Stats, aggregate, column_stats, image_stats
+from thirdhand.readlimits import open_input
 from thirdhand.settings import Settings
 
 _MB = 1024**2
+#: Largest file of one episode's rows read back when joining them, bytes.
+_PART_LIMIT = 4 * 2**30
 
 
 class DatasetSettings(Settings):
@@ -304,7 +307,8 @@ class DatasetWriter:
             path.parent.mkdir(parents=True, exist_ok=True)
             with pq.ParquetWriter(path, schema, compression="snappy", use_dictionary=True) as w:
                 for i in group:
-                    w.write_table(pq.read_table(done[i].data, schema=schema))
+                    with open_input(done[i].data, what="episode rows", limit=_PART_LIMIT) as fh:
+                        w.write_table(pq.read_table(fh, schema=schema))
         n_videos = 0
         for key in cams:
             spots = [(c, f) for c, f, _ in placed.videos[key]]
