@@ -64,6 +64,9 @@ def test_round_trip(tmp_path: Path) -> None:
         err = np.abs(frames.astype(float) - ep.videos[CAM]).mean()
         assert err < 6, err  # h264 at crf 30 on smooth frames: a few grey levels
         assert got.tasks == [ep.task]
+    light = read_dataset(tmp_path / "ds", decode_videos=False)
+    assert all(e.videos == {} for e in light.episodes)
+    np.testing.assert_array_equal(light.episodes[2].features["action"], eps[2].features["action"])
     meta = pq.read_table(tmp_path / "ds/meta/episodes/chunk-000/file-000.parquet").to_pydict()
     assert meta["dataset_from_index"] == [0, 5, 12]
     assert meta["dataset_to_index"] == [5, 12, 16]
@@ -294,5 +297,7 @@ def test_reader_refuses_inconsistent_datasets(tmp_path: Path) -> None:
 
     encode_frames(_video(6, 1), short, fps=FPS)  # two frames fewer than the 8 rows
     os.replace(short, video)
-    with pytest.raises(FormatError, match="no video frame within"):
-        read_dataset(root)
+    for decode in (True, False):  # the times are checked even when no frame is kept
+        with pytest.raises(FormatError, match="no video frame within") as err:
+            read_dataset(root, decode_videos=decode)
+        assert "\n" not in str(err.value) and "(episode 1): no video frame" in str(err.value)

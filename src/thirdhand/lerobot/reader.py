@@ -44,6 +44,7 @@ class ReadEpisode:
     timestamps : ndarray of float32, shape (n_frames,), seconds
     features : dict str -> ndarray of float32, shape (n_frames, n)
     videos : dict str -> ndarray of uint8, shape (n_frames, height, width, 3)
+        Each row's video frame (empty when read without ``decode_videos``).
     annotations : dict str -> list of str
     """
 
@@ -81,8 +82,18 @@ def _folder_tables(root: Path, sub: str) -> pa.Table:
     return pa.concat_tables([_parquet(f) for f in files], promote_options="default")
 
 
-def read_dataset(root: str | os.PathLike[str]) -> LeRobotDataset:
+def read_dataset(root: str | os.PathLike[str], *, decode_videos: bool = True) -> LeRobotDataset:
     """Every episode of the dataset at ``root``, checked against ``meta/info.json``.
+
+    Parameters
+    ----------
+    root : path-like
+        The dataset folder.
+    decode_videos : bool
+        Return every row's video frame. Without it, the videos are still
+        decoded once to check that every row has a frame at its time, but no
+        frame is kept (``ReadEpisode.videos`` is empty): the check of a large
+        dataset in little memory.
 
     Raises
     ------
@@ -117,7 +128,8 @@ def read_dataset(root: str | os.PathLike[str]) -> LeRobotDataset:
     numeric = [k for k, v in features.items() if v.get("dtype") == "float32" and k != "timestamp"]
     texts = [k for k, v in features.items() if v.get("dtype") == "string"]
     data_cache: dict[Path, pa.Table] = {}
-    video_cache: dict[Path, tuple[video.VideoProbe, NDArray[np.uint8]]] = {}
+    probes: dict[Path, video.VideoProbe] = {}
+    decoded: dict[str, tuple[Path, NDArray[np.uint8]]] = {}
     out: list[ReadEpisode] = []
     n_rows = 0
     for i, ep in enumerate(sorted(episodes_meta, key=lambda r: r["episode_index"])):
@@ -164,17 +176,16 @@ def read_dataset(root: str | os.PathLike[str]) -> LeRobotDataset:
                 chunk_index=ep[f"videos/{key}/chunk_index"],
                 file_index=ep[f"videos/{key}/file_index"],
             )
-            if vpath not in video_cache:
+            if vpath not in probes:
                 check_regular(vpath, what="MP4 file")
-                found = video.probe(vpath)
-                video_cache[vpath] = (
-                    found,
-                    video.decode_frames(vpath, width=found.width, height=found.height),
-                )
-            found, decoded = video_cache[vpath]
-            frames[key] = _frames_at(
-                vpath, found, decoded, float(ep[f"videos/{key}/from_timestamp"]) + ts, where
-            )
+                probes[vpath] = video.probe(vpath)
+            found = probes[vpath]
+            times = float(ep[f"videos/{key}/from_timestamp"]) + ts.astype(np.float64)
+            picked = _frame_indices(vpath, found.pts, times, where)
+            if decode_videos:
+                if decoded.get(key, (None,))[0] != vpath:  # one file per camera in memory
+                    decoded[key] = (vpath, _decode(vpath, found))
+                frames[key] = decoded[key][1][picked]
         out.append(
             ReadEpisode(
                 index=i,
@@ -192,32 +203,40 @@ def read_dataset(root: str | os.PathLike[str]) -> LeRobotDataset:
     return LeRobotDataset(root=base, info=info, stats=stats, tasks=tasks, episodes=out)
 
 
-def _frames_at(
-    path: Path,
-    found: video.VideoProbe,
-    decoded: NDArray[np.uint8],
-    times: NDArray[np.floating[Any]],
-    where: str,
-) -> NDArray[np.uint8]:
-    """The decoded frame nearest each time; an error if none is within :data:`TOLERANCE_S`."""
-    if found.pts.size != decoded.shape[0]:
-        raise FormatError(path, f"{found.pts.size} frame times for {decoded.shape[0]} frames")
-    order = np.argsort(found.pts)
-    pts = found.pts[order]
-    t = np.asarray(times, dtype=np.float64)
-    j = np.clip(np.searchsorted(pts, t), 1, max(pts.size - 1, 1))
-    j = np.where(np.abs(pts[j - 1] - t) <= np.abs(pts[np.minimum(j, pts.size - 1)] - t), j - 1, j)
-    j = np.minimum(j, pts.size - 1)
-    miss = np.flatnonzero(np.abs(pts[j] - t) >= TOLERANCE_S)
+def _decode(path: Path, found: video.VideoProbe) -> NDArray[np.uint8]:
+    """Every frame of ``path`` in presentation order, as many as it has frame times."""
+    frames = video.decode_frames(path, width=found.width, height=found.height)
+    if frames.shape[0] != found.pts.size:
+        raise FormatError(path, f"{found.pts.size} frame times for {frames.shape[0]} frames")
+    return frames
+
+
+def _frame_indices(
+    path: Path, pts: NDArray[np.float64], times: NDArray[np.float64], where: str
+) -> NDArray[np.intp]:
+    """Index (in presentation order) of the frame nearest each time, as LeRobot picks it.
+
+    Raises
+    ------
+    FormatError
+        No frame lies within :data:`TOLERANCE_S` of one of the times.
+    """
+    shown = np.sort(pts)
+    if shown.size == 0:
+        raise FormatError(path, "the video has no frame", where=where)
+    right = np.clip(np.searchsorted(shown, times), 0, shown.size - 1)
+    left = np.clip(right - 1, 0, shown.size - 1)
+    nearest = np.where(np.abs(shown[left] - times) <= np.abs(shown[right] - times), left, right)
+    miss = np.flatnonzero(np.abs(shown[nearest] - times) >= TOLERANCE_S)
     if miss.size:
         k = int(miss[0])
         raise FormatError(
             path,
-            f"no video frame within {TOLERANCE_S} s of {t[k]:.6f} s (frame {k}); the file "
-            f"has {pts.size} frames up to {pts[-1] if pts.size else 0:.6f} s",
+            f"no video frame within {TOLERANCE_S} s of {times[k]:.6f} s (row {k}); the file "
+            f"has {shown.size} frames from {shown[0]:.6f} to {shown[-1]:.6f} s",
             where=where,
         )
-    return decoded[order[j]]
+    return nearest
 
 
 def _tasks(table: pa.Table, path: Path) -> list[str]:
