@@ -10,7 +10,7 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from thirdhand.errors import FormatError, OptionError, OutputError
+from thirdhand.errors import FormatError, OptionError, OutputError, Terminated
 from thirdhand.lerobot import layout
 from thirdhand.lerobot.episode import Episode
 from thirdhand.lerobot.reader import read_dataset
@@ -210,6 +210,43 @@ def test_ctrl_c_keeps_the_finished_episodes(tmp_path: Path) -> None:
     assert os.listdir(tmp_path) == ["ds"]
     with pytest.raises(KeyboardInterrupt):  # interrupted before any episode: nothing
         write_dataset(_stopped(KeyboardInterrupt(), 0), tmp_path / "d2", fps=FPS, robot_type=None)
+    assert os.listdir(tmp_path) == ["ds"]
+
+
+def test_sigterm_keeps_the_finished_episodes(tmp_path: Path) -> None:
+    with pytest.raises(Terminated):
+        write_dataset(_stopped(Terminated(), 3), tmp_path / "ds", fps=FPS, robot_type=None)
+    assert read_dataset(tmp_path / "ds").info["total_episodes"] == 3
+
+
+def test_an_episode_cut_short_is_not_counted(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Ctrl-C while the third episode's video is encoded: its rows are already on disk."""
+    from thirdhand.lerobot import video
+
+    encode = video.encode_frames
+    calls = []
+
+    def stop_on_third(frames: np.ndarray, path: Path, *, fps: int) -> None:
+        calls.append(path)
+        if len(calls) == 3:
+            path.write_bytes(b"half a video")
+            raise KeyboardInterrupt
+        encode(frames, path, fps=fps)
+
+    monkeypatch.setattr(video, "encode_frames", stop_on_third)
+    eps = [_episode(4, 1), _episode(5, 2), _episode(6, 3)]
+    with pytest.raises(KeyboardInterrupt):
+        write_dataset(eps, tmp_path / "ds", fps=FPS, robot_type=None)
+    monkeypatch.setattr(video, "encode_frames", encode)
+    back = read_dataset(tmp_path / "ds")
+    assert back.info["total_frames"] == 9 and len(back.episodes) == 2
+    for ep, got in zip(eps, back.episodes, strict=False):
+        np.testing.assert_array_equal(
+            got.features["observation.state"], ep.features["observation.state"]
+        )
+        assert got.videos[CAM].shape[0] == ep.n_frames
     assert os.listdir(tmp_path) == ["ds"]
 
 
