@@ -78,6 +78,22 @@ def test_round_trip(tmp_path: Path) -> None:
     assert data["task_index"] == [0] * 5 + [1] * 7 + [0] * 4
 
 
+def test_a_one_column_feature_is_a_scalar_column(tmp_path: Path) -> None:
+    ep = Episode(
+        fps=10,
+        task="t",
+        features={"gripper": np.arange(4.0)[:, None]},
+        names={"gripper": ("width",)},
+    )
+    write_dataset([ep], tmp_path / "ds", fps=10, robot_type=None)
+    info = json.loads((tmp_path / "ds/meta/info.json").read_text())
+    assert info["features"]["gripper"] == {"dtype": "float32", "shape": [1], "names": ["width"]}
+    schema = pq.read_schema(tmp_path / "ds/data/chunk-000/file-000.parquet")
+    assert str(schema.field("gripper").type) == "float"  # as LeRobot's datasets.Value("float32")
+    got = read_dataset(tmp_path / "ds").episodes[0].features["gripper"]
+    np.testing.assert_array_equal(got, ep.features["gripper"])
+
+
 def test_statistics_are_numpys(tmp_path: Path) -> None:
     eps = [_episode(9, 4), _episode(6, 5)]
     write_dataset(eps, tmp_path / "ds", fps=FPS, robot_type=None)

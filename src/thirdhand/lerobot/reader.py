@@ -163,10 +163,7 @@ def read_dataset(root: str | os.PathLike[str], *, decode_videos: bool = True) ->
             raise FormatError(path, "frame_index is not 0, 1, 2, …", where=where)
         if not np.allclose(ts, (frame / fps).astype(np.float32), rtol=0, atol=1e-6):
             raise FormatError(path, f"timestamps are not frame_index / {fps}", where=where)
-        feats = {
-            k: np.asarray(rows[k].combine_chunks().flatten(), dtype=np.float32).reshape(length, -1)
-            for k in numeric
-        }
+        feats = {k: _numeric(rows[k], length) for k in numeric}
         notes = {k: [str(s) for s in rows[k].to_pylist()] for k in texts}
         frames = {}
         for key in cams:
@@ -201,6 +198,14 @@ def read_dataset(root: str | os.PathLike[str], *, decode_videos: bool = True) ->
     _agree(info_path, "total_frames", totals["total_frames"], n_rows)
     _agree(info_path, "total_frames", totals["total_frames"], all_rows)
     return LeRobotDataset(root=base, info=info, stats=stats, tasks=tasks, episodes=out)
+
+
+def _numeric(column: pa.ChunkedArray, length: int) -> NDArray[np.float32]:
+    """A float32 column (one value per row) or list column as shape (n_rows, n)."""
+    values = column.combine_chunks()
+    if pa.types.is_list(values.type) or pa.types.is_fixed_size_list(values.type):
+        values = values.flatten()
+    return np.asarray(values, dtype=np.float32).reshape(length, -1)
 
 
 def _decode(path: Path, found: video.VideoProbe) -> NDArray[np.uint8]:

@@ -451,6 +451,8 @@ def _arrow(values: Any, typ: pa.DataType) -> pa.Array:
     if pa.types.is_fixed_size_list(typ):
         arr = np.ascontiguousarray(values, dtype=np.float32)
         return pa.FixedSizeListArray.from_arrays(pa.array(arr.reshape(-1)), typ.list_size)
+    if isinstance(values, np.ndarray):  # a feature of one column is a scalar column
+        return pa.array(values.reshape(-1), type=typ)
     return pa.array(values, type=typ)
 
 
