@@ -15,10 +15,19 @@ below the project's versions). A throwaway virtual environment made it::
     /tmp/lerobot-venv/bin/pip install "datasets>=4,<5" "huggingface-hub>=0.34.2,<0.36" \
         "av>=15,<16" jsonlines "packaging>=24.2,<26" draccus==0.10.0 pillow pandas \
         pyarrow einops deepdiff termcolor "imageio[ffmpeg]"
-    /tmp/lerobot-venv/bin/python tests/data/lerobot_reference/make.py
+    /tmp/lerobot-venv/bin/pip install --no-deps "accelerate>=1.10,<2" safetensors
+    PYTHONPATH=/tmp/tv-stub HF_HUB_OFFLINE=1 \
+        /tmp/lerobot-venv/bin/python tests/data/lerobot_reference/make.py
 
 (``--no-deps``: lerobot 0.4.4 asks for torch < 2.11, which pip would fetch as a
-multi-gigabyte CUDA build; the dataset writer runs with the CPU torch on disk.)
+multi-gigabyte CUDA build; the dataset writer runs with the CPU torch on disk.
+PyPI's torchvision does not load beside that torch ("operator torchvision::nms
+does not exist"), and LeRobot's dataset modules import it at module level
+without calling it when writing: ``/tmp/tv-stub`` holds an import stand-in, a
+package ``torchvision`` whose ``transforms`` has a ``ToTensor`` class and
+whose ``transforms.v2`` has a ``Transform`` class and a ``functional``
+module, nothing more. Reading the frames back with LeRobot would need the real
+torchvision or torchcodec, so ``main`` reads back only the metadata and rows.)
 The video is encoded with ``vcodec="h264"`` (LeRobot's default is AV1), the codec
 thirdhand writes.
 """
@@ -101,7 +110,7 @@ def main() -> None:
             )
         ds.save_episode()
     ds.finalize()
-    back = LeRobotDataset("thirdhand/reference", root=root)
+    back = LeRobotDataset("thirdhand/reference", root=root)  # metadata and rows only
     print(back, len(back), file=sys.stderr)
 
 
