@@ -234,7 +234,8 @@ def object_geometry(demo: Demonstration) -> dict[str, dict[str, Any]]:
         Per body with known geometry: ``bbox_min``/``bbox_max`` (body frame,
         metres) and, when the part has a 3rdHand mesh, ``mesh`` (file name, looked
         up along the mesh search path), ``scale`` (0.001, millimetres) and
-        ``mesh_to_body`` (mesh bounding box aligned onto the body's).
+        ``mesh_to_body`` (the scene's own, else the mesh bounding box aligned onto the
+        body's).
     """
     geometry = demo.meta.get("geometry")
     out: dict[str, dict[str, Any]] = {}
@@ -251,7 +252,12 @@ def object_geometry(demo: Demonstration) -> dict[str, dict[str, Any]]:
             mlo, mhi = (np.asarray(b, float) * 1e-3 for b in MESH_BOUNDS_MM[mesh])
             fields["mesh"] = mesh
             fields["scale"] = 1e-3
-            fields["mesh_to_body"] = align_bounds(mlo, mhi, np.asarray(lo), np.asarray(hi))
+            given = g.get("mesh_to_body")
+            fields["mesh_to_body"] = (
+                Pose.model_validate(given)
+                if isinstance(given, Mapping)
+                else align_bounds(mlo, mhi, np.asarray(lo), np.asarray(hi))
+            )
         out[str(name)] = fields
     return out
 
