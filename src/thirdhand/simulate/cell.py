@@ -18,9 +18,11 @@ import numpy as np
 
 from thirdhand.arrays import FloatArray
 from thirdhand.execute.layout import base_part, make_workcell
+from thirdhand.simulate.carve import exact_pieces
 from thirdhand.simulate.measure import box_corners
 from thirdhand.simulate.model import CellModel, PartModel
 from thirdhand.simulate.parts import (
+    Piece,
     SimulateError,
     convex_hull,
     convex_pieces,
@@ -81,6 +83,7 @@ def build_cell(
     boxes: list[str] = []
     pieces_n: dict[str, int] = {}
     spent = 0.0
+    notes: list[str] = []
     for name in sorted(plan.start):
         obj = objects.get(name)
         if obj is None:
@@ -94,7 +97,19 @@ def build_cell(
             pieces = convex_hull(tri)
         elif settings.collision == "hull":
             pieces = convex_hull(tri)
+        elif settings.collision == "exact" and (carved := exact_pieces(tri)) is not None:
+            pieces = [Piece(v) for v in carved.pieces]
+            if carved.missing_m3 > 0.01 * carved.volume_m3:
+                notes.append(
+                    f"part {name!r}: its exact pieces leave out {carved.missing_m3 * 1e6:.1f} cm³ "
+                    "of it (a cavity far from convex)"
+                )
         else:
+            if settings.collision == "exact":
+                notes.append(
+                    f"part {name!r}: its mesh is not a closed surface: collides as its "
+                    "approximate convex decomposition (CoACD)"
+                )
             t0 = time.perf_counter()
             pieces, cached = convex_pieces(
                 tri, name=f"part {name!r} ({obj.mesh})",
@@ -110,7 +125,6 @@ def build_cell(
                       np.asarray(plan.start[name], dtype=np.float64), fixed=name == base)
         )  # fmt: skip
     joints = [(s.child, s.parent) for s in plan.steps if s.planned and s.child in plan.start]
-    notes = []
     if boxes:
         whose = "its" if len(boxes) == 1 else "their"
         notes.append(f"no mesh found for {', '.join(boxes)}: simulated as {whose} bounding box")

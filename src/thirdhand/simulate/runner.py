@@ -21,6 +21,14 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
 from thirdhand.execute.robot import ROBOTS
+from thirdhand.simulate.aim import (
+    blend,
+    integrate_offset,
+    joint_step,
+    pose_twist,
+    shifted,
+    tool_correction,
+)
 from thirdhand.simulate.measure import (
     PoseError,
     displacement_mm,
@@ -36,6 +44,9 @@ from thirdhand.task.constraint import Constraint
 
 #: Seconds between two measurements (slip, forces, tracking).
 MEASURE_PERIOD = 0.01
+
+#: Simulated seconds over which a re-aim is blended in (at most half the motion).
+AIM_BLEND_S = 1.0
 
 #: ``sink(model, data, label)`` called at every video frame.
 FrameSink = Callable[[mujoco.MjModel, mujoco.MjData, str], None]
@@ -198,6 +209,12 @@ class Simulation:
         self._n = 0
         self.render_time = 0.0
         self._label = ""
+        self._scratch = mujoco.MjData(model)
+        self._jacp = np.zeros((3, model.nv))
+        self._jacr = np.zeros((3, model.nv))
+        self._delta = np.zeros(len(names))
+        self._offset = np.zeros(6)
+        self._grip: FloatArray | None = None
 
     # -- state -------------------------------------------------------------------------
 
@@ -255,13 +272,49 @@ class Simulation:
                 force = float(np.max(np.abs(d.efc_force[adr])))
         return bool(pads.any()), bool(rest.any()), force
 
+    # -- re-aiming ----------------------------------------------------------------------
+
+    def _tool_at(self, q: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The tool's world pose (4, 4) and Jacobian (6, dof) at arm configuration ``q``."""
+        m, x = self.model, self._scratch
+        x.qpos[self._qadr] = q
+        mujoco.mj_kinematics(m, x)
+        mujoco.mj_comPos(m, x)
+        mujoco.mj_jacBody(m, x, self._jacp, self._jacr, self._tool)
+        jac = np.vstack([self._jacp[:, self._vadr], self._jacr[:, self._vadr]])
+        return _pose(x, self._tool), jac
+
+    def _aim(self, q: FloatArray, correction: FloatArray) -> FloatArray:
+        """Joint change (dof,) that moves the tool from its pose at ``q`` by ``correction``."""
+        target = self._tool_at(q)[0] @ correction
+        dq = np.zeros_like(q)
+        for _ in range(3):
+            pose, jac = self._tool_at(q + dq)
+            dq = dq + joint_step(jac, pose_twist(pose, target))
+        return dq
+
+    def _in_hand(self, part: str) -> FloatArray:
+        """The part's pose (4, 4) in the tool frame now (what the cell's tracking measures)."""
+        return se3.transform_invert(_pose(self.data, self._tool)) @ self.body_pose(part)
+
     # -- the run -----------------------------------------------------------------------
 
-    def _advance(self, ctrl: FloatArray, on_tick: Callable[[int], None]) -> None:
-        """Step once per row of ``ctrl`` (k, dof), measuring every few steps."""
+    def _advance(
+        self,
+        ctrl: FloatArray,
+        on_tick: Callable[[int], None],
+        adjust: Callable[[int], FloatArray] | None = None,
+    ) -> None:
+        """Step once per row of ``ctrl`` (k, dof), measuring every few steps.
+
+        ``adjust(k)``, called every measurement period, returns the joint change
+        (dof,) added to the control from row ``k`` on (kept in ``_delta``).
+        """
         m, d = self.model, self.data
         for k in range(ctrl.shape[0]):
-            d.ctrl[self._arm_act] = ctrl[k]
+            if adjust is not None and k % self._every == 0:
+                self._delta = adjust(k)
+            d.ctrl[self._arm_act] = ctrl[k] + self._delta
             mujoco.mj_step(m, d)
             self._n += 1
             if self._n % self._every == 0:
@@ -284,6 +337,52 @@ class Simulation:
         vr = np.stack([np.interp(tau, t, qd[:, j]) for j in range(q.shape[1])], axis=1)
         return tau, qr, qr + self._kv_over_kp * vr
 
+    def _adjuster(
+        self, phase: Phase, qr: FloatArray, planned_grip: Mapping[str, FloatArray]
+    ) -> Callable[[int], FloatArray] | None:
+        """How a move re-aims the arm (the ``aim`` setting); None: as planned.
+
+        During a part's transport and insertion the tool is re-aimed so that the part,
+        as it sits in the hand now, follows its planned path (blended in over the first
+        :data:`AIM_BLEND_S` s of the transport), with an offset that makes up for the
+        arm's lag (:func:`~thirdhand.simulate.aim.integrate_offset`). Once the part
+        touches anything but the hand (its parent, as it goes in), the measured grasp
+        and the offset are kept as they were: contact moves the part in the hand on
+        purpose. A part the fingers lost is not aimed at. The next motion without a
+        part blends the arm's last change out.
+        """
+        s = self.settings
+        dt = s.timestep
+        part = phase.part
+        ramp = min(AIM_BLEND_S, 0.5 * phase.duration)
+        if s.aim and part is not None and part in planned_grip:
+            g_plan = planned_grip[part]
+            if phase.segment in ("transport", "insert"):
+                insert = phase.segment == "insert"
+
+                def follow(k: int) -> FloatArray:
+                    tool = self._tool_at(qr[k])[0]
+                    pads, other, _ = self.touching(part)
+                    if not pads and s.grasp == "friction":  # lost: aim no more
+                        return self._delta
+                    free = not other
+                    if free:  # the part touches only the hand: aim it
+                        self._offset = integrate_offset(
+                            self._offset, tool @ g_plan, self.body_pose(part)
+                        )
+                        self._grip = self._in_hand(part)
+                    elif self._grip is None:
+                        self._grip = self._in_hand(part)
+                    aimed = se3.transform_invert(tool) @ shifted(tool @ g_plan, self._offset)
+                    w = 1.0 if insert else blend(k * dt, ramp)
+                    return self._aim(qr[k], tool_correction(aimed, self._grip, w))
+
+                return follow
+        if not np.any(self._delta):
+            return None
+        last = self._delta.copy()
+        return lambda k: (1.0 - blend(k * dt, ramp)) * last
+
     def run(self) -> SimulationResult:
         """Run every phase; the per-step outcomes and the rest displacement."""
         s = self.settings
@@ -295,6 +394,7 @@ class Simulation:
             for p in self.plan.steps
         }  # fmt: skip
         grip0: dict[str, FloatArray] = {}
+        planned_grip: dict[str, FloatArray] = {}
         hold_q = self.plan.q[0].copy()
         rest_start: dict[str, FloatArray] = {}
         wall0 = time.perf_counter()
@@ -317,7 +417,7 @@ class Simulation:
                          part: str | None = phase.part) -> None:  # fmt: skip
                     if out is None:
                         return
-                    err = float(np.max(np.abs(d.qpos[self._qadr] - qr[k])))
+                    err = float(np.max(np.abs(d.qpos[self._qadr] - qr[k] - self._delta)))
                     out.tracking_error_deg = max(out.tracking_error_deg, float(np.rad2deg(err)))
                     if tool is not None:
                         e = float(np.linalg.norm(d.xpos[self._tool] - tool[k]) * 1e3)
@@ -331,8 +431,9 @@ class Simulation:
                                 out.slip_mm, slip_mm(rel, grip0[part], self.corners[part])
                             )
 
-                self._advance(ctrl, tick)
-                hold_q = qr[-1].copy()
+                adjust = self._adjuster(phase, qr, planned_grip)
+                self._advance(ctrl, tick, adjust)
+                hold_q = qr[-1] + self._delta
                 if phase.segment == "transport" and out is not None and phase.part is not None:
                     pads, _, _ = self.touching(phase.part)
                     out.held = pads or s.grasp == "weld"
@@ -341,6 +442,14 @@ class Simulation:
             ctrl = np.repeat((hold_q)[None], k, axis=0)
             part = phase.part
             if phase.kind == "close" and part is not None:
+                # The grasp the planner meant: the part where the plan put it (its start,
+                # before its first pick; where it is, before a regrasp).
+                where = self.plan.start[part] if part not in grip0 else self.body_pose(part)
+                planned_grip[part] = (
+                    se3.transform_invert(self._tool_at(hold_q - self._delta)[0]) @ where
+                )
+                self._offset = np.zeros(6)
+                self._grip = None
                 d.ctrl[self._finger_act] = -s.gripper_force
                 self._advance(ctrl, lambda k: None)
                 if s.grasp == "weld":

@@ -26,10 +26,13 @@ class SimulateSettings(Settings):
         description="friction: the fingers close with the gripper's force limit and the part "
         "is carried by contact; weld: the part is welded to the hand when the fingers close.",
     )
-    collision: Literal["decomposition", "hull"] = Field(
-        "decomposition",
-        description="Collision geometry of a part mesh: its convex decomposition (CoACD; holes "
-        "kept) or its convex hull (holes filled).",
+    collision: Literal["exact", "decomposition", "hull"] = Field(
+        "exact",
+        description="Collision geometry of a part mesh: exact (its convex hull with its "
+        "pockets, grooves and notches cut out exactly; a mesh that is not a closed surface "
+        "falls back to decomposition), decomposition (CoACD's approximate convex "
+        "decomposition: its pieces bulge about a millimetre into pockets) or hull (the "
+        "convex hull: holes filled).",
     )
     density: float = Field(
         680.0, gt=0.0, le=50_000.0, description="Density of every part, kg/m³ (plywood)."
@@ -45,6 +48,12 @@ class SimulateSettings(Settings):
         gt=0.0,
         le=1000.0,
         description="Force limit of each finger, N (the Franka Hand's continuous force).",
+    )
+    aim: bool = Field(
+        True,
+        description="Re-aim the arm at the part as it sits in the hand (measured after the "
+        "fingers close and during the carry, as the cell's motion capture tracks the parts), "
+        "so that the part follows its planned path; false replays the plan as planned.",
     )
     slowdown: float = Field(
         1.0,
@@ -91,7 +100,7 @@ class SimulateSettings(Settings):
         description="Arm servo damping on the velocity error (velocity feed-forward), N·m·s/rad.",
     )
     decomposition_threshold: float = Field(
-        0.05,
+        0.02,
         gt=0.0,
         le=1.0,
         description="CoACD concavity threshold (smaller: more, tighter pieces).",
