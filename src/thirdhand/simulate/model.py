@@ -235,6 +235,15 @@ def _arm(spec: mujoco.MjSpec, cell: CellModel, settings: SimulateSettings) -> No
         act.gainprm[0] = 1.0
         act.ctrlrange = [-settings.gripper_force, settings.gripper_force]
         act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+    # The Franka Hand's fingers move together (one motor, a rack): without the coupling a
+    # held part slides across the hand with both fingers as the arm accelerates.
+    eq = spec.add_equality()
+    eq.type = mujoco.mjtEq.mjEQ_JOINT
+    eq.objtype = mujoco.mjtObj.mjOBJ_JOINT
+    eq.name = "fingers"
+    eq.name1, eq.name2 = FINGERS
+    eq.data[:5] = [0.0, 1.0, 0.0, 0.0, 0.0]
+    eq.solref = list(CONTACT_SOLREF)
     for side in (1.0, -1.0):
         body = spec.body("panda_leftfinger" if side > 0 else "panda_rightfinger")
         pad = body.add_geom()
