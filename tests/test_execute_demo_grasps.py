@@ -150,7 +150,17 @@ def test_within_fingers_slides_a_deep_grasp_back_and_centres_it() -> None:
     # slid back to the fingers' reach and centred on the board's mid-plane (z 8.5 mm)
     np.testing.assert_allclose(fit.pose[:3, 3], [0.05, -0.06 + FINGER_DEPTH_M, 0.0085], atol=1e-12)
     np.testing.assert_allclose(fit.pose[:3, :3], g.pose[:3, :3])
+    # held 10 mm in by its edge: slid in to the fingers' reach (the board's middle is farther)
     shallow = Grasp(tool_frame([0.05, -0.05, 0.0085], [0, 1, 0], [0, 0, 1]), "demo", "s")
-    np.testing.assert_allclose(within_fingers([shallow], lo, hi)[0].pose, shallow.pose)
+    (deeper,) = within_fingers([shallow], lo, hi)
+    np.testing.assert_allclose(deeper.pose[:3, 3], [0.05, -0.06 + FINGER_DEPTH_M, 0.0085],
+                               atol=1e-12)  # fmt: skip
+    np.testing.assert_allclose(deeper.pose[:3, :3], shallow.pose[:3, :3])
+    # a leg (a rod, 80 mm thick) pinched on its shoulder from above, off its axis: the
+    # tool point goes onto the axis where it was along it, backed off 40 - 35 mm
+    rod_lo, rod_hi = np.array([0.0, -0.04, -0.04]), np.array([0.28, 0.04, 0.04])
+    top = Grasp(tool_frame([0.1, 0.012, 0.03], [0, 0, -1], [0, 1, 0]), "demo", "t")
+    (held,) = within_fingers([top], rod_lo, rod_hi)
+    np.testing.assert_allclose(held.pose[:3, 3], [0.1, 0.0, 0.04 - FINGER_DEPTH_M], atol=1e-12)
     shape = Grasp(g.pose, "shape", "face")
     assert within_fingers([shape], lo, hi) == [shape]

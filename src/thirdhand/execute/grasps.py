@@ -40,6 +40,9 @@ GRASP_DEPTH_M = 0.015
 #: How far a gripper's fingers reach past the tool point toward the hand before its casing,
 #: metres, less a margin (Panda: tool point 45 mm from the fingers' base).
 FINGER_DEPTH_M = 0.035
+#: Widest a part's box may be across a parallel gripper's fingers to be held, metres
+#: (the Franka Hand opens 80 mm).
+MAX_GRIP_M = 0.08
 #: A fingertip centroid this close to a part's core (the box shrunk by its smallest half
 #: extent) pinches the core: the approach comes from the fingers' layout, metres.
 CORE_TOL_M = 0.005
@@ -319,10 +322,14 @@ def within_fingers(
     gripper's fingers reach ``depth`` past the tool point toward the hand before its
     casing, and they close symmetrically about the tool point. Each demonstrated grasp
     whose part reaches farther than ``depth`` behind the tool point (along the approach,
-    toward the hand) is slid back along its approach until it reaches ``depth``, and its
-    tool point is centred between the box's faces along the closing direction (held off
-    centre, the part is pushed across in the hand as the fingers close and placed off
-    its goal by as much). Shape grasps are returned as given.
+    toward the hand) is slid back along its approach until it reaches ``depth``; one held
+    by its edge is slid deeper toward the box's middle, as far as ``depth`` allows (flat
+    pads on a round leg's shoulder, above its axis, squeeze it out of the hand as the
+    arm accelerates: a rod's grasp goes onto its axis, backed off only as far as
+    ``depth`` needs); and its tool point is centred between the box's faces along the
+    closing direction (held off centre, the part is pushed across in the hand as the
+    fingers close and placed off its goal by as much). Shape grasps are returned as
+    given (:func:`between_fingers` fits them).
 
     Parameters
     ----------
@@ -342,14 +349,76 @@ def within_fingers(
             continue
         t = g.pose.copy()
         p, closing, approach = t[:3, 3].copy(), t[:3, 1], t[:3, 2]
-        inside = bool(np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9))
-        if inside:
-            behind = _exit_distance(p, -approach, lo, hi)
-            if behind > depth:
-                p = p - (behind - depth) * approach
+        ext = hi - lo
+        long_axis = int(np.argmax(ext))
+        across = [k for k in range(3) if k != long_axis]
+        if ext[long_axis] >= ROD_RATIO * ext[across].max():
+            # a rod: the tool point onto its axis (where it is along it), backed off
+            # along the approach as far as the fingers' depth needs
+            p[across] = ((lo + hi) / 2.0)[across]
+            p = p - max(0.0, float(ext[across].max()) / 2.0 - depth) * approach
+        else:
+            p = p + _depth_shift(p, approach, lo, hi, depth) * approach
+        if bool(np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9)):
             ahead, back = _exit_distance(p, closing, lo, hi), _exit_distance(p, -closing, lo, hi)
             p = p + (ahead - back) / 2.0 * closing
         t[:3, 3] = p
+        out.append(Grasp(t, g.source, g.label))
+    return out
+
+
+def _depth_shift(
+    p: FloatArray, approach: FloatArray, lo: FloatArray, hi: FloatArray, depth: float
+) -> float:
+    """How far to move a tool point along its approach: the box's middle onto it, or near.
+
+    Along the approach the box spans ``[u_lo, u_hi]`` from ``p``; moved by ``s`` its
+    middle is ``(u_lo + u_hi) / 2 - s`` ahead of the tool point and ``s - u_lo``
+    of it lies behind (toward the hand), at most ``depth``.
+    """
+    corners = np.array([[(hi if (i >> k) & 1 else lo)[k] for k in range(3)] for i in range(8)])
+    u = (corners - p) @ approach
+    u_lo, u_hi = float(u.min()), float(u.max())
+    return min((u_lo + u_hi) / 2.0, depth + u_lo)
+
+
+def between_fingers(
+    grasps: Sequence[Grasp], bbox_min: ArrayLike, bbox_max: ArrayLike, *,
+    width: float = MAX_GRIP_M,
+) -> list[Grasp]:  # fmt: skip
+    """Shape grasps a parallel gripper can close on: the part fits between the fingers.
+
+    A shape grasp of a board may close across its length (a face grasp rolled about
+    its approach): the fingers cannot open that wide, and one finger ends on an edge.
+    Each shape grasp whose box is wider than ``width`` along the box axis nearest to
+    the closing direction is dropped (a rod's box is as wide as its thickest end, so
+    a tapered leg is kept); the others are centred between
+    the box's faces along it, so that the fingers meet the part together. Grasps
+    from a demonstration are returned as given (:func:`within_fingers` fits them).
+
+    Parameters
+    ----------
+    grasps : sequence of Grasp
+        ``T_part_tool``, part's body frame.
+    bbox_min, bbox_max : array_like, shape (3,)
+        The part's bounding box, body frame, metres.
+    width : float
+        Widest part the fingers close on, metres.
+    """
+    lo = np.asarray(bbox_min, dtype=np.float64)
+    hi = np.asarray(bbox_max, dtype=np.float64)
+    out: list[Grasp] = []
+    for g in grasps:
+        if g.source != "shape":
+            out.append(g)
+            continue
+        t = g.pose.copy()
+        p, closing = t[:3, 3], t[:3, 1]
+        across = float((hi - lo)[int(np.argmax(np.abs(closing)))])
+        if across > width:
+            continue
+        ahead, back = _exit_distance(p, closing, lo, hi), _exit_distance(p, -closing, lo, hi)
+        t[:3, 3] = p + (ahead - back) / 2.0 * closing
         out.append(Grasp(t, g.source, g.label))
     return out
 

@@ -128,6 +128,8 @@ def primitive_place_path(
     length_m: float = 0.06,
     step_m: float = 0.005,
     constraint: Constraint | None = None,
+    straight_m: float = 0.0,
+    axis: ArrayLike | None = None,
 ) -> FloatArray | None:
     """Tool poses that bring the child to its goal along the end of the learned primitive.
 
@@ -156,6 +158,14 @@ def primitive_place_path(
         Spacing of the kept poses, metres (rotation counts 5 cm per radian).
     constraint : Constraint, optional
         The constraint whose free rotations are held at the goal's.
+    straight_m : float
+        The last ``straight_m`` metres run straight in along ``axis`` at the goal's
+        orientation, and the ``straight_m`` before them blend into that line: a
+        person wiggles a leg into its slot, a stiff arm with a millimetre of
+        clearance jams unless the part comes in square. 0 keeps the primitive as is.
+    axis : array_like, shape (3,), optional
+        The direction the child backs out of its parent, child frame
+        (:func:`~thirdhand.execute.world.insertion_axis`); needed with ``straight_m``.
 
     Returns
     -------
@@ -188,4 +198,30 @@ def primitive_place_path(
     idx = np.unique(np.searchsorted(arc, np.linspace(0.0, arc[-1], n)).clip(0, len(arc) - 1))
     child = tp @ se3.matrix_from_pose(tail_p[idx], tail_q[idx])
     child[-1] = goal_w  # land exactly on the goal (the rollout converges to it asymptotically)
+    if straight_m > 0.0 and axis is not None:
+        child = straight_entry(child, goal_w, np.asarray(axis, dtype=np.float64), straight_m)
     return np.asarray(child @ np.asarray(grasp, dtype=np.float64), dtype=np.float64)
+
+
+def straight_entry(
+    child: FloatArray, goal: FloatArray, axis: FloatArray, straight_m: float
+) -> FloatArray:
+    """Child poses (n, 4, 4) whose last ``straight_m`` run straight in to ``goal``.
+
+    A pose whose distance from the goal is ``d`` becomes the goal backed out by ``d``
+    along ``axis`` (child frame) when ``d ≤ straight_m``; between ``straight_m`` and
+    ``2 · straight_m`` it is blended linearly (position, and rotation vector from the
+    goal's orientation) from the given pose to that line. World frame, metres.
+    """
+    out = np.array(child, dtype=np.float64)
+    out_dir = goal[:3, :3] @ (axis / np.linalg.norm(axis))
+    for i, pose in enumerate(out):
+        d = float(np.linalg.norm(pose[:3, 3] - goal[:3, 3]))
+        w = float(np.clip((2.0 * straight_m - d) / straight_m, 0.0, 1.0))
+        if w <= 0.0:
+            continue
+        line_p = goal[:3, 3] + d * out_dir
+        rv = se3.rotvec_from_matrix(pose[:3, :3] @ goal[:3, :3].T)
+        out[i, :3, :3] = se3.matrix_from_rotvec((1.0 - w) * rv) @ goal[:3, :3]
+        out[i, :3, 3] = (1.0 - w) * pose[:3, 3] + w * line_p
+    return out

@@ -282,7 +282,9 @@ def plan_regrasp(
     ik_seed = seed * 7919 + 9000
     spot_grasps = []
     for pose, _ in spots:
-        gs = candidate_grasps(task, constraint, hints, pose, options.max_grasps)
+        gs = candidate_grasps(
+            task, constraint, hints, pose, options.max_grasps, fit=options.fit_grasps_to_fingers
+        )
         new = [g for g in gs if _key(g) not in place_at]
         hit = place_reach(robot, scene, new, goals, q_start, seed=ik_seed)
         place_at.update((_key(g), j) for g, j in zip(new, hit, strict=True))
@@ -329,7 +331,10 @@ def plan_regrasp(
             # goals they reach first, most reached first
             first = spot_grasps[j]
             keys = {_key(g) for g in first}
-            rest = candidate_grasps(task, constraint, hints, spots[j][0], options.max_grasps)
+            rest = candidate_grasps(
+                task, constraint, hints, spots[j][0], options.max_grasps,
+                fit=options.fit_grasps_to_fingers,
+            )  # fmt: skip
             hits = np.bincount([place_at[k] for k in keys], minlength=len(goals))
             top = [int(k) for k in np.argsort(-hits, kind="stable") if hits[k] > 0]
             again = search(world, constraint, q_down, time.perf_counter() + limit, None,

@@ -44,6 +44,12 @@ class ExecutionOptions:
         OMPL planner name (see :data:`thirdhand.execute.planner.PLANNERS`).
     use_primitives : bool
         Follow the learned approach primitive when the task has one.
+    straight_entry_m : float
+        The last metres of a primitive's insertion run straight in along the
+        insertion axis, square to the slot
+        (:func:`~thirdhand.execute.primitive_motion.straight_entry`); 0 follows the
+        primitive to the end. ``thirdhand simulate`` plans with 0.02 (a part with a
+        millimetre of clearance jams when it comes in at an angle).
     primitive_m : float
         Length of the primitive's final approach followed by the place motion.
     pos_tol, rot_tol : float
@@ -85,8 +91,11 @@ class ExecutionOptions:
         Slide each demonstrated grasp back to within the gripper's finger reach and
         centre it between the faces it closes on
         (:func:`~thirdhand.execute.grasps.within_fingers`): a person's fingertips hold
-        a board deeper than a parallel gripper can. ``thirdhand simulate`` plans with
-        it (the friction grasp needs it); ``execute`` keeps the demonstrated grasps.
+        a board deeper than a parallel gripper can; and keep only the shape grasps the
+        fingers close on, centred between them
+        (:func:`~thirdhand.execute.grasps.between_fingers`). ``thirdhand simulate``
+        plans with it (the friction grasp needs it); ``execute`` keeps the grasps as
+        they are.
     """
 
     sample_free_dofs: bool = True
@@ -103,6 +112,7 @@ class ExecutionOptions:
     planner: str = "rrtconnect"
     use_primitives: bool = True
     primitive_m: float = 0.06
+    straight_entry_m: float = 0.0
     pos_tol: float = POS_TOL_M
     rot_tol: float = ROT_TOL_RAD
     use_perception: bool = True

@@ -122,6 +122,8 @@ def candidate_grasps(
     hints: Mapping[str, Sequence[grasp_mod.Grasp]],
     part_pose: FloatArray,
     max_grasps: int,
+    *,
+    fit: bool = False,
 ) -> list[grasp_mod.Grasp]:
     """Grasps worth trying on the part where it lies, best first.
 
@@ -133,12 +135,17 @@ def candidate_grasps(
     above plus how far they hold from where the part meets its parent. With
     ``ExecutionOptions.rank_by_reach``, :meth:`StepSearch.run` then ranks them by
     whether the arm can reach them both where the part lies and at its goal
-    (:func:`rank_by_reach`).
+    (:func:`rank_by_reach`). With ``fit``, only the shape grasps that a parallel
+    gripper closes on are kept, centred between the fingers
+    (:func:`~thirdhand.execute.grasps.between_fingers`).
     """
     obj = next(o for o in task.objects if o.name == constraint.child)
     cands = list(hints.get(constraint.child, ()))
     if obj.bbox_min is not None and obj.bbox_max is not None:
-        cands += grasp_mod.shape_grasps(obj.bbox_min, obj.bbox_max)
+        shape = grasp_mod.shape_grasps(obj.bbox_min, obj.bbox_max)
+        if fit:
+            shape = grasp_mod.between_fingers(shape, obj.bbox_min, obj.bbox_max)
+        cands += shape
     avoid = invert(constraint.pose.matrix())[:3, 3]
     rot = part_pose[:3, :3]
     scored: list[tuple[bool, bool, float, int, grasp_mod.Grasp]] = []
@@ -353,6 +360,7 @@ class StepSearch:
             tools = primitive_place_path(
                 self.primitive, parent_world=parent_pose, child_goal=goal, grasp=g.pose,
                 length_m=self.opt.primitive_m, constraint=self.c,
+                straight_m=self.opt.straight_entry_m, axis=insertion_axis(self.task, self.c),
             )  # fmt: skip
             # followed backwards from the place configuration: no IK restarts needed
             back = None if tools is None else follow_tool_path(self.robot, q_place, tools[::-1])
@@ -390,7 +398,9 @@ class StepSearch:
             dofs = np.zeros((len(goals), 6))
             axes = goals[:, 2, :3].copy()
         if self.grasps is None:
-            grasps = candidate_grasps(self.task, c, self.hints, part_pose, 10**6)
+            grasps = candidate_grasps(
+                self.task, c, self.hints, part_pose, 10**6, fit=opt.fit_grasps_to_fingers
+            )
         else:
             grasps = self.grasps
         if opt.rank_by_reach:

@@ -26,6 +26,9 @@ from thirdhand.simulate.settings import SimulateSettings
 
 #: Packages of the ``sim`` extra.
 SIM_PACKAGES = ("mujoco", "coacd")
+#: The last metres of a learned insertion run straight in along the insertion axis: a
+#: leg with a millimetre of clearance in its pocket jams when it comes in at an angle.
+STRAIGHT_ENTRY_M = 0.02
 
 
 def check_extra() -> None:
@@ -204,7 +207,7 @@ def _plan(
         sample_free_dofs=ecfg.free_dofs, step_time_limit=ecfg.step_time,
         plan_time_limit=ecfg.plan_time, order=ecfg.order, max_grasps=ecfg.max_grasps,
         n_goal_samples=ecfg.goals, placement=ecfg.placement, start_grasps=ecfg.start_grasps,
-        regrasp=ecfg.regrasp, fit_grasps_to_fingers=True,
+        regrasp=ecfg.regrasp, fit_grasps_to_fingers=True, straight_entry_m=STRAIGHT_ENTRY_M,
     )  # fmt: skip
     name, assembly_xy = task_defaults(t, robot, ecfg.assembly_at)
     from thirdhand.simulate.model import SIM_ROBOTS
