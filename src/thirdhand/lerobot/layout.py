@@ -97,7 +97,7 @@ def data_schema(features: dict[str, dict[str, Any]]) -> pa.Schema:
         typ = base if entry["shape"] == [1] else pa.list_(base, entry["shape"][0])
         fields.append(pa.field(key, typ))
         hf[key] = _hf_feature(entry)
-    meta = {b"huggingface": json.dumps({"info": {"features": hf}}).encode()}
+    meta = {b"huggingface": json.dumps({"info": {"features": hf}}, allow_nan=False).encode()}
     return pa.schema(fields, metadata=meta)
 
 
@@ -140,7 +140,7 @@ def tasks_table(tasks: list[str]) -> pa.Table:
     }
     schema = pa.schema(
         [pa.field("task_index", pa.int64()), pa.field("__index_level_0__", pa.large_string())],
-        metadata={b"pandas": json.dumps(meta).encode()},
+        metadata={b"pandas": json.dumps(meta, allow_nan=False).encode()},
     )
     return pa.table(
         {"task_index": list(range(len(tasks))), "__index_level_0__": tasks}, schema=schema
