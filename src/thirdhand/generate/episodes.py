@@ -291,7 +291,7 @@ def generate_dataset(
     totals = {"planning": 0.0, "physics": 0.0, "rendering": 0.0, "encoding": 0.0}
     writer = DatasetWriter(root, fps=fps, robot_type=first.robot or "panda", force=force)
     with writer:
-        for out in parallel_map(run_episode, jobs_, jobs=jobs, scheduler=scheduler):
+        for out in parallel_map(run_episode, jobs_, jobs=jobs, scheduler=scheduler, spawn=True):
             for k, v in out.timings.items():
                 totals[k] += v
             if out.recording is not None:

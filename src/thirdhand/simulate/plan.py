@@ -137,6 +137,31 @@ def from_execution(executor: Any, result: Any, *, rate_hz: float = 100.0) -> Run
     )
 
 
+def sim_robot(task: TaskFile, robot: str | None) -> str:
+    """The robot simulated: ``robot``, else the task's, else panda.
+
+    Raises
+    ------
+    ThirdhandError
+        An unknown robot, or one the physics simulation does not build.
+    """
+    from thirdhand.errors import ThirdhandError
+    from thirdhand.execute.executor import task_defaults
+    from thirdhand.execute.robot import ROBOTS
+    from thirdhand.simulate.model import SIM_ROBOTS
+
+    if robot is not None and robot not in ROBOTS:
+        raise ThirdhandError(
+            f"[simulate] robot {robot}: unknown (expected one of {', '.join(ROBOTS)})"
+        )
+    name, _ = task_defaults(task, robot)
+    if name not in SIM_ROBOTS:
+        raise SimulateError(
+            f"robot {name!r}: the physics simulation builds {', '.join(SIM_ROBOTS)} only"
+        )
+    return name
+
+
 def plan_offline(
     task: TaskFile,
     *,
@@ -167,16 +192,9 @@ def plan_offline(
     ThirdhandError
         An unknown robot, or one the physics simulation does not build.
     """
-    from thirdhand.errors import ThirdhandError
     from thirdhand.execute.executor import ExecutionOptions, Executor, task_defaults
-    from thirdhand.execute.robot import ROBOTS
     from thirdhand.execute.settings import ExecuteSettings
-    from thirdhand.simulate.model import SIM_ROBOTS
 
-    if robot is not None and robot not in ROBOTS:
-        raise ThirdhandError(
-            f"[simulate] robot {robot}: unknown (expected one of {', '.join(ROBOTS)})"
-        )
     ecfg = ExecuteSettings.model_validate({})
     opts = ExecutionOptions(
         sample_free_dofs=ecfg.free_dofs, step_time_limit=ecfg.step_time,
@@ -184,11 +202,8 @@ def plan_offline(
         n_goal_samples=ecfg.goals, placement=ecfg.placement, start_grasps=ecfg.start_grasps,
         regrasp=ecfg.regrasp, fit_grasps_to_fingers=True,
     )  # fmt: skip
-    name, assembly_xy = task_defaults(task, robot, ecfg.assembly_at)
-    if name not in SIM_ROBOTS:
-        raise SimulateError(
-            f"robot {name!r}: the physics simulation builds {', '.join(SIM_ROBOTS)} only"
-        )
+    name = sim_robot(task, robot)
+    _, assembly_xy = task_defaults(task, name, ecfg.assembly_at)
     ex = Executor.for_task(
         task, name, seed=seed, options=opts, task_path=task_path, search=list(search),
         assembly_xy=assembly_xy,
