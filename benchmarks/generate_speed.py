@@ -38,7 +38,8 @@ def main() -> None:
     args = ap.parse_args()
 
     from thirdhand.errors import ThirdhandError
-    from thirdhand.generate.episodes import EpisodeJob, generate_dataset, jobs_for
+    from thirdhand.generate.dataset import generate_dataset, jobs_for
+    from thirdhand.generate.episodes import EpisodeJob
     from thirdhand.simulate.settings import SimulateSettings
     from thirdhand.synth import make_scene
     from thirdhand.synth.task import truth_task

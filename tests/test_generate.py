@@ -248,6 +248,7 @@ def test_a_task_no_episode_completes_is_one_line_with_the_reasons(
 @pytest.mark.slow
 def test_an_interruption_keeps_the_finished_episodes(monkeypatch, tmp_path, serial, chair) -> None:
     """Ctrl-C after episode 0 is written: a dataset of episode 0 alone, then the interrupt."""
+    import thirdhand.generate.dataset as dataset
     import thirdhand.generate.episodes as episodes
     from thirdhand.lerobot import read_dataset
 
@@ -273,14 +274,14 @@ def test_an_interruption_keeps_the_finished_episodes(monkeypatch, tmp_path, seri
             raise KeyboardInterrupt
         return episodes.EpisodeOutcome(job.seed, rec, (), {})
 
-    monkeypatch.setattr(episodes, "run_episode", fake)
+    monkeypatch.setattr(dataset, "run_episode", fake)
     from thirdhand.generate.settings import GenerateSettings
     from thirdhand.task.store import load_task
 
     job = episodes.EpisodeJob(task=load_task(chair), task_path=None, name="chair", seed=0,
                               settings=GenerateSettings(**SMALL))  # fmt: skip
     with pytest.raises(KeyboardInterrupt):
-        episodes.generate_dataset([job, replace(job, seed=1)], tmp_path / "d")
+        dataset.generate_dataset([job, replace(job, seed=1)], tmp_path / "d")
     ds = read_dataset(tmp_path / "d")
     assert len(ds.episodes) == 1
     np.testing.assert_array_equal(

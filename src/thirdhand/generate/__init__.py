@@ -5,7 +5,8 @@ Imported only by ``thirdhand generate`` (the ``sim`` extra). The modules:
 :mod:`~thirdhand.generate.record` (the frame sink that records the state, the
 commands, the parts' poses and two cameras),
 :mod:`~thirdhand.generate.episodes` (one seeded episode: planned, simulated,
-recorded, judged) and :mod:`~thirdhand.generate.cli` (the command).
+recorded, judged), :mod:`~thirdhand.generate.dataset` (many seeds into one
+dataset, in seed order) and :mod:`~thirdhand.generate.cli` (the command).
 
 Names resolve lazily, so importing the package costs nothing until one is used.
 """
@@ -28,7 +29,9 @@ _NAMES = {
     "EpisodeJob": "thirdhand.generate.episodes",
     "EpisodeOutcome": "thirdhand.generate.episodes",
     "run_episode": "thirdhand.generate.episodes",
-    "generate_dataset": "thirdhand.generate.episodes",
+    "GenerateSummary": "thirdhand.generate.dataset",
+    "generate_dataset": "thirdhand.generate.dataset",
+    "jobs_for": "thirdhand.generate.dataset",
 }
 
 __all__ = sorted(_NAMES)

@@ -58,13 +58,8 @@ def generate_command(
     options.integer("--seed", seed, low=0, high=MAX_SEED - episodes + 1)
     check_batch(jobs, scheduler)
     from thirdhand.fileops import check_output
-    from thirdhand.generate.episodes import (
-        EpisodeJob,
-        EpisodeOutcome,
-        check_settings,
-        generate_dataset,
-        jobs_for,
-    )
+    from thirdhand.generate.dataset import generate_dataset, jobs_for
+    from thirdhand.generate.episodes import EpisodeJob, EpisodeOutcome, check_settings
     from thirdhand.generate.settings import GenerateSettings
     from thirdhand.simulate.plan import sim_robot
     from thirdhand.simulate.settings import SimulateSettings

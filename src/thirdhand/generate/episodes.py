@@ -1,23 +1,18 @@
-"""One seeded episode (planned, simulated, judged, recorded) and a dataset of many.
+"""One seeded episode: planned, simulated, judged and, when kept, recorded.
 
 Episode ``i`` of a run with seed ``S`` draws its start layout and plans with seed
 ``S + i`` (:func:`~thirdhand.simulate.plan.plan_offline`, as ``thirdhand
 execute`` does), then runs the plan in MuJoCo. It is kept when every step is
 ``done``; then it is simulated once more with :class:`~.record.FrameRecorder`
 as the frame sink (the physics is deterministic: the same run, now recorded),
-so an episode that fails costs no rendering. Kept episodes are written in seed
-order, whichever process computed them.
+so an episode that fails costs no rendering.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import time
-from collections import Counter
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
-from pathlib import Path
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -26,7 +21,6 @@ from thirdhand.errors import OptionError, ThirdhandError
 from thirdhand.generate.record import GRIPPER, POSE_COLUMNS, FrameRecorder, Recording
 from thirdhand.generate.settings import GenerateSettings
 from thirdhand.lerobot.episode import Episode
-from thirdhand.lerobot.writer import DatasetSummary
 from thirdhand.simulate.settings import SimulateSettings
 from thirdhand.task.model import TaskFile
 
@@ -100,31 +94,6 @@ class EpisodeOutcome:
     def kept(self) -> bool:
         """Every step done: the episode goes into the dataset."""
         return self.recording is not None
-
-
-@dataclass(frozen=True)
-class GenerateSummary:
-    """What :func:`generate_dataset` did.
-
-    Attributes
-    ----------
-    dataset : DatasetSummary
-    kept : tuple of int
-        Seeds of the written episodes, in episode order.
-    reasons : dict of str to int
-        Every reason an episode was not kept, and in how many episodes.
-    dropped : int
-        Episodes not kept.
-    timings : dict of str to float
-        Wall-clock seconds summed over the episodes: ``planning``, ``physics``,
-        ``rendering`` (in the workers) and ``encoding`` (writing, in this process).
-    """
-
-    dataset: DatasetSummary | None
-    kept: tuple[int, ...]
-    reasons: dict[str, int]
-    dropped: int
-    timings: dict[str, float]
 
 
 def task_text(task: TaskFile, name: str) -> str:
@@ -239,82 +208,3 @@ def episode_of(recording: Recording, *, fps: int, task: str) -> Episode:
         videos={FRONT: recording.front, WRIST: recording.wrist},
         annotations={STEP: recording.labels},
     )
-
-
-def generate_dataset(
-    jobs_: Sequence[EpisodeJob],
-    root: str | os.PathLike[str],
-    *,
-    force: bool = False,
-    jobs: int = 1,
-    scheduler: str | None = None,
-    on_outcome: Callable[[EpisodeOutcome], None] | None = None,
-) -> GenerateSummary:
-    """Run every job (in seed order), write the kept episodes as a LeRobot dataset at ``root``.
-
-    Parameters
-    ----------
-    jobs_ : sequence of EpisodeJob
-        One per seed, in the order the episodes are written.
-    root : path-like
-        The dataset folder to create.
-    force : bool
-        Replace an existing folder (kept as a numbered ``.bak``).
-    jobs, scheduler
-        Where the episodes are computed (:func:`~thirdhand.batch.parallel_map`).
-    on_outcome : callable, optional
-        Called with every outcome as it arrives (progress).
-
-    Raises
-    ------
-    ThirdhandError
-        No episode kept (with the reasons counted); nothing is written.
-    OutputError
-        ``root`` exists and ``force`` is not given.
-
-    Notes
-    -----
-    Ctrl-C or SIGTERM leaves a dataset of the episodes written before it (or
-    none), then goes on (:class:`~thirdhand.lerobot.writer.DatasetWriter`).
-    """
-    from thirdhand.batch import parallel_map
-    from thirdhand.lerobot.writer import DatasetWriter
-
-    if not jobs_:
-        raise OptionError("no episode to generate")
-    first = jobs_[0]
-    check_settings(first.settings, first.simulate)
-    fps = first.settings.fps
-    text = task_text(first.task, first.name)
-    reasons: Counter[str] = Counter()
-    kept: list[int] = []
-    totals = {"planning": 0.0, "physics": 0.0, "rendering": 0.0, "encoding": 0.0}
-    writer = DatasetWriter(root, fps=fps, robot_type=first.robot or "panda", force=force)
-    with writer:
-        for out in parallel_map(run_episode, jobs_, jobs=jobs, scheduler=scheduler, spawn=True):
-            for k, v in out.timings.items():
-                totals[k] += v
-            if out.recording is not None:
-                t0 = time.perf_counter()
-                writer.add_episode(episode_of(out.recording, fps=fps, task=text))
-                totals["encoding"] += time.perf_counter() - t0
-                kept.append(out.seed)
-            else:
-                reasons.update(out.reasons)
-            if on_outcome is not None:
-                on_outcome(out)
-        if not kept:
-            what = ", ".join(f"{r} ×{n}" for r, n in reasons.most_common())
-            raise ThirdhandError(
-                f"{Path(root)}: none of {len(jobs_)} episodes completed every step "
-                f"({what}); nothing was written"
-            )
-    return GenerateSummary(
-        dataset=writer.summary, kept=tuple(kept), reasons=dict(reasons),
-        dropped=len(jobs_) - len(kept), timings=totals,
-    )  # fmt: skip
-
-
-def jobs_for(template: EpisodeJob, seed: int, n: int) -> list[EpisodeJob]:
-    """``n`` copies of ``template`` with seeds ``seed``, ``seed + 1``, …"""
-    return [replace(template, seed=seed + i) for i in range(n)]
