@@ -48,17 +48,14 @@ def main() -> None:
     search = (args.meshes,) if Path(args.meshes).is_dir() else ()
     with tempfile.TemporaryDirectory() as tmp:
         cache = str(Path(tmp) / "cache")
-        warm = EpisodeJob(task=task, task_path=None, name="chair", seed=0, search=search,
-                          simulate=SimulateSettings(cache=cache, **LENIENT))  # fmt: skip
         from thirdhand.generate.episodes import run_episode
-        from thirdhand.simulate.plan import plan_offline
 
-        plan_offline(task, task_path=None, robot=None, seed=0, search=search)  # imports, caches
+        warm = EpisodeJob(task=task, task_path=None, name="chair", seed=0, search=search,
+                          simulate=SimulateSettings(cache=cache))  # fmt: skip
+        run_episode(warm)  # imports and the convex decompositions (cached), untimed
         for label, physics in (("default physics", {}), ("every planned step done", LENIENT)):
             job = EpisodeJob(task=task, task_path=None, name="chair", seed=0, search=search,
                              simulate=SimulateSettings(cache=cache, **physics))  # fmt: skip
-            if physics is LENIENT:
-                run_episode(warm)  # the convex decompositions, cached
             t0 = time.perf_counter()
             try:
                 s = generate_dataset(jobs_for(job, 0, args.episodes), Path(tmp) / label)
