@@ -219,9 +219,9 @@ def _worker_signals() -> None:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def _local_map(fn: Callable[[T], R], work: list[T], jobs: int) -> Iterator[R]:
-    """``fn`` over ``work`` in ``jobs`` forked worker processes, in order."""
-    pool = multiprocessing.get_context("fork").Pool(jobs, initializer=_worker_signals)
+def _local_map(fn: Callable[[T], R], work: list[T], jobs: int, method: str) -> Iterator[R]:
+    """``fn`` over ``work`` in ``jobs`` worker processes (``fork`` or ``spawn``), in order."""
+    pool = multiprocessing.get_context(method).Pool(jobs, initializer=_worker_signals)
     try:
         yield from pool.imap(fn, work)
         pool.close()
@@ -238,8 +238,13 @@ def parallel_map(
     jobs: int = 1,
     scheduler: str | None = None,
     option: str = "--scheduler",
+    spawn: bool = False,
 ) -> Iterator[R]:
     """``fn(item)`` for every item, in order (see the module documentation).
+
+    ``spawn``: local workers start as fresh interpreters instead of forks of this
+    process, for units that open an OpenGL context (a fork inherits this
+    process's, broken).
 
     Raises
     ------
@@ -253,7 +258,7 @@ def parallel_map(
         if jobs <= 1 or len(work) <= 1:
             yield from map(fn, work)
             return
-        yield from _local_map(fn, work, jobs)
+        yield from _local_map(fn, work, jobs, "spawn" if spawn else "fork")
         return
     client, cluster = _client(scheduler, jobs, option)
     futures: list[Any] = []

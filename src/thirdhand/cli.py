@@ -100,6 +100,11 @@ LAZY: dict[str, LazyCommand] = {
         "simulate_command",
         "Run a task's plan in a physics simulator (MuJoCo) and say per step whether it works.",
     ),
+    "generate": LazyCommand(
+        "thirdhand.generate.cli",
+        "generate_command",
+        "Simulate a task's plan from many start layouts and write a LeRobot dataset.",
+    ),
     "live": LazyCommand(
         "thirdhand.live.cli",
         "live_command",

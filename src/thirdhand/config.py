@@ -77,6 +77,7 @@ REGISTRY: dict[str, str] = {
     "constraints.fit": "thirdhand.constraints.settings:FitSettings",
     "execute": "thirdhand.execute.settings:ExecuteSettings",
     "simulate": "thirdhand.simulate.settings:SimulateSettings",
+    "generate": "thirdhand.generate.settings:GenerateSettings",
     "learn": "thirdhand.learn.settings:LearnSettings",
     "live": "thirdhand.live.settings:LiveSettings",
     "merge": "thirdhand.merge.settings:MergeSettings",

@@ -26,9 +26,6 @@ from thirdhand.simulate.settings import SimulateSettings
 
 #: Packages of the ``sim`` extra.
 SIM_PACKAGES = ("mujoco", "coacd")
-#: The last metres of a learned insertion run straight in along the insertion axis: a
-#: leg with a millimetre of clearance in its pocket jams when it comes in at an angle.
-STRAIGHT_ENTRY_M = 0.02
 
 
 def check_extra() -> None:
@@ -108,13 +105,12 @@ def simulate_command(
             nonlocal writer, note
             if tmp is None:
                 return None
-            from thirdhand.simulate.video import open_video
+            from thirdhand.simulate.video import cell_lookat, open_video
 
-            base = plan.start.get(_base(t), None)
-            lookat = base[:3, 3] if base is not None else plan.robot_base[:3, 3]
+            lookat = cell_lookat(plan.robot_base, plan.start.get(_base(t), None))
             writer, note = open_video(
                 model, tmp, fps=cfg.fps, width=cfg.width, height=cfg.height,
-                lookat=(lookat + plan.robot_base[:3, 3]) / 2.0 + [0.0, 0.0, 0.1], distance=2.0,
+                lookat=lookat, distance=2.0,
             )  # fmt: skip
             return writer
 
@@ -192,37 +188,11 @@ def _plan(
     t: Any, task: Path, robot: str | None, seed: int, search: list[str], console: Console,
     rate: float,
 ) -> Any:  # fmt: skip
-    """Plan the task offline as ``thirdhand execute`` does, with its settings' defaults."""
-    from thirdhand.execute.executor import ExecutionOptions, Executor, task_defaults
-    from thirdhand.execute.robot import ROBOTS
-    from thirdhand.execute.settings import ExecuteSettings
-    from thirdhand.simulate.plan import from_execution
+    """Plan the task offline as ``thirdhand execute`` does (:func:`~.plan.plan_offline`)."""
+    from thirdhand.simulate.plan import plan_offline
 
-    if robot is not None and robot not in ROBOTS:
-        raise ThirdhandError(
-            f"[simulate] robot {robot}: unknown (expected one of {', '.join(ROBOTS)})"
-        )
-    ecfg = ExecuteSettings.model_validate({})
-    opts = ExecutionOptions(
-        sample_free_dofs=ecfg.free_dofs, step_time_limit=ecfg.step_time,
-        plan_time_limit=ecfg.plan_time, order=ecfg.order, max_grasps=ecfg.max_grasps,
-        n_goal_samples=ecfg.goals, placement=ecfg.placement, start_grasps=ecfg.start_grasps,
-        regrasp=ecfg.regrasp, fit_grasps_to_fingers=True, straight_entry_m=STRAIGHT_ENTRY_M,
-    )  # fmt: skip
-    name, assembly_xy = task_defaults(t, robot, ecfg.assembly_at)
-    from thirdhand.simulate.model import SIM_ROBOTS
-    from thirdhand.simulate.parts import SimulateError
-
-    if name not in SIM_ROBOTS:
-        raise SimulateError(
-            f"robot {name!r}: the physics simulation builds {', '.join(SIM_ROBOTS)} only"
-        )
-    ex = Executor.for_task(
-        t, name, seed=seed, options=opts, task_path=task, search=search, assembly_xy=assembly_xy
-    )
     with console.status("planning the run (thirdhand execute)"):
-        result = ex.run_offline(seed=seed)
-    return from_execution(ex, result, rate_hz=rate)
+        return plan_offline(t, task_path=task, robot=robot, seed=seed, search=search, rate=rate)
 
 
 def _fmt(v: float | None, digits: int = 1) -> str:

@@ -63,6 +63,12 @@ TABLE_BITS = (2, 2)
 #: Stiffer contacts than MuJoCo's default (time constant s, damping ratio) for a firm grasp.
 CONTACT_SOLREF = (0.004, 1.0)
 CONTACT_SOLIMP = (0.95, 0.99, 0.001, 0.5, 2.0)
+#: The wrist camera: on the hand's side (its x), in the hand's frame, metres, looking at
+#: the point between the fingertips (the approach is the hand's z), vertical field of view °.
+WRIST_CAMERA = "wrist"
+WRIST_CAMERA_POS = (0.07, 0.0, 0.03)
+WRIST_CAMERA_TARGET = (0.0, 0.0, 0.16)
+WRIST_CAMERA_FOVY = 75.0
 
 
 @dataclass(frozen=True)
@@ -258,6 +264,19 @@ def _arm(spec: mujoco.MjSpec, cell: CellModel, settings: SimulateSettings) -> No
         pad.mass = 0.0
         pad.rgba = [0.2, 0.2, 0.2, 1.0]
         _contacts(pad, ARM_BITS)
+    _wrist_camera(hand)
+
+
+def _wrist_camera(hand: mujoco.MjsBody) -> None:
+    """A camera on the hand looking along the approach between the fingers (image x: hand y)."""
+    pos, target = np.asarray(WRIST_CAMERA_POS), np.asarray(WRIST_CAMERA_TARGET)
+    z = (pos - target) / np.linalg.norm(pos - target)  # a MuJoCo camera looks along its -z
+    x = np.array([0.0, 1.0, 0.0])
+    cam = hand.add_camera()
+    cam.name = WRIST_CAMERA
+    cam.pos = [float(v) for v in pos]
+    cam.quat = _quat_wxyz(np.column_stack([x, np.cross(z, x), z]))
+    cam.fovy = WRIST_CAMERA_FOVY
 
 
 def _table(spec: mujoco.MjSpec, cell: CellModel, settings: SimulateSettings) -> None:

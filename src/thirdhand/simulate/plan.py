@@ -9,6 +9,7 @@ or read back from a run recorded with ``thirdhand execute --record OUT``
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -21,6 +22,10 @@ from thirdhand.arrays import FloatArray
 from thirdhand.readlimits import read_input
 from thirdhand.simulate.parts import SimulateError
 from thirdhand.task.model import TaskFile
+
+#: The last metres of a learned insertion run straight in along the insertion axis: a
+#: leg with a millimetre of clearance in its pocket jams when it comes in at an angle.
+STRAIGHT_ENTRY_M = 0.02
 
 
 @dataclass(frozen=True)
@@ -134,6 +139,81 @@ def from_execution(executor: Any, result: Any, *, rate_hz: float = 100.0) -> Run
         steps=_steps([asdict(s) for s in result.steps]),
         start={k: np.asarray(v, dtype=np.float64) for k, v in start.items()},
     )
+
+
+def sim_robot(task: TaskFile, robot: str | None) -> str:
+    """The robot simulated: ``robot``, else the task's, else panda.
+
+    Raises
+    ------
+    ThirdhandError
+        An unknown robot, or one the physics simulation does not build.
+    """
+    from thirdhand.errors import ThirdhandError
+    from thirdhand.execute.executor import task_defaults
+    from thirdhand.execute.robot import ROBOTS
+    from thirdhand.simulate.model import SIM_ROBOTS
+
+    if robot is not None and robot not in ROBOTS:
+        raise ThirdhandError(
+            f"[simulate] robot {robot}: unknown (expected one of {', '.join(ROBOTS)})"
+        )
+    name, _ = task_defaults(task, robot)
+    if name not in SIM_ROBOTS:
+        raise SimulateError(
+            f"robot {name!r}: the physics simulation builds {', '.join(SIM_ROBOTS)} only"
+        )
+    return name
+
+
+def plan_offline(
+    task: TaskFile,
+    *,
+    task_path: str | os.PathLike[str] | None,
+    robot: str | None,
+    seed: int,
+    search: Sequence[str | os.PathLike[str]] = (),
+    rate: float = 100.0,
+) -> RunPlan:
+    """Plan ``task`` offline as ``thirdhand execute`` does, with its settings' defaults.
+
+    Parameters
+    ----------
+    task : TaskFile
+    task_path : path-like or None
+        Where the task file lies (its meshes are found beside it).
+    robot : str or None
+        The robot to plan for (None: the task's, else panda).
+    seed : int
+        Seed of the start layout and of the planner.
+    search : sequence of path-like
+        Folders searched for part meshes the task file does not find.
+    rate : float
+        Samples per second of the planned motion, Hz.
+
+    Raises
+    ------
+    ThirdhandError
+        An unknown robot, or one the physics simulation does not build.
+    """
+    from thirdhand.execute.executor import ExecutionOptions, Executor, task_defaults
+    from thirdhand.execute.settings import ExecuteSettings
+
+    ecfg = ExecuteSettings.model_validate({})
+    opts = ExecutionOptions(
+        sample_free_dofs=ecfg.free_dofs, step_time_limit=ecfg.step_time,
+        plan_time_limit=ecfg.plan_time, order=ecfg.order, max_grasps=ecfg.max_grasps,
+        n_goal_samples=ecfg.goals, placement=ecfg.placement, start_grasps=ecfg.start_grasps,
+        regrasp=ecfg.regrasp, fit_grasps_to_fingers=True, straight_entry_m=STRAIGHT_ENTRY_M,
+    )  # fmt: skip
+    name = sim_robot(task, robot)
+    _, assembly_xy = task_defaults(task, name, ecfg.assembly_at)
+    ex = Executor.for_task(
+        task, name, seed=seed, options=opts, task_path=task_path, search=list(search),
+        assembly_xy=assembly_xy,
+    )  # fmt: skip
+    result = ex.run_offline(seed=seed)
+    return from_execution(ex, result, rate_hz=rate)
 
 
 def from_record(path: Path, task: TaskFile) -> RunPlan:

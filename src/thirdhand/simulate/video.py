@@ -26,6 +26,46 @@ def choose_backend() -> str:
     return gl
 
 
+#: The fixed camera that sees the work cell: azimuth and elevation, degrees.
+FRONT_AZIMUTH = 150.0
+FRONT_ELEVATION = -28.0
+
+
+def front_camera(lookat: FloatArray, distance: float) -> Any:
+    """The fixed camera of the run's video (a ``mujoco.MjvCamera``).
+
+    Parameters
+    ----------
+    lookat : ndarray, shape (3,)
+        Point the camera looks at, world frame, metres.
+    distance : float
+        Camera distance from it, metres.
+    """
+    import mujoco
+
+    camera = mujoco.MjvCamera()
+    camera.lookat[:] = lookat
+    camera.distance = distance
+    camera.azimuth = FRONT_AZIMUTH
+    camera.elevation = FRONT_ELEVATION
+    return camera
+
+
+def cell_lookat(robot_base: FloatArray, base_part: FloatArray | None) -> FloatArray:
+    """Where the fixed camera looks: between the robot and the base part, 0.1 m up.
+
+    Parameters
+    ----------
+    robot_base : ndarray, shape (4, 4)
+        Robot root pose, world frame.
+    base_part : ndarray, shape (4, 4) or None
+        The base part's start pose, world frame (None: the robot's root alone).
+    """
+    robot = np.asarray(robot_base)[:3, 3]
+    part = robot if base_part is None else np.asarray(base_part)[:3, 3]
+    return np.asarray((part + robot) / 2.0 + [0.0, 0.0, 0.1], dtype=np.float64)
+
+
 class VideoWriter:
     """Renders frames of a running simulation and encodes them to an MP4 file.
 
@@ -41,15 +81,9 @@ class VideoWriter:
     """
 
     def __init__(self, renderer: Any, writer: Any, lookat: FloatArray, distance: float) -> None:
-        import mujoco
-
         self.renderer = renderer
         self.writer = writer
-        self.camera = mujoco.MjvCamera()
-        self.camera.lookat[:] = lookat
-        self.camera.distance = distance
-        self.camera.azimuth = 150.0
-        self.camera.elevation = -28.0
+        self.camera = front_camera(lookat, distance)
         self.frames = 0
         self._font: Any = None
 
