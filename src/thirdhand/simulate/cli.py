@@ -60,6 +60,9 @@ def simulate_command(
     servo gains, video size.
     """
     check_extra()
+    from thirdhand.simulate.video import choose_backend
+
+    choose_backend()  # before anything imports MuJoCo (the planner's robot check does)
     from thirdhand import options
     from thirdhand.fileops import atomic_output, atomic_write_bytes, check_output
     from thirdhand.task.store import load_task
@@ -90,9 +93,6 @@ def simulate_command(
     else:
         plan = _plan(t, task, robot, seed, search, console, cfg.rate)
         source = "planned"
-    from thirdhand.simulate.video import choose_backend
-
-    choose_backend()
     from thirdhand.simulate.run import simulate_run
 
     writer: Any = None
