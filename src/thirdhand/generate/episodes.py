@@ -121,7 +121,7 @@ def check_settings(settings: GenerateSettings, simulate: SimulateSettings) -> No
 
 
 def _reasons(result: SimulationResult, plan: RunPlan) -> tuple[str, ...]:
-    """Why a run is not kept: each step not done, with its status (or the planner's)."""
+    """Why a run is not kept: each step not done, with its status (or the planner's verdict)."""
     planned = {p.index: p for p in plan.steps}
     out = []
     for o in sorted(result.steps, key=lambda o: o.index):
@@ -129,7 +129,8 @@ def _reasons(result: SimulationResult, plan: RunPlan) -> tuple[str, ...]:
             continue
         p = planned.get(o.index)
         if p is not None and not p.planned:
-            out.append(f"{o.child} not planned ({p.status})")
+            # the planner's verdict without its counts, so that episodes add up
+            out.append(f"{o.child} not planned ({p.status.split(':', 1)[0]})")
         else:
             out.append(f"{o.child} {o.status}")
     return tuple(out)
