@@ -252,3 +252,18 @@ def test_automatic_placement_falls_back_to_reach_only_when_a_part_reaches_no_goa
     )
     assert geometric.notes == []
     np.testing.assert_array_equal(geometric.cell.base_pose, cell.base_pose)
+
+
+def test_a_wide_plate_stands_on_the_edge_away_from_its_parent() -> None:
+    from thirdhand.execute.layout import plate_edge_up
+
+    # the chair's back: 386 x 420 x 30 mm, its tabbed end at body y = 0, the seat beyond it
+    corners = np.array([[x, y, z] for x in (-0.193, 0.193) for y in (-0.42, 0.0)
+                        for z in (-0.015, 0.015)])  # fmt: skip
+    assert plate_edge_up(corners, 2, np.array([0.0, 0.12, 0.0])) == (1, -1.0)
+    # lying on an edge already, or a rod, or too thick for the fingers: left as it is
+    assert plate_edge_up(corners, 1, np.zeros(3)) is None
+    rod = np.array([[x, y, z] for x in (0.0, 0.28) for y in (-0.04, 0.04) for z in (-0.04, 0.04)])
+    assert plate_edge_up(rod, 2, np.zeros(3)) is None
+    thick = corners * np.array([1.0, 1.0, 6.0])
+    assert plate_edge_up(thick, 2, np.zeros(3)) is None

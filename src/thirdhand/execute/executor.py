@@ -206,7 +206,10 @@ class Executor:
             from thirdhand.execute.placement import reach_check
 
             accept = reach_check(arm, task, cell, start_grasps, seed=seed)
-        start = start_layout(task, cell, seed, task_path=task_path, search=search, accept=accept)
+        start = start_layout(
+            task, cell, seed, task_path=task_path, search=search, accept=accept,
+            stand_plates=opts.fit_grasps_to_fingers,
+        )  # fmt: skip
         ex = cls(arm, task, cell, start, options, task_path=task_path, search=search, demo=demo)
         ex.notes = notes
         return ex

@@ -48,7 +48,7 @@ from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.collision_check import coal_transform
 from thirdhand.execute.goals import goal_pose, sweep_dofs, vary
-from thirdhand.execute.grasps import FLAT_RATIO, ROD_RATIO
+from thirdhand.execute.grasps import FLAT_RATIO, MAX_GRIP_M, ROD_RATIO
 from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.segment.contact import box_corners
 from thirdhand.task.constraint import Constraint
@@ -610,14 +610,22 @@ def _flat_bar_spin(long_axis: int, goal_rotation: FloatArray) -> float:
     return float(np.pi / 2) if up[a] > 0 else float(-np.pi / 2)
 
 
-def rest_rotation(v: FloatArray, goal_rotation: FloatArray, rng: np.random.Generator) -> FloatArray:
+def rest_rotation(
+    v: FloatArray,
+    goal_rotation: FloatArray,
+    rng: np.random.Generator,
+    stand_from: FloatArray | None = None,
+) -> FloatArray:
     """A random resting orientation (3, 3) on the table for a part with body vertices ``v``.
 
     A rod lies on its side spun at random about its axis, unless its cross-section
     is flat (a board, :func:`_is_flat_bar`): then it stands on the edge, or lies on
     the face, that puts up its side that is up at its goal (:func:`_flat_bar_spin`);
     any other part keeps up the body axis nearest to up at its goal
-    (``goal_rotation``, world). Every part is turned at random about the vertical.
+    (``goal_rotation``, world). With ``stand_from`` (where the part meets its parent,
+    body frame, metres), a plate wider than a gripper opens that would lie on its face
+    stands on its edge farthest from there instead (:func:`plate_edge_up`). Every part
+    is turned at random about the vertical.
     A board propped on a long edge at a random tilt is not a resting pose, and its
     grasps from above there came from below or the side at its goal, where the
     wrist hit the table (the toolbox's boards, 1.7 cm thick); a board lying flat has
@@ -642,7 +650,35 @@ def rest_rotation(v: FloatArray, goal_rotation: FloatArray, rng: np.random.Gener
     up_in_body = goal_rotation[2]  # world z in body coordinates (row 2 of R_world_body)
     k = int(np.argmax(np.abs(up_in_body)))
     sign = float(np.sign(up_in_body[k]))
+    edge = None if stand_from is None else plate_edge_up(v, k, stand_from)
+    if edge is not None:
+        k, sign = edge
     return np.asarray(rz @ _rotation_up(k, sign, 0.0), dtype=np.float64)
+
+
+def plate_edge_up(v: FloatArray, up_axis: int, meets: FloatArray) -> tuple[int, float] | None:
+    """The body axis and sign to turn up so that a plate stands on an edge, or None.
+
+    A plate (its thinnest extent under :data:`~thirdhand.execute.grasps.FLAT_RATIO`
+    times the next) lying on its face (``up_axis`` its thinnest) and wider than a
+    gripper opens (:data:`~thirdhand.execute.grasps.MAX_GRIP_M`) both ways in its plane
+    has no grasp for a parallel gripper: from above the fingers meet its face, from the
+    side the table. Standing on an edge, its top edge is pinched across its thickness;
+    the edge farthest from ``meets`` (where it meets its parent, body frame, metres)
+    goes up, so that the fingers stay clear of the parent when it is placed. None when
+    the plate is thicker than the fingers open, or is no such plate.
+    """
+    ext = v.max(axis=0) - v.min(axis=0)
+    thin, mid, long = (int(i) for i in np.argsort(ext, kind="stable"))
+    if up_axis != thin or ext[thin] >= FLAT_RATIO * ext[mid]:
+        return None
+    if ext[mid] <= MAX_GRIP_M or ext[thin] > MAX_GRIP_M:
+        return None
+    lo, hi = v.min(axis=0), v.max(axis=0)
+    ends = [(float(hi[a] - meets[a]), a, 1.0) for a in (mid, long)]
+    ends += [(float(meets[a] - lo[a]), a, -1.0) for a in (mid, long)]
+    _, axis, sign = max(ends)
+    return axis, sign
 
 
 def _footprint(v_world: FloatArray, margin: float) -> FloatArray:
@@ -730,6 +766,7 @@ def start_layout(
     max_tries: int = 2000,
     restarts: int = 20,
     accept: Callable[[str, FloatArray], bool] | None = None,
+    stand_plates: bool = False,
 ) -> dict[str, FloatArray]:
     """A seeded start layout: every part's world pose, the base at its assembly pose.
 
@@ -753,6 +790,10 @@ def start_layout(
         ``accept(name, T_world_part)``: whether a free spot will do (e.g. the arm reaches
         enough grasps there, :func:`thirdhand.execute.placement.reach_check`); a refused
         spot counts as a draw.
+    stand_plates : bool
+        Stand a plate that would lie on its face with no grasp a parallel gripper closes
+        on (:func:`plate_edge_up`); physics needs it, the kinematic plan holds it by
+        its face.
 
     Returns
     -------
@@ -776,6 +817,12 @@ def start_layout(
     }
     assembled = [_transform(cell.base_pose, v) for v in placed.values()]
     taken = occupied_footprints(cell, assembled, margin)
+    # where each part meets its parent (the parent's origin in the part's frame): a plate
+    # stands on its edge farthest from there (``stand_plates``)
+    meets = (
+        {c.child: se3.transform_invert(c.pose.matrix())[:3, 3] for c in task.constraints}
+        if stand_plates else {}
+    )  # fmt: skip
     reach = cell.reach if reach is None else reach
     order = [c.child for c in task.constraints if c.child in verts]
     # the largest parts first: they need the most room
@@ -787,7 +834,7 @@ def start_layout(
         for name in sorted(dict.fromkeys(order), key=lambda n: -area[n]):
             v = verts[name]
             for _ in range(max_tries):
-                rot = rest_rotation(v, goal_rot.get(name, np.eye(3)), rng)
+                rot = rest_rotation(v, goal_rot.get(name, np.eye(3)), rng, meets.get(name))
                 r = rng.uniform(*reach)
                 ang = rng.uniform(-np.pi * 0.85, np.pi * 0.85)
                 t, fp = table_spot(v, rot, cell, r, ang, margin)

@@ -199,6 +199,11 @@ def _arm(spec: mujoco.MjSpec, cell: CellModel, settings: SimulateSettings) -> No
     for g in spec.geoms:
         _contacts(g, ARM_BITS)
         g.rgba = [0.85, 0.85, 0.88, 1.0]
+    # The fingers touch through their pads only: the URDF's finger capsules stand
+    # proud of the pads' faces, and a board between the fingers rests on them instead.
+    for name in ("panda_leftfinger", "panda_rightfinger"):
+        for g in spec.body(name).geoms:
+            _contacts(g, (0, 0))
     hand = spec.body(HAND)
     for g in list(hand.geoms):
         spec.delete(g)

@@ -208,12 +208,42 @@ def plan_offline(
     )  # fmt: skip
     name = sim_robot(task, robot)
     _, assembly_xy = task_defaults(task, name, ecfg.assembly_at)
+    if assembly_xy is None:
+        assembly_xy = centred_assembly_xy(task, name, task_path=task_path, search=search)
     ex = Executor.for_task(
         task, name, seed=seed, options=opts, task_path=task_path, search=list(search),
         assembly_xy=assembly_xy,
     )  # fmt: skip
     result = ex.run_offline(seed=seed)
     return from_execution(ex, result, rate_hz=rate)
+
+
+def centred_assembly_xy(
+    task: TaskFile,
+    robot: str,
+    *,
+    task_path: str | os.PathLike[str] | None = None,
+    search: Sequence[str | os.PathLike[str]] = (),
+) -> tuple[float, float]:
+    """The robot's assembly spot moved sideways so the finished assembly is centred on the arm.
+
+    The robot's own spot (``thirdhand.execute.layout``) puts the base part's origin
+    in front of the arm; a chair built there has its back off to the arm's side,
+    where the arm reaches it only folded. Moved along world ``y`` until the finished
+    assembly's footprint is centred on the arm's first joint, every part is placed
+    from in front. World x, y in metres.
+    """
+    from thirdhand.execute.layout import assembled_vertices, make_workcell, part_vertices
+
+    cell = make_workcell(task, robot, task_path=task_path, search=search)
+    objs = {o.name: o for o in task.objects}
+    names = {cell.base} | {c.child for c in task.constraints}
+    verts = {n: part_vertices(objs[n], task_path, search) for n in names if n in objs}
+    placed = assembled_vertices(task, cell.base, verts)
+    rot, at = cell.base_pose[:3, :3], cell.base_pose[:3, 3]
+    ys = np.concatenate([(v @ rot.T + at)[:, 1] for v in placed.values()])
+    shift = float(cell.arm_xy[1] - (ys.min() + ys.max()) / 2.0)
+    return float(at[0]), float(at[1] + shift)
 
 
 def from_record(path: Path, task: TaskFile) -> RunPlan:
