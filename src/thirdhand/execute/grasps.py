@@ -360,8 +360,7 @@ def within_fingers(
         else:
             p = p + _depth_shift(p, approach, lo, hi, depth) * approach
         if bool(np.all(p >= lo - 1e-9) and np.all(p <= hi + 1e-9)):
-            ahead, back = _exit_distance(p, closing, lo, hi), _exit_distance(p, -closing, lo, hi)
-            p = p + (ahead - back) / 2.0 * closing
+            p = _centred_along(p, closing, lo, hi)
         t[:3, 3] = p
         out.append(Grasp(t, g.source, g.label))
     return out
@@ -417,8 +416,7 @@ def between_fingers(
         across = float((hi - lo)[int(np.argmax(np.abs(closing)))])
         if across > width:
             continue
-        ahead, back = _exit_distance(p, closing, lo, hi), _exit_distance(p, -closing, lo, hi)
-        t[:3, 3] = p + (ahead - back) / 2.0 * closing
+        t[:3, 3] = _centred_along(p, closing, lo, hi)
         out.append(Grasp(t, g.source, g.label))
     return out
 
@@ -520,6 +518,12 @@ def _finger_approach(
     back = _exit_distance(cen, -axis, lo, hi)
     ahead = _exit_distance(cen, axis, lo, hi)
     return np.asarray(axis if back <= ahead else -axis, dtype=np.float64)
+
+
+def _centred_along(p: FloatArray, d: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:
+    """``p`` (3,) inside the box ``[lo, hi]`` moved along ``d`` to midway between its faces."""
+    ahead, back = _exit_distance(p, d, lo, hi), _exit_distance(p, -d, lo, hi)
+    return np.asarray(p + (ahead - back) / 2.0 * d, dtype=np.float64)
 
 
 def _exit_distance(p: FloatArray, d: FloatArray, lo: FloatArray, hi: FloatArray) -> float:
