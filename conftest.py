@@ -11,6 +11,8 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, settings
 
+from thirdhand.simulate.video import choose_backend
+
 # Shared, loaded machines: no per-example deadline, no "too slow" health check, and a
 # fixed example sequence so a run is reproducible.
 settings.register_profile(
@@ -24,6 +26,10 @@ settings.register_profile(
     ],
 )
 settings.load_profile("thirdhand")
+
+# MuJoCo picks its OpenGL back end once, when it is first imported: a test worker that
+# imports it for physics before a test renders would otherwise have no offscreen renderer.
+choose_backend()
 
 ROOT = Path(__file__).resolve().parent
 DATA = Path(os.environ.get("THIRDHAND_DATA", ROOT.parent / "shared" / "data"))

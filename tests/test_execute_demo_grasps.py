@@ -164,3 +164,20 @@ def test_within_fingers_slides_a_deep_grasp_back_and_centres_it() -> None:
     np.testing.assert_allclose(held.pose[:3, 3], [0.1, 0.0, 0.04 - FINGER_DEPTH_M], atol=1e-12)
     shape = Grasp(g.pose, "shape", "face")
     assert within_fingers([shape], lo, hi) == [shape]
+
+
+def test_a_grasp_closing_along_a_rod_is_turned_to_close_across_it() -> None:
+    lo, hi = np.array([0.0, -0.04, -0.04]), np.array([0.28, 0.04, 0.04])  # a chair leg
+    approach = np.array([-0.07, 0.92, -0.38]) / np.linalg.norm([-0.07, 0.92, -0.38])
+    g = Grasp(tool_frame([0.14, 0.0, -0.015], approach, [1.0, 0.0, 0.0]), "demo", "demo:lh")
+    (out,) = within_fingers([g], lo, hi)
+    r = out.pose[:3, :3]
+    np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-12)
+    assert np.linalg.det(r) == pytest.approx(1.0)
+    np.testing.assert_allclose(r[:, 2], g.pose[:3, 2], atol=1e-12)  # same approach
+    assert abs(r[0, 1]) < 0.1  # closing across the leg, no longer along it
+    assert out.pose[0, 3] == pytest.approx(0.14, abs=1e-3)  # same place along the leg
+    # a grasp that already closes across the leg keeps its orientation
+    across = Grasp(tool_frame([0.14, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]), "demo", "rh")
+    (kept,) = within_fingers([across], lo, hi)
+    np.testing.assert_allclose(kept.pose[:3, :3], across.pose[:3, :3], atol=1e-12)

@@ -16,10 +16,8 @@ import numpy as np
 import pytest
 
 from tests.cli_helpers import call
-from thirdhand.simulate.video import choose_backend
 from thirdhand.task.store import save_task
 
-choose_backend()  # MuJoCo reads MUJOCO_GL when first imported: egl, unless the user chose
 pytest.importorskip("mujoco")
 
 #: The physics of the slow tests: every planned step of the chair counts as done.

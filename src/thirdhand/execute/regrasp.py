@@ -283,8 +283,9 @@ def plan_regrasp(
     spot_grasps = []
     for pose, _ in spots:
         gs = candidate_grasps(
-            task, constraint, hints, pose, options.max_grasps, fit=options.fit_grasps_to_fingers
-        )
+            task, constraint, hints, pose, options.max_grasps, fit=options.fit_grasps_to_fingers,
+            triangles=world.triangles(part), plate_grasps=_plate_grasps(world, part, options),
+        )  # fmt: skip
         new = [g for g in gs if _key(g) not in place_at]
         hit = place_reach(robot, scene, new, goals, q_start, seed=ik_seed)
         place_at.update((_key(g), j) for g, j in zip(new, hit, strict=True))
@@ -333,7 +334,8 @@ def plan_regrasp(
             keys = {_key(g) for g in first}
             rest = candidate_grasps(
                 task, constraint, hints, spots[j][0], options.max_grasps,
-                fit=options.fit_grasps_to_fingers,
+                fit=options.fit_grasps_to_fingers, triangles=world.triangles(part),
+                plate_grasps=_plate_grasps(world, part, options),
             )  # fmt: skip
             hits = np.bincount([place_at[k] for k in keys], minlength=len(goals))
             top = [int(k) for k in np.argsort(-hits, kind="stable") if hits[k] > 0]
@@ -376,3 +378,8 @@ def _joined(
         spots=counts,
     )
     return StepPlan(rep, first + again.segments, again.final_pose)
+
+
+def _plate_grasps(world: SimWorld, part: str, options: ExecutionOptions) -> list[grasp_mod.Grasp]:
+    """A wide plate's pinch grasps when planning for physics (``fit_grasps_to_fingers``)."""
+    return world.plate_grasps(part) if options.fit_grasps_to_fingers else []

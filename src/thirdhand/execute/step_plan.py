@@ -96,6 +96,12 @@ class ExecutionOptions:
         (:func:`~thirdhand.execute.grasps.between_fingers`). ``thirdhand simulate``
         plans with it (the friction grasp needs it); ``execute`` keeps the grasps as
         they are.
+    straight_carry : bool
+        Carry the part first along a straight line of the tool, its orientation turned
+        evenly from the lift to the insertion (a joint-space plan only when that line is
+        blocked or unreachable): a part held by friction far from its centre of mass
+        turns out of the fingers when a joint-space path tilts it on the way.
+        ``thirdhand simulate`` plans with it; ``execute`` plans in joint space.
     """
 
     sample_free_dofs: bool = True
@@ -125,6 +131,7 @@ class ExecutionOptions:
     start_grasps: int = 0
     regrasp: bool = True
     fit_grasps_to_fingers: bool = False
+    straight_carry: bool = False
 
 
 @dataclass

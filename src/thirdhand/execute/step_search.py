@@ -23,6 +23,7 @@ from thirdhand.execute import grasps as grasp_mod
 from thirdhand.execute.goals import invert, sample_goals
 from thirdhand.execute.planner import plan_motion
 from thirdhand.execute.primitive_motion import (
+    MAX_JUMP_RAD,
     follow_tool_path,
     linear_motion,
     primitive_place_path,
@@ -40,6 +41,12 @@ from thirdhand.execute.world import SimWorld, insertion_axis
 from thirdhand.execute.world import trans as _trans
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile
+
+#: Steps in which a wide plate's grasps are ranked by their distance from its centre of
+#: mass, metres (:func:`candidate_grasps`).
+LEVER_STEP_M = 0.05
+#: A transport's joint path (n, dof) and how it was made (``straight`` or ``planner``).
+Carried = tuple[FloatArray, str]
 
 #: IK targets solved together (grasps, goals): 4 × 25 starts cost about one target's time.
 IK_BLOCK = 4
@@ -124,6 +131,8 @@ def candidate_grasps(
     max_grasps: int,
     *,
     fit: bool = False,
+    triangles: FloatArray | None = None,
+    plate_grasps: Sequence[grasp_mod.Grasp] = (),
 ) -> list[grasp_mod.Grasp]:
     """Grasps worth trying on the part where it lies, best first.
 
@@ -137,7 +146,12 @@ def candidate_grasps(
     whether the arm can reach them both where the part lies and at its goal
     (:func:`rank_by_reach`). With ``fit``, only the shape grasps that a parallel
     gripper closes on are kept, centred between the fingers
-    (:func:`~thirdhand.execute.grasps.between_fingers`).
+    (:func:`~thirdhand.execute.grasps.between_fingers`), and given the part's mesh
+    ``triangles`` (body frame), only the grasps whose pads close on material
+    (:func:`~thirdhand.execute.grasps.on_material`); a wide plate's pinch grasps
+    (``plate_grasps``, :meth:`~thirdhand.execute.world.SimWorld.plate_grasps`) are then
+    added and every grasp of the plate ranked first by how near its centre of mass it
+    holds (in 5 cm steps): held far from it, a heavy plate turns out of the fingers.
     """
     obj = next(o for o in task.objects if o.name == constraint.child)
     cands = list(hints.get(constraint.child, ()))
@@ -146,18 +160,25 @@ def candidate_grasps(
         if fit:
             shape = grasp_mod.between_fingers(shape, obj.bbox_min, obj.bbox_max)
         cands += shape
+    com = None
+    if fit and triangles is not None:
+        cands = grasp_mod.on_material(cands, triangles)
+        if plate_grasps:
+            cands += list(plate_grasps)
+            com = grasp_mod.mesh_centroid(triangles)
     avoid = invert(constraint.pose.matrix())[:3, 3]
     rot = part_pose[:3, :3]
-    scored: list[tuple[bool, bool, float, int, grasp_mod.Grasp]] = []
+    scored: list[tuple[int, bool, bool, float, int, grasp_mod.Grasp]] = []
     for g in cands:
         down = -float((rot @ g.pose[:3, 2])[2])
         if down < -0.1:
             continue
         far = float(np.linalg.norm(g.pose[:3, 3] - avoid))
         turned = "@" in g.label  # a demonstrated grasp turned about a rod's axis
-        scored.append((g.source != "demo", turned, -(down + 2.0 * far), len(scored), g))
-    scored.sort(key=lambda s: s[:4])
-    ranked = [s[4] for s in scored]
+        lever = 0 if com is None else int(np.linalg.norm(g.pose[:3, 3] - com) / LEVER_STEP_M)
+        scored.append((lever, g.source != "demo", turned, -(down + 2.0 * far), len(scored), g))
+    scored.sort(key=lambda s: s[:5])
+    ranked = [s[5] for s in scored]
     kept = drop_twins(ranked)
     ids = {id(g) for g in kept}
     return (kept + [g for g in ranked if id(g) not in ids])[:max_grasps]
@@ -326,6 +347,25 @@ class StepSearch:
             return None
         return path
 
+    def _carry(self, q_a: FloatArray, q_b: FloatArray) -> Carried | None:
+        """The transport from ``q_a`` to ``q_b`` and how it was made, or None.
+
+        With ``straight_carry``, first the tool's straight line to where it is at ``q_b``
+        (orientation slerped), joined to ``q_b`` when the line ends within
+        :data:`MAX_JUMP_RAD` of it on every joint (``"straight"``); otherwise, or when that
+        is blocked, a joint-space plan (``"planner"``).
+        """
+        if self.opt.straight_carry:
+            t_b = self.robot.tool_transforms(q_b[None])[0]
+            line = linear_motion(self.robot, q_a, t_b)
+            if line is not None and float(np.max(np.abs(line[-1] - q_b))) <= MAX_JUMP_RAD:
+                path = np.vstack([line, q_b[None]])
+                if self.scene.check_path(path):
+                    return path, "straight"
+            self.tried["straight_failed"] += 1
+        planned = self._plan(q_a, q_b)
+        return None if planned is None else (planned, "planner")
+
     def _plan(self, q_a: FloatArray, q_b: FloatArray) -> FloatArray | None:
         limit = min(self.opt.plan_time_limit, self.left())
         if limit <= 0.05:
@@ -399,8 +439,10 @@ class StepSearch:
             axes = goals[:, 2, :3].copy()
         if self.grasps is None:
             grasps = candidate_grasps(
-                self.task, c, self.hints, part_pose, 10**6, fit=opt.fit_grasps_to_fingers
-            )
+                self.task, c, self.hints, part_pose, 10**6, fit=opt.fit_grasps_to_fingers,
+                triangles=self.world.triangles(c.child),
+                plate_grasps=self.world.plate_grasps(c.child) if opt.fit_grasps_to_fingers else (),
+            )  # fmt: skip
         else:
             grasps = self.grasps
         if opt.rank_by_reach:
@@ -434,7 +476,7 @@ class StepSearch:
             found = self._with_grasp(q_grasp, g, goals, dofs, axes, parent_pose, part_pose)
             if found is None:
                 continue
-            j, lift, transport, insert, retreat, kind = found
+            j, lift, (transport, carry_kind), insert, retreat, kind = found
             approach = self._plan(q_start, back[-1])
             if approach is None:
                 continue
@@ -447,7 +489,7 @@ class StepSearch:
                 "approach": "planner",
                 "grasp": "straight",
                 "lift": "straight",
-                "transport": "planner",
+                "transport": carry_kind,
                 "insert": kind,
                 "retreat": "straight",
             }
@@ -512,7 +554,7 @@ class StepSearch:
     def _with_grasp(
         self, q_grasp: FloatArray, g: grasp_mod.Grasp, goals: FloatArray, dofs: FloatArray,
         axes: FloatArray, parent_pose: FloatArray, part_pose: FloatArray,
-    ) -> tuple[int, FloatArray, FloatArray, FloatArray, FloatArray, str] | None:  # fmt: skip
+    ) -> tuple[int, FloatArray, Carried, FloatArray, FloatArray, str] | None:  # fmt: skip
         """For one grasp: the first goal with lift, insertion, retreat and transport feasible."""
         opt, name, scene = self.opt, self.c.child, self.scene
         t_grasp = self.robot.tool_transforms(q_grasp[None])[0]
@@ -544,10 +586,10 @@ class StepSearch:
                 retreat = self._retreat(q_grasp, q_place, t_place, goal)
                 if retreat is None:
                     continue
-                transport = self._plan(q_lift, insert[0])
-                if transport is None:
+                carried = self._carry(q_lift, insert[0])
+                if carried is None:
                     continue
-                return j, lift, transport, insert, retreat, kind
+                return j, lift, carried, insert, retreat, kind
             return None
         finally:
             scene.detach(name, q_grasp)

@@ -18,12 +18,23 @@ import numpy as np
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
 from thirdhand.execute.goals import POS_TOL_M, ROT_TOL_RAD, constraint_holds, invert, sample_goals
+from thirdhand.execute.grasps import (
+    Grasp,
+    is_wide_plate,
+    mesh_centroid,
+    nearest_com,
+    pinch_grasps,
+)
 from thirdhand.execute.layout import NO_GEOMETRY_HINT, LayoutError, Workcell
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.scene import CollisionScene
 from thirdhand.task.constraint import Constraint
-from thirdhand.task.meshes import resolve_mesh
+from thirdhand.task.meshes import body_triangles, resolve_mesh
 from thirdhand.task.model import TaskFile
+
+#: Pinch grasps kept per wide plate (:meth:`SimWorld.plate_grasps`), nearest its centre of
+#: mass: each costs the step search its IK solves.
+PLATE_GRASPS = 12
 
 
 def trans(v: Sequence[float] | FloatArray) -> FloatArray:
@@ -58,6 +69,10 @@ class SimWorld:
             self.scene.allow(name, cell.base)
         self.offset: dict[str, FloatArray] = {}
         objs = {o.name: o for o in task.objects}
+        self._objects = objs
+        self._mesh_from = (task_path, tuple(search))
+        self._triangles: dict[str, FloatArray | None] = {}
+        self._plate_grasps: dict[str, list[Grasp]] = {}
         for name, pose in poses.items():
             obj = objs[name]
             path = resolve_mesh(obj, task_path, search)
@@ -81,6 +96,33 @@ class SimWorld:
                 raise LayoutError(
                     f"object {name!r}: no mesh and no bounding box to simulate{NO_GEOMETRY_HINT}"
                 )
+
+    def triangles(self, name: str) -> FloatArray | None:
+        """A part's mesh triangles (t, 3, 3), body frame, metres; None without a mesh."""
+        if name not in self._triangles:
+            obj = self._objects.get(name)
+            self._triangles[name] = (
+                None if obj is None else body_triangles(obj, *self._mesh_from)
+            )  # fmt: skip
+        return self._triangles[name]
+
+    def plate_grasps(self, name: str) -> list[Grasp]:
+        """Pinch grasps on a wide plate's narrow features, nearest its centre of mass first.
+
+        :func:`~thirdhand.execute.grasps.pinch_grasps` on the part's mesh, the
+        :data:`PLATE_GRASPS` nearest its centre of mass; empty for a part that is no wide
+        plate (:func:`~thirdhand.execute.grasps.is_wide_plate`) or has no mesh. Computed
+        once per part.
+        """
+        if name not in self._plate_grasps:
+            tri = self.triangles(name)
+            found: list[Grasp] = []
+            if tri is not None:
+                v = tri.reshape(-1, 3)
+                if is_wide_plate(v.min(axis=0), v.max(axis=0)):
+                    found = nearest_com(pinch_grasps(tri), mesh_centroid(tri), PLATE_GRASPS)
+            self._plate_grasps[name] = found
+        return self._plate_grasps[name]
 
     def pose(self, name: str, q: FloatArray | None = None) -> FloatArray:
         """``T_world_body`` of a part (a grasped one needs the arm's ``q``)."""

@@ -34,6 +34,7 @@ import numpy as np
 
 from thirdhand import se3
 from thirdhand.arrays import FloatArray
+from thirdhand.execute.grasps import PAD_HALF_M
 from thirdhand.execute.robot import ROBOTS, robots_dir
 from thirdhand.readlimits import read_text_input
 from thirdhand.simulate.parts import MassProperties, Piece, SimulateError
@@ -49,8 +50,9 @@ FINGERS = ("panda_finger_joint1", "panda_finger_joint2")
 FINGER_OPEN = 0.04
 #: Free speed of a finger, m/s (the Franka Hand's largest): its damping is force / speed.
 FINGER_SPEED = 0.1
-#: Half sizes of a fingertip pad (x along the hand's x, y its thickness, z along the finger), m.
-PAD_HALF = (0.009, 0.004, 0.011)
+#: Half sizes of a fingertip pad (x along the hand's x, y its thickness, z along the finger), m:
+#: the pad the planner checks a grasp closes on (:data:`thirdhand.execute.grasps.PAD_HALF_M`).
+PAD_HALF = (PAD_HALF_M[0], 0.004, PAD_HALF_M[1])
 #: Where the pad's centre sits in the finger body, metres (the tool point is 0.045 up it).
 PAD_Z = 0.045
 #: Half sizes of the hand's casing, metres, from the hand's frame to the fingers' base

@@ -205,6 +205,7 @@ def plan_offline(
         plan_time_limit=ecfg.plan_time, order=ecfg.order, max_grasps=ecfg.max_grasps,
         n_goal_samples=ecfg.goals, placement=ecfg.placement, start_grasps=ecfg.start_grasps,
         regrasp=ecfg.regrasp, fit_grasps_to_fingers=True, straight_entry_m=STRAIGHT_ENTRY_M,
+        straight_carry=True,
     )  # fmt: skip
     name = sim_robot(task, robot)
     _, assembly_xy = task_defaults(task, name, ecfg.assembly_at)
