@@ -16,6 +16,7 @@ from thirdhand.execute.grasps import (
     shape_grasps,
     tool_frame,
 )
+from thirdhand.execute.layout import pinched_through_face
 from thirdhand.task.meshes import box_triangles
 
 #: Two 30 mm thick slats, 100 mm wide, with a 100 mm gap between them (body frame, m).
@@ -101,3 +102,10 @@ def test_a_solid_plate_is_pinched_by_its_edges_only() -> None:
     np.testing.assert_allclose(mesh_centroid(tri), 0.0, atol=1e-12)
     assert is_wide_plate([-0.15, -0.15, -0.01], [0.15, 0.15, 0.01])
     assert not is_wide_plate([-0.02, -0.02, -0.15], [0.02, 0.02, 0.15])  # a leg
+
+
+def test_only_a_plate_with_a_slat_is_pinched_through_its_face() -> None:
+    assert pinched_through_face(_slatted_back())
+    assert not pinched_through_face(box_triangles([-0.15, -0.15, -0.01], [0.15, 0.15, 0.01]))
+    assert not pinched_through_face(box_triangles([0.0, -0.02, -0.02], [0.28, 0.02, 0.02]))
+    assert not pinched_through_face(None)

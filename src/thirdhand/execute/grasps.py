@@ -501,6 +501,7 @@ def pinch_grasps(
     width: float = MAX_GRIP_M - 0.01,
     clearance: float = 0.008,
     pad: tuple[float, float] = PAD_HALF_M,
+    axes: Sequence[int] = (0, 1, 2),
 ) -> list[Grasp]:
     """Grasps on the narrow features of a part's mesh that its bounding box hides.
 
@@ -516,6 +517,8 @@ def pinch_grasps(
     ----------
     triangles : array_like, shape (t, 3, 3)
         The part's closed mesh, body frame, metres.
+    axes : sequence of int
+        The body axes the fingers come along (both ways).
 
     Returns
     -------
@@ -528,7 +531,7 @@ def pinch_grasps(
     e = np.eye(3)
     hx, hz = pad
     out: list[Grasp] = []
-    for ai in range(3):
+    for ai in axes:
         for sign in (1.0, -1.0):
             a = -sign * e[ai]  # the approach, into the part from its ``sign`` side
             for ci in (k for k in range(3) if k != ai):

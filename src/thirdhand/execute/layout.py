@@ -48,11 +48,17 @@ from thirdhand.arrays import FloatArray
 from thirdhand.errors import ThirdhandError
 from thirdhand.execute.collision_check import coal_transform
 from thirdhand.execute.goals import goal_pose, sweep_dofs, vary
-from thirdhand.execute.grasps import FLAT_RATIO, MAX_GRIP_M, ROD_RATIO
+from thirdhand.execute.grasps import (
+    FLAT_RATIO,
+    MAX_GRIP_M,
+    ROD_RATIO,
+    is_wide_plate,
+    pinch_grasps,
+)
 from thirdhand.execute.meshes import box, mesh_from_triangles
 from thirdhand.segment.contact import box_corners
 from thirdhand.task.constraint import Constraint
-from thirdhand.task.meshes import object_triangles
+from thirdhand.task.meshes import body_triangles, object_triangles
 from thirdhand.task.model import TaskFile, TaskObject
 
 TABLE_Z = 0.75
@@ -656,6 +662,20 @@ def rest_rotation(
     return np.asarray(rz @ _rotation_up(k, sign, 0.0), dtype=np.float64)
 
 
+def pinched_through_face(triangles: FloatArray | None) -> bool:
+    """Whether a wide plate lying on its face has a grasp from above: a slat or other
+    narrow feature the fingers close on, going down the gaps beside it
+    (:func:`~thirdhand.execute.grasps.pinch_grasps` through its face). False without a
+    mesh (``triangles``, (t, 3, 3), body frame) or for a part that is no wide plate."""
+    if triangles is None:
+        return False
+    v = triangles.reshape(-1, 3)
+    if not is_wide_plate(v.min(axis=0), v.max(axis=0)):
+        return False
+    thin = int(np.argmin(v.max(axis=0) - v.min(axis=0)))
+    return bool(pinch_grasps(triangles, axes=(thin,)))
+
+
 def plate_edge_up(v: FloatArray, up_axis: int, meets: FloatArray) -> tuple[int, float] | None:
     """The body axis and sign to turn up so that a plate stands on an edge, or None.
 
@@ -792,8 +812,9 @@ def start_layout(
         spot counts as a draw.
     stand_plates : bool
         Stand a plate that would lie on its face with no grasp a parallel gripper closes
-        on (:func:`plate_edge_up`); physics needs it, the kinematic plan holds it by
-        its face.
+        on (:func:`plate_edge_up`; one with a narrow feature the fingers pinch through its
+        face lies flat, :func:`pinched_through_face`); physics needs it, the kinematic
+        plan holds it by its face.
 
     Returns
     -------
@@ -818,9 +839,14 @@ def start_layout(
     assembled = [_transform(cell.base_pose, v) for v in placed.values()]
     taken = occupied_footprints(cell, assembled, margin)
     # where each part meets its parent (the parent's origin in the part's frame): a plate
-    # stands on its edge farthest from there (``stand_plates``)
+    # the fingers cannot pinch through its face stands on its edge farthest from there
+    # (``stand_plates``)
     meets = (
-        {c.child: se3.transform_invert(c.pose.matrix())[:3, 3] for c in task.constraints}
+        {
+            c.child: se3.transform_invert(c.pose.matrix())[:3, 3]
+            for c in task.constraints
+            if not pinched_through_face(body_triangles(objs[c.child], task_path, search))
+        }
         if stand_plates else {}
     )  # fmt: skip
     reach = cell.reach if reach is None else reach
