@@ -1,10 +1,10 @@
 """Physics simulation speed on the demo chair: simulated seconds per wall-clock second.
 
 Plans the synthetic chair of ``thirdhand demo`` (the ground-truth task of
-``make_scene("chair", seed=0)``) on the Panda, then simulates the run twice: once
-with an empty decomposition cache and a video (where the time goes on a first
-run: decomposition, model building, stepping, rendering), once again from the
-cache without a video (what a second run costs). Prints the real-time factor of
+``make_scene("chair", seed=0)``) on the Panda as ``thirdhand simulate`` does, then
+simulates the run twice: once with an empty decomposition cache and a video (where the
+time goes on a first run: decomposition, model building, stepping, rendering), once
+again from the cache without a video (what a second run costs). Prints the real-time factor of
 the stepping alone and of the whole run, and the share of each part.
 
 Usage: ``python benchmarks/simulate_speed.py [--meshes DIR] [--fps N]``
@@ -30,8 +30,7 @@ def main() -> None:
     ap.add_argument("--fps", type=int, default=25)
     args = ap.parse_args()
 
-    from thirdhand.execute.executor import Executor
-    from thirdhand.simulate.plan import from_execution
+    from thirdhand.simulate.plan import plan_offline
     from thirdhand.simulate.run import simulate_run
     from thirdhand.simulate.settings import SimulateSettings
     from thirdhand.simulate.video import count_frames, open_video
@@ -41,11 +40,9 @@ def main() -> None:
     task = truth_task(make_scene("chair", seed=0))
     search = [args.meshes] if Path(args.meshes).is_dir() else []
     t0 = time.perf_counter()
-    ex = Executor.for_task(task, "panda", seed=0, search=search)
-    result = ex.run_offline(seed=0)
-    plan = from_execution(ex, result)
+    plan = plan_offline(task, task_path=None, robot="panda", seed=0, search=search)
     planning = time.perf_counter() - t0
-    print(f"planning (thirdhand execute): {planning:.1f} s; "
+    print(f"planning (as thirdhand simulate plans): {planning:.1f} s; "
           f"{sum(s.planned for s in plan.steps)} of {len(plan.steps)} steps planned")  # fmt: skip
     with tempfile.TemporaryDirectory() as tmp:
         video = Path(tmp) / "chair.mp4"

@@ -109,3 +109,13 @@ def test_only_a_plate_with_a_slat_is_pinched_through_its_face() -> None:
     assert not pinched_through_face(box_triangles([-0.15, -0.15, -0.01], [0.15, 0.15, 0.01]))
     assert not pinched_through_face(box_triangles([0.0, -0.02, -0.02], [0.28, 0.02, 0.02]))
     assert not pinched_through_face(None)
+
+
+def test_pinch_grasps_of_a_mesh_seen_before_are_the_same_and_a_fresh_list() -> None:
+    tri = _slatted_back()
+    first = pinch_grasps(tri)
+    first.clear()
+    again, other = pinch_grasps(tri.copy()), pinch_grasps(tri, step=0.02)
+    assert again and len(other) < len(again)
+    for g, h in zip(again, pinch_grasps(tri), strict=True):
+        np.testing.assert_array_equal(g.pose, h.pose)

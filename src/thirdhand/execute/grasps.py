@@ -25,8 +25,10 @@ towards the nearest point of the part's core (its axis for a rod).
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -493,6 +495,12 @@ def inside_mesh(triangles: ArrayLike, points: ArrayLike) -> NDArray[np.bool_]:
     return np.asarray(votes >= 2)
 
 
+#: :func:`pinch_grasps` of the meshes seen in this process, by their triangles' digest and
+#: the parameters: a part's scan costs seconds, and every episode of ``generate`` plans
+#: the same parts again.
+_PINCH_CACHE: dict[tuple[bytes, tuple[Any, ...]], tuple[Grasp, ...]] = {}
+
+
 def pinch_grasps(
     triangles: ArrayLike,
     *,
@@ -511,7 +519,8 @@ def pinch_grasps(
     material there is at most ``width`` across (the point is centred in it), the pad's
     corners lie in it, and a finger (``clearance`` beside the material, from the
     surface down past the pad, across the pad's width) meets nothing: the fingers go
-    down the gaps beside it.
+    down the gaps beside it. Each mesh is scanned once per process (by its triangles'
+    digest and the parameters).
 
     Parameters
     ----------
@@ -525,7 +534,32 @@ def pinch_grasps(
     list of Grasp
         ``T_part_tool`` with source ``"shape"`` and label ``"pinch"``, unranked.
     """
-    tri = np.asarray(triangles, dtype=np.float64)
+    tri = np.ascontiguousarray(triangles, dtype=np.float64)
+    key = (
+        hashlib.sha1(tri.tobytes()).digest(),
+        (step, depth, width, clearance, tuple(pad), tuple(axes)),
+    )
+    if key not in _PINCH_CACHE:
+        if len(_PINCH_CACHE) >= 64:
+            _PINCH_CACHE.clear()
+        _PINCH_CACHE[key] = tuple(
+            _pinch_scan(tri, step=step, depth=depth, width=width, clearance=clearance,
+                        pad=pad, axes=axes)
+        )  # fmt: skip
+    return list(_PINCH_CACHE[key])
+
+
+def _pinch_scan(
+    tri: FloatArray,
+    *,
+    step: float,
+    depth: float,
+    width: float,
+    clearance: float,
+    pad: tuple[float, float],
+    axes: Sequence[int],
+) -> list[Grasp]:
+    """The scan of :func:`pinch_grasps` (same parameters), uncached."""
     v = tri.reshape(-1, 3)
     lo, hi = v.min(axis=0) - 1e-3, v.max(axis=0) + 1e-3
     e = np.eye(3)
