@@ -26,6 +26,7 @@ import errno
 import os
 import re
 import shutil
+import signal
 import stat
 import sys
 import tempfile
@@ -559,16 +560,21 @@ def atomic_output(
     _NEW_OUTPUTS.discard(_key(p))
     folder = p.parent if str(p.parent) else Path(".")
     created = _missing_folders(folder)
+    # Ctrl-C or SIGTERM between making the temporary folder and the ``try`` that removes
+    # it would leave it behind: the signals wait until that ``try`` is entered.
+    held = _hold_signals()
     try:
         folder.mkdir(parents=True, exist_ok=True)
         tmp_dir = Path(tempfile.mkdtemp(dir=folder, prefix=f".{p.name}.", suffix=".tmp"))
     except OSError as exc:
+        _release_signals(held)
         _remove_empty(created)
         raise OutputError(_message(p, exc)) from None
     built = tmp_dir / p.name
     done = False
     _OPEN[0] += 1
     try:
+        _release_signals(held)
         try:
             yield built
             if not os.path.lexists(built):
@@ -589,6 +595,24 @@ def atomic_output(
         shutil.rmtree(tmp_dir, ignore_errors=True)
         if not done:  # a failed write leaves no trace, not even the folders made for it
             _remove_empty(created)
+
+
+#: The signals whose Python handlers end a write (Ctrl-C, ``kill``).
+_HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+def _hold_signals() -> set[int | signal.Signals] | None:
+    """Block Ctrl-C and SIGTERM in this thread (POSIX); the mask to restore, else None."""
+    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - Windows
+        return None
+    return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+
+
+def _release_signals(held: set[int | signal.Signals] | None) -> None:
+    """Restore the mask :func:`_hold_signals` replaced: a signal that came meanwhile is
+    handled now."""
+    if held is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 def _missing_folders(folder: Path) -> list[Path]:
