@@ -355,14 +355,14 @@ def within_fingers(
     """
     lo = np.asarray(bbox_min, dtype=np.float64)
     hi = np.asarray(bbox_max, dtype=np.float64)
+    ext = hi - lo
     out: list[Grasp] = []
     for g in grasps:
         if g.source != "demo":
             out.append(g)
             continue
         t = g.pose.copy()
-        ext = hi - lo
-        if float(ext[int(np.argmax(np.abs(t[:3, 1])))]) > MAX_GRIP_M:
+        if _width_across(t[:3, 1], lo, hi) > MAX_GRIP_M:
             # the fingers would close along the part's long side: a quarter turn about
             # the approach closes them across it
             t[:3, :2] = np.column_stack([t[:3, 1], -t[:3, 0]])
@@ -430,8 +430,7 @@ def between_fingers(
             continue
         t = g.pose.copy()
         p, closing = t[:3, 3], t[:3, 1]
-        across = float((hi - lo)[int(np.argmax(np.abs(closing)))])
-        if across > width:
+        if _width_across(closing, lo, hi) > width:
             continue
         t[:3, 3] = _centred_along(p, closing, lo, hi)
         out.append(Grasp(t, g.source, g.label))
@@ -763,6 +762,11 @@ def _finger_approach(
     back = _exit_distance(cen, -axis, lo, hi)
     ahead = _exit_distance(cen, axis, lo, hi)
     return np.asarray(axis if back <= ahead else -axis, dtype=np.float64)
+
+
+def _width_across(closing: FloatArray, lo: FloatArray, hi: FloatArray) -> float:
+    """How wide the box ``[lo, hi]`` is along the box axis nearest to ``closing``, metres."""
+    return float((hi - lo)[int(np.argmax(np.abs(closing)))])
 
 
 def _centred_along(p: FloatArray, d: FloatArray, lo: FloatArray, hi: FloatArray) -> FloatArray:

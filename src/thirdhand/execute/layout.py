@@ -688,13 +688,11 @@ def plate_edge_up(v: FloatArray, up_axis: int, meets: FloatArray) -> tuple[int, 
     goes up, so that the fingers stay clear of the parent when it is placed. None when
     the plate is thicker than the fingers open, or is no such plate.
     """
-    ext = v.max(axis=0) - v.min(axis=0)
-    thin, mid, long = (int(i) for i in np.argsort(ext, kind="stable"))
-    if up_axis != thin or ext[thin] >= FLAT_RATIO * ext[mid]:
-        return None
-    if ext[mid] <= MAX_GRIP_M or ext[thin] > MAX_GRIP_M:
-        return None
     lo, hi = v.min(axis=0), v.max(axis=0)
+    ext = hi - lo
+    thin, mid, long = (int(i) for i in np.argsort(ext, kind="stable"))
+    if up_axis != thin or not is_wide_plate(lo, hi) or ext[thin] > MAX_GRIP_M:
+        return None
     ends = [(float(hi[a] - meets[a]), a, 1.0) for a in (mid, long)]
     ends += [(float(meets[a] - lo[a]), a, -1.0) for a in (mid, long)]
     _, axis, sign = max(ends)
