@@ -433,21 +433,19 @@ class Simulation:
 
                 adjust = self._adjuster(phase, qr, planned_grip)
                 self._advance(ctrl, tick, adjust)
-                hold_q = qr[-1] + self._delta
+                hold_q = qr[-1]  # _advance adds the re-aim (_delta)
                 if phase.segment == "transport" and out is not None and phase.part is not None:
                     pads, _, _ = self.touching(phase.part)
                     out.held = pads or s.grasp == "weld"
                 continue
             k = max(1, round(phase.duration / s.timestep))
-            ctrl = np.repeat((hold_q)[None], k, axis=0)
+            ctrl = np.repeat(hold_q[None], k, axis=0)
             part = phase.part
             if phase.kind == "close" and part is not None:
                 # The grasp the planner meant: the part where the plan put it (its start,
                 # before its first pick; where it is, before a regrasp).
                 where = self.plan.start[part] if part not in grip0 else self.body_pose(part)
-                planned_grip[part] = (
-                    se3.transform_invert(self._tool_at(hold_q - self._delta)[0]) @ where
-                )
+                planned_grip[part] = se3.transform_invert(self._tool_at(hold_q)[0]) @ where
                 self._offset = np.zeros(6)
                 self._grip = None
                 d.ctrl[self._finger_act] = -s.gripper_force
