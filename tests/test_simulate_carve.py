@@ -110,6 +110,29 @@ def test_integrated_offset_is_bounded_and_pose_twist_inverts_shifted() -> None:
     assert np.linalg.norm(off[3:]) == pytest.approx(aim.MAX_OFFSET_RAD)
 
 
+def test_offset_in_contact_grows_only_across_the_insertion_axis() -> None:
+    planned = _pose([0.0, 0.0, 0.0], [0.5, 0.0, 0.3])
+    measured = _pose([0.0, 0.0, 0.0], [0.502, -0.001, 0.309])  # 9 mm short, 2 and 1 mm aside
+    axis = np.array([0.0, 0.0, -0.05])  # in: straight down, any length
+    off = aim.integrate_offset(np.zeros(6), planned, measured, gain=0.5, across=axis)
+    np.testing.assert_allclose(off[:3], [-0.001, 0.0005, 0.0], atol=1e-15)
+    tilted = np.array([0.0, 1.0, -1.0])  # along a slanted axis: the error across it only
+    off = aim.integrate_offset(np.zeros(6), planned, measured, gain=1.0, across=tilted)
+    assert float(off[:3] @ tilted) == pytest.approx(0.0, abs=1e-15)
+    err = planned[:3, 3] - measured[:3, 3]
+    np.testing.assert_allclose(off[:3] + (err @ tilted) / 2.0 * tilted, err, atol=1e-15)
+
+
+def test_joint_step_keeps_joints_at_their_limits_still() -> None:
+    rng = np.random.default_rng(1)
+    j = rng.normal(size=(6, 7))
+    twist = np.array([1e-3, -2e-3, 5e-4, 1e-3, 0.0, -2e-3])
+    free = np.array([True, True, True, True, False, True, True])
+    dq = aim.joint_step(j, twist, damping=0.0, free=free)
+    assert dq[4] == 0.0
+    np.testing.assert_allclose(j @ dq, twist, atol=1e-12)  # six joints still reach it
+
+
 def test_joint_step_moves_the_tool_by_the_twist_and_blend_is_smooth() -> None:
     rng = np.random.default_rng(0)
     j = rng.normal(size=(6, 7))

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from thirdhand import se3
-from thirdhand.arrays import FloatArray
+from thirdhand.arrays import BoolArray, FloatArray
 
 #: Damping of the least-squares inverse of the tool Jacobian, metres (and radians).
 DAMPING = 0.02
@@ -55,7 +55,11 @@ def tool_correction(g_plan: FloatArray, g_now: FloatArray, weight: float) -> Flo
 
 
 def integrate_offset(
-    offset: FloatArray, planned: FloatArray, measured: FloatArray, gain: float = GAIN
+    offset: FloatArray,
+    planned: FloatArray,
+    measured: FloatArray,
+    gain: float = GAIN,
+    across: FloatArray | None = None,
 ) -> FloatArray:
     """The aim offset (6,) after one measurement: ``offset + gain · (planned ⊖ measured)``.
 
@@ -69,8 +73,18 @@ def integrate_offset(
     offset : ndarray, shape (6,)
     planned, measured : ndarray, shape (4, 4)
         The part's planned and measured world poses.
+    across : ndarray, shape (3,), optional
+        An axis (world frame, any length): only the position error across it is
+        integrated (a part pressed into its pocket along the axis is moved sideways,
+        not pushed harder).
     """
-    out = np.asarray(offset, dtype=np.float64) + gain * pose_twist(measured, planned)
+    tw = pose_twist(measured, planned)
+    if across is not None:
+        a = np.asarray(across, dtype=np.float64)
+        n = float(np.linalg.norm(a))
+        if n > 0.0:
+            tw[:3] -= (tw[:3] @ a) / n**2 * a
+    out = np.asarray(offset, dtype=np.float64) + gain * tw
     p, r = out[:3], out[3:]
     np_, nr = float(np.linalg.norm(p)), float(np.linalg.norm(r))
     if np_ > MAX_OFFSET_M:
@@ -95,15 +109,25 @@ def pose_twist(current: FloatArray, target: FloatArray) -> FloatArray:
     return np.concatenate([dp, dr])
 
 
-def joint_step(jacobian: FloatArray, twist: FloatArray, damping: float = DAMPING) -> FloatArray:
+def joint_step(
+    jacobian: FloatArray,
+    twist: FloatArray,
+    damping: float = DAMPING,
+    free: BoolArray | None = None,
+) -> FloatArray:
     """Joint change (dof,) that moves the tool by ``twist`` (6,): damped least squares.
 
     Parameters
     ----------
     jacobian : ndarray, shape (6, dof)
         The tool's world-frame Jacobian, translational rows first.
+    free : ndarray of bool, shape (dof,), optional
+        The joints that may move (the others, at a limit, keep their angle); all by
+        default.
     """
-    j = np.asarray(jacobian, dtype=np.float64)
+    j = np.array(jacobian, dtype=np.float64)
+    if free is not None:
+        j[:, ~np.asarray(free, dtype=bool)] = 0.0
     a = j @ j.T + damping**2 * np.eye(6)
     return np.asarray(j.T @ np.linalg.solve(a, twist), dtype=np.float64)
 

@@ -4,8 +4,9 @@
 :func:`~thirdhand.simulate.schedule.schedule`: the arm's servos track the planned
 joint trajectory, the fingers close with the gripper's force limit (or, with the
 weld grasp, the part is welded to the hand once they closed), a part placed by
-its ``insert`` segment is joined to its parent where it stands (a weld: the
-person fastening it) and let go, and the assembly rests at the end. Per step it
+its ``insert`` segment is held at the segment's end until it is seated (at most
+``seat_time`` s), joined to its parent where it stands (a weld: the person
+fastening it) and let go, and the assembly rests at the end. Per step it
 measures what :mod:`~thirdhand.simulate.measure` judges.
 """
 
@@ -47,6 +48,14 @@ MEASURE_PERIOD = 0.01
 
 #: Simulated seconds over which a re-aim is blended in (at most half the motion).
 AIM_BLEND_S = 1.0
+
+#: A re-aim keeps every joint this far inside its range, degrees (the planner may run a
+#: joint up to its limit; the other six joints of the redundant arm make up for it).
+LIMIT_MARGIN_DEG = 1.0
+
+#: A part is seated once it is this close to its planned goal, metres and degrees.
+SEAT_TOLERANCE_M = 0.001
+SEAT_TOLERANCE_DEG = 1.0
 
 #: ``sink(model, data, label)`` called at every video frame.
 FrameSink = Callable[[mujoco.MjModel, mujoco.MjData, str], None]
@@ -193,6 +202,9 @@ class Simulation:
         self._qadr = np.array([model.jnt_qposadr[model.joint(n).id] for n in names])
         self._vadr = np.array([model.jnt_dofadr[model.joint(n).id] for n in names])
         self._arm_act = np.array([model.actuator(n).id for n in names])
+        rng = np.array([model.jnt_range[model.joint(n).id] for n in names])
+        margin = np.deg2rad(LIMIT_MARGIN_DEG)
+        self._q_lo, self._q_hi = rng[:, 0] + margin, rng[:, 1] - margin
         self._finger_act = np.array([model.actuator(n).id for n in FINGERS])
         self._finger_q = np.array([model.jnt_qposadr[model.joint(n).id] for n in FINGERS])
         self._kv_over_kp = settings.damping / settings.stiffness
@@ -288,9 +300,13 @@ class Simulation:
         """Joint change (dof,) that moves the tool from its pose at ``q`` by ``correction``."""
         target = self._tool_at(q)[0] @ correction
         dq = np.zeros_like(q)
-        for _ in range(3):
+        lo, hi = self._q_lo, self._q_hi
+        free = np.ones(q.shape[0], dtype=bool)
+        for _ in range(4):
             pose, jac = self._tool_at(q + dq)
-            dq = dq + joint_step(jac, pose_twist(pose, target))
+            dq = dq + joint_step(jac, pose_twist(pose, target), free=free)
+            free &= (q + dq > lo) & (q + dq < hi)
+            dq = np.clip(q + dq, np.minimum(lo, q), np.maximum(hi, q)) - q
         return dq
 
     def _in_hand(self, part: str) -> FloatArray:
@@ -324,6 +340,40 @@ class Simulation:
                 self.sink(m, d, self._label)
                 self.render_time += time.perf_counter() - t0
 
+    def _seat(
+        self,
+        part: str,
+        goal: FloatArray,
+        qr: FloatArray,
+        tick: Callable[[int], None],
+        adjust: Callable[[int], FloatArray],
+    ) -> None:
+        """Hold the end of an insertion, still re-aiming, until the part is at ``goal``.
+
+        A part that stopped short of its goal (a leg on the rim of its pocket, a
+        millimetre or two aside) is held pressed where the plan ends while the re-aim
+        moves it across its insertion axis, until it is within
+        :data:`SEAT_TOLERANCE_M` and :data:`SEAT_TOLERANCE_DEG` of its planned goal
+        (4, 4; world) or ``seat_time`` s have passed.
+
+        Parameters
+        ----------
+        qr : ndarray, shape (k, dof)
+            The insertion's reference joint positions; its last row is held.
+        tick, adjust : callable
+            The insertion's measurement and re-aim, called with its last row's index.
+        """
+        s = self.settings
+        last = qr.shape[0] - 1
+        rows = np.repeat(qr[-1:], self._every, axis=0)
+        for _ in range(round(s.seat_time / (self._every * s.timestep))):
+            error = pose_twist(self.body_pose(part), goal)
+            if np.linalg.norm(error[:3]) < SEAT_TOLERANCE_M and np.linalg.norm(
+                error[3:]
+            ) < np.deg2rad(SEAT_TOLERANCE_DEG):
+                return
+            self._advance(rows, lambda k: tick(last), lambda k: adjust(last))
+
     def _reference(self, phase: Phase) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Per physics step of a move: times (k,), reference q (k, dof), control (k, dof)."""
         dt = self.settings.timestep
@@ -347,8 +397,10 @@ class Simulation:
         :data:`AIM_BLEND_S` s of the transport), with an offset that makes up for the
         arm's lag (:func:`~thirdhand.simulate.aim.integrate_offset`). Once the part
         touches anything but the hand (its parent, as it goes in), the measured grasp
-        and the offset are kept as they were: contact moves the part in the hand on
-        purpose. A part the fingers lost is not aimed at. The next motion without a
+        is kept as it was (contact moves the part in the hand on purpose), and during
+        the insertion the offset grows only across the insertion axis: a part that came
+        in aside is moved over the pocket without being pushed harder into its rim. A
+        part the fingers lost is not aimed at. The next motion without a
         part blends the arm's last change out.
         """
         s = self.settings
@@ -359,6 +411,11 @@ class Simulation:
             g_plan = planned_grip[part]
             if phase.segment in ("transport", "insert"):
                 insert = phase.segment == "insert"
+                axis = None
+                if insert:  # the part's planned path in, world frame
+                    axis = (self._tool_at(qr[-1])[0] @ g_plan)[:3, 3] - (
+                        self._tool_at(qr[0])[0] @ g_plan
+                    )[:3, 3]
 
                 def follow(k: int) -> FloatArray:
                     tool = self._tool_at(qr[k])[0]
@@ -371,8 +428,13 @@ class Simulation:
                             self._offset, tool @ g_plan, self.body_pose(part)
                         )
                         self._grip = self._in_hand(part)
-                    elif self._grip is None:
-                        self._grip = self._in_hand(part)
+                    else:
+                        if self._grip is None:
+                            self._grip = self._in_hand(part)
+                        if axis is not None:  # on its way in: aim across the axis only
+                            self._offset = integrate_offset(
+                                self._offset, tool @ g_plan, self.body_pose(part), across=axis
+                            )
                     aimed = se3.transform_invert(tool) @ shifted(tool @ g_plan, self._offset)
                     w = 1.0 if insert else blend(k * dt, ramp)
                     return self._aim(qr[k], tool_correction(aimed, self._grip, w))
@@ -433,6 +495,10 @@ class Simulation:
 
                 adjust = self._adjuster(phase, qr, planned_grip)
                 self._advance(ctrl, tick, adjust)
+                if phase.segment == "insert" and adjust is not None and phase.part is not None:
+                    self._label = f"{step_name} (seat)"
+                    goal = self._tool_at(qr[-1])[0] @ planned_grip[phase.part]
+                    self._seat(phase.part, goal, qr, tick, adjust)
                 hold_q = qr[-1]  # _advance adds the re-aim (_delta)
                 if phase.segment == "transport" and out is not None and phase.part is not None:
                     pads, _, _ = self.touching(phase.part)

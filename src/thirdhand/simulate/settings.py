@@ -69,6 +69,14 @@ class SimulateSettings(Settings):
     open_time: float = Field(
         0.4, gt=0.0, le=10.0, description="Seconds the arm waits while the fingers open."
     )
+    seat_time: float = Field(
+        2.0,
+        ge=0.0,
+        le=60.0,
+        description="Longest seconds the arm holds the end of an insertion while the part "
+        "has not reached its goal, re-aiming it across its insertion axis (a leg on the rim "
+        "of its pocket slides in); 0: the fastening follows the insertion at once.",
+    )
     fasten_time: float = Field(
         0.3, ge=0.0, le=60.0, description="Seconds the person takes to fasten a placed part."
     )
