@@ -92,9 +92,12 @@ def test_synthetic_chair_end_to_end(capsys, tmp_path, chair_task, shared_data) -
     assert doc["sim_time_s"] > 10.0 and doc["wall_time_s"] > 0.0
     # every leg seated (a leg that stops on its pocket's rim is slid in) and the back carried
     assert [s["status"] for s in doc["steps"]] == ["done"] * 5 and rc == 0
-    assert max(s["position_error_mm"] for s in doc["steps"]) < 2.0
-    assert max(s["angle_error_deg"] for s in doc["steps"]) < 0.5
+    # seated within 1 mm and 1° of the goal (SEAT_TOLERANCE_*), plus a measurement period
+    assert max(s["position_error_mm"] for s in doc["steps"]) < 1.5
+    assert max(s["angle_error_deg"] for s in doc["steps"]) < 1.5
     assert doc["rest"]["largest_displacement_mm"] < 0.1
+    # the re-aim brings a part turned in the hand back without flinging the arm
+    assert max(s["tracking_error_deg"] for s in doc["steps"]) < 10.0
     if doc["video"] is not None:
         from thirdhand.simulate.video import count_frames
 

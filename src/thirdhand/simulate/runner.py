@@ -49,6 +49,11 @@ MEASURE_PERIOD = 0.01
 #: Simulated seconds over which a re-aim is blended in (at most half the motion).
 AIM_BLEND_S = 1.0
 
+#: A re-aim moves a joint at most this fast on top of its planned motion, rad/s (about
+#: half the Panda's joint speed: a part turned in the hand is brought back over a few
+#: tenths of a second instead of flinging the wrist).
+AIM_RATE = 1.0
+
 #: A re-aim keeps every joint this far inside its range, degrees (the planner may run a
 #: joint up to its limit; the other six joints of the redundant arm make up for it).
 LIMIT_MARGIN_DEG = 1.0
@@ -225,6 +230,7 @@ class Simulation:
         self._jacp = np.zeros((3, model.nv))
         self._jacr = np.zeros((3, model.nv))
         self._delta = np.zeros(len(names))
+        self._aim_to = np.zeros(len(names))
         self._offset = np.zeros(6)
         self._grip: FloatArray | None = None
 
@@ -324,12 +330,15 @@ class Simulation:
         """Step once per row of ``ctrl`` (k, dof), measuring every few steps.
 
         ``adjust(k)``, called every measurement period, returns the joint change
-        (dof,) added to the control from row ``k`` on (kept in ``_delta``).
+        (dof,) wanted on top of the control from row ``k`` on; the change applied
+        (``_delta``) moves towards it at most :data:`AIM_RATE` rad/s.
         """
         m, d = self.model, self.data
+        step = AIM_RATE * self.settings.timestep
         for k in range(ctrl.shape[0]):
             if adjust is not None and k % self._every == 0:
-                self._delta = adjust(k)
+                self._aim_to = adjust(k)
+            self._delta = self._delta + np.clip(self._aim_to - self._delta, -step, step)
             d.ctrl[self._arm_act] = ctrl[k] + self._delta
             mujoco.mj_step(m, d)
             self._n += 1
@@ -440,7 +449,7 @@ class Simulation:
                     return self._aim(qr[k], tool_correction(aimed, self._grip, w))
 
                 return follow
-        if not np.any(self._delta):
+        if not np.any(self._delta) and not np.any(self._aim_to):
             return None
         last = self._delta.copy()
         return lambda k: (1.0 - blend(k * dt, ramp)) * last
