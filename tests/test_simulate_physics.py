@@ -52,6 +52,12 @@ def test_model_forward_kinematics_equal_the_planners() -> None:
         np.testing.assert_allclose(rot, matrix_from_quat(quat), atol=1e-6)
 
 
+def test_arm_speed_limits_are_the_planners() -> None:
+    from thirdhand.simulate.model import ARM_SPEED
+
+    np.testing.assert_array_equal(Robot.load("panda").velocity_limits, ARM_SPEED)
+
+
 def test_schedule_closes_fastens_opens_and_rests(plan) -> None:
     s = SimulateSettings()
     kinds = [(p.kind, p.segment) for p in schedule(plan.spans, s)]
@@ -70,6 +76,7 @@ def test_peg_goes_into_the_hole_with_clearance(plan, tmp_path) -> None:
     assert step.position_error_mm < 2.0 and step.angle_error_deg < 1.0
     assert step.slip_mm < 1.0
     assert r.rest_displacement_mm < 0.5
+    assert 0.0 < step.joint_speed < 1.0  # the peg's plan is timed within the limits
 
 
 @pytest.mark.slow

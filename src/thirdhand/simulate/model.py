@@ -46,6 +46,8 @@ SIM_ROBOTS = ("panda",)
 HAND = "panda_hand"
 TOOL = "panda_hand_tcp"
 FINGERS = ("panda_finger_joint1", "panda_finger_joint2")
+#: Joint speed limits of the arm, rad/s (Franka's datasheet, the URDF's velocity limits).
+ARM_SPEED = (2.175, 2.175, 2.175, 2.175, 2.61, 2.61, 2.61)
 #: Finger joint value of the open gripper, metres.
 FINGER_OPEN = 0.04
 #: Free speed of a finger, m/s (the Franka Hand's largest): its damping is force / speed.

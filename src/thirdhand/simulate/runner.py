@@ -37,7 +37,7 @@ from thirdhand.simulate.measure import (
     slip_mm,
     step_status,
 )
-from thirdhand.simulate.model import FINGER_OPEN, FINGERS, HAND, TOOL
+from thirdhand.simulate.model import ARM_SPEED, FINGER_OPEN, FINGERS, HAND, TOOL
 from thirdhand.simulate.plan import RunPlan
 from thirdhand.simulate.schedule import Phase, schedule
 from thirdhand.simulate.settings import SimulateSettings
@@ -89,6 +89,10 @@ class StepOutcome:
         Largest joint tracking error of the arm during the step, degrees.
     tool_error_mm : float
         Largest distance of the tool point from the planned one during the step, mm.
+    joint_speed : float
+        Largest joint speed of the arm during the step, as a share of that joint's
+        speed limit (:data:`~thirdhand.simulate.model.ARM_SPEED`; above 1: faster
+        than the real arm moves).
     held : bool
         The part was between the fingers at the end of the carry.
     blocked : bool
@@ -108,6 +112,7 @@ class StepOutcome:
     peak_force_n: float = 0.0
     tracking_error_deg: float = 0.0
     tool_error_mm: float = 0.0
+    joint_speed: float = 0.0
     held: bool = False
     blocked: bool = False
 
@@ -231,6 +236,7 @@ class Simulation:
         self._jacr = np.zeros((3, model.nv))
         self._delta = np.zeros(len(names))
         self._aim_to = np.zeros(len(names))
+        self._speed = np.asarray(ARM_SPEED, dtype=np.float64)
         self._offset = np.zeros(6)
         self._grip: FloatArray | None = None
 
@@ -489,6 +495,8 @@ class Simulation:
                     if out is None:
                         return
                     err = float(np.max(np.abs(d.qpos[self._qadr] - qr[k] - self._delta)))
+                    speed = float(np.max(np.abs(d.qvel[self._vadr]) / self._speed))
+                    out.joint_speed = max(out.joint_speed, speed)
                     out.tracking_error_deg = max(out.tracking_error_deg, float(np.rad2deg(err)))
                     if tool is not None:
                         e = float(np.linalg.norm(d.xpos[self._tool] - tool[k]) * 1e3)
