@@ -166,6 +166,71 @@ def test_a_failed_write_removes_the_folders_made_for_it(tmp_path: Path) -> None:
     assert target.read_bytes() == b"whole"
 
 
+def test_a_signal_while_the_temporary_is_removed_waits_until_it_is_gone(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """SIGTERM in the middle of the clean-up: the clean-up ends, then the command stops."""
+    import shutil
+
+    from thirdhand import cli, fileops
+    from thirdhand.errors import Terminated
+
+    real_rmtree = shutil.rmtree
+    seen: list[bool] = []
+
+    def rmtree_hit_by_a_signal(path, ignore_errors=False):  # type: ignore[no-untyped-def]
+        os.kill(os.getpid(), signal.SIGTERM)  # the handler runs now: it must not raise
+        seen.append(True)
+        real_rmtree(path, ignore_errors=ignore_errors)
+
+    previous = signal.signal(signal.SIGTERM, cli._on_sigterm)
+    try:
+        monkeypatch.setattr(fileops.shutil, "rmtree", rmtree_hit_by_a_signal)
+        with pytest.raises(Terminated):
+            with atomic_output(tmp_path / "out.txt") as tmp:
+                tmp.write_text("complete")
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    assert seen == [True]
+    assert (tmp_path / "out.txt").read_text() == "complete"
+    assert [p.name for p in tmp_path.iterdir()] == ["out.txt"]  # no temporary left
+
+
+def test_a_write_cut_short_before_its_clean_up_is_removed_on_exit(tmp_path: Path) -> None:
+    from thirdhand.fileops import remove_leftovers
+
+    writing = atomic_output(tmp_path / "new" / "out.txt")
+    tmp = writing.__enter__()  # a signal then ends the process before the write's clean-up
+    tmp.write_text("half")
+    assert (tmp_path / "new").exists()
+    remove_leftovers()
+    assert list(tmp_path.iterdir()) == []  # its temporary folder and the folder made for it
+    remove_leftovers()  # nothing left to do
+
+
+def test_signals_deferred_raises_after_the_block_and_only_then() -> None:
+    from thirdhand import cli
+    from thirdhand.errors import Terminated
+    from thirdhand.fileops import signals_deferred
+
+    previous = signal.signal(signal.SIGINT, cli._on_sigint)
+    steps = []
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with signals_deferred():
+                with signals_deferred():  # nested: the outermost block decides
+                    os.kill(os.getpid(), signal.SIGINT)
+                    steps.append("inner done")
+                steps.append("outer done")
+        with pytest.raises(KeyboardInterrupt):  # outside a block: at once
+            os.kill(os.getpid(), signal.SIGINT)
+            steps.append("not reached")
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    assert steps == ["inner done", "outer done"]
+    assert not issubclass(Terminated, Exception)  # ``except Exception`` does not swallow it
+
+
 def test_temporary_names_are_unique_per_writer(tmp_path: Path) -> None:
     target = tmp_path / "task.json"
     with atomic_output(target) as a, atomic_output(target) as b:

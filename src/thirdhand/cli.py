@@ -711,7 +711,17 @@ if signal.getsignal(signal.SIGTERM) is _interrupted_at_start_up:
 
 
 def _on_sigterm(signum: int, frame: object) -> None:
-    raise Terminated
+    from thirdhand.fileops import defer_signal
+
+    if not defer_signal(signum):
+        raise Terminated
+
+
+def _on_sigint(signum: int, frame: object) -> None:
+    from thirdhand.fileops import defer_signal
+
+    if not defer_signal(signum):
+        raise KeyboardInterrupt
 
 
 def _one_line(exc: BaseException | str) -> str:
@@ -745,12 +755,12 @@ def main(argv: list[str] | None = None) -> int:
     exit status 130 or 143, temporary files removed and servers stopped by the
     ``finally`` blocks on the way out.
     """
-    from thirdhand.fileops import forget_checked_outputs
+    from thirdhand.fileops import forget_checked_outputs, remove_leftovers, signals_deferred
 
     forget_checked_outputs()
     previous: dict[signal.Signals, Any] = {}
     for sig, handler in (
-        (signal.SIGINT, signal.default_int_handler),
+        (signal.SIGINT, _on_sigint),
         (signal.SIGTERM, _on_sigterm),
     ):
         try:
@@ -777,6 +787,11 @@ def main(argv: list[str] | None = None) -> int:
             raise
         return _usage_error(exc)
     finally:
+        try:
+            with signals_deferred():  # a second signal waits until the clean-up is done
+                remove_leftovers()
+        except (KeyboardInterrupt, Terminated):
+            pass  # the command is ending already
         done_when_interrupted = interrupted_message("interrupted")
         forget_checked_outputs()
         for signum, old in previous.items():

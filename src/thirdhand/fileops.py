@@ -560,21 +560,21 @@ def atomic_output(
     _NEW_OUTPUTS.discard(_key(p))
     folder = p.parent if str(p.parent) else Path(".")
     created = _missing_folders(folder)
-    # Ctrl-C or SIGTERM between making the temporary folder and the ``try`` that removes
-    # it would leave it behind: the signals wait until that ``try`` is entered.
-    held = _hold_signals()
+    # Ctrl-C or SIGTERM while the temporary folder is made, while it replaces the
+    # target or while it is removed would leave a half-done step behind: the
+    # signal waits until the step is over (signals_deferred).
+    with signals_deferred():
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            tmp_dir = Path(tempfile.mkdtemp(dir=folder, prefix=f".{p.name}.", suffix=".tmp"))
+        except OSError as exc:
+            _remove_empty(created)
+            raise OutputError(_message(p, exc)) from None
+        _UNDER_WAY[tmp_dir] = created
+        built = tmp_dir / p.name
+        done = False
+        _OPEN[0] += 1
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        tmp_dir = Path(tempfile.mkdtemp(dir=folder, prefix=f".{p.name}.", suffix=".tmp"))
-    except OSError as exc:
-        _release_signals(held)
-        _remove_empty(created)
-        raise OutputError(_message(p, exc)) from None
-    built = tmp_dir / p.name
-    done = False
-    _OPEN[0] += 1
-    try:
-        _release_signals(held)
         try:
             yield built
             if not os.path.lexists(built):
@@ -582,37 +582,84 @@ def atomic_output(
             _fsync_tree(built)
             if verify is not None:
                 verify(built)
-            _replace(built, p, backup=backup, exclusive=exclusive)
-            done = True
-            if _OPEN[0] == 1:
-                _COMPLETED.append(os.fspath(p))
+            with signals_deferred():
+                _replace(built, p, backup=backup, exclusive=exclusive)
+                done = True
+                if _OPEN[0] == 1:
+                    _COMPLETED.append(os.fspath(p))
         except OutputError:
             raise
         except OSError as exc:
             raise OutputError(_message(p, exc)) from None
     finally:
-        _OPEN[0] -= 1
+        with signals_deferred():
+            _OPEN[0] -= 1
+            shutil.rmtree(tmp_dir, ignore_errors=True)
+            if not done:  # a failed write leaves no trace, not even the folders made for it
+                _remove_empty(created)
+            _UNDER_WAY.pop(tmp_dir, None)
+
+
+#: The temporary folder of every write under way, with the folders made for it.
+_UNDER_WAY: dict[Path, list[Path]] = {}
+
+
+def remove_leftovers() -> None:
+    """Remove what writes cut short by a signal left behind (the CLI calls it on exit).
+
+    A signal that comes in the few instructions between a write's last step and its
+    clean-up (where :func:`signals_deferred` cannot be entered in time) would leave
+    the temporary folder: the command removes it on its way out.
+    """
+    for tmp_dir, created in list(_UNDER_WAY.items()):
         shutil.rmtree(tmp_dir, ignore_errors=True)
-        if not done:  # a failed write leaves no trace, not even the folders made for it
-            _remove_empty(created)
+        _remove_empty(created)
+        _UNDER_WAY.pop(tmp_dir, None)
 
 
-#: The signals whose Python handlers end a write (Ctrl-C, ``kill``).
-_HELD_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: Signals that came while :func:`signals_deferred` was in force, and its depth.
+_DEFERRED: list[int] = []
+_DEFER_DEPTH = [0]
 
 
-def _hold_signals() -> set[int | signal.Signals] | None:
-    """Block Ctrl-C and SIGTERM in this thread (POSIX); the mask to restore, else None."""
-    if not hasattr(signal, "pthread_sigmask"):  # pragma: no cover - Windows
-        return None
-    return signal.pthread_sigmask(signal.SIG_BLOCK, _HELD_SIGNALS)
+def defer_signal(signum: int) -> bool:
+    """Called by a signal handler first: True when the signal must wait (it is kept).
+
+    Inside :func:`signals_deferred` the handler returns at once and the signal's
+    exception is raised when the outermost deferral ends.
+    """
+    if _DEFER_DEPTH[0] > 0:
+        _DEFERRED.append(signum)
+        return True
+    return False
 
 
-def _release_signals(held: set[int | signal.Signals] | None) -> None:
-    """Restore the mask :func:`_hold_signals` replaced: a signal that came meanwhile is
-    handled now."""
-    if held is not None:
-        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+@contextlib.contextmanager
+def signals_deferred() -> Iterator[None]:
+    """Make Ctrl-C and SIGTERM wait until the block is over, then raise as they would.
+
+    The CLI's handlers (:func:`thirdhand.cli.main`) ask :func:`defer_signal` first.
+    Unlike a signal mask this holds whichever thread the operating system gave the
+    signal to (Python runs every handler in the main thread).
+
+    Raises
+    ------
+    KeyboardInterrupt, Terminated
+        After the block, for a Ctrl-C or SIGTERM that came during it.
+    """
+    _DEFER_DEPTH[0] += 1
+    try:
+        yield
+    finally:
+        _DEFER_DEPTH[0] -= 1
+    if _DEFER_DEPTH[0] == 0 and _DEFERRED:
+        came = _DEFERRED[:]
+        _DEFERRED.clear()
+        if signal.SIGTERM in came:
+            from thirdhand.errors import Terminated
+
+            raise Terminated
+        raise KeyboardInterrupt
 
 
 def _missing_folders(folder: Path) -> list[Path]:
