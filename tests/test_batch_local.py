@@ -70,9 +70,9 @@ def test_a_signal_stops_the_parent_and_its_workers(signum: int) -> None:
         """
         import signal, sys, time
         from thirdhand.batch import parallel_map
-        from thirdhand.cli import Terminated, _on_sigterm
+        from thirdhand.cli import Terminated, _on_signal
 
-        signal.signal(signal.SIGTERM, _on_sigterm)
+        signal.signal(signal.SIGTERM, _on_signal)
         signal.signal(signal.SIGINT, signal.default_int_handler)
 
         def slow(x):

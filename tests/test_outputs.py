@@ -183,7 +183,7 @@ def test_a_signal_while_the_temporary_is_removed_waits_until_it_is_gone(
         seen.append(True)
         real_rmtree(path, ignore_errors=ignore_errors)
 
-    previous = signal.signal(signal.SIGTERM, cli._on_sigterm)
+    previous = signal.signal(signal.SIGTERM, cli._on_signal)
     try:
         monkeypatch.setattr(fileops.shutil, "rmtree", rmtree_hit_by_a_signal)
         with pytest.raises(Terminated):
@@ -213,7 +213,7 @@ def test_signals_deferred_raises_after_the_block_and_only_then() -> None:
     from thirdhand.errors import Terminated
     from thirdhand.fileops import signals_deferred
 
-    previous = signal.signal(signal.SIGINT, cli._on_sigint)
+    previous = signal.signal(signal.SIGINT, cli._on_signal)
     steps = []
     try:
         with pytest.raises(KeyboardInterrupt):

@@ -710,18 +710,12 @@ if signal.getsignal(signal.SIGTERM) is _interrupted_at_start_up:
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
-def _on_sigterm(signum: int, frame: object) -> None:
-    from thirdhand.fileops import defer_signal
+def _on_signal(signum: int, frame: object) -> None:
+    """Ctrl-C or SIGTERM: KeyboardInterrupt or Terminated, once a write's step is over."""
+    from thirdhand.fileops import defer_signal, signal_exception
 
     if not defer_signal(signum):
-        raise Terminated
-
-
-def _on_sigint(signum: int, frame: object) -> None:
-    from thirdhand.fileops import defer_signal
-
-    if not defer_signal(signum):
-        raise KeyboardInterrupt
+        raise signal_exception(signum)
 
 
 def _one_line(exc: BaseException | str) -> str:
@@ -760,8 +754,8 @@ def main(argv: list[str] | None = None) -> int:
     forget_checked_outputs()
     previous: dict[signal.Signals, Any] = {}
     for sig, handler in (
-        (signal.SIGINT, _on_sigint),
-        (signal.SIGTERM, _on_sigterm),
+        (signal.SIGINT, _on_signal),
+        (signal.SIGTERM, _on_signal),
     ):
         try:
             previous[sig] = signal.signal(sig, handler)

@@ -655,11 +655,14 @@ def signals_deferred() -> Iterator[None]:
     if _DEFER_DEPTH[0] == 0 and _DEFERRED:
         came = _DEFERRED[:]
         _DEFERRED.clear()
-        if signal.SIGTERM in came:
-            from thirdhand.errors import Terminated
+        raise signal_exception(signal.SIGTERM if signal.SIGTERM in came else signal.SIGINT)
 
-            raise Terminated
-        raise KeyboardInterrupt
+
+def signal_exception(signum: int) -> BaseException:
+    """What a signal ends a command with: Terminated for SIGTERM, else KeyboardInterrupt."""
+    from thirdhand.errors import Terminated
+
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
 
 
 def _missing_folders(folder: Path) -> list[Path]:

@@ -46,7 +46,7 @@ from thirdhand.execute.layout import (
 from thirdhand.execute.robot import Robot
 from thirdhand.execute.scene import GRIPPER, CollisionScene
 from thirdhand.execute.step_plan import ExecutionOptions, RegraspReport, Segment, StepPlan
-from thirdhand.execute.step_search import candidate_grasps, first_valid_ik
+from thirdhand.execute.step_search import first_valid_ik, world_grasps
 from thirdhand.execute.world import SimWorld
 from thirdhand.task.constraint import Constraint
 from thirdhand.task.model import TaskFile
@@ -282,9 +282,9 @@ def plan_regrasp(
     ik_seed = seed * 7919 + 9000
     spot_grasps = []
     for pose, _ in spots:
-        gs = candidate_grasps(
-            task, constraint, hints, pose, options.max_grasps, fit=options.fit_grasps_to_fingers,
-            triangles=world.triangles(part), plate_grasps=_plate_grasps(world, part, options),
+        gs = world_grasps(
+            world, task, constraint, hints, pose, options.max_grasps,
+            fit=options.fit_grasps_to_fingers,
         )  # fmt: skip
         new = [g for g in gs if _key(g) not in place_at]
         hit = place_reach(robot, scene, new, goals, q_start, seed=ik_seed)
@@ -332,10 +332,9 @@ def plan_regrasp(
             # goals they reach first, most reached first
             first = spot_grasps[j]
             keys = {_key(g) for g in first}
-            rest = candidate_grasps(
-                task, constraint, hints, spots[j][0], options.max_grasps,
-                fit=options.fit_grasps_to_fingers, triangles=world.triangles(part),
-                plate_grasps=_plate_grasps(world, part, options),
+            rest = world_grasps(
+                world, task, constraint, hints, spots[j][0], options.max_grasps,
+                fit=options.fit_grasps_to_fingers,
             )  # fmt: skip
             hits = np.bincount([place_at[k] for k in keys], minlength=len(goals))
             top = [int(k) for k in np.argsort(-hits, kind="stable") if hits[k] > 0]
@@ -378,8 +377,3 @@ def _joined(
         spots=counts,
     )
     return StepPlan(rep, first + again.segments, again.final_pose)
-
-
-def _plate_grasps(world: SimWorld, part: str, options: ExecutionOptions) -> list[grasp_mod.Grasp]:
-    """A wide plate's pinch grasps when planning for physics (``fit_grasps_to_fingers``)."""
-    return world.plate_grasps(part) if options.fit_grasps_to_fingers else []

@@ -184,6 +184,26 @@ def candidate_grasps(
     return (kept + [g for g in ranked if id(g) not in ids])[:max_grasps]
 
 
+def world_grasps(
+    world: SimWorld,
+    task: TaskFile,
+    constraint: Constraint,
+    hints: Mapping[str, Sequence[grasp_mod.Grasp]],
+    part_pose: FloatArray,
+    max_grasps: int,
+    *,
+    fit: bool = False,
+) -> list[grasp_mod.Grasp]:
+    """:func:`candidate_grasps` given the part's mesh from ``world``, and with ``fit``
+    (planning for physics) a wide plate's pinch grasps
+    (:meth:`~thirdhand.execute.world.SimWorld.plate_grasps`)."""
+    part = constraint.child
+    return candidate_grasps(
+        task, constraint, hints, part_pose, max_grasps, fit=fit,
+        triangles=world.triangles(part), plate_grasps=world.plate_grasps(part) if fit else (),
+    )  # fmt: skip
+
+
 def drop_twins(grasps: Sequence[grasp_mod.Grasp]) -> list[grasp_mod.Grasp]:
     """``grasps`` without the later of every pair turned 180° about the approach of each other.
 
@@ -438,10 +458,9 @@ class StepSearch:
             dofs = np.zeros((len(goals), 6))
             axes = goals[:, 2, :3].copy()
         if self.grasps is None:
-            grasps = candidate_grasps(
-                self.task, c, self.hints, part_pose, 10**6, fit=opt.fit_grasps_to_fingers,
-                triangles=self.world.triangles(c.child),
-                plate_grasps=self.world.plate_grasps(c.child) if opt.fit_grasps_to_fingers else (),
+            grasps = world_grasps(
+                self.world, self.task, c, self.hints, part_pose, 10**6,
+                fit=opt.fit_grasps_to_fingers,
             )  # fmt: skip
         else:
             grasps = self.grasps
